@@ -1,0 +1,134 @@
+"""In-memory flight data: named sample columns split into maneuvers (segments).
+
+The numeric core sees a :class:`FlightData`: one float array per column over all
+samples, a strictly increasing time per maneuver and the sample index where each
+maneuver starts. Separation states and residual autocorrelations never cross
+those boundaries.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .errors import DataError
+
+TIME = "t"
+
+
+@dataclass(frozen=True, eq=False)
+class FlightData:
+    """Samples of several maneuvers stacked end to end.
+
+    ``columns`` maps a column name to a float array of length ``n_samples``;
+    ``starts`` holds the first sample index of every maneuver (``starts[0] == 0``).
+    """
+
+    columns: Mapping[str, np.ndarray]
+    starts: np.ndarray
+    names: tuple[str, ...]
+    source: str = "<memory>"
+    constants: Mapping[str, float] = field(default_factory=dict)
+
+    @property
+    def n_samples(self) -> int:
+        return len(self.columns[TIME])
+
+    @property
+    def n_segments(self) -> int:
+        return len(self.starts)
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Segment boundaries ``[s0, s1, ..., n]`` (length ``n_segments + 1``)."""
+        return np.append(self.starts, self.n_samples)
+
+    def segment_slices(self) -> list[slice]:
+        b = self.bounds
+        return [slice(int(b[i]), int(b[i + 1])) for i in range(len(b) - 1)]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self.columns[name]
+        except KeyError:
+            raise DataError(f"required column is missing (have: {', '.join(sorted(self.columns))})",
+                            source=self.source, column=name) from None
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.columns
+
+    def select(self, segment_indices: Sequence[int]) -> "FlightData":
+        """A new FlightData holding only the given maneuvers, in the given order."""
+        slices = self.segment_slices()
+        idx = np.concatenate([np.arange(slices[i].start, slices[i].stop) for i in segment_indices])
+        lengths = [slices[i].stop - slices[i].start for i in segment_indices]
+        starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+        return FlightData({k: v[idx] for k, v in self.columns.items()}, starts,
+                          tuple(self.names[i] for i in segment_indices), self.source,
+                          dict(self.constants))
+
+
+def _check_column(name: str, values: np.ndarray, source: str, offset: int) -> None:
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        raise DataError("value is NaN or infinite", source=source, column=name,
+                        row=int(bad[0]) + offset)
+
+
+def from_segments(segments: Sequence[Mapping[str, np.ndarray]], *, names: Sequence[str] | None = None,
+                  source: str = "<memory>", constants: Mapping[str, float] | None = None,
+                  derive_alpha_dot: bool = True) -> FlightData:
+    """Stack maneuvers (each a mapping column -> array) into one :class:`FlightData`.
+
+    Every maneuver must carry the same columns and a strictly increasing ``t``.
+    ``alpha_dot`` is derived from ``alpha`` per maneuver (second-order accurate,
+    non-uniform steps allowed) when it is absent.
+    """
+    if not segments:
+        raise DataError("no maneuvers given", source=source)
+    names = tuple(names) if names is not None else tuple(f"segment{i}" for i in range(len(segments)))
+    if len(names) != len(segments):
+        raise DataError(f"{len(names)} names for {len(segments)} maneuvers", source=source)
+    keys = set(segments[0])
+    if TIME not in keys:
+        raise DataError("required column is missing", source=f"{source}:{names[0]}", column=TIME)
+    stacked: dict[str, list[np.ndarray]] = {k: [] for k in keys}
+    for name, seg in zip(names, segments):
+        where = f"{source}:{name}" if source != "<memory>" else name
+        if set(seg) != keys:
+            missing = sorted(keys.symmetric_difference(seg))
+            raise DataError("maneuvers carry different columns", source=where, column=missing[0])
+        n = len(seg[TIME])
+        for k in keys:
+            arr = np.asarray(seg[k], dtype=float)
+            if arr.shape != (n,):
+                raise DataError(f"has shape {arr.shape}, expected ({n},)", source=where, column=k)
+            _check_column(k, arr, where, 0)
+            stacked[k].append(arr)
+        t = np.asarray(seg[TIME], dtype=float)
+        if n < 3:
+            raise DataError(f"maneuver has {n} samples; at least 3 are needed", source=where, column=TIME)
+        step = np.diff(t)
+        bad = np.flatnonzero(step <= 0)
+        if bad.size:
+            raise DataError("time is not strictly increasing", source=where, column=TIME,
+                            row=int(bad[0]) + 1)
+    lengths = [len(s[TIME]) for s in segments]
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    columns = {k: np.concatenate(v) for k, v in stacked.items()}
+    if derive_alpha_dot and "alpha_dot" not in columns and "alpha" in columns:
+        columns["alpha_dot"] = np.concatenate([
+            np.gradient(np.asarray(s["alpha"], float), np.asarray(s[TIME], float), edge_order=2)
+            for s in segments])
+    return FlightData(columns, starts, names, source, dict(constants or {}))
+
+
+def single_segment(columns: Mapping[str, np.ndarray], *, source: str = "<memory>",
+                   constants: Mapping[str, float] | None = None) -> FlightData:
+    """One maneuver; adds a sample-index time column when ``t`` is absent."""
+    cols = dict(columns)
+    if TIME not in cols:
+        n = len(next(iter(cols.values())))
+        cols[TIME] = np.arange(n, dtype=float)
+    return from_segments([cols], names=["all"], source=source, constants=constants)

@@ -1,0 +1,46 @@
+"""Exceptions raised by structsearch.
+
+Every error a user can provoke with bad input or a bad declaration derives from
+:class:`StructSearchError` (a :class:`ValueError`), so callers can catch one type
+and the CLI can print one line.
+"""
+from __future__ import annotations
+
+
+class StructSearchError(ValueError):
+    """Base class of every user-facing error."""
+
+
+class DeclarationError(StructSearchError):
+    """A model, regressor or parameter declaration is inconsistent."""
+
+
+class DataError(StructSearchError):
+    """Input data is unusable; names the source, the column and the row."""
+
+    def __init__(self, message: str, *, source: str | None = None,
+                 column: str | None = None, row: int | None = None):
+        self.source = source
+        self.column = column
+        self.row = row
+        where = []
+        if source is not None:
+            where.append(f"file {source}")
+        if column is not None:
+            where.append(f"column {column!r}")
+        if row is not None:
+            where.append(f"row {row}")
+        prefix = (", ".join(where) + ": ") if where else ""
+        super().__init__(prefix + message)
+
+
+class RankDeficiencyError(StructSearchError):
+    """The regression matrix does not have full column rank."""
+
+    def __init__(self, message: str, dependent: tuple[str, ...] = ()):
+        self.dependent = dependent
+        super().__init__(message)
+
+
+class FitError(StructSearchError):
+    """The optimiser could not produce a usable fit."""
