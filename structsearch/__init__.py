@@ -1,8 +1,30 @@
-"""structsearch: model-structure search for aircraft stall aerodynamics."""
-from .errors import DataError, DeclarationError, FitError, RankDeficiencyError, StructSearchError
-from .results import FitResult
-from .separable import SeparableModel
+"""structsearch: model-structure search for aircraft stall aerodynamics.
+
+Attributes are imported on first use, so that ``structsearch.cli`` can set up
+the numeric libraries (one BLAS thread per process) before numpy loads.
+"""
+from importlib import import_module
 
 __version__ = "0.1.0"
-__all__ = ["SeparableModel", "FitResult", "StructSearchError", "DataError", "DeclarationError",
-           "FitError", "RankDeficiencyError", "__version__"]
+
+_EXPORTS = {
+    "SeparableModel": "separable",
+    "StallModel": "stallmodel",
+    "FitResult": "results",
+    "fit_report": "report",
+    "FlightData": "data",
+    "StructSearchError": "errors",
+    "DataError": "errors",
+    "DeclarationError": "errors",
+    "FitError": "errors",
+    "RankDeficiencyError": "errors",
+}
+__all__ = sorted(_EXPORTS) + ["__version__"]
+
+
+def __getattr__(name):
+    if name in _EXPORTS:
+        value = getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'structsearch' has no attribute {name!r}")

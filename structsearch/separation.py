@@ -15,6 +15,7 @@ propagated through the same recursion, which is linear in the state.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.signal import lfilter
@@ -126,6 +127,52 @@ def linear_recurrence(a: np.ndarray, f: np.ndarray, y0) -> np.ndarray:
     return y
 
 
+def _common_step(t: np.ndarray, bounds: np.ndarray) -> float | None:
+    """The sample step if every maneuver has the same uniform step, else None."""
+    dt = np.diff(t)
+    inside = np.ones(len(dt), bool)
+    inside[bounds[1:-1] - 1] = False  # steps across maneuver boundaries do not count
+    steps = dt[inside]
+    if steps.size == 0 or not _is_uniform(steps):
+        return None
+    return float(steps[0])
+
+
+@lru_cache(maxsize=64)
+def _segment_index(bounds_bytes: bytes, n: int):
+    """For every sample: the index of its maneuver's first sample, and its offset from it."""
+    bounds = np.frombuffer(bounds_bytes, dtype=np.int64)
+    first = np.repeat(bounds[:-1], np.diff(bounds))
+    offset = (np.arange(n) - first).astype(float)
+    first.flags.writeable = False
+    offset.flags.writeable = False
+    return first, offset
+
+
+def _lag_common_step(t, u, du, tau1, bounds, step):
+    """All maneuvers on one uniform grid: filter the whole record at once, then correct.
+
+    Filtering across a boundary only changes the state at the maneuver's first
+    sample; by linearity the difference then decays as a^(k-s), so subtracting
+    a^(k-s) (X'_s - u_s) restores X_s = u_s exactly. The same holds for the
+    sensitivities.
+    """
+    a, b0, b1, da, db0, db1 = (float(v[0]) for v in _lag_coefficients(np.array([step]), tau1))
+    starts = bounds[:-1]
+    first, offset = _segment_index(bounds.tobytes(), len(u))
+    decay = np.exp(offset * (-step / tau1))
+    x = lfilter([b1, b0], [1.0, -a], u)
+    x -= decay * (x[first] - u[first])
+    dx = lfilter([b1, b0], [1.0, -a], du, axis=0)
+    dx -= decay[:, None] * (dx[first] - du[first])
+    forcing = np.empty_like(u)
+    forcing[1:] = da * x[:-1] + db0 * u[:-1] + db1 * u[1:]
+    forcing[starts] = 0.0
+    dtau = lfilter([1.0], [1.0, -a], forcing)
+    dtau -= decay * dtau[first]
+    return x, dx, dtau
+
+
 def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
                     bounds: np.ndarray):
     """tau1 dX/dt + X = u on every maneuver, each starting at X = u(t0).
@@ -133,6 +180,10 @@ def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
     ``du`` (n, p) holds du/dtheta for the parameters inside u; returns ``X`` (n,),
     ``dX`` (n, p) = dX/dtheta and ``dX_dtau1`` (n,).
     """
+    bounds = np.asarray(bounds, dtype=np.int64)
+    step = _common_step(t, bounds)
+    if step is not None:
+        return _lag_common_step(t, u, du, tau1, bounds, step)
     x_out = np.empty_like(u)
     dx_out = np.empty_like(du)
     dtau_out = np.empty_like(u)
@@ -176,17 +227,16 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
     effective_alpha = alpha - tau2 * alpha_dot if state.kind != "S" else alpha
     x0 = static_separation(effective_alpha, a1, a_star)
     slope = -2.0 * x0 * (1.0 - x0)  # dX0 / d(a1 (alpha_eff - a_star))
-    columns = {
-        "a1": slope * (effective_alpha - a_star),
-        "a_star": slope * (-a1),
-    }
+    inner = ("tau2", "a1", "a_star") if state.kind != "S" else ("a1", "a_star")
+    du = np.empty((len(alpha), len(inner)), order="F")
+    du[:, inner.index("a1")] = slope * (effective_alpha - a_star)
+    du[:, inner.index("a_star")] = slope * (-a1)
     if state.kind != "S":
-        columns["tau2"] = slope * (-a1 * alpha_dot)
+        du[:, 0] = slope * (-a1 * alpha_dot)
     if state.kind != "U":
-        return x0, np.column_stack([columns[p] for p in state.base_parameters])
-    inner = ("tau2", "a1", "a_star")
-    du = np.column_stack([columns[p] for p in inner])
+        return x0, du  # S and Q: columns already in state.base_parameters order
     x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds)
-    by_name = dict(zip(inner, dx.T))
-    by_name["tau1"] = dtau1
-    return x, np.column_stack([by_name[p] for p in state.base_parameters])
+    out = np.empty((len(alpha), 4), order="F")
+    out[:, 0] = dtau1
+    out[:, 1:] = dx  # U order: tau1, tau2, a1, a_star
+    return x, out

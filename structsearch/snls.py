@@ -74,7 +74,7 @@ def project(phi: np.ndarray, y: np.ndarray, rtol: float | None = None) -> Projec
     diag = np.abs(np.diag(r))
     tol = (rtol if rtol is not None else max(m, n) * np.finfo(float).eps) * (diag[0] if diag[0] > 0 else 1.0)
     rank = int(np.sum(diag > tol)) if diag[0] > 0 else 0
-    q, r = q[:, :rank], r[:rank, :rank]
+    q, r = np.ascontiguousarray(q[:, :rank]), r[:rank, :rank]
     qty = q.T @ y
     coef = np.zeros(n)
     coef[perm[:rank]] = solve_triangular(r, qty, check_finite=False)
@@ -82,30 +82,30 @@ def project(phi: np.ndarray, y: np.ndarray, rtol: float | None = None) -> Projec
     return Projection(q, r, perm[:rank], np.sort(perm[rank:]), coef, residual)
 
 
+def _dphi_times_coef(ev: Evaluation, coef: np.ndarray, k: int) -> np.ndarray:
+    """DPhi c (m x k): column j is sum_i dPhi_i/dtheta_j c_i, as one matrix product."""
+    select = np.zeros((len(ev.rows), k))
+    select[np.arange(len(ev.rows)), ev.params] = coef[ev.rows]
+    return ev.dphi @ select
+
+
 def residual_jacobian(ev: Evaluation, proj: Projection, k: int) -> np.ndarray:
-    """Golub-Pereyra Jacobian d r / d theta (m x k) of the projected residual, Eq. 18."""
-    m = ev.phi.shape[0]
-    # DPhi c: one column per nonlinear parameter
-    dphi_c = np.zeros((m, k))
-    weighted = ev.dphi * proj.coef[ev.rows]
-    for j in np.unique(ev.params):
-        dphi_c[:, j] = weighted[:, ev.params == j].sum(axis=1)
-    j1 = dphi_c - proj.q @ (proj.q.T @ dphi_c)
+    """Golub-Pereyra Jacobian d r / d theta (m x k) of the projected residual, Eq. 18.
+
+    Dr = -(I - Q Q^T) DPhi c - Q R^-T P^T (DPhi)^T r, with the two Q-products merged.
+    """
+    dphi_c = _dphi_times_coef(ev, proj.coef, k)
     # (DPhi)^T r, arranged as (n, k), restricted to the independent columns
     w = np.zeros((ev.phi.shape[1], k))
     np.add.at(w, (ev.rows, ev.params), ev.dphi.T @ proj.residual)
-    j2 = proj.q @ solve_triangular(proj.r, w[proj.columns], trans="T", check_finite=False)
-    return -j1 - j2
+    small = proj.q.T @ dphi_c - solve_triangular(proj.r, w[proj.columns], trans="T", check_finite=False)
+    dphi_c -= proj.q @ small
+    return np.negative(dphi_c, out=dphi_c)
 
 
 def model_jacobian(ev: Evaluation, coef: np.ndarray, k: int) -> np.ndarray:
     """Jacobian of the model Phi(theta) c w.r.t. (theta, c) with c held fixed: [DPhi c, Phi]."""
-    m = ev.phi.shape[0]
-    dphi_c = np.zeros((m, k))
-    weighted = ev.dphi * coef[ev.rows]
-    for j in np.unique(ev.params):
-        dphi_c[:, j] = weighted[:, ev.params == j].sum(axis=1)
-    return np.hstack([dphi_c, ev.phi])
+    return np.hstack([_dphi_times_coef(ev, coef, k), ev.phi])
 
 
 def check_full_rank(proj: Projection, names: Sequence[str], where: str) -> None:
@@ -123,7 +123,14 @@ DEFAULT_MAX_NFEV = 1000
 
 
 class _Objective:
-    """Residual and Jacobian of the reduced problem, sharing one evaluation per theta."""
+    """Residual and Jacobian of the reduced problem, sharing one evaluation per theta.
+
+    The optimiser is handed the problem in compressed form: with J = Q_J R_J
+    (thin QR, m x k), the residual r becomes [Q_J^T r, |r - Q_J Q_J^T r|] and the
+    Jacobian [R_J; 0]. Norm, gradient J^T r and Gauss-Newton matrix J^T J are
+    unchanged, so every trust-region step is the same, but the solver's own
+    linear algebra works on k + 1 rows instead of m.
+    """
 
     def __init__(self, problem: SeparableProblem, y: np.ndarray):
         self.problem, self.y = problem, y
@@ -137,24 +144,34 @@ class _Objective:
             with np.errstate(all="ignore"):
                 ev = self.problem.evaluate(theta)
             if np.all(np.isfinite(ev.phi)) and np.all(np.isfinite(ev.dphi)):
-                self._cached = (ev, project(ev.phi, self.y))
+                proj = project(ev.phi, self.y)
+                jac = residual_jacobian(ev, proj, self.k)
+                if np.all(np.isfinite(jac)):
+                    q_j, r_j = qr(np.asfortranarray(jac), mode="economic", overwrite_a=True,
+                                  check_finite=False)
+                    head = q_j.T @ proj.residual
+                    rest = max(float(proj.residual @ proj.residual - head @ head), 0.0)
+                    self._cached = (ev, proj, np.append(head, np.sqrt(rest)),
+                                    np.vstack([r_j, np.zeros((1, self.k))]))
+                else:
+                    self._cached = (ev, None, None, None)
             else:
-                # the trust-region solver shrinks its step when it meets a non-finite residual
-                self._cached = (ev, None)
+                self._cached = (ev, None, None, None)
             self._theta = np.array(theta, copy=True)
             self.evaluations += 1
         return self._cached
 
     def residual(self, theta):
-        proj = self._at(theta)[1]
-        return np.full(len(self.y), np.inf) if proj is None else proj.residual
+        compressed = self._at(theta)[2]
+        # the trust-region solver shrinks its step when it meets a non-finite residual
+        return np.full(self.k + 1, np.inf) if compressed is None else compressed
 
     def jacobian(self, theta):
-        ev, proj = self._at(theta)
+        ev, proj, _, compressed_jac = self._at(theta)
         if proj is None:
-            raise FitError("the regression matrix contains NaN or infinity at theta = "
+            raise FitError("the regression matrix or its derivative is not finite at theta = "
                            + _fmt(self.problem.nonlinear_names, theta))
-        return residual_jacobian(ev, proj, self.k)
+        return compressed_jac
 
 
 def _fmt(names, values) -> str:
@@ -202,7 +219,7 @@ def solve(problem: SeparableProblem, y: np.ndarray, start, lower, upper, *,
     sol = least_squares(objective.residual, x0, jac=objective.jacobian, bounds=(lower, upper),
                         method="trf", x_scale=span, ftol=tol, xtol=tol, gtol=tol,
                         max_nfev=max_nfev if max_nfev is not None else DEFAULT_MAX_NFEV)
-    _, proj = objective._at(sol.x)
+    proj = objective._at(sol.x)[1]
     if proj is None:
         raise FitError("the solver stopped where the regression matrix is not finite: theta = "
                        + _fmt(problem.nonlinear_names, sol.x))
