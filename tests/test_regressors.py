@@ -1,0 +1,82 @@
+"""Symbolic regressors: every building block's derivative against finite differences; declaration checks."""
+import numpy as np
+import pytest
+
+from structsearch.data import single_segment
+from structsearch.errors import DataError, DeclarationError
+from structsearch.regressors import declare
+from structsearch.stallmodel import StallModel
+
+BLOCKS = {
+    "K_L": "K_L(X_ss)",
+    "K_D": "K_D(X_ss)",
+    "one_minus_X": "1 - X_ss",
+    "K1": "(1 - X_ss)*CL",
+    "K2_half": "K2(X_ss, 1/2)",
+    "K2_one": "K2(X_ss, 1)",
+    "K2_two": "K2(X_ss, 2)",
+    "KS": "KS(X_ss)",
+    "X_de": "X_ss*de",
+    "max_half_de": "max_half(X_ss)*de",
+    "two_states": "K_L(X_ss)*X_w",
+}
+
+
+@pytest.fixture(scope="module")
+def columns():
+    rng = np.random.default_rng(7)
+    n = 50
+    return single_segment({"alpha": rng.uniform(0.0, 0.35, n), "CL": rng.uniform(0.2, 1.4, n),
+                           "de": rng.uniform(-0.2, 0.05, n), "q": rng.uniform(-0.1, 0.1, n),
+                           "V": rng.uniform(50, 100, n)}, constants={"cbar": 2.013})
+
+
+@pytest.mark.parametrize("name", sorted(BLOCKS))
+def test_block_derivatives_match_finite_differences(name, columns):
+    reg = declare(name, BLOCKS[name], states=["X_ss", "X_w"])
+    rng = np.random.default_rng(8)
+    n = columns.n_samples
+    # stay away from the kink of max(1/2, X)
+    xs = {"X_ss": rng.uniform(0.05, 0.95, n), "X_w": rng.uniform(0.05, 0.95, n)}
+    xs["X_ss"][np.abs(xs["X_ss"] - 0.5) < 0.01] = 0.6
+    for state in reg.states:
+        h = 1e-6
+        up = dict(xs, **{state: xs[state] + h})
+        down = dict(xs, **{state: xs[state] - h})
+        numeric = (reg.value(columns, up, n) - reg.value(columns, down, n)) / (2 * h)
+        analytic = reg.derivative(state, columns, xs, n)
+        assert np.allclose(analytic, numeric, rtol=1e-6, atol=1e-8), state
+
+
+def test_named_expressions(columns):
+    n = columns.n_samples
+    qstar = declare("q", "qstar", states=[]).value(columns, {}, n)
+    assert np.allclose(qstar, columns["q"] * 2.013 / columns["V"])
+    spline = declare("s", "spline", states=[]).value(columns, {}, n)
+    assert np.allclose(spline, np.maximum(columns["alpha"] - np.deg2rad(6), 0) ** 2)
+    kl = declare("k", "K_L(X)", states=["X"]).value(columns, {"X": np.full(n, 0.25)}, n)
+    assert np.allclose(kl, ((1 + 0.5) / 2) ** 2 * columns["alpha"])
+
+
+def test_unknown_symbol_is_named():
+    with pytest.raises(DeclarationError, match="unknown symbol 'X_foo'"):
+        declare("bad", "K_L(X_foo)", states=["X_ss"])
+
+
+def test_missing_constant_is_a_data_error(columns):
+    data = single_segment({"q": np.ones(3), "V": np.ones(3)})
+    with pytest.raises(DataError, match="cbar"):
+        declare("q", "qstar", states=[]).value(data, {}, 3)
+
+
+def test_model_declaration_checks():
+    with pytest.raises(DeclarationError, match="X_w.*no regressor uses it"):
+        StallModel.declare("m", "CL", states={"ss": "U", "w": "S"}, regressors={"c": "1", "k": "K_L(X_ss)"})
+    with pytest.raises(DeclarationError, match="'tau9'"):
+        StallModel.declare("m", "CL", states={"ss": "U"}, regressors={"k": "K_L(X_ss)"}, start={"tau9": 1})
+    with pytest.raises(DeclarationError, match="own regressors"):
+        StallModel.declare("m", "CL", regressors={"k": "CL*alpha"})
+    with pytest.raises(DeclarationError, match="cannot parse"):
+        StallModel.declare("m", "CL", regressors={"k": "alpha +* 2"})
+    with pytest.raises(DeclarationError, match="not increasing"):
+        StallModel.declare("m", "CL", states={"": "S"}, regressors={"k": "K_L(X)"}, bounds={"a1": (5, 1)})

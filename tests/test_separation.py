@@ -1,0 +1,127 @@
+"""Separation states: exact lag discretisation, per-maneuver initial conditions, sensitivities."""
+import numpy as np
+import pytest
+
+from structsearch import separation as sep
+from structsearch.separation import SeparationState, evaluate_state, first_order_lag, linear_recurrence
+
+from conftest import central_difference
+
+
+def reference_lag(t, u, tau):
+    """Straight loop over samples of the first-order-hold recursion."""
+    x = np.empty_like(u)
+    x[0] = u[0]
+    for k in range(1, len(u)):
+        h = t[k] - t[k - 1]
+        a = np.exp(-h / tau)
+        g = tau * (1 - a) / h
+        x[k] = a * x[k - 1] + (g - a) * u[k - 1] + (1 - g) * u[k]
+    return x
+
+
+def test_lag_is_exact_for_piecewise_linear_input():
+    # tau x' + x = u with u = c t has the closed form x = c (t - tau) + (x0 - c(0 - tau)) e^{-t/tau}
+    tau, c = 0.37, 2.0
+    t = np.cumsum(np.r_[0.0, np.random.default_rng(1).uniform(0.005, 0.02, 999)])
+    u = c * t
+    x, _, _ = first_order_lag(t, u, u[:, None].copy(), tau, np.array([0, len(t)]))
+    exact = c * (t - tau) + (0.0 + c * tau) * np.exp(-t / tau)
+    assert np.max(np.abs(x - exact)) < 1e-12
+
+
+@pytest.mark.parametrize("uniform", [True, False])
+def test_lag_matches_reference_loop_per_maneuver(uniform):
+    rng = np.random.default_rng(2)
+    lengths = [700, 1300, 400]
+    ts = []
+    for n in lengths:
+        steps = np.full(n - 1, 0.01) if uniform else rng.uniform(0.004, 0.016, n - 1)
+        ts.append(np.r_[0.0, np.cumsum(steps)])
+    t = np.concatenate(ts)
+    u = np.sin(3 * t) + 0.2 * rng.standard_normal(len(t))
+    bounds = np.r_[0, np.cumsum(lengths)]
+    x, _, _ = first_order_lag(t, u, u[:, None].copy(), 0.3, bounds)
+    expect = np.concatenate([reference_lag(t[s:e], u[s:e], 0.3) for s, e in zip(bounds[:-1], bounds[1:])])
+    assert np.max(np.abs(x - expect)) < 1e-12
+    # every maneuver starts in equilibrium with its first input
+    assert np.allclose(x[bounds[:-1]], u[bounds[:-1]])
+
+
+def test_one_pass_filter_equals_per_maneuver_filter(monkeypatch):
+    rng = np.random.default_rng(3)
+    t = np.concatenate([np.arange(500) * 0.01, np.arange(800) * 0.01 + 3.0])
+    u = rng.uniform(0, 1, len(t))
+    du = rng.standard_normal((len(t), 3))
+    bounds = np.array([0, 500, 1300])
+    fast = first_order_lag(t, u, du, 0.25, bounds)
+    monkeypatch.setattr(sep, "_common_step", lambda *a: None)
+    slow = first_order_lag(t, u, du, 0.25, bounds)
+    for a, b in zip(fast, slow):
+        assert np.max(np.abs(a - b)) < 1e-12
+
+
+def test_maneuvers_do_not_leak_into_each_other():
+    t = np.concatenate([np.arange(300) * 0.01, np.arange(300) * 0.01])
+    u = np.concatenate([np.zeros(300), np.ones(300)])
+    bounds = np.array([0, 300, 600])
+    x, _, _ = first_order_lag(t, u, u[:, None].copy(), 0.5, bounds)
+    assert np.max(np.abs(x[300:] - 1.0)) < 1e-14
+    u2 = u.copy()
+    u2[:300] = 0.9
+    x2, _, _ = first_order_lag(t, u2, u2[:, None].copy(), 0.5, bounds)
+    assert np.max(np.abs(x[300:] - x2[300:])) < 1e-14
+
+
+def test_linear_recurrence_long_and_stiff():
+    # decay far beyond what one cumulative product could represent
+    rng = np.random.default_rng(4)
+    n = 20000
+    a = np.exp(-rng.uniform(0.5, 2.0, n))
+    f = rng.standard_normal(n)
+    y = linear_recurrence(a, f, 0.3)
+    ref = np.empty(n)
+    ref[0] = 0.3
+    for k in range(1, n):
+        ref[k] = a[k] * ref[k - 1] + f[k]
+    assert np.all(np.isfinite(y))
+    assert np.max(np.abs(y - ref)) < 1e-12
+
+
+def test_static_separation_limits():
+    a = np.array([-1.0, 0.2, 3.0])
+    x = sep.static_separation(a, 70.0, 0.2)
+    assert x[0] == pytest.approx(1.0) and x[1] == pytest.approx(0.5) and 0 < x[2] < 1e-100
+
+
+@pytest.mark.parametrize("kind", ["S", "Q", "U"])
+@pytest.mark.parametrize("uniform", [True, False])
+def test_state_sensitivities_match_finite_differences(kind, uniform):
+    rng = np.random.default_rng(5)
+    n = 600
+    steps = np.full(n - 1, 0.01) if uniform else rng.uniform(0.006, 0.014, n - 1)
+    t = np.r_[0.0, np.cumsum(steps)]
+    t = np.concatenate([t, t])
+    alpha = np.concatenate([0.2 + 0.08 * np.sin(2.1 * t[:n]), 0.18 + 0.1 * np.sin(1.3 * t[n:] + 0.4)])
+    alpha_dot = np.gradient(alpha, t)
+    alpha_dot[n:] = np.gradient(alpha[n:], t[n:])
+    bounds = np.array([0, n, 2 * n])
+    state = SeparationState("ss", kind)
+    truth = {"tau1": 0.41, "tau2": 0.33, "a1": 40.0, "a_star": 0.21}
+    theta = np.array([truth[p] for p in state.base_parameters])
+
+    def value(th):
+        return evaluate_state(state, dict(zip(state.base_parameters, th)), alpha, alpha_dot, t, bounds)[0]
+
+    _, analytic = evaluate_state(state, dict(zip(state.base_parameters, theta)), alpha, alpha_dot, t, bounds)
+    numeric = central_difference(value, theta)
+    scale = np.max(np.abs(numeric), axis=0)
+    assert np.all(np.max(np.abs(analytic - numeric), axis=0) <= 1e-6 * scale + 1e-10)
+
+
+def test_state_declaration_errors():
+    from structsearch.errors import DeclarationError
+    with pytest.raises(DeclarationError, match="kind"):
+        SeparationState("ss", "X")
+    assert SeparationState("", "U").parameters == ("tau1", "tau2", "a1", "a_star")
+    assert SeparationState("w", "S").parameters == ("a1_w", "a_star_w")
