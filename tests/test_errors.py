@@ -1,0 +1,93 @@
+"""Bad input: one clear error each, never a crash deep inside numpy."""
+import numpy as np
+import pytest
+
+from structsearch import SeparableModel
+from structsearch.data import FlightData, from_segments
+from structsearch.errors import DataError, DeclarationError, FitError, RankDeficiencyError
+from structsearch.reference import final_lift_model
+from structsearch.stallmodel import StallModel
+
+
+def _replace(data, **cols):
+    new = dict(data.columns)
+    new.update(cols)
+    return FlightData(new, data.starts, data.names, data.source, data.constants)
+
+
+def test_nan_in_coefficient_names_maneuver_column_and_row(noise_free_lift):
+    model, data = noise_free_lift
+    cl = data["CL"].copy()
+    cl[data.starts[2] + 17] = np.nan
+    with pytest.raises(DataError, match=r"column 'CL', row 17: value is NaN.*dynamic-1"):
+        model.fit(_replace(data, CL=cl))
+
+
+def test_nan_in_input_column():
+    seg = {"t": np.arange(5.0), "alpha": np.array([0.1, 0.2, np.nan, 0.1, 0.1])}
+    with pytest.raises(DataError, match=r"file flight7.csv:m3, column 'alpha', row 2"):
+        from_segments([seg], names=["m3"], source="flight7.csv")
+
+
+def test_non_increasing_time():
+    seg = {"t": np.array([0.0, 0.01, 0.02, 0.02, 0.04]), "alpha": np.zeros(5)}
+    with pytest.raises(DataError, match=r"column 't', row 3: time is not strictly increasing"):
+        from_segments([seg], names=["m1"])
+
+
+def test_missing_column(small_campaign):
+    model = final_lift_model()
+    cols = {k: v for k, v in small_campaign.columns.items() if k != "q"}
+    data = FlightData(cols, small_campaign.starts, small_campaign.names, "camp", small_campaign.constants)
+    with pytest.raises(DataError, match=r"column 'q'"):
+        model.fit(data)
+
+
+def test_constant_regressor_is_rank_deficiency(noise_free_lift):
+    _, data = noise_free_lift
+    model = StallModel.declare("m", "CL", states={"ss": "U"},
+                               regressors={"CL0": "1", "CL_KL": "K_L(X_ss)", "CL_cg": "x_cg/x_cg"})
+    with pytest.raises(RankDeficiencyError, match="CL_cg") as info:
+        model.fit(data)
+    assert info.value.dependent == ("CL_cg",) or "CL0" in info.value.dependent
+
+
+def test_collinear_regressors(noise_free_lift):
+    _, data = noise_free_lift
+    model = StallModel.declare("m", "CL", regressors={"a": "alpha", "b": "de", "c": "2*alpha - 3*de"})
+    with pytest.raises(RankDeficiencyError, match="linearly dependent"):
+        model.fit(data)
+
+
+def test_start_outside_bounds(noise_free_lift):
+    model, data = noise_free_lift
+    with pytest.raises(FitError, match=r"'tau1_ss'.*outside its bounds"):
+        model.fit(data, start={"tau1_ss": 5.0})
+
+
+def test_separable_model_bad_declarations():
+    with pytest.raises(DeclarationError, match="no start value for nonlinear parameter 'b2'"):
+        SeparableModel({"b1": "exp(-b2*x)"}, variables=["x"]).fit({"x": np.arange(5.0)}, np.ones(5))
+    with pytest.raises(DeclarationError, match="'b7' is not a nonlinear parameter"):
+        SeparableModel({"b1": "exp(-b2*x)"}, variables=["x"]).fit({"x": np.arange(5.0)}, np.ones(5),
+                                                                   start={"b2": 1, "b7": 2})
+    with pytest.raises(DeclarationError, match="data variable 'z' is declared but no basis function uses it"):
+        SeparableModel({"b1": "exp(-b2*x)"}, variables=["x", "z"])
+    with pytest.raises(DeclarationError, match="uses linear coefficient 'b1'"):
+        SeparableModel({"b1": "exp(-b2*x)", "b3": "b1*x"}, variables=["x"])
+
+
+def test_separable_model_bad_data():
+    model = SeparableModel({"b1": "exp(-b2*x)"}, variables=["x"])
+    with pytest.raises(DataError, match=r"column 'x', row 3"):
+        model.fit({"x": np.array([0.0, 1, 2, np.inf])}, np.ones(4), start={"b2": 1.0})
+    with pytest.raises(DataError, match=r"column 'y', row 1"):
+        model.fit({"x": np.arange(3.0)}, np.array([1.0, np.nan, 2.0]), start={"b2": 1.0})
+    with pytest.raises(FitError, match="outside its bounds"):
+        model.fit({"x": np.arange(3.0)}, np.ones(3), start={"b2": 1.0}, bounds={"b2": (2.0, 3.0)})
+
+
+def test_unknown_covariance_kind():
+    model = SeparableModel({"b1": "exp(-b2*x)"}, variables=["x"])
+    with pytest.raises(FitError, match="covariance must be one of"):
+        model.fit({"x": np.arange(3.0)}, np.ones(3), start={"b2": 1.0}, covariance="pink")

@@ -1,0 +1,90 @@
+"""Result serialisation, the fit report, flags, and the command line end to end."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from structsearch import fit_report
+from structsearch.report import FORMATS
+from structsearch.stallmodel import StallModel
+
+
+@pytest.fixture(scope="module")
+def flagged_fit(noise_free_lift):
+    """tau2 truly zero (ends on its lower bound) and two nearly collinear regressors."""
+    _, data = noise_free_lift
+    from structsearch.synthetic import with_coefficient
+    model = StallModel.declare("flags", "CL", states={"": "Q"},
+                               regressors={"c0": "1", "kl": "K_L(X)", "a": "alpha", "b": "alpha + 0.02*de"})
+    truth = {"tau2": 0.0, "a1": 30.0, "a_star": 0.22, "c0": 0.2, "kl": 2.0, "a": 1.0, "b": 1.0}
+    noisy = with_coefficient(data, model, truth, noise_sigma=0.01, noise_phi=0.5, seed=4)
+    return model.fit(noisy, start={"tau2": 0.05})
+
+
+def test_flags(flagged_fit):
+    assert flagged_fit.at_bound == {"tau2": "lower"}
+    pairs = {frozenset(p[:2]) for p in flagged_fit.high_correlations}
+    assert frozenset({"a", "b"}) in pairs
+    assert all(abs(p[2]) > 0.9 for p in flagged_fit.high_correlations)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_fit_report_formats(flagged_fit, fmt):
+    text = fit_report(flagged_fit, fmt)
+    for name in flagged_fit.names:
+        assert (name.replace("_", "\\_") if fmt == "latex" else name) in text
+    if fmt == "latex":
+        assert "\\begin{tabular}" in text
+    if fmt == "html":
+        assert "<table>" in text
+    if fmt == "text":
+        assert "at lower bound" in text and "|corr| > 0.9" in text
+
+
+def test_result_is_immutable_and_serialises(flagged_fit):
+    with pytest.raises(AttributeError):
+        flagged_fit.model = "other"
+    d = json.loads(json.dumps(flagged_fit.to_dict()))
+    assert d["params"].keys() == d["stderr"].keys() == set(flagged_fit.names)
+    assert d["at_bound"] == {"tau2": "lower"}
+    assert d["r2_maneuvers"]["min"] <= d["r2_maneuvers"]["mean"] <= d["r2_maneuvers"]["max"]
+    assert len(d["mse_maneuvers"]) == 6
+
+
+def test_per_maneuver_statistics(noise_free_lift):
+    model, data = noise_free_lift
+    from structsearch.synthetic import with_coefficient
+    from structsearch.reference import FINAL_LIFT
+    noisy = with_coefficient(data, model, FINAL_LIFT, noise_sigma=0.02, seed=9)
+    r = model.fit(noisy)
+    manual = []
+    for sl in noisy.segment_slices():
+        y, res = noisy["CL"][sl], r.residuals[sl]
+        manual.append(1 - res @ res / np.sum((y - y.mean()) ** 2))
+    assert np.allclose(r.r2_segments, manual)
+    assert r.r2_summary["min"] == pytest.approx(min(manual))
+    assert r.mse == pytest.approx(np.mean(r.residuals ** 2))
+
+
+def run_cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "structsearch", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=600)
+
+
+def test_bench_command_end_to_end(tmp_path):
+    proc = run_cli("bench", "--samples", "6000", "--repeats", "1", "--starts", "2", "--jobs", "1",
+                   "--out", str(tmp_path))
+    assert proc.returncode == 0, proc.stderr
+    fig = json.loads((tmp_path / "bench.json").read_text())
+    assert fig["one_start"]["snls_nfev"] > 0 and fig["random_starts"]["n"] == 2
+    assert fig["memory"][1]["samples"] == 2 * fig["memory"][0]["samples"]
+    md = (tmp_path / "bench.md").read_text()
+    assert "Speed-up per start" in md and "random starts" in md
+    assert not list(tmp_path.glob(".bench*"))  # no temporary files left behind
+
+
+def test_cli_rejects_unknown_command():
+    proc = run_cli("frobnicate")
+    assert proc.returncode != 0 and "invalid choice" in proc.stderr
