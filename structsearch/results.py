@@ -1,7 +1,7 @@
 """The immutable result of a fit; named statistics are derived lazily from stored arrays."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
 
@@ -47,7 +47,6 @@ class FitResult:
     n_reached_best: int = 1
     start: np.ndarray | None = None
     significance: float = 0.05
-    extra: dict = field(default_factory=dict)
 
     # ----- sizes -------------------------------------------------------------
     @property

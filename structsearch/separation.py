@@ -129,7 +129,7 @@ def linear_recurrence(a: np.ndarray, f: np.ndarray, y0) -> np.ndarray:
     return y
 
 
-def _common_step(t: np.ndarray, bounds: np.ndarray) -> float | None:
+def common_step(t: np.ndarray, bounds: np.ndarray) -> float | None:
     """The sample step if every maneuver has the same uniform step, else None."""
     dt = np.diff(t)
     inside = np.ones(len(dt), bool)
@@ -176,14 +176,16 @@ def _lag_common_step(t, u, du, tau1, bounds, step):
 
 
 def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
-                    bounds: np.ndarray):
+                    bounds: np.ndarray, step: float | None | bool = False):
     """tau1 dX/dt + X = u on every maneuver, each starting at X = u(t0).
 
     ``du`` (n, p) holds du/dtheta for the parameters inside u; returns ``X`` (n,),
-    ``dX`` (n, p) = dX/dtheta and ``dX_dtau1`` (n,).
+    ``dX`` (n, p) = dX/dtheta and ``dX_dtau1`` (n,). ``step`` may pass in the
+    result of :func:`common_step` for this grid (it is found here otherwise).
     """
     bounds = np.asarray(bounds, dtype=np.int64)
-    step = _common_step(t, bounds)
+    if step is False:
+        step = common_step(t, bounds)
     if step is not None:
         return _lag_common_step(t, u, du, tau1, bounds, step)
     x_out = np.empty_like(u)
@@ -218,7 +220,8 @@ def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
 
 
 def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.ndarray,
-                   alpha_dot: np.ndarray, t: np.ndarray, bounds: np.ndarray):
+                   alpha_dot: np.ndarray, t: np.ndarray, bounds: np.ndarray,
+                   step: float | None | bool = False):
     """Value of a separation state and its sensitivities.
 
     ``values`` maps base parameter names (``a1``, ``tau2``...) to numbers. Returns
@@ -237,7 +240,7 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
         du[:, 0] = slope * (-a1 * alpha_dot)
     if state.kind != "U":
         return x0, du  # S and Q: columns already in state.base_parameters order
-    x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds)
+    x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step)
     out = np.empty((len(alpha), 4), order="F")
     out[:, 0] = dtau1
     out[:, 1:] = dx  # U order: tau1, tau2, a1, a_star

@@ -14,6 +14,7 @@ start values and bounds may only name the model's nonlinear parameters.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Mapping
 
 import numpy as np
@@ -23,7 +24,7 @@ from .errors import DataError, DeclarationError
 from .fit import fit_problem
 from .regressors import Regressor, declare
 from .results import FitResult
-from .separation import DEFAULT_BOUNDS, DEFAULT_START, SeparationState, evaluate_state
+from .separation import DEFAULT_BOUNDS, DEFAULT_START, SeparationState, common_step, evaluate_state
 from .snls import Evaluation
 
 
@@ -130,6 +131,10 @@ class StallProblem:
     model: StallModel
     data: FlightData
 
+    @cached_property
+    def _step(self) -> float | None:
+        return common_step(self.data["t"], self.data.bounds) if self.model.states else None
+
     @property
     def nonlinear_names(self):
         return self.model.nonlinear_names
@@ -145,7 +150,8 @@ class StallProblem:
         for s in self.model.states:
             k = len(s.base_parameters)
             values = dict(zip(s.base_parameters, theta[offset:offset + k]))
-            out[s.symbol] = (offset, *evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds))
+            out[s.symbol] = (offset, *evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds,
+                                                       self._step))
             offset += k
         return out
 
