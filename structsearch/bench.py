@@ -140,7 +140,9 @@ def run(config: BenchConfig = BenchConfig(), progress=None) -> dict:
     # the same maneuvers twice: twice the samples with identical per-sample character
     doubled = data.select(list(range(data.n_segments)) * 2)
     mem = [_peak(model, data), _peak(model, doubled)]
+    import resource
     return {
+        "process_peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "config": config.__dict__,
         "machine": {"cpus": os.cpu_count()},
         "model": model.name,
@@ -202,7 +204,10 @@ def to_markdown(fig: dict) -> str:
     ]
     lines += [f"| {m['samples']} | {m['peak_mb']:.1f} | {m['seconds']:.3f} | {m['nfev']} |" for m in mem]
     lines += ["", f"Doubling the samples multiplies time by {sc['time_ratio']:.2f} and peak memory by "
-              f"{sc['memory_ratio']:.2f}.", ""]
+              f"{sc['memory_ratio']:.2f}. Peak resident memory of the whole bench process (interpreter, "
+              f"both data sets, all fits): {fig['process_peak_rss_mb']:.0f} MB.", "",
+              "Success counts over a handful of starts carry binomial noise of about "
+              f"sqrt(n p (1-p)) = {np.sqrt(r['n'] * 0.25):.1f} starts at p = 1/2.", ""]
     return "\n".join(lines)
 
 
