@@ -77,6 +77,47 @@ HELPERS = {
 }
 
 
+# The building blocks of catalogue sections 2 and 5, declared once. "{X}" stands for the
+# separation state a block is instantiated with (X, X_ss, X_w, ...).
+BUILDING_BLOCKS = {
+    "one": "1",
+    "alpha": "alpha",
+    "alpha2": "alpha**2",
+    "qstar": "qstar",
+    "de": "de",
+    "CT": "CT",
+    "CL": "CL",
+    "CL2": "CL**2",
+    "xcg_CL": "x_cg/cbar*CL",
+    "spline": "spline",
+    "K_L": "K_L({X})",
+    "K_D": "K_D({X})",
+    "one_minus_X": "1 - {X}",
+    "K1": "(1 - {X})*CL",
+    "K2_half": "K2({X}, 1/2)",
+    "K2_one": "K2({X}, 1)",
+    "K2_two": "K2({X}, 2)",
+    "KS": "KS({X})",
+    "X_de": "{X}*de",
+    "max_half_de": "max_half({X})*de",
+}
+
+
+def block(name: str, state: str | None = None) -> str:
+    """The expression text of a named building block, instantiated for ``state`` (e.g. "X_ss")."""
+    try:
+        template = BUILDING_BLOCKS[name]
+    except KeyError:
+        raise DeclarationError(f"unknown building block {name!r}; known: {', '.join(BUILDING_BLOCKS)}") from None
+    if "{X}" in template:
+        if not state:
+            raise DeclarationError(f"building block {name!r} needs a separation state")
+        return template.replace("{X}", state)
+    if state:
+        raise DeclarationError(f"building block {name!r} does not depend on a separation state")
+    return template
+
+
 # Names that stand for a whole expression: "qstar", "spline".
 NAMED_EXPRESSIONS = {"qstar": reduced_pitch_rate, "spline": van_ingen_spline}
 

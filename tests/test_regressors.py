@@ -4,22 +4,11 @@ import pytest
 
 from structsearch.data import single_segment
 from structsearch.errors import DataError, DeclarationError
-from structsearch.regressors import declare
+from structsearch.regressors import BUILDING_BLOCKS, block, declare
 from structsearch.stallmodel import StallModel
 
-BLOCKS = {
-    "K_L": "K_L(X_ss)",
-    "K_D": "K_D(X_ss)",
-    "one_minus_X": "1 - X_ss",
-    "K1": "(1 - X_ss)*CL",
-    "K2_half": "K2(X_ss, 1/2)",
-    "K2_one": "K2(X_ss, 1)",
-    "K2_two": "K2(X_ss, 2)",
-    "KS": "KS(X_ss)",
-    "X_de": "X_ss*de",
-    "max_half_de": "max_half(X_ss)*de",
-    "two_states": "K_L(X_ss)*X_w",
-}
+STATEFUL = sorted(n for n, text in BUILDING_BLOCKS.items() if "{X}" in text)
+EXTRA = {"two_states": "K_L(X_ss)*X_w"}
 
 
 @pytest.fixture(scope="module")
@@ -31,9 +20,11 @@ def columns():
                            "V": rng.uniform(50, 100, n)}, constants={"cbar": 2.013})
 
 
-@pytest.mark.parametrize("name", sorted(BLOCKS))
+@pytest.mark.parametrize("name", STATEFUL + sorted(EXTRA))
 def test_block_derivatives_match_finite_differences(name, columns):
-    reg = declare(name, BLOCKS[name], states=["X_ss", "X_w"])
+    text = EXTRA[name] if name in EXTRA else block(name, "X_ss")
+    reg = declare(name, text, states=["X_ss", "X_w"])
+    assert reg.states
     rng = np.random.default_rng(8)
     n = columns.n_samples
     # stay away from the kink of max(1/2, X)
@@ -80,3 +71,25 @@ def test_model_declaration_checks():
         StallModel.declare("m", "CL", regressors={"k": "alpha +* 2"})
     with pytest.raises(DeclarationError, match="not increasing"):
         StallModel.declare("m", "CL", states={"": "S"}, regressors={"k": "K_L(X)"}, bounds={"a1": (5, 1)})
+
+
+@pytest.mark.parametrize("name", sorted(BUILDING_BLOCKS))
+def test_every_block_declares_and_evaluates(name, columns):
+    stateful = "{X}" in BUILDING_BLOCKS[name]
+    reg = declare(name, block(name, "X_w" if stateful else None), states=["X_w"])
+    n = columns.n_samples
+    cols = dict(columns.columns, CT=np.full(n, 0.03), x_cg=np.full(n, 7.2))
+    from structsearch.data import FlightData
+    data = FlightData(cols, columns.starts, columns.names, columns.source, columns.constants)
+    value = reg.value(data, {"X_w": np.full(n, 0.3)}, n)
+    assert value.shape == (n,) and np.all(np.isfinite(value))
+    assert (reg.states == ("X_w",)) == stateful
+
+
+def test_block_errors():
+    with pytest.raises(DeclarationError, match="unknown building block"):
+        block("K9", "X")
+    with pytest.raises(DeclarationError, match="needs a separation state"):
+        block("K_L")
+    with pytest.raises(DeclarationError, match="does not depend"):
+        block("qstar", "X_ss")
