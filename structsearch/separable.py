@@ -20,24 +20,16 @@ from .errors import DataError, DeclarationError
 from .fit import fit_problem
 from .regressors import compile_expression, parse
 from .results import FitResult
-from .snls import Evaluation
+from .snls import BoundProblem, Evaluation
 
 
 @dataclass(frozen=True, eq=False)
-class _BasisProblem:
+class _BasisProblem(BoundProblem):
     """A SeparableModel bound to data: evaluates Phi(theta) and its non-zero derivatives."""
 
     model: "SeparableModel"
     values: tuple[np.ndarray, ...]
     n_samples: int
-
-    @property
-    def nonlinear_names(self):
-        return self.model.nonlinear_names
-
-    @property
-    def linear_names(self):
-        return self.model.linear_names
 
     def _call(self, expr, theta):
         fn = compile_expression(expr, self.model.argnames)

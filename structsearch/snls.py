@@ -48,6 +48,18 @@ class SeparableProblem(Protocol):
     def evaluate(self, theta: np.ndarray) -> Evaluation: ...
 
 
+class BoundProblem:
+    """Base of a model bound to data (attribute ``model``): parameter names come from the model."""
+
+    @property
+    def nonlinear_names(self) -> tuple[str, ...]:
+        return self.model.nonlinear_names
+
+    @property
+    def linear_names(self) -> tuple[str, ...]:
+        return self.model.linear_names
+
+
 @dataclass(frozen=True)
 class Projection:
     """Thin pivoted QR of Phi restricted to its numerical rank, and the LS solution."""

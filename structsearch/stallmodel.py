@@ -25,7 +25,7 @@ from .fit import fit_problem
 from .regressors import Regressor, declare
 from .results import FitResult
 from .separation import DEFAULT_BOUNDS, DEFAULT_START, SeparationState, common_step, evaluate_state
-from .snls import Evaluation
+from .snls import BoundProblem, Evaluation
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,7 +125,7 @@ class StallModel:
 
 
 @dataclass(frozen=True, eq=False)
-class StallProblem:
+class StallProblem(BoundProblem):
     """A StallModel bound to FlightData: Phi(theta) and its non-zero derivative columns."""
 
     model: StallModel
@@ -134,14 +134,6 @@ class StallProblem:
     @cached_property
     def _step(self) -> float | None:
         return common_step(self.data["t"], self.data.bounds) if self.model.states else None
-
-    @property
-    def nonlinear_names(self):
-        return self.model.nonlinear_names
-
-    @property
-    def linear_names(self):
-        return self.model.linear_names
 
     def state_values(self, theta: np.ndarray):
         """Each separation state's value and sensitivities (columns in its parameter order)."""
