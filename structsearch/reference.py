@@ -47,3 +47,25 @@ def van_ingen_lift_model() -> StallModel:
     return StallModel.declare(
         "CL-I", "CL", states={"": "U"},
         regressors={"CL0": "1", "CL_KL": "K_L(X)", "CL_spline": "spline"})
+
+
+def _separation_of(lift_params) -> dict[str, float]:
+    keys = ("tau1_ss", "tau2_ss", "a1_ss", "a_star_ss", "a1_w", "a_star_w")
+    return {k: lift_params[k] for k in keys if k in lift_params}
+
+
+def final_drag_model(lift_params=FINAL_LIFT) -> StallModel:
+    """CD-IXr (Eq. 35): C_D0, C_T, delta_e, C_L^2, (1-X_ss), (1-X_w); states from the lift model."""
+    return StallModel.declare(
+        "CD-IXr", "CD", states={"ss": "U", "w": "S"}, fixed=_separation_of(lift_params),
+        regressors={"CD0": "1", "CD_CT": "CT", "CD_de": "de", "CD_CL2": "CL**2",
+                    "CD_1mX_ss": "1 - X_ss", "CD_1mX_w": "1 - X_w"})
+
+
+def final_pitch_model(lift_params=FINAL_LIFT) -> StallModel:
+    """Cm-XXXIIIr (Eq. 30): Cm-XXXIII without X_w*delta_e; states from the lift model."""
+    return StallModel.declare(
+        "Cm-XXXIIIr", "Cm", states={"ss": "U", "w": "S"}, fixed=_separation_of(lift_params),
+        regressors={"Cm0": "1", "Cm_CT": "CT", "Cm_qstar": "qstar", "Cm_de": "de",
+                    "Cm_xcgCL": "x_cg/cbar*CL", "Cm_CL": "CL", "Cm_1mX_ssCL": "(1 - X_ss)*CL",
+                    "Cm_1mX_wCL": "(1 - X_w)*CL", "Cm_Xde_ss": "X_ss*de"})

@@ -36,12 +36,19 @@ class StallModel:
     regressors: tuple[Regressor, ...]
     start: Mapping[str, float] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    fixed: Mapping[str, float] = field(default_factory=dict)
 
     @classmethod
     def declare(cls, name: str, coefficient: str, regressors: Mapping[str, str], *,
                 states: Mapping[str, str] | None = None, start: Mapping[str, float] | None = None,
-                bounds: Mapping[str, tuple[float, float]] | None = None) -> "StallModel":
-        """``states`` maps a state name ("ss", "w", or "" for plain X) to its kind S, Q or U."""
+                bounds: Mapping[str, tuple[float, float]] | None = None,
+                fixed: Mapping[str, float] | None = None) -> "StallModel":
+        """``states`` maps a state name ("ss", "w", or "" for plain X) to its kind S, Q or U.
+
+        ``fixed`` holds separation parameters that are not estimated (a drag or
+        pitch model takes its states from the identified lift model); a model
+        whose separation parameters are all fixed is fitted by OLS.
+        """
         state_objs = tuple(SeparationState(n, k) for n, k in (states or {}).items())
         symbols = [s.symbol for s in state_objs]
         if len(set(symbols)) != len(symbols):
@@ -58,7 +65,13 @@ class StallModel:
         if coefficient in {c for r in regs for c in r.columns}:
             raise DeclarationError(f"model {name!r}: the modelled coefficient {coefficient!r} appears in "
                                    "its own regressors")
-        model = cls(name, coefficient, state_objs, regs, dict(start or {}), dict(bounds or {}))
+        model = cls(name, coefficient, state_objs, regs, dict(start or {}), dict(bounds or {}),
+                    dict(fixed or {}))
+        all_params = tuple(p for s in state_objs for p in s.parameters)
+        for key in model.fixed:
+            if key not in all_params:
+                raise DeclarationError(f"model {name!r}: fixed parameter {key!r} is not one of its separation "
+                                       f"parameters ({', '.join(all_params) or 'none'})")
         for key in list(model.start) + list(model.bounds):
             if key not in model.nonlinear_names:
                 raise DeclarationError(f"model {name!r}: {key!r} is not one of its nonlinear parameters "
@@ -70,7 +83,8 @@ class StallModel:
 
     @property
     def nonlinear_names(self) -> tuple[str, ...]:
-        return tuple(p for s in self.states for p in s.parameters)
+        """Separation parameters that are estimated (all but the fixed ones)."""
+        return tuple(p for s in self.states for p in s.parameters if p not in self.fixed)
 
     @property
     def linear_names(self) -> tuple[str, ...]:
@@ -83,13 +97,14 @@ class StallModel:
             cols |= {"alpha", "alpha_dot", "t"}
         return tuple(sorted(cols))
 
+    def _free(self):
+        return [(s, p) for s in self.states for p in s.base_parameters if s.parameter_name(p) not in self.fixed]
+
     def start_vector(self) -> np.ndarray:
-        return np.array([self.start.get(s.parameter_name(p), DEFAULT_START[p])
-                         for s in self.states for p in s.base_parameters], float)
+        return np.array([self.start.get(s.parameter_name(p), DEFAULT_START[p]) for s, p in self._free()], float)
 
     def bound_vectors(self) -> tuple[np.ndarray, np.ndarray]:
-        pairs = [self.bounds.get(s.parameter_name(p), DEFAULT_BOUNDS[p])
-                 for s in self.states for p in s.base_parameters]
+        pairs = [self.bounds.get(s.parameter_name(p), DEFAULT_BOUNDS[p]) for s, p in self._free()]
         return np.array([p[0] for p in pairs], float), np.array([p[1] for p in pairs], float)
 
     def bind(self, data: FlightData) -> "StallProblem":
@@ -121,6 +136,7 @@ class StallModel:
         if missing:
             raise DeclarationError(f"model {self.name!r}: no value for parameter {missing[0]!r}")
         ev = self.bind(data).evaluate(np.array([params[p] for p in self.nonlinear_names], float))
+
         return ev.phi @ np.array([params[p] for p in self.linear_names], float)
 
 
@@ -136,15 +152,18 @@ class StallProblem(BoundProblem):
         return common_step(self.data["t"], self.data.bounds) if self.model.states else None
 
     def state_values(self, theta: np.ndarray):
-        """Each separation state's value and sensitivities (columns in its parameter order)."""
-        out, offset = {}, 0
+        """Each separation state: (index of each parameter's column in theta or -1 if fixed, X, dX/dparams)."""
+        out = {}
         d = self.data
+        names = self.model.nonlinear_names
+        given = dict(zip(names, theta))
         for s in self.model.states:
-            k = len(s.base_parameters)
-            values = dict(zip(s.base_parameters, theta[offset:offset + k]))
-            out[s.symbol] = (offset, *evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds,
-                                                       self._step))
-            offset += k
+            values = {p: given.get(s.parameter_name(p), self.model.fixed.get(s.parameter_name(p)))
+                      for p in s.base_parameters}
+            index = np.array([names.index(s.parameter_name(p)) if s.parameter_name(p) in given else -1
+                              for p in s.base_parameters])
+            x, dx = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step)
+            out[s.symbol] = (index, x, dx)
         return out
 
     def evaluate(self, theta: np.ndarray) -> Evaluation:
@@ -152,17 +171,20 @@ class StallProblem(BoundProblem):
         states = self.state_values(np.asarray(theta, float))
         x_values = {sym: v[1] for sym, v in states.items()}
         phi = np.empty((m, len(self.model.regressors)), order="F")
+        # derivative columns only for (regressor, estimated parameter) pairs
         pairs = [(i, sym, j) for i, reg in enumerate(self.model.regressors) for sym in reg.states
-                 for j in range(states[sym][2].shape[1])]
+                 for j in np.flatnonzero(states[sym][0] >= 0)]
         dphi = np.empty((m, len(pairs)), order="F")
         rows = np.array([p[0] for p in pairs], int)
-        params = np.array([states[p[1]][0] + p[2] for p in pairs], int)
+        params = np.array([states[p[1]][0][p[2]] for p in pairs], int)
         col = 0
         for i, reg in enumerate(self.model.regressors):
             phi[:, i] = reg.value(self.data, x_values, m)
             for sym in reg.states:
-                _, _, dx = states[sym]
-                d_reg = reg.derivative(sym, self.data, x_values, m)
-                np.multiply(dx, d_reg[:, None], out=dphi[:, col:col + dx.shape[1]])
-                col += dx.shape[1]
+                index, _, dx = states[sym]
+                free = np.flatnonzero(index >= 0)
+                if free.size:
+                    d_reg = reg.derivative(sym, self.data, x_values, m)
+                    np.multiply(dx[:, free], d_reg[:, None], out=dphi[:, col:col + free.size])
+                    col += free.size
         return Evaluation(phi, dphi, rows, params)

@@ -1,0 +1,181 @@
+"""Longitudinal flight simulation of the Citation II with separation states.
+
+States per maneuver: V, alpha, q, theta, h, the pilot's integrator and every
+unsteady separation state. All maneuvers of a batch are integrated together
+(fixed-step RK4; the loop runs over time steps, the maneuvers are array
+elements). The pilot is a PID on angle of attack tracking a reference
+profile, with additive elevator inputs (quasi-random wiggles, steps) and a
+throttle schedule; the phugoid flies with the elevator fixed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from . import aircraft as ac
+from .aero import AeroModel
+
+ELEVATOR_LIMITS = (-0.40, 0.30)  # rad, trailing edge up / down
+
+
+@dataclass(frozen=True)
+class Condition:
+    """Flight condition: mass [kg], centre of gravity [m], altitude [m], airspeed [m/s]."""
+
+    mass: float
+    x_cg: float
+    h: float
+    V: float
+
+
+@dataclass(frozen=True)
+class Trim:
+    alpha: float
+    de: float
+    throttle: float
+    residual: float
+
+
+def _forces(model: AeroModel, V, alpha, q, h, de, throttle, mass, x_cg, X: dict, alpha_dot=None):
+    """Coefficients, forces and the rates of the rigid-body states (vectorised over maneuvers)."""
+    rho = ac.density(h)
+    qbar = 0.5 * rho * V * V
+    thrust = throttle * ac.max_thrust(h)
+    ct = thrust / (qbar * ac.S)
+    values = {"alpha": alpha, "q": q, "V": V, "de": de, "CT": ct, "x_cg": x_cg, "cbar": ac.CBAR,
+              "S": ac.S, "b": ac.SPAN}
+    values.update(X)
+    cl, cd, cm = model.coefficients(values)
+    return qbar, thrust, ct, cl, cd, cm
+
+
+def _rates(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, X):
+    qbar, thrust, ct, cl, cd, cm = _forces(model, V, alpha, q, h, de, throttle, mass, x_cg, X)
+    gamma = theta - alpha
+    lift, drag, moment = qbar * ac.S * cl, qbar * ac.S * cd, qbar * ac.S * ac.CBAR * cm
+    v_dot = (thrust * np.cos(alpha) - drag - mass * ac.G * np.sin(gamma)) / mass
+    alpha_dot = q - (lift + thrust * np.sin(alpha) - mass * ac.G * np.cos(gamma)) / (mass * V)
+    q_dot = moment / ac.inertia(mass)
+    return v_dot, alpha_dot, q_dot, (qbar, thrust, ct, cl, cd, cm)
+
+
+def algebraic_states(model: AeroModel, alpha, alpha_dot, lagged: dict) -> dict:
+    """Separation states: lagged ones from the state vector, the others from alpha (and alpha_dot)."""
+    targets = model.separation_targets(alpha, alpha_dot)
+    return {s.symbol: (lagged[s.symbol] if s.kind == "U" else targets[s.symbol]) for s in model.states}
+
+
+def trim(model: AeroModel, cond: Condition, gamma: float = 0.0) -> Trim:
+    """Steady straight flight (level when gamma = 0): alpha, elevator and throttle."""
+    def residual(x):
+        alpha, de, throttle = x
+        X = model.separation_targets(np.array([alpha]), np.zeros(1))
+        v_dot, alpha_dot, q_dot, _ = _rates(model, np.array([cond.V]), np.array([alpha]), np.zeros(1),
+                                            np.array([alpha + gamma]), np.array([cond.h]), np.array([de]),
+                                            np.array([throttle]), cond.mass, cond.x_cg, X)
+        return np.array([v_dot[0] / ac.G, alpha_dot[0], q_dot[0]])
+
+    sol = least_squares(residual, [0.1, -0.05, 0.4], bounds=([-0.1, ELEVATOR_LIMITS[0], 0.0],
+                                                            [0.4, ELEVATOR_LIMITS[1], 1.0]),
+                        xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    return Trim(float(sol.x[0]), float(sol.x[1]), float(sol.x[2]), float(np.max(np.abs(sol.fun))))
+
+
+@dataclass(frozen=True)
+class Pilot:
+    """Per-maneuver pilot: reference alpha, extra elevator and throttle at every sample; PID gains."""
+
+    alpha_ref: np.ndarray     # (n_steps, n_maneuvers)
+    de_extra: np.ndarray      # (n_steps, n_maneuvers)
+    throttle: np.ndarray      # (n_steps, n_maneuvers)
+    de_trim: np.ndarray       # (n_maneuvers,)
+    gains: np.ndarray         # (n_maneuvers, 3): kp, ki, kd; zero for a released elevator
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Truth time histories (n_steps, n_maneuvers) on a uniform grid."""
+
+    t: np.ndarray
+    V: np.ndarray
+    alpha: np.ndarray
+    q: np.ndarray
+    theta: np.ndarray
+    h: np.ndarray
+    de: np.ndarray
+    throttle: np.ndarray
+    thrust: np.ndarray
+    CT: np.ndarray
+    qbar: np.ndarray
+    alpha_dot: np.ndarray
+    q_dot: np.ndarray
+    V_dot: np.ndarray
+    CL: np.ndarray
+    CD: np.ndarray
+    Cm: np.ndarray
+    X: dict
+    mass: np.ndarray
+    x_cg: np.ndarray
+
+
+def _alpha_dot_with_states(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, lagged):
+    """alpha_dot and the separation states consistently (quasi-steady states depend on alpha_dot)."""
+    alpha_dot = np.zeros_like(alpha)
+    iterations = 4 if any(s.kind == "Q" for s in model.states) else 1
+    for _ in range(iterations):
+        X = algebraic_states(model, alpha, alpha_dot, lagged)
+        v_dot, alpha_dot, q_dot, extra = _rates(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, X)
+    return X, v_dot, alpha_dot, q_dot, extra
+
+
+def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: np.ndarray,
+             dt: float = 0.01) -> Trajectory:
+    """Integrate all maneuvers of a batch for ``len(pilot.alpha_ref)`` steps.
+
+    ``y0`` holds V, alpha, q, theta, h (arrays over maneuvers) and the unsteady
+    separation states by symbol; ``mass`` is (n_steps, n_maneuvers).
+    """
+    lagged_names = [s.symbol for s in model.unsteady]
+    n_steps, n_man = pilot.alpha_ref.shape
+    y = np.vstack([y0["V"], y0["alpha"], y0["q"], y0["theta"], y0["h"], np.zeros(n_man)]
+                  + [y0[s] for s in lagged_names]).astype(float)
+    taus = {s.symbol: s.tau1 for s in model.unsteady}
+    kp, ki, kd = pilot.gains.T
+
+    def elevator(k, y):
+        alpha, q, z = y[1], y[2], y[5]
+        de = pilot.de_trim + pilot.de_extra[k] + kp * (alpha - pilot.alpha_ref[k]) + ki * z + kd * q
+        return np.clip(de, *ELEVATOR_LIMITS)
+
+    def rhs(k, y):
+        V, alpha, q, theta, h, z = y[:6]
+        lagged = dict(zip(lagged_names, y[6:]))
+        de = elevator(k, y)
+        X, v_dot, alpha_dot, q_dot, extra = _alpha_dot_with_states(
+            model, V, alpha, q, theta, h, de, pilot.throttle[k], mass[k], x_cg, lagged)
+        targets = model.separation_targets(alpha, alpha_dot)
+        dx = [(targets[s] - lagged[s]) / taus[s] for s in lagged_names]
+        gamma = theta - alpha
+        return np.vstack([v_dot, alpha_dot, q_dot, q, V * np.sin(gamma), alpha - pilot.alpha_ref[k]] + dx)
+
+    out = np.empty((n_steps,) + y.shape)
+    for k in range(n_steps):
+        out[k] = y
+        if k == n_steps - 1:
+            break
+        k1 = rhs(k, y)
+        k2 = rhs(k, y + 0.5 * dt * k1)
+        k3 = rhs(k, y + 0.5 * dt * k2)
+        k4 = rhs(k, y + dt * k3)
+        y = y + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    # outputs recomputed on the stored states
+    V, alpha, q, theta, h = out[:, 0], out[:, 1], out[:, 2], out[:, 3], out[:, 4]
+    lagged = {s: out[:, 6 + i] for i, s in enumerate(lagged_names)}
+    de = np.stack([elevator(k, out[k]) for k in range(n_steps)])
+    X, v_dot, alpha_dot, q_dot, (qbar, thrust, ct, cl, cd, cm) = _alpha_dot_with_states(
+        model, V, alpha, q, theta, h, de, pilot.throttle, mass, x_cg[None, :], lagged)
+    t = np.arange(n_steps) * dt
+    return Trajectory(t, V, alpha, q, theta, h, de, pilot.throttle, thrust, ct, qbar, alpha_dot, q_dot,
+                      v_dot, cl, cd, cm, X, mass, np.broadcast_to(x_cg, V.shape))
