@@ -234,6 +234,8 @@ def read_campaign(directory: Path | str) -> Campaign:
 def _toml_value(v) -> str:
     if isinstance(v, str):
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+        return str(int(v))
     return repr(float(v))
 
 

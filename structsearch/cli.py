@@ -28,6 +28,19 @@ def _bench(args) -> int:
     return 0
 
 
+def _simulate(args) -> int:
+    from .campaign import write_campaign
+    from .flighttest import build_campaign
+    campaign = build_campaign(seed=args.seed, withhold=args.withhold or (), scale=args.scale,
+                              extras=args.extras)
+    out = write_campaign(campaign, Path(args.out), fmt=args.format)
+    d = campaign.data
+    n_val = sum(m.split == "validation" for m in campaign.maneuvers)
+    print(f"wrote {out}: {len(campaign.maneuvers)} maneuvers ({n_val} validation), {d.n_samples} samples; "
+          f"truth: {campaign.extra['truth']}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="structsearch", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -39,6 +52,18 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seed", type=int, default=2025)
     b.add_argument("--jobs", type=int, default=2, help="processes for the random starts")
     b.set_defaults(func=_bench)
+
+    from .aero import WITHHOLDABLE
+    s = sub.add_parser("simulate", help="simulate the Citation II flight-test campaign (thesis Table 4)")
+    s.add_argument("--out", required=True, help="campaign directory to write")
+    s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same campaign bit for bit)")
+    s.add_argument("--withhold", action="append", choices=sorted(WITHHOLDABLE), metavar="EFFECT",
+                   help="remove an effect from the truth model (repeatable): " + ", ".join(WITHHOLDABLE))
+    s.add_argument("--scale", type=float, default=1.0,
+                   help="fraction of the maneuvers of each kind to fly (small test campaigns)")
+    s.add_argument("--extras", action="store_true", help="add pullups, pushovers and phugoids")
+    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.set_defaults(func=_simulate)
     return parser
 
 

@@ -13,9 +13,11 @@ s^2 (F^T F)^-1 with s^2 = RSS / (m - p).
 The autocorrelation is the biased (1/m) estimate pooled over maneuvers. Using
 every lag, as the thesis does, makes the estimate noisy and biased for
 intercept-like columns (the sample autocovariances of a residual with zero mean
-sum to zero); by default lags are kept up to twice the first lag at which the
-autocorrelation enters the +-2/sqrt(m) white-noise band. ``max_lag="full"``
-reproduces the thesis.
+sum to zero), and truncating it abruptly can make variances negative when the
+residuals oscillate (buffet). By default lags are kept up to four times the lag
+from which the autocorrelation envelope stays inside the +-2/sqrt(m) white-noise
+band, tapered by a Bartlett window (a positive semi-definite estimate).
+``max_lag="full"`` reproduces the thesis (every lag, no taper).
 """
 from __future__ import annotations
 
@@ -39,7 +41,12 @@ def autocovariance(residual: np.ndarray, bounds: np.ndarray, max_lag: int) -> np
 
 
 def choose_max_lag(residual: np.ndarray, bounds: np.ndarray, max_lag) -> int:
-    """Resolve the ``max_lag`` option to a number of lags."""
+    """Resolve the ``max_lag`` option to a number of lags.
+
+    Automatic rule: the first lag tau from which |rho| stays inside the
+    +-2/sqrt(m) white-noise band over [tau, 2 tau] (an envelope, so oscillating
+    residuals such as buffet are not cut at their first zero crossing), times four.
+    """
     longest = int(np.max(np.diff(bounds))) - 1
     if max_lag == "full":
         return longest
@@ -49,10 +56,20 @@ def choose_max_lag(residual: np.ndarray, bounds: np.ndarray, max_lag) -> int:
     lam = autocovariance(residual, bounds, longest)
     if lam[0] <= 0:
         return 0
-    rho = lam / lam[0]
-    inside = np.flatnonzero(rho < 2.0 / np.sqrt(m))
-    first = int(inside[0]) if inside.size else longest
-    return int(min(2 * first, longest))
+    magnitude = np.abs(lam / lam[0])
+    band = 2.0 / np.sqrt(m)
+    # envelope[tau] = max |rho| over [tau, 2 tau]
+    for tau in range(1, longest // 2 + 1):
+        if magnitude[tau:2 * tau + 1].max() < band:
+            return int(min(4 * tau, longest))
+    return longest
+
+
+def lag_weights(lags: int, max_lag) -> np.ndarray:
+    """Bartlett taper 1 - k/(L+1), which keeps the estimate positive semi-definite; none for "full"."""
+    if max_lag == "full":
+        return np.ones(lags + 1)
+    return 1.0 - np.arange(lags + 1) / (lags + 1.0)
 
 
 def toeplitz_product(matrix: np.ndarray, lam: np.ndarray, bounds: np.ndarray) -> np.ndarray:
@@ -90,7 +107,7 @@ def white_covariance(jac: np.ndarray, residual: np.ndarray) -> np.ndarray:
 def colored_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, max_lag=None):
     """Toeplitz-autocorrelation sandwich; returns (covariance, number of lags used)."""
     lags = choose_max_lag(residual, bounds, max_lag)
-    lam = autocovariance(residual, bounds, lags)
+    lam = autocovariance(residual, bounds, lags) * lag_weights(lags, max_lag)
     r_inv = _inverse_factor(jac)
     a_inv = r_inv @ r_inv.T
     middle = jac.T @ toeplitz_product(jac, lam, bounds)

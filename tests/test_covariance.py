@@ -4,7 +4,7 @@ import pytest
 from scipy.linalg import block_diag, toeplitz
 
 from structsearch.data import FlightData
-from structsearch.statistics import autocovariance, colored_covariance, white_covariance
+from structsearch.statistics import autocovariance, colored_covariance, lag_weights, white_covariance
 from structsearch.stallmodel import StallModel
 from structsearch.synthetic import ar1_noise, campaign
 
@@ -78,7 +78,7 @@ def test_fft_sandwich_equals_dense_toeplitz():
             r = residual[s:e]
             for k in range(min(lags, e - s - 1) + 1):
                 lam[k] += r[:len(r) - k] @ r[k:]
-        lam /= m
+        lam = lam / m * lag_weights(lags, max_lag)
         blocks = []
         for s, e in zip(bounds[:-1], bounds[1:]):
             col = np.zeros(e - s)
