@@ -14,7 +14,7 @@ from .prefilter import derivative, prefilter
 # Sensor rates [Hz] (thesis Table 2) and noise standard deviations (SI units) as left after
 # flight-path reconstruction (alpha: vane noise would turn into alpha_dot noise of ~0.02 rad/s).
 RATES = {"ahrs": 52.0, "boom": 100.0, "tas": 16.0, "qbar": 8.0, "synchro": 100.0, "gps": 1.0}
-NOISE = {"alpha": 0.0005, "q": 0.0015, "theta": 0.001, "ax": 0.04, "az": 0.06, "V": 0.25,
+NOISE = {"alpha": 0.0002, "q": 0.0015, "theta": 0.001, "ax": 0.04, "az": 0.06, "V": 0.25,
          "qbar": 12.0, "de": 0.0005, "h": 2.0}
 # Residual sensor biases after flight-path reconstruction (the Kalman filter estimates the raw biases)
 BIAS = {"alpha": 0.0005, "q": 0.0002, "ax": 0.005, "az": 0.01}
@@ -99,6 +99,6 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict) -> dict:
         "Cm": ac.inertia(mass) * q_dot / (qs_m * ac.CBAR),
         "alpha_dot": alpha_dot, "CT": thrust_model / qs_m, "x_cg": truth["x_cg"],
         "theta": f["theta"], "h": f["h"], "CX": cx_m, "CZ": cz_m,
-        "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
+        "mass": mass, "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
         "X_ss_true": truth["X_ss"], "X_w_true": truth["X_w"],
     }

@@ -38,11 +38,12 @@ class Trim:
     residual: float
 
 
-def _forces(model: AeroModel, V, alpha, q, h, de, throttle, mass, x_cg, X: dict, alpha_dot=None):
-    """Coefficients, forces and the rates of the rigid-body states (vectorised over maneuvers)."""
+def _forces(model: AeroModel, V, alpha, q, h, de, throttle, mass, x_cg, X: dict, thrust=None):
+    """Coefficients and forces (vectorised over maneuvers); ``thrust`` [N] overrides the throttle."""
     rho = ac.density(h)
     qbar = 0.5 * rho * V * V
-    thrust = throttle * ac.max_thrust(h)
+    if thrust is None:
+        thrust = throttle * ac.max_thrust(h)
     ct = thrust / (qbar * ac.S)
     values = {"alpha": alpha, "q": q, "V": V, "de": de, "CT": ct, "x_cg": x_cg, "cbar": ac.CBAR,
               "S": ac.S, "b": ac.SPAN}
@@ -51,8 +52,8 @@ def _forces(model: AeroModel, V, alpha, q, h, de, throttle, mass, x_cg, X: dict,
     return qbar, thrust, ct, cl, cd, cm
 
 
-def _rates(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, X):
-    qbar, thrust, ct, cl, cd, cm = _forces(model, V, alpha, q, h, de, throttle, mass, x_cg, X)
+def _rates(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, X, thrust=None):
+    qbar, thrust, ct, cl, cd, cm = _forces(model, V, alpha, q, h, de, throttle, mass, x_cg, X, thrust)
     gamma = theta - alpha
     lift, drag, moment = qbar * ac.S * cl, qbar * ac.S * cd, qbar * ac.S * ac.CBAR * cm
     v_dot = (thrust * np.cos(alpha) - drag - mass * ac.G * np.sin(gamma)) / mass
@@ -92,6 +93,7 @@ class Pilot:
     throttle: np.ndarray      # (n_steps, n_maneuvers)
     de_trim: np.ndarray       # (n_maneuvers,)
     gains: np.ndarray         # (n_maneuvers, 3): kp, ki, kd; zero for a released elevator
+    thrust: np.ndarray | None = None  # (n_steps, n_maneuvers) [N]; overrides the throttle (replay)
 
 
 @dataclass(frozen=True)
@@ -120,13 +122,14 @@ class Trajectory:
     x_cg: np.ndarray
 
 
-def _alpha_dot_with_states(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, lagged):
+def _alpha_dot_with_states(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, lagged, thrust=None):
     """alpha_dot and the separation states consistently (quasi-steady states depend on alpha_dot)."""
     alpha_dot = np.zeros_like(alpha)
     iterations = 4 if any(s.kind == "Q" for s in model.states) else 1
     for _ in range(iterations):
         X = algebraic_states(model, alpha, alpha_dot, lagged)
-        v_dot, alpha_dot, q_dot, extra = _rates(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, X)
+        v_dot, alpha_dot, q_dot, extra = _rates(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, X,
+                                                thrust)
     return X, v_dot, alpha_dot, q_dot, extra
 
 
@@ -154,7 +157,8 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
         lagged = dict(zip(lagged_names, y[6:]))
         de = elevator(k, y)
         X, v_dot, alpha_dot, q_dot, extra = _alpha_dot_with_states(
-            model, V, alpha, q, theta, h, de, pilot.throttle[k], mass[k], x_cg, lagged)
+            model, V, alpha, q, theta, h, de, pilot.throttle[k], mass[k], x_cg, lagged,
+            None if pilot.thrust is None else pilot.thrust[k])
         targets = model.separation_targets(alpha, alpha_dot)
         dx = [(targets[s] - lagged[s]) / taus[s] for s in lagged_names]
         gamma = theta - alpha
@@ -175,7 +179,7 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
     lagged = {s: out[:, 6 + i] for i, s in enumerate(lagged_names)}
     de = np.stack([elevator(k, out[k]) for k in range(n_steps)])
     X, v_dot, alpha_dot, q_dot, (qbar, thrust, ct, cl, cd, cm) = _alpha_dot_with_states(
-        model, V, alpha, q, theta, h, de, pilot.throttle, mass, x_cg[None, :], lagged)
+        model, V, alpha, q, theta, h, de, pilot.throttle, mass, x_cg[None, :], lagged, pilot.thrust)
     t = np.arange(n_steps) * dt
     return Trajectory(t, V, alpha, q, theta, h, de, pilot.throttle, thrust, ct, qbar, alpha_dot, q_dot,
                       v_dot, cl, cd, cm, X, mass, np.broadcast_to(x_cg, V.shape))
