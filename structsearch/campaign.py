@@ -114,14 +114,13 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
     suffix = path.suffix.lower()
     if not path.is_file():
         raise DataError("maneuver file not found", source=str(path))
+    import pandas as pd
     if suffix == ".csv":
-        import pandas as pd
         try:
             frame = pd.read_csv(path)
         except (ValueError, pd.errors.ParserError) as exc:
             raise DataError(f"cannot read CSV: {exc}", source=str(path)) from None
     elif suffix == ".parquet":
-        import pandas as pd
         try:
             frame = pd.read_parquet(path)
         except ImportError:
@@ -134,8 +133,8 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
     out = {}
     for col in frame.columns:
         values = frame[col]
-        if values.dtype == object:
-            numeric = pd.to_numeric(values, errors="coerce")
+        if not pd.api.types.is_numeric_dtype(values):
+            numeric = pd.to_numeric(values.astype(object), errors="coerce")
             bad = np.flatnonzero(numeric.isna() & values.notna())
             if bad.size:
                 raise DataError(f"value {values.iloc[bad[0]]!r} is not a number", source=str(path),

@@ -88,3 +88,23 @@ def test_bench_command_end_to_end(tmp_path):
 def test_cli_rejects_unknown_command():
     proc = run_cli("frobnicate")
     assert proc.returncode != 0 and "invalid choice" in proc.stderr
+
+
+def test_simulate_command_end_to_end(tmp_path):
+    out = tmp_path / "camp"
+    proc = run_cli("simulate", "--out", str(out), "--seed", "2", "--scale", "0.05", "--withhold", "induced_drag")
+    assert proc.returncode == 0, proc.stderr
+    assert "6 maneuvers" in proc.stdout
+    from structsearch.campaign import read_campaign
+    campaign = read_campaign(out)
+    assert {m.split for m in campaign.maneuvers} == {"train", "validation"}
+    assert 'withheld = "induced_drag"' in (out / "campaign.toml").read_text()
+    for col in ("t", "alpha", "q", "V", "de", "CL", "CD", "Cm", "alpha_dot", "CT", "x_cg", "theta", "h",
+                "CX", "CZ"):
+        assert col in campaign.data
+
+
+def test_simulate_rejects_effects_outside_the_final_model(tmp_path):
+    proc = run_cli("simulate", "--out", str(tmp_path / "x"), "--withhold", "alpha_dot")
+    assert proc.returncode != 0 and "invalid choice: 'alpha_dot'" in proc.stderr
+    assert not (tmp_path / "x").exists()

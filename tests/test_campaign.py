@@ -1,0 +1,149 @@
+"""Campaign I/O: round trips and one clear error per kind of bad input."""
+import numpy as np
+import pytest
+
+from structsearch.campaign import Maneuver, make_campaign, read_campaign, write_campaign
+from structsearch.errors import DataError
+
+AIRCRAFT = {"S": 30.0, "cbar": 2.013, "b": 15.75}
+
+
+def _maneuver(n=400, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.01
+    return {"t": t, "alpha": 0.1 + 0.05 * np.sin(t), "q": 0.01 * np.cos(t), "V": 80 + rng.normal(0, 0.1, n),
+            "de": -0.05 + 0.01 * np.sin(2 * t), "CL": 0.6 + 0.1 * np.sin(t), "CD": 0.05 + 0 * t,
+            "Cm": 0.001 * np.cos(t), "CT": 0.03 + 0 * t, "x_cg": 7.1 + 0 * t}
+
+
+@pytest.fixture()
+def campaign():
+    maneuvers = [Maneuver("m01", "m01.csv", "quasi-steady", "train"),
+                 Maneuver("m02", "m02.csv", "dynamic", "validation")]
+    return make_campaign("test", AIRCRAFT, maneuvers, [_maneuver(seed=1), _maneuver(500, seed=2)])
+
+
+def test_csv_round_trip_is_identical(campaign, tmp_path):
+    write_campaign(campaign, tmp_path / "c")
+    back = read_campaign(tmp_path / "c")
+    assert back.maneuvers == campaign.maneuvers
+    assert back.aircraft == AIRCRAFT
+    assert set(back.data.columns) == set(campaign.data.columns)
+    for k, v in campaign.data.columns.items():
+        assert np.array_equal(back.data[k], v), k
+    assert back.split("validation").names == ("m02",)
+
+
+def test_parquet_round_trip(campaign, tmp_path):
+    pytest.importorskip("pyarrow")
+    write_campaign(campaign, tmp_path / "c", fmt="parquet")
+    back = read_campaign(tmp_path / "c")
+    for k, v in campaign.data.columns.items():
+        assert np.array_equal(back.data[k], v), k
+
+
+def test_rewrite_replaces_atomically(campaign, tmp_path):
+    write_campaign(campaign, tmp_path / "c")
+    write_campaign(campaign, tmp_path / "c")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c"]
+
+
+@pytest.mark.parametrize("as_struct", [False, True])
+def test_matlab_maneuver_files(tmp_path, as_struct):
+    from scipy.io import savemat
+    cols = _maneuver()
+    (tmp_path / "campaign.toml").write_text(
+        'name = "mat"\n[aircraft]\nS = 30.0\ncbar = 2.013\nb = 15.75\n'
+        '[[maneuver]]\nid = "a"\nfile = "a.mat"\nkind = "other"\nsplit = "train"\n')
+    savemat(tmp_path / "a.mat", {"flight": cols} if as_struct else {k: v[:, None] for k, v in cols.items()})
+    back = read_campaign(tmp_path)
+    assert np.allclose(back.data["alpha"], cols["alpha"])
+    assert "alpha_dot" in back.data  # derived
+
+
+def _write(tmp_path, columns, manifest_extra="", name="m.csv", kind="quasi-steady", split="train"):
+    import pandas as pd
+    pd.DataFrame(columns).to_csv(tmp_path / name, index=False)
+    (tmp_path / "campaign.toml").write_text(
+        f'name = "x"\n{manifest_extra}[aircraft]\nS = 30.0\ncbar = 2.013\nb = 15.75\n'
+        f'[[maneuver]]\nid = "m"\nfile = "{name}"\nkind = "{kind}"\nsplit = "{split}"\n')
+
+
+def test_misspelled_column(tmp_path):
+    cols = _maneuver()
+    cols["Alpha"] = cols.pop("alpha")
+    _write(tmp_path, cols)
+    with pytest.raises(DataError, match=r"m.csv, column 'alpha': required column is missing \(found 'Alpha'"):
+        read_campaign(tmp_path)
+
+
+def test_nan_names_file_column_row_and_line(tmp_path):
+    cols = _maneuver()
+    cols["V"][123] = np.nan
+    _write(tmp_path, cols)
+    with pytest.raises(DataError, match=r"m.csv, column 'V', row 123: value is NaN or infinite \(line 125\)"):
+        read_campaign(tmp_path)
+
+
+def test_text_in_numeric_column(tmp_path):
+    cols = {k: list(v) for k, v in _maneuver().items()}
+    cols["q"][7] = "n/a?"
+    _write(tmp_path, cols)
+    with pytest.raises(DataError, match=r"column 'q', row 7: value 'n/a\?' is not a number"):
+        read_campaign(tmp_path)
+
+
+def test_non_increasing_time(tmp_path):
+    cols = _maneuver()
+    cols["t"][50] = cols["t"][49]
+    _write(tmp_path, cols)
+    with pytest.raises(DataError, match=r"column 't', row 50: time is not strictly increasing"):
+        read_campaign(tmp_path)
+
+
+def test_degrees_detected(tmp_path):
+    cols = _maneuver()
+    cols["alpha"] = np.rad2deg(cols["alpha"])
+    _write(tmp_path, cols)
+    with pytest.raises(DataError, match=r"column 'alpha', row \d+: value .* looks like degrees"):
+        read_campaign(tmp_path)
+
+
+def test_too_short(tmp_path):
+    _write(tmp_path, _maneuver(n=100))
+    with pytest.raises(DataError, match="too short to fit separation dynamics"):
+        read_campaign(tmp_path)
+
+
+@pytest.mark.parametrize("field,value,message", [
+    ("kind", "barrel-roll", "unknown kind 'barrel-roll'"),
+    ("split", "test", "unknown split 'test'"),
+])
+def test_unknown_kind_or_split(tmp_path, field, value, message):
+    _write(tmp_path, _maneuver(), **{field: value})
+    with pytest.raises(DataError, match=rf"\[\[maneuver\]\] #1, column '{field}': {message}"):
+        read_campaign(tmp_path)
+
+
+def test_missing_manifest_and_file(tmp_path):
+    with pytest.raises(DataError, match="campaign.toml not found"):
+        read_campaign(tmp_path)
+    _write(tmp_path, _maneuver())
+    (tmp_path / "m.csv").unlink()
+    with pytest.raises(DataError, match="maneuver file not found"):
+        read_campaign(tmp_path)
+
+
+def test_duplicate_ids(tmp_path):
+    _write(tmp_path, _maneuver())
+    text = (tmp_path / "campaign.toml").read_text()
+    (tmp_path / "campaign.toml").write_text(text + '[[maneuver]]\nid = "m"\nfile = "m.csv"\nkind = "other"\n'
+                                            'split = "train"\n')
+    with pytest.raises(DataError, match="appears twice"):
+        read_campaign(tmp_path)
+
+
+def test_no_validation_maneuvers(tmp_path):
+    _write(tmp_path, _maneuver())
+    with pytest.raises(DataError, match="no validation maneuvers"):
+        read_campaign(tmp_path).split("validation")

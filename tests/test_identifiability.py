@@ -1,0 +1,44 @@
+"""Identifiability on a simulated campaign (scaled down for CI): CL-VI recovers the truth."""
+import numpy as np
+import pytest
+
+from structsearch.flighttest import build_campaign
+from structsearch.reference import FINAL_LIFT, final_lift_model
+
+KINDS = ("quasi-steady", "dynamic", "deep-dynamic")
+
+
+@pytest.fixture(scope="module")
+def fits():
+    campaign = build_campaign(seed=0, scale=0.5)
+    model = final_lift_model()
+    train = [i for i, m in enumerate(campaign.maneuvers) if m.split == "train" and m.kind in KINDS]
+    quasi = [i for i in train if campaign.maneuvers[i].kind == "quasi-steady"]
+    return (model.fit(campaign.data.select(train), n_starts=2, n_jobs=2),
+            model.fit(campaign.data.select(quasi), n_starts=2, n_jobs=2))
+
+
+def _tau_correlation(result):
+    i, j = result.names.index("tau1_ss"), result.names.index("tau2_ss")
+    return result.correlation[i, j]
+
+
+def test_every_truth_parameter_within_three_sigma(fits):
+    full, _ = fits
+    for name, truth in FINAL_LIFT.items():
+        assert abs(full.params[name] - truth) < 3 * full.stderr[name], name
+
+
+def test_dynamic_stalls_decorrelate_tau1_and_tau2(fits):
+    full, quasi = fits
+    assert abs(_tau_correlation(quasi)) > 0.6
+    assert abs(_tau_correlation(full)) < abs(_tau_correlation(quasi)) - 0.3
+    assert full.stderr["tau1_ss"] < 0.5 * quasi.stderr["tau1_ss"]
+
+
+@pytest.mark.xfail(strict=True, reason="issue 3 asks |corr| < 0.3 once dynamic stalls are added (thesis 0.06); "
+                   "the simulated campaign reaches about 0.4-0.5: lag and delay shift the phase alike and only "
+                   "amplitude separates them, while the quasi-steady stalls pin tau1 + tau2")
+def test_thesis_level_decorrelation(fits):
+    full, _ = fits
+    assert abs(_tau_correlation(full)) < 0.3
