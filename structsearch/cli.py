@@ -21,8 +21,10 @@ def _bench(args) -> int:
     md, js = write(fig, Path(args.out))
     o, r = fig["one_start"], fig["random_starts"]
     print(f"one start: SNLS {o['snls_median_s']:.3f} s ({o['snls_nfev']} evaluations), full NLS "
-          f"{o['full_median_s']:.3f} s: {o['speedup']:.1f}x; random starts reaching the best: SNLS "
-          f"{r['snls_success']}/{r['n']}, full NLS {r['full_success']}/{r['n']}; peak memory "
+          f"{o['full_median_s']:.3f} s ({o['speedup']:.1f}x), full NLS with finite differences "
+          f"{o['fd_median_s']:.3f} s ({o['fd_speedup']:.1f}x); random starts reaching the best: SNLS "
+          f"{r['snls_success']}/{r['n']}, full NLS {r['full_success']}/{r['n']}, finite differences "
+          f"{r['fd_success']}/{r['n']}; peak memory "
           f"{fig['memory'][0]['peak_mb']:.0f} MB -> {fig['memory'][1]['peak_mb']:.0f} MB at 2x samples")
     print(f"wrote {md} and {js}")
     return 0

@@ -141,14 +141,22 @@ def common_step(t: np.ndarray, bounds: np.ndarray) -> float | None:
 
 
 @lru_cache(maxsize=64)
-def _segment_index(bounds_bytes: bytes, n: int):
-    """For every sample: the index of its maneuver's first sample, and its offset from it."""
+def _segment_heads(bounds_bytes: bytes, length: int):
+    """Indices of the first ``length`` samples of every maneuver, their offsets and maneuver numbers."""
     bounds = np.frombuffer(bounds_bytes, dtype=np.int64)
-    first = np.repeat(bounds[:-1], np.diff(bounds))
-    offset = (np.arange(n) - first).astype(float)
-    first.flags.writeable = False
-    offset.flags.writeable = False
-    return first, offset
+    starts, sizes = bounds[:-1], np.diff(bounds)
+    offset = np.arange(length)
+    keep = offset[None, :] < sizes[:, None]
+    index = (starts[:, None] + offset[None, :])[keep]
+    segment = np.broadcast_to(np.arange(len(starts))[:, None], keep.shape)[keep]
+    offsets = np.broadcast_to(offset[None, :], keep.shape)[keep].astype(float)
+    for a in (index, segment, offsets):
+        a.flags.writeable = False
+    return index, segment, offsets
+
+
+# Beyond this many time constants a^(k-s) < 1e-18: the boundary correction has vanished.
+_CORRECTION_TAUS = 41.5
 
 
 def _lag_common_step(t, u, du, tau1, bounds, step):
@@ -156,22 +164,24 @@ def _lag_common_step(t, u, du, tau1, bounds, step):
 
     Filtering across a boundary only changes the state at the maneuver's first
     sample; by linearity the difference then decays as a^(k-s), so subtracting
-    a^(k-s) (X'_s - u_s) restores X_s = u_s exactly. The same holds for the
+    a^(k-s) (X'_s - u_s) restores X_s = u_s exactly. The correction is applied
+    only where it has not yet decayed below 1e-18. The same holds for the
     sensitivities.
     """
     a, b0, b1, da, db0, db1 = (float(v[0]) for v in _lag_coefficients(np.array([step]), tau1))
     starts = bounds[:-1]
-    first, offset = _segment_index(bounds.tobytes(), len(u))
-    decay = np.exp(offset * (-step / tau1))
+    length = int(min(np.ceil(_CORRECTION_TAUS * tau1 / step) + 1, np.max(np.diff(bounds))))
+    index, segment, offsets = _segment_heads(bounds.tobytes(), length)
+    decay = np.exp(offsets * (-step / tau1))
     x = lfilter([b1, b0], [1.0, -a], u)
-    x -= decay * (x[first] - u[first])
+    x[index] -= decay * (x[starts] - u[starts])[segment]
     dx = lfilter([b1, b0], [1.0, -a], du, axis=0)
-    dx -= decay[:, None] * (dx[first] - du[first])
+    dx[index] -= decay[:, None] * (dx[starts] - du[starts])[segment]
     forcing = np.empty_like(u)
     forcing[1:] = da * x[:-1] + db0 * u[:-1] + db1 * u[1:]
     forcing[starts] = 0.0
     dtau = lfilter([1.0], [1.0, -a], forcing)
-    dtau -= decay * dtau[first]
+    dtau[index] -= decay * dtau[starts][segment]
     return x, dx, dtau
 
 
