@@ -1,0 +1,186 @@
+"""Runner: fit every candidate of a grid in parallel, cache each result on disk, resume.
+
+Every finished candidate is written to ``<out>/cache/<grid>/<name>-<key>.json``
+(atomically); the key hashes the candidate, the data, the lift parameters it
+depends on and the settings, so an interrupted search resumes where it stopped
+and a changed input is never served from a stale cache. A failing candidate is
+recorded with its reason and never stops the search. Results are identical for
+any number of jobs: each fit is seeded and runs on one process.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .campaign import Campaign
+from .data import FlightData
+from .errors import StructSearchError
+from .io_atomic import write_text
+from .specs import Candidate
+from .stallmodel import StallModel
+
+@dataclass(frozen=True)
+class Settings:
+    n_starts: int = 4
+    seed: int = 0
+    significance: float = 0.05
+
+    def key(self) -> dict:
+        return {"n_starts": self.n_starts, "seed": self.seed}
+
+
+def fingerprint(data: FlightData) -> str:
+    h = hashlib.sha256()
+    for name in sorted(data.columns):
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(data.columns[name]).tobytes())
+    h.update(np.asarray(data.starts).tobytes())
+    return h.hexdigest()[:16]
+
+
+def build_model(c: Candidate, lift: dict | None = None) -> StallModel:
+    """The StallModel of a candidate; ``lift`` is the fit summary of the lift model it names."""
+    fixed = None
+    if c.lift:
+        if lift is None or "params" not in lift:
+            raise StructSearchError(f"candidate {c.name} needs the fitted lift model {c.lift}")
+        fixed = {k: lift["params"][k] for k in lift["nonlinear"]}
+    free_bounds = {k: v for k, v in c.bounds if not fixed or k not in fixed}
+    return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=dict(c.states), fixed=fixed,
+                              bounds=free_bounds)
+
+
+def with_lift_prediction(data: FlightData, lift: dict, lift_candidate: Candidate) -> FlightData:
+    """``data`` with column CL replaced by the lift model's output (the thesis feeds the lift model to
+    drag and pitch; the measured C_L carries buffet noise that would bias them as errors in variables)."""
+    cols = dict(data.columns)
+    cols["CL_measured"] = data["CL"]
+    cols["CL"] = build_model(lift_candidate).predict(data, lift["params"])
+    return FlightData(cols, data.starts, data.names, data.source, dict(data.constants))
+
+
+def _derived(coef: str, predicted: np.ndarray, data: FlightData, other: np.ndarray | None):
+    """C_X and C_Z from a lift or drag prediction and the other coefficient (predicted or measured)."""
+    alpha = data["alpha"]
+    if coef == "CL":
+        cl, cd = predicted, (other if other is not None else data["CD"])
+    elif coef == "CD":
+        cd, cl = predicted, (other if other is not None else data["CL"])
+    else:
+        return None
+    cx = -cd * np.cos(alpha) + cl * np.sin(alpha)
+    cz = -cl * np.cos(alpha) - cd * np.sin(alpha)
+    cl_meas = data["CL_measured"] if "CL_measured" in data else data["CL"]
+    mx = data["CX"] if "CX" in data else -data["CD"] * np.cos(alpha) + cl_meas * np.sin(alpha)
+    mz = data["CZ"] if "CZ" in data else -cl_meas * np.cos(alpha) - data["CD"] * np.sin(alpha)
+    return float(np.mean((cx - mx) ** 2)), float(np.mean((cz - mz) ** 2))
+
+
+def _per_segment(y, pred, data: FlightData):
+    mse, r2, n = [], [], []
+    for sl in data.segment_slices():
+        r = y[sl] - pred[sl]
+        mse.append(float(r @ r / len(r)))
+        sst = float(np.sum((y[sl] - y[sl].mean()) ** 2))
+        r2.append(1 - float(r @ r) / sst if sst > 0 else float("nan"))
+        n.append(len(r))
+    return mse, r2, n
+
+
+def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift: dict | None,
+                  lift_candidate: Candidate | None, settings: Settings) -> dict:
+    """Fit one candidate on the training maneuvers and score it on both splits (a plain dict)."""
+    t0 = time.perf_counter()
+    try:
+        model = build_model(c, lift)
+        if c.lift and lift_candidate is not None:
+            train = with_lift_prediction(train, lift, lift_candidate)
+            validation = with_lift_prediction(validation, lift, lift_candidate)
+        result = model.fit(train, n_starts=settings.n_starts if model.nonlinear_names else 1, seed=settings.seed)
+        params = result.params
+        summary = {"name": c.name, "grid": c.grid, "coefficient": c.coefficient, "lift": c.lift,
+                   "n_params": result.n_params, "params": params, "nonlinear": list(result.nonlinear_names), "stderr": result.stderr,
+                   "p_values": result.p_values, "at_bound": result.at_bound,
+                   "high_correlations": [list(p) for p in result.high_correlations],
+                   "insignificant": [n for n, s in result.significant.items() if not s],
+                   "n_starts": result.n_starts, "n_reached_best": result.n_reached_best,
+                   "aic": result.aic, "bic": result.bic, "max_lag": result.max_lag}
+        for split, data in (("train", train), ("validation", validation)):
+            y = data[c.coefficient]
+            pred = model.predict(data, params)
+            mse, r2, n = _per_segment(y, pred, data)
+            summary[f"mse_{split}"] = float(np.sum(np.array(mse) * n) / np.sum(n))
+            summary[f"mse_{split}_maneuvers"] = mse
+            summary[f"n_{split}_maneuvers"] = n
+            finite = [v for v in r2 if np.isfinite(v)]
+            summary[f"r2_{split}"] = {"mean": float(np.mean(finite)), "min": float(np.min(finite)),
+                                      "max": float(np.max(finite))} if finite else None
+            other = data["CL"] if c.lift and c.coefficient == "CD" else None  # the lift model's output
+            derived = _derived(c.coefficient, pred, data, other)
+            if derived:
+                summary[f"mse_cx_{split}"], summary[f"mse_cz_{split}"] = derived
+        summary["seconds"] = time.perf_counter() - t0
+        return summary
+    except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+        return {"name": c.name, "grid": c.grid, "coefficient": c.coefficient, "lift": c.lift,
+                "error": f"{type(exc).__name__}: {exc}", "seconds": time.perf_counter() - t0}
+
+
+def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings) -> Path:
+    blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params,
+                       "settings": settings.key(), "version": 1}, sort_keys=True, default=float)
+    key = hashlib.sha256(blob.encode()).hexdigest()[:16]
+    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in c.name)
+    return out / "cache" / c.grid / f"{safe}-{key}.json"
+
+
+def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_results: dict | None = None,
+        lift_candidates: dict | None = None, settings: Settings = Settings(), n_jobs: int = 1,
+        backend: str = "loky", progress: Callable[[str], None] | None = None) -> list[dict]:
+    """Fit candidates (cached, in parallel); results in the order of ``candidates``."""
+    say = progress or (lambda msg: None)
+    train, validation = campaign.split("train"), campaign.split("validation")
+    data_key = fingerprint(campaign.data)
+    lift_results = lift_results or {}
+    lift_candidates = lift_candidates or {}
+    todo, results, paths = [], [None] * len(candidates), []
+    for i, c in enumerate(candidates):
+        lift = lift_results.get(c.lift) if c.lift else None
+        path = cache_path(out, c, data_key, lift.get("params") if lift else None, settings)
+        paths.append(path)
+        if path.exists():
+            results[i] = json.loads(path.read_text())
+        else:
+            todo.append(i)
+    if len(todo) < len(candidates):
+        say(f"{len(candidates) - len(todo)} of {len(candidates)} candidates from the cache")
+
+    def task(i):
+        c = candidates[i]
+        return fit_candidate(c, train, validation, lift_results.get(c.lift) if c.lift else None,
+                             lift_candidates.get(c.lift), settings)
+
+    if todo:
+        from joblib import Parallel, delayed, parallel_config
+        done = 0
+        t0 = time.perf_counter()
+        with parallel_config(backend=backend, n_jobs=n_jobs):
+            for i, summary in zip(todo, Parallel(return_as="generator")(delayed(task)(i) for i in todo)):
+                write_text(paths[i], json.dumps(summary, indent=1, default=float))
+                results[i] = summary
+                done += 1
+                status = "failed: " + summary["error"] if "error" in summary else f"{summary['seconds']:.1f} s"
+                say(f"[{done}/{len(todo)}] {candidates[i].grid} {candidates[i].name}: {status} "
+                    f"({time.perf_counter() - t0:.0f} s elapsed)")
+    return results
+
+
+def stderr_progress(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
