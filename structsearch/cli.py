@@ -43,6 +43,118 @@ def _simulate(args) -> int:
     return 0
 
 
+def _resolve_candidate(name: str):
+    from .specs import find_candidate, load_grid
+    p = Path(name)
+    if p.suffix == ".toml" or p.exists():
+        grid = load_grid(str(p))
+        if len(grid.candidates) != 1:
+            raise_error(f"{p}: a model spec file must declare exactly one candidate "
+                        f"(it declares {len(grid.candidates)}; use it as a grid with 'search --grid')")
+        return grid.candidates[0]
+    return find_candidate(name)
+
+
+def raise_error(message: str):
+    from .errors import DeclarationError
+    raise DeclarationError(message)
+
+
+def _fit(args) -> int:
+    import json
+    from .campaign import read_campaign
+    from .io_atomic import write_text
+    from .runner import Settings, build_model, fit_candidate
+    from .specs import load_grid
+    campaign = read_campaign(args.data)
+    candidate = _resolve_candidate(args.model)
+    settings = Settings(n_starts=args.starts, seed=args.seed)
+    train, validation = campaign.split("train"), campaign.split("validation")
+    lift = lift_candidate = None
+    if candidate.lift:
+        lift_candidate = load_grid("lift")[candidate.lift]
+        lift = fit_candidate(lift_candidate, train, validation, None, None, settings)
+        if "error" in lift:
+            raise_error(f"fitting the lift model {candidate.lift} failed: {lift['error']}")
+    summary = fit_candidate(candidate, train, validation, lift, lift_candidate, settings)
+    if "error" in summary:
+        raise_error(summary["error"])
+    out = Path(args.out)
+    doc = {"model": candidate.name, "params": summary["params"], "stderr": summary["stderr"],
+           "mse": {"train": summary["mse_train"], "validation": summary["mse_validation"]},
+           "p_values": summary["p_values"], "at_bound": summary["at_bound"],
+           "high_correlations": summary["high_correlations"], "insignificant": summary["insignificant"],
+           "r2": {"train": summary["r2_train"], "validation": summary["r2_validation"]},
+           "n_starts": summary["n_starts"], "n_reached_best": summary["n_reached_best"],
+           "lift": lift and {"model": candidate.lift, "params": lift["params"]}}
+    write_text(out / "fit.json", json.dumps(doc, indent=2, default=float))
+    from .ranking import parameter_table
+    write_text(out / "fit.md", f"# {candidate.name}\n\n" + parameter_table(summary, "md"))
+    print(f"{candidate.name}: MSE train {summary['mse_train']:.4g}, validation {summary['mse_validation']:.4g}; "
+          f"{len(summary['insignificant'])} parameter(s) accept zero, {len(summary['at_bound'])} at a bound; "
+          f"wrote {out / 'fit.json'}")
+    return 0
+
+
+def _search(args) -> int:
+    from .campaign import read_campaign
+    from .runner import Settings, stderr_progress
+    from .search import search
+    campaign = read_campaign(args.data)
+    result = search(campaign, args.grid, Path(args.out), n_jobs=args.jobs,
+                    settings=Settings(n_starts=args.starts, seed=args.seed), backend=args.backend,
+                    progress=None if args.quiet else stderr_progress)
+    _print_winners(result)
+    print(f"wrote {Path(args.out) / 'ranking.csv'} and the tables of each grid")
+    return 0
+
+
+def _print_winners(result) -> None:
+    for grid, ranked in result["grids"].items():
+        ok = [s for s in ranked if "error" not in s]
+        failed = len(ranked) - len(ok)
+        if not ok:
+            print(f"{grid}: every candidate failed")
+            continue
+        best, runner_up = ok[0], (ok[1] if len(ok) > 1 else None)
+        margin = ""
+        if runner_up is not None:
+            margin = (f"; next {runner_up['name']} ({runner_up['n_params']} parameters, validation MSE "
+                      f"{runner_up['mse_validation'] / best['mse_validation'] - 1:+.1%})")
+        print(f"{grid}: {best['name']} ({best['n_params']} parameters, validation MSE {best['mse_validation']:.4g})"
+              f"{margin}; {len(ok)} fitted, {failed} failed, {result['seconds'][grid]:.1f} s")
+
+
+def _demo(args) -> int:
+    import os
+    import time
+    from .campaign import read_campaign, write_campaign
+    from .flighttest import build_campaign
+    from .runner import Settings, stderr_progress
+    from .search import search
+    out = Path(args.out)
+    t0 = time.perf_counter()
+    camp_dir = out / "campaign"
+    if (camp_dir / "campaign.toml").exists():
+        campaign = read_campaign(camp_dir)
+        print(f"reusing the simulated campaign in {camp_dir}")
+    else:
+        print("simulating the default flight-test campaign (seed 0) ...", flush=True)
+        write_campaign(build_campaign(seed=0), camp_dir)
+        campaign = read_campaign(camp_dir)
+    t_sim = time.perf_counter() - t0
+    jobs = args.jobs or os.cpu_count() or 1
+    result = search(campaign, "all", out, n_jobs=jobs, settings=Settings(n_starts=args.starts),
+                    progress=None if args.quiet else stderr_progress)
+    total = time.perf_counter() - t0
+    _print_winners(result)
+    print(f"campaign: {len(campaign.maneuvers)} maneuvers, {campaign.data.n_samples} samples "
+          f"({t_sim:.0f} s); search of {sum(len(r) for r in result['grids'].values())} candidates on {jobs} "
+          f"process(es): {total - t_sim:.0f} s; total {total:.0f} s")
+    print(f"tables and ranking.csv in {out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="structsearch", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -66,6 +178,33 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--extras", action="store_true", help="add pullups, pushovers and phugoids")
     s.add_argument("--format", choices=("csv", "parquet"), default="csv")
     s.set_defaults(func=_simulate)
+
+    f = sub.add_parser("fit", help="fit one model structure to a campaign")
+    f.add_argument("--data", required=True, help="campaign directory")
+    f.add_argument("--model", required=True, help="candidate name (CL-VI, CD-IXr, Cm-XXXIII, ...) or spec file")
+    f.add_argument("--out", default="results", help="output directory (default: results)")
+    f.add_argument("--starts", type=int, default=4, help="starts of the nonlinear search (1: default start)")
+    f.add_argument("--seed", type=int, default=0)
+    f.set_defaults(func=_fit)
+
+    r = sub.add_parser("search", help="fit and rank every candidate of a grid")
+    r.add_argument("--data", required=True, help="campaign directory")
+    r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all, or a grid spec file")
+    r.add_argument("--out", default="results", help="output directory (default: results)")
+    r.add_argument("--jobs", type=int, default=1, help="parallel processes")
+    r.add_argument("--starts", type=int, default=4, help="starts per nonlinear fit")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--backend", default="loky", choices=("loky", "threading", "dask"),
+                   help="joblib backend; dask needs a running dask.distributed Client")
+    r.add_argument("--quiet", action="store_true", help="no progress lines")
+    r.set_defaults(func=_search)
+
+    d = sub.add_parser("demo", help="simulate the default campaign, search every grid, write all tables")
+    d.add_argument("--out", default="results", help="output directory (default: results)")
+    d.add_argument("--jobs", type=int, default=0, help="parallel processes (default: all cores)")
+    d.add_argument("--starts", type=int, default=4)
+    d.add_argument("--quiet", action="store_true")
+    d.set_defaults(func=_demo)
     return parser
 
 

@@ -23,6 +23,8 @@ from .campaign import Campaign
 from .data import FlightData
 from .errors import StructSearchError
 from .io_atomic import write_text
+from .regressors import declare
+from .separation import SeparationState
 from .specs import Candidate
 from .stallmodel import StallModel
 
@@ -48,12 +50,21 @@ def fingerprint(data: FlightData) -> str:
 def build_model(c: Candidate, lift: dict | None = None) -> StallModel:
     """The StallModel of a candidate; ``lift`` is the fit summary of the lift model it names."""
     fixed = None
+    states = dict(c.states)
     if c.lift:
         if lift is None or "params" not in lift:
             raise StructSearchError(f"candidate {c.name} needs the fitted lift model {c.lift}")
-        fixed = {k: lift["params"][k] for k in lift["nonlinear"]}
+        # only the lift model's states this candidate's regressors use (CD-X has none)
+        symbols = {SeparationState(n, k).symbol: n for n, k in states.items()}
+        used = {s for name, text in c.regressors
+                for s in declare(name, text, states=list(symbols)).states}
+        states = {symbols[s]: states[symbols[s]] for s in symbols if s in used}
+        own = {p for n, k in states.items() for p in SeparationState(n, k).parameters}
+        fixed = {k: lift["params"][k] for k in lift["nonlinear"] if k in own}
     free_bounds = {k: v for k, v in c.bounds if not fixed or k not in fixed}
-    return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=dict(c.states), fixed=fixed,
+    free_bounds = {k: v for k, v in free_bounds.items()
+                   if k in {p for n, kd in states.items() for p in SeparationState(n, kd).parameters}}
+    return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states, fixed=fixed,
                               bounds=free_bounds)
 
 
@@ -133,9 +144,15 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
                 "error": f"{type(exc).__name__}: {exc}", "seconds": time.perf_counter() - t0}
 
 
+# Part of every cache key: bump it when a change to the fitting code changes results.
+CACHE_VERSION = 2
+
+
 def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings) -> Path:
+    from . import __version__
     blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params,
-                       "settings": settings.key(), "version": 1}, sort_keys=True, default=float)
+                       "settings": settings.key(), "version": [__version__, CACHE_VERSION]},
+                      sort_keys=True, default=float)
     key = hashlib.sha256(blob.encode()).hexdigest()[:16]
     safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in c.name)
     return out / "cache" / c.grid / f"{safe}-{key}.json"

@@ -101,7 +101,18 @@ class StallModel:
         return [(s, p) for s in self.states for p in s.base_parameters if s.parameter_name(p) not in self.fixed]
 
     def start_vector(self) -> np.ndarray:
-        return np.array([self.start.get(s.parameter_name(p), DEFAULT_START[p]) for s, p in self._free()], float)
+        """Declared starts; else the middle of declared bounds (two states with their own ranges must not
+        start identical, their regressors would coincide); else the default start of the parameter kind."""
+        out = []
+        for s, p in self._free():
+            name = s.parameter_name(p)
+            if name in self.start:
+                out.append(self.start[name])
+            elif name in self.bounds:
+                out.append(0.5 * (self.bounds[name][0] + self.bounds[name][1]))
+            else:
+                out.append(DEFAULT_START[p])
+        return np.array(out, float)
 
     def bound_vectors(self) -> tuple[np.ndarray, np.ndarray]:
         pairs = [self.bounds.get(s.parameter_name(p), DEFAULT_BOUNDS[p]) for s, p in self._free()]
