@@ -101,12 +101,30 @@ def _search(args) -> int:
     from .runner import Settings, stderr_progress
     from .search import search
     campaign = read_campaign(args.data)
-    result = search(campaign, args.grid, Path(args.out), n_jobs=args.jobs,
-                    settings=Settings(n_starts=args.starts, seed=args.seed), backend=args.backend,
-                    progress=None if args.quiet else stderr_progress)
+    client = _dask_client(args) if args.backend == "dask" else None
+    try:
+        result = search(campaign, args.grid, Path(args.out), n_jobs=args.jobs,
+                        settings=Settings(n_starts=args.starts, seed=args.seed), backend=args.backend,
+                        progress=None if args.quiet else stderr_progress)
+    finally:
+        if client is not None:
+            client.close()
     _print_winners(result)
     print(f"wrote {Path(args.out) / 'ranking.csv'} and the tables of each grid")
     return 0
+
+
+def _dask_client(args):
+    """A dask.distributed Client: the given scheduler, else a local cluster of --jobs single-threaded workers."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise_error("--backend dask needs the optional dependency dask.distributed "
+                    "(pip install 'structsearch[dask]')")
+    if args.scheduler:
+        return Client(args.scheduler)
+    return Client(LocalCluster(n_workers=max(args.jobs, 1), threads_per_worker=1, processes=True,
+                               dashboard_address=None))
 
 
 def _print_winners(result) -> None:
@@ -139,8 +157,8 @@ def _demo(args) -> int:
         campaign = read_campaign(camp_dir)
         print(f"reusing the simulated campaign in {camp_dir}")
     else:
-        print("simulating the default flight-test campaign (seed 0) ...", flush=True)
-        write_campaign(build_campaign(seed=0), camp_dir)
+        print(f"simulating the default flight-test campaign (seed 0, scale {args.scale}) ...", flush=True)
+        write_campaign(build_campaign(seed=0, scale=args.scale), camp_dir)
         campaign = read_campaign(camp_dir)
     t_sim = time.perf_counter() - t0
     jobs = args.jobs or os.cpu_count() or 1
@@ -194,8 +212,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--jobs", type=int, default=1, help="parallel processes")
     r.add_argument("--starts", type=int, default=4, help="starts per nonlinear fit")
     r.add_argument("--seed", type=int, default=0)
-    r.add_argument("--backend", default="loky", choices=("loky", "threading", "dask"),
-                   help="joblib backend; dask needs a running dask.distributed Client")
+    r.add_argument("--backend", default="loky", choices=("loky", "dask"),
+                   help="loky: local processes; dask: a dask.distributed cluster")
+    r.add_argument("--scheduler", default=None,
+                   help="dask scheduler address (default: start a local cluster of --jobs workers)")
     r.add_argument("--quiet", action="store_true", help="no progress lines")
     r.set_defaults(func=_search)
 
@@ -203,6 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", default="results", help="output directory (default: results)")
     d.add_argument("--jobs", type=int, default=0, help="parallel processes (default: all cores)")
     d.add_argument("--starts", type=int, default=4)
+    d.add_argument("--scale", type=float, default=1.0, help="fraction of the campaign to fly (quick looks)")
     d.add_argument("--quiet", action="store_true")
     d.set_defaults(func=_demo)
     return parser

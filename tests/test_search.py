@@ -1,0 +1,211 @@
+"""Structure search: grids from rules, runner (parallel, cached, resumable), ranking, refinement, CLI."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from structsearch.campaign import read_campaign, write_campaign
+from structsearch.enumeration import stepwise
+from structsearch.flighttest import build_campaign
+from structsearch.ranking import rank
+from structsearch.runner import Settings, run
+from structsearch.search import search
+from structsearch.specs import load_grid, roman
+
+from test_report_cli import run_cli
+
+# Catalogue section 5, written out independently of model_specs/pitch.toml.
+BLOCK_REGRESSORS = {
+    "K0": {"Cm_CL", "Cm_xcgCL"}, "K1": {"Cm_1mX_ssCL", "Cm_1mX_wCL"},
+    "K2h": {"Cm_K2h_ss", "Cm_K2h_w"}, "K21": {"Cm_K21_ss", "Cm_K21_w"}, "K22": {"Cm_K22_ss", "Cm_K22_w"},
+    "KS": {"Cm_KS_ss", "Cm_KS_w"}, "sep": {"Cm_1mX_ss", "Cm_1mX_w"}, "Xde": {"Cm_Xde_ss", "Cm_Xde_w"},
+}
+BASE = {"Cm0", "Cm_CT", "Cm_qstar", "Cm_de"}
+CORE = [["K0"], ["K1"], ["K0", "K1"], ["K0", "K2h"], ["K1", "K2h"], ["K0", "K1", "K2h"], ["K0", "K21"],
+        ["K1", "K21"], ["K0", "K1", "K21"], ["K0", "K22"], ["K1", "K22"], ["K0", "K1", "K22"], ["KS"],
+        ["K0", "KS"]]
+
+
+def expected_pitch():
+    seq = [[]]  # Cm-I is separate
+    seq += [c for c in CORE]
+    seq += [["sep"]] + [c + ["sep"] for c in CORE]
+    seq += [c + ["Xde"] for c in CORE]
+    seq += [["sep", "Xde"]] + [c + ["sep", "Xde"] for c in CORE]
+    out = {}
+    for i, blocks in enumerate(seq[1:], start=2):
+        out[f"Cm-{roman(i)}"] = BASE | set().union(*(BLOCK_REGRESSORS[b] for b in blocks))
+    return out
+
+
+def test_grid_sizes_and_unique_names():
+    sizes = {"separation": 9, "lift": 6, "drag": 15, "pitch": 60}
+    for name, size in sizes.items():
+        grid = load_grid(name)
+        assert len(grid.candidates) == size, name
+        assert len(set(grid.names)) == size, name
+    pitch = load_grid("pitch")
+    assert pitch.names[:59] == tuple(f"Cm-{roman(i)}" for i in range(1, 60))
+    assert load_grid("drag").names[:14] == tuple(f"CD-{roman(i)}" for i in range(1, 15))
+
+
+def test_pitch_rules_equal_the_catalogue():
+    pitch = load_grid("pitch")
+    for name, regs in expected_pitch().items():
+        assert set(dict(pitch[name].regressors)) == regs, name
+    assert set(dict(pitch["Cm-XXXIIIr"].regressors)) == expected_pitch()["Cm-XXXIII"] - {"Cm_Xde_w"}
+    assert pitch["Cm-I"].lift == "CL-I" and dict(pitch["Cm-I"].states) == {"": "U"}
+
+
+def test_drag_rules_equal_the_catalogue():
+    drag = load_grid("drag")
+    iii = {"CD0", "CD_CT", "CD_qstar", "CD_de", "CD_1mX_ss", "CD_1mX_w"}
+    expect = {
+        "CD-I": {"CD0", "CD_CT", "CD_de", "CD_alpha", "CD_1mX"},
+        "CD-II": {"CD0", "CD_CT", "CD_de", "CD_alpha", "CD_1mX_ss", "CD_1mX_w"},
+        "CD-III": iii, "CD-IV": iii | {"CD_alpha"}, "CD-V": iii | {"CD_alpha2"},
+        "CD-VI": iii | {"CD_alpha", "CD_alpha2"}, "CD-VII": iii | {"CD_CL"}, "CD-VIII": iii | {"CD_CL2"},
+        "CD-IX": iii | {"CD_CL", "CD_CL2"}, "CD-X": {"CD0", "CD_CT", "CD_qstar", "CD_de", "CD_CL"},
+        "CD-XI": {"CD0", "CD_CT", "CD_qstar", "CD_de", "CD_CL2"},
+        "CD-XII": {"CD0", "CD_CT", "CD_qstar", "CD_de", "CD_CL", "CD_CL2"},
+        "CD-XIII": {"CD0", "CD_CT", "CD_qstar", "CD_de", "CD_KD_ss", "CD_KD_w"},
+        "CD-XIV": iii | {"CD_KD_ss", "CD_KD_w"},
+        "CD-IXr": {"CD0", "CD_CT", "CD_de", "CD_CL2", "CD_1mX_ss", "CD_1mX_w"},
+    }
+    for name, regs in expect.items():
+        assert set(dict(drag[name].regressors)) == regs, name
+    assert drag["CD-I"].lift == "CL-I" and all(drag[n].lift == "CL-VI" for n in expect if n != "CD-I")
+
+
+def test_separation_and_lift_grids():
+    sep = load_grid("separation")
+    kinds = [dict(c.states) for c in sep.candidates]
+    assert kinds == [{"ss": a, "w": b} for a in "SQU" for b in "SQU"]
+    lift = load_grid("lift")
+    assert set(dict(lift["CL-VI"].regressors)) == {"CL0", "CL_KL_ss", "CL_KL_w", "CL_qstar", "CL_de"}
+    assert set(dict(lift["CL-IV"].regressors)) == {"CL0", "CL_KL_ss", "CL_KL_w", "CL_qstar"}
+
+
+def test_stepwise_finds_the_true_regressors():
+    rng = np.random.default_rng(3)
+    n = 2000
+    pool = {f"x{i}": rng.standard_normal(n) for i in range(8)}
+    pool["one"] = np.ones(n)
+    y = 1.0 + 2.0 * pool["x1"] - 0.5 * pool["x4"] + 0.3 * pool["x6"] + 0.1 * rng.standard_normal(n)
+    result = stepwise(pool, y, forced=["one"])
+    assert set(result.selected) == {"one", "x1", "x4", "x6"}
+    assert result.history[0][:2] == ("add", "x1")
+
+
+def test_ranking_rule_prefers_the_smaller_model_within_noise():
+    def summary(name, n, per):
+        return {"name": name, "grid": "g", "n_params": n, "mse_validation": float(np.mean(per)),
+                "mse_validation_maneuvers": per, "n_validation_maneuvers": [100] * len(per)}
+    ranked = rank([summary("big", 9, [1.0, 2.0, 3.0]), summary("small", 6, [1.001, 2.002, 2.999]),
+                   summary("bad", 5, [1.5, 2.9, 4.4]), {"name": "broken", "grid": "g", "error": "boom"}])
+    assert [r["name"] for r in ranked] == ["small", "big", "bad", "broken"]
+    assert ranked[-1]["rank"] is None and ranked[0]["within_noise"]
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    path = tmp_path_factory.mktemp("campaign") / "c"
+    write_campaign(build_campaign(seed=1, scale=0.05), path)
+    return read_campaign(path)
+
+
+def test_jobs_do_not_change_results(tiny, tmp_path):
+    lift = load_grid("lift")
+    one = run(lift.candidates, tiny, tmp_path / "a", n_jobs=1)
+    two = run(lift.candidates, tiny, tmp_path / "b", n_jobs=2)
+    for a, b in zip(one, two):
+        assert a["params"] == b["params"] and a["mse_validation"] == b["mse_validation"]
+
+
+def test_interrupted_search_resumes(tiny, tmp_path):
+    grid = load_grid("pitch")
+    lift = load_grid("lift")
+    lift_fit = run([lift["CL-VI"], lift["CL-I"]], tiny, tmp_path)
+    context = dict(lift_results={"CL-VI": lift_fit[0], "CL-I": lift_fit[1]},
+                   lift_candidates={"CL-VI": lift["CL-VI"], "CL-I": lift["CL-I"]})
+    seen = []
+
+    def stop_after_five(message):
+        seen.append(message)
+        if len(seen) == 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run(grid.candidates[:12], tiny, tmp_path, progress=stop_after_five, **context)
+    cached = list((tmp_path / "cache" / "pitch").glob("*.json"))
+    assert len(cached) == 5
+    messages = []
+    resumed = run(grid.candidates[:12], tiny, tmp_path, progress=messages.append, **context)
+    assert messages[0] == "5 of 12 candidates from the cache"
+    assert sum(m.startswith("[") for m in messages) == 7
+    fresh = run(grid.candidates[:12], tiny, tmp_path / "fresh", **context)
+    assert [r["params"] for r in resumed] == [r["params"] for r in fresh]
+
+
+def test_failing_candidate_is_recorded_and_the_search_goes_on(tiny, tmp_path):
+    spec = tmp_path / "grid.toml"
+    spec.write_text('name = "mine"\ncoefficient = "CL"\nprefix = "M-"\n'
+                    '[blocks]\nbase = { c0 = "1", ca = "alpha" }\n'
+                    '[[entry]]\nblocks = ["base"]\n'
+                    '[[entry]]\nregressors = { c0 = "1", a = "alpha", b = "2*alpha" }\n'
+                    '[[entry]]\nregressors = { c0 = "1", k = "K_L(X)" }\nstates = { "" = "U" }\n')
+    result = search(tiny, str(spec), tmp_path / "out")
+    ranked = result["grids"]["mine"]
+    assert [r["name"] for r in ranked] == ["M-III", "M-I", "M-II"]
+    assert "linearly dependent" in ranked[-1]["error"] and ranked[-1]["rank"] is None
+    rows = list(csv.DictReader((tmp_path / "out" / "ranking.csv").open()))
+    assert rows[-1]["model"] == "M-II" and "linearly dependent" in rows[-1]["error"]
+
+
+def test_refinement_drops_what_the_t_test_rejects(tiny, tmp_path):
+    spec = tmp_path / "grid.toml"
+    spec.write_text('name = "r"\ncoefficient = "CL"\nprefix = "R-"\n'
+                    '[[entry]]\nregressors = { c0 = "1", k = "K_L(X)", junk = "x_cg*0.001 + t*0.0" }\n'
+                    'states = { "" = "U" }\n')
+    # junk is constant per maneuver and carries no lift: its t-test should accept zero
+    result = search(tiny, str(spec), tmp_path / "out")
+    names = [r["name"] for r in result["grids"]["r"]]
+    assert "R-Ir-auto" in names
+    refined = next(r for r in result["grids"]["r"] if r["name"] == "R-Ir-auto")
+    assert "junk" not in refined["params"]
+
+
+def test_cli_fit_search_and_dask(tiny, tmp_path):
+    data = str(tiny.directory)
+    proc = run_cli("fit", "--data", data, "--model", "CD-IXr", "--out", str(tmp_path / "fit"))
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads((tmp_path / "fit" / "fit.json").read_text())
+    assert doc["model"] == "CD-IXr" and set(doc["mse"]) == {"train", "validation"}
+    assert doc["params"].keys() == doc["stderr"].keys()
+    proc = run_cli("search", "--data", data, "--grid", "lift", "--out", str(tmp_path / "s"), "--jobs", "2")
+    assert proc.returncode == 0, proc.stderr
+    rows = list(csv.DictReader((tmp_path / "s" / "ranking.csv").open()))
+    assert {"grid", "model", "mse_train", "mse_validation", "n_params"} <= set(rows[0])
+    assert [r["grid"] for r in rows] == ["lift"] * 6
+    for ext in ("md", "tex", "csv"):
+        assert (tmp_path / "s" / f"lift.{ext}").stat().st_size > 100
+    pytest.importorskip("distributed")
+    proc = run_cli("search", "--data", data, "--grid", "lift", "--out", str(tmp_path / "d"), "--jobs", "2",
+                   "--backend", "dask", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    dask_rows = list(csv.DictReader((tmp_path / "d" / "ranking.csv").open()))
+    assert [(r["model"], r["mse_validation"]) for r in dask_rows] == [(r["model"], r["mse_validation"]) for r in rows]
+
+
+def test_cli_demo_small(tmp_path):
+    proc = run_cli("demo", "--out", str(tmp_path), "--scale", "0.05", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    for grid in ("separation", "lift", "drag", "pitch"):
+        assert f"{grid}: " in proc.stdout
+    assert (tmp_path / "ranking.csv").exists() and (tmp_path / "campaign" / "campaign.toml").exists()
+
+
+def test_unknown_model_name_is_one_line_error(tiny):
+    proc = run_cli("fit", "--data", str(tiny.directory), "--model", "CL-XX")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "CL-XX" in proc.stderr
