@@ -181,6 +181,75 @@ def run(config: BenchConfig = BenchConfig(), progress=None) -> dict:
     }
 
 
+def _peak_rss_mb(pid: int) -> float:
+    """Peak resident memory (VmHWM) of a process in MB; 0 where /proc is not available."""
+    try:
+        for line in open(f"/proc/{pid}/status"):
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return 0.0
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    try:
+        for entry in os.listdir("/proc"):
+            if entry.isdigit():
+                try:
+                    fields = open(f"/proc/{entry}/stat").read().rsplit(")", 1)[1].split()
+                    if int(fields[1]) == pid:
+                        out.append(int(entry))
+                except (OSError, IndexError, ValueError):
+                    continue
+    except OSError:
+        pass
+    return out
+
+
+def run_search(n_jobs: int = 2, seed: int = 0, progress=None) -> dict:
+    """``search --grid all`` on the default simulated campaign, from an empty cache."""
+    import tempfile
+    from .flighttest import build_campaign
+    from .runner import Settings
+    from .search import search
+    say = progress or (lambda m: None)
+    say("simulating the default campaign for the search benchmark")
+    t0 = time.perf_counter()
+    campaign = build_campaign(seed=seed)
+    t_sim = time.perf_counter() - t0
+    with tempfile.TemporaryDirectory() as tmp:
+        say("search --grid all from an empty cache")
+        t0 = time.perf_counter()
+        result = search(campaign, "all", Path(tmp), n_jobs=n_jobs, settings=Settings())
+        total = time.perf_counter() - t0
+        workers = _children(os.getpid())
+        worker_peaks = [_peak_rss_mb(p) for p in workers]
+    winners = {g: next((s["name"] for s in r if "error" not in s), None) for g, r in result["grids"].items()}
+    return {"samples": campaign.data.n_samples, "simulate_s": t_sim, "search_s": total,
+            "by_grid_s": result["seconds"], "candidates": {g: len(r) for g, r in result["grids"].items()},
+            "failed": {g: sum("error" in s for s in r) for g, r in result["grids"].items()},
+            "winners": winners, "n_jobs": n_jobs, "main_peak_rss_mb": _peak_rss_mb(os.getpid()),
+            "worker_peak_rss_mb": worker_peaks}
+
+
+def search_markdown(s: dict) -> str:
+    lines = ["## search --grid all (default simulated campaign, empty cache)", "",
+             f"{s['samples']} samples; {s['n_jobs']} processes; simulation {s['simulate_s']:.1f} s (not counted).", "",
+             "| grid | candidates | failed | wall time [s] | ranked first |", "|---|---|---|---|---|"]
+    for g, sec in s["by_grid_s"].items():
+        lines.append(f"| {g} | {s['candidates'][g]} | {s['failed'][g]} | {sec:.1f} | {s['winners'][g]} |")
+    lines += [f"| **all** | {sum(s['candidates'].values())} | {sum(s['failed'].values())} | "
+              f"**{s['search_s']:.1f}** | |", "",
+              "The drag and pitch times include fitting the lift models they depend on when the lift grid has "
+              "not done so already (it has, in `all`).", "",
+              f"Peak resident memory: main process {s['main_peak_rss_mb']:.0f} MB, workers "
+              + ", ".join(f"{w:.0f} MB" for w in s["worker_peak_rss_mb"]) +
+              f" (sum {s['main_peak_rss_mb'] + sum(s['worker_peak_rss_mb']):.0f} MB).", ""]
+    return "\n".join(lines)
+
+
 def to_markdown(fig: dict) -> str:
     o, r, mem, sc = fig["one_start"], fig["random_starts"], fig["memory"], fig["scaling"]
     lines = [
@@ -228,6 +297,8 @@ def to_markdown(fig: dict) -> str:
               f"both data sets, all fits): {fig['process_peak_rss_mb']:.0f} MB.", "",
               "Success counts over a handful of starts carry binomial noise of about "
               f"sqrt(n p (1-p)) = {np.sqrt(r['n'] * 0.25):.1f} starts at p = 1/2.", ""]
+    if "search" in fig:
+        lines.append(search_markdown(fig["search"]))
     return "\n".join(lines)
 
 

@@ -17,7 +17,11 @@ def _bench(args) -> int:
     from .bench import BenchConfig, run, write
     config = BenchConfig(samples=args.samples, repeats=args.repeats, random_starts=args.starts,
                          seed=args.seed, n_jobs=args.jobs)
-    fig = run(config, progress=lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True))
+    say = lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True)  # noqa: E731
+    fig = run(config, progress=say)
+    if not args.no_search:
+        from .bench import run_search
+        fig["search"] = run_search(n_jobs=args.jobs, progress=say)
     md, js = write(fig, Path(args.out))
     o, r = fig["one_start"], fig["random_starts"]
     print(f"one start: SNLS {o['snls_median_s']:.3f} s ({o['snls_nfev']} evaluations), full NLS "
@@ -26,6 +30,10 @@ def _bench(args) -> int:
           f"{r['snls_success']}/{r['n']}, full NLS {r['full_success']}/{r['n']}, finite differences "
           f"{r['fd_success']}/{r['n']}; peak memory "
           f"{fig['memory'][0]['peak_mb']:.0f} MB -> {fig['memory'][1]['peak_mb']:.0f} MB at 2x samples")
+    if "search" in fig:
+        s = fig["search"]
+        print("search --grid all: " + ", ".join(f"{g} {t:.1f} s" for g, t in s["by_grid_s"].items())
+              + f"; total {s['search_s']:.1f} s on {s['n_jobs']} processes")
     print(f"wrote {md} and {js}")
     return 0
 
@@ -182,7 +190,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--repeats", type=int, default=5, help="repeats of the single-start timing")
     b.add_argument("--starts", type=int, default=20, help="random starts for the success rate")
     b.add_argument("--seed", type=int, default=2025)
-    b.add_argument("--jobs", type=int, default=2, help="processes for the random starts")
+    b.add_argument("--jobs", type=int, default=2, help="processes for the random starts and the search")
+    b.add_argument("--no-search", action="store_true", help="skip the search --grid all benchmark")
     b.set_defaults(func=_bench)
 
     from .aero import WITHHOLDABLE

@@ -74,7 +74,7 @@ def run_cli(*args, cwd=None):
 
 
 def test_bench_command_end_to_end(tmp_path):
-    proc = run_cli("bench", "--samples", "6000", "--repeats", "1", "--starts", "2", "--jobs", "1",
+    proc = run_cli("bench", "--samples", "6000", "--repeats", "1", "--starts", "2", "--jobs", "1", "--no-search",
                    "--out", str(tmp_path))
     assert proc.returncode == 0, proc.stderr
     fig = json.loads((tmp_path / "bench.json").read_text())
