@@ -131,8 +131,26 @@ def parameter_table(summary: dict, fmt: str) -> str:
                     floatfmt=".4g") + "\n"
 
 
+def correlation_table(summary: dict, fmt: str) -> str:
+    """Parameter correlation matrix of a candidate (thesis Tables 12, 14, 16); |rho| > 0.9 marked *."""
+    names = summary["correlation"]["names"]
+    matrix = np.asarray(summary["correlation"]["matrix"])
+    if fmt == "csv":
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow([""] + names)
+        for n, row in zip(names, matrix):
+            w.writerow([n] + [f"{v:.4f}" for v in row])
+        return buf.getvalue()
+    body = [[n] + [f"{v:+.2f}" + ("*" if i != j and abs(v) > 0.9 else "") for j, v in enumerate(row)]
+            for i, (n, row) in enumerate(zip(names, matrix))]
+    return tabulate(body, headers=[""] + names, tablefmt={"md": "github", "tex": "latex_booktabs"}[fmt],
+                    disable_numparse=True) + "\n"
+
+
 def write_tables(ranked_by_grid: dict[str, list[dict]], out: Path) -> list[Path]:
-    """``ranking.csv`` plus, per grid, the ranking and the best candidate's parameters in md/tex/csv."""
+    """``ranking.csv`` plus, per grid, the ranking (thesis Tables 8, 9, 10, 20) and the best candidate's
+    parameters (Tables 11, 13, 15) and correlation matrix (Tables 12, 14, 16) in md/tex/csv."""
     out.mkdir(parents=True, exist_ok=True)
     written = []
     buf = io.StringIO()
@@ -158,4 +176,8 @@ def write_tables(ranked_by_grid: dict[str, list[dict]], out: Path) -> list[Path]
                 p = out / f"{safe}_best_parameters.{fmt}"
                 write_text(p, parameter_table(best, fmt))
                 written.append(p)
+                if "correlation" in best:
+                    p = out / f"{safe}_best_correlation.{fmt}"
+                    write_text(p, correlation_table(best, fmt))
+                    written.append(p)
     return written

@@ -120,6 +120,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
                    "n_params": result.n_params, "params": params, "nonlinear": list(result.nonlinear_names), "stderr": result.stderr,
                    "p_values": result.p_values, "at_bound": result.at_bound,
                    "high_correlations": [list(p) for p in result.high_correlations],
+                   "correlation": {"names": list(result.names), "matrix": result.correlation.tolist()},
                    "insignificant": [n for n, s in result.significant.items() if not s],
                    "n_starts": result.n_starts, "n_reached_best": result.n_reached_best,
                    "aic": result.aic, "bic": result.bic, "max_lag": result.max_lag}
@@ -145,7 +146,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
 
 
 # Part of every cache key: bump it when a change to the fitting code changes results.
-CACHE_VERSION = 2
+CACHE_VERSION = 3
 
 
 def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings) -> Path:

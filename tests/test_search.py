@@ -209,3 +209,18 @@ def test_cli_demo_small(tmp_path):
 def test_unknown_model_name_is_one_line_error(tiny):
     proc = run_cli("fit", "--data", str(tiny.directory), "--model", "CL-XX")
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "CL-XX" in proc.stderr
+
+
+def test_readme_grid_example_runs(tiny, tmp_path):
+    """The grid declared in the README is valid and searchable (examples are part of the suite)."""
+    import re
+    from pathlib import Path
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    block = re.search(r'```toml\n(name = "my-pitch".*?)```', readme, re.S).group(1)
+    spec = tmp_path / "my-pitch.toml"
+    spec.write_text(block)
+    grid = load_grid(str(spec))
+    assert grid.names == ("P-I", "P-II", "P-IIr")
+    result = search(tiny, str(spec), tmp_path / "out", do_refine=False)
+    assert all("error" not in r for r in result["grids"]["my-pitch"])
+    assert (tmp_path / "out" / "my-pitch_best_correlation.md").exists()
