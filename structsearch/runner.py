@@ -106,7 +106,7 @@ def _per_segment(y, pred, data: FlightData):
 
 
 def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift: dict | None,
-                  lift_candidate: Candidate | None, settings: Settings) -> dict:
+                  lift_candidate: Candidate | None, settings: Settings, start: dict | None = None) -> dict:
     """Fit one candidate on the training maneuvers and score it on both splits (a plain dict)."""
     t0 = time.perf_counter()
     try:
@@ -114,7 +114,13 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         if c.lift and lift_candidate is not None:
             train = with_lift_prediction(train, lift, lift_candidate)
             validation = with_lift_prediction(validation, lift, lift_candidate)
-        result = model.fit(train, n_starts=settings.n_starts if model.nonlinear_names else 1, seed=settings.seed)
+        warm = {k: v for k, v in (start or {}).items() if k in model.nonlinear_names}
+        if warm:  # a warm start inside the bounds (a baseline's estimates for an extended model)
+            lo, hi = model.bound_vectors()
+            bounds = dict(zip(model.nonlinear_names, zip(lo, hi)))
+            warm = {k: float(np.clip(v, *bounds[k])) for k, v in warm.items()}
+        result = model.fit(train, start=warm or None,
+                           n_starts=settings.n_starts if model.nonlinear_names else 1, seed=settings.seed)
         params = result.params
         summary = {"name": c.name, "grid": c.grid, "coefficient": c.coefficient, "lift": c.lift,
                    "n_params": result.n_params, "params": params, "nonlinear": list(result.nonlinear_names), "stderr": result.stderr,
