@@ -181,6 +181,41 @@ def _demo(args) -> int:
     return 0
 
 
+def _diagnose(args) -> int:
+    import json
+    from .io_atomic import write_text
+    out = Path(args.out)
+    if args.benchmark:
+        from . import withheld
+        res = withheld.run(seed=args.seed, scale=args.scale, null_seeds=tuple(range(args.null_seeds)),
+                           progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr,
+                                                                           flush=True))
+        write_text(out / "withheld_benchmark.json", json.dumps(res, indent=2, default=float))
+        write_text(out / "withheld_benchmark.md", withheld.markdown(res))
+        hits = sum(r["ranked_first"] for r in res["rows"])
+        alarms = sum(not n["explained"] for n in res["null"])
+        print(f"withheld effect ranked first {hits}/{len(res['rows'])}; false alarms {alarms}/{len(res['null'])}; "
+              f"wrote {out / 'withheld_benchmark.md'}")
+        return 0
+    if not args.data or not args.model:
+        raise_error("diagnose needs --data and --model (or --benchmark)")
+    from .campaign import read_campaign
+    from .diagnosis import diagnose, resolve_baseline
+    from .diagnosis_report import write
+    from .runner import Settings
+    campaign = read_campaign(args.data)
+    baseline = resolve_baseline(args.model, args.coefficient)
+    doc = diagnose(campaign, baseline, settings=Settings(n_starts=args.starts, seed=args.seed),
+                   progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr, flush=True))
+    js, md = write(doc, out)
+    best = next((e for e in doc["effects"] if "error" not in e), None)
+    verdict = ("the baseline is at the noise floor" if doc["gap_explained_by_baseline"] else
+               f"best effect {best['name']} closes {best['shrink']:.0%} of the gap" if best else "no effect fitted")
+    print(f"{doc['coefficient']} {doc['baseline']}: {verdict}; explained: {'yes' if doc['explained'] else 'no'}; "
+          f"wrote {js} and {md}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="structsearch", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -227,6 +262,20 @@ def build_parser() -> argparse.ArgumentParser:
                    help="dask scheduler address (default: start a local cluster of --jobs workers)")
     r.add_argument("--quiet", action="store_true", help="no progress lines")
     r.set_defaults(func=_search)
+
+    g = sub.add_parser("diagnose", help="where the model misses the data, which effect causes it, how far it shrinks")
+    g.add_argument("--data", help="campaign directory")
+    g.add_argument("--model", help="baseline candidate name or spec file")
+    g.add_argument("--coefficient", choices=("CL", "CD", "Cm"), help="check that the baseline models this")
+    g.add_argument("--out", default="results", help="output directory")
+    g.add_argument("--starts", type=int, default=2)
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--benchmark", action="store_true",
+                   help="run the withheld-effect benchmark on simulated campaigns instead")
+    g.add_argument("--scale", type=float, default=1.0, help="benchmark campaign scale")
+    g.add_argument("--null-seeds", type=int, default=3, help="benchmark: seeds of the null case")
+    g.add_argument("--quiet", action="store_true")
+    g.set_defaults(func=_diagnose)
 
     d = sub.add_parser("demo", help="simulate the default campaign, search every grid, write all tables")
     d.add_argument("--out", default="results", help="output directory (default: results)")

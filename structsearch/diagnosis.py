@@ -7,7 +7,7 @@ lowest error the library can reach, so it contains what no model of the states
 can remove, including low-frequency measurement errors (residual sensor bias,
 engine-model error, errors in the regressors) that a spectral estimate would
 count as model error. The high-frequency estimate (residual power above 3 Hz,
-with the same density assumed below) is reported beside it as a lower bound.
+with the same density assumed below) is reported beside it for comparison.
 
 Whether a gap is real: a Wald test (coloured covariance) of the parameters the
 saturated model adds beyond the baseline; "explained" means that after the best
@@ -58,7 +58,7 @@ def _fit(c: Candidate, train: FlightData, val: FlightData, lift, lift_c, setting
 
 
 def spectral_floor(residual: np.ndarray, data: FlightData) -> float:
-    """Lower bound of the noise MSE: power above 3 Hz, and the same density below."""
+    """Spectral noise estimate: residual power above 3 Hz, and the same density below."""
     total, n = 0.0, 0
     for sl in data.segment_slices():
         r = residual[sl] - residual[sl].mean()
