@@ -19,7 +19,7 @@ def markdown(doc: dict) -> str:
     lines = [f"# Diagnosis of {doc['coefficient']} (baseline {doc['baseline']})", ""]
     m = doc["mse"]
     lines += [f"Validation MSE {m['validation']:.4g} (training {m['train']:.4g}); noise floor {doc['noise_floor']:.4g} "
-              f"(saturated model; spectral estimate {doc["noise_floor_spectral"]:.4g}).", ""]
+              f"(saturated model; spectral estimate {doc['noise_floor_spectral']:.4g}).", ""]
     if doc["gap_explained_by_baseline"]:
         lines += ["**The baseline is already at the noise floor**: nothing the effect library adds is significant "
                   "(Wald test with the coloured covariance, 1 %).", ""]
