@@ -1,0 +1,145 @@
+"""Diagnosis: effect library, where-breakdown, ranking of effects, determinism, bad input."""
+import json
+
+import numpy as np
+import pytest
+
+from structsearch import effects as fx
+from structsearch.campaign import Maneuver, make_campaign
+from structsearch.diagnosis import diagnose
+from structsearch.errors import DataError, DeclarationError
+from structsearch.flighttest import build_campaign
+from structsearch.reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH
+from structsearch.runner import Settings, fit_candidate
+from structsearch.specs import find_candidate, load_grid
+from structsearch.withheld import WITHHELD, baseline_without
+
+from test_report_cli import run_cli
+
+SETTINGS = Settings(n_starts=1)
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    return build_campaign(seed=5, scale=0.1)
+
+
+def test_every_effect_changes_exactly_what_it_claims():
+    cl3, cd, cm = find_candidate("CL-III"), find_candidate("CD-III"), find_candidate("Cm-II")
+    expect = {
+        "pitch_rate": (cl3, {"CL_qstar": "qstar"}),
+        "alpha_dot": (cl3, {"CL_alphadot": "alpha_dot*cbar/V"}),
+        "elevator": (cl3, {"CL_de": "de"}),
+        "thrust": (cl3, {"CL_CT": "CT"}),
+        "elevator_effectiveness_loss": (cl3, {"CL_Xde_ss": "X_ss*de", "CL_Xde_w": "X_w*de"}),
+        "induced_drag": (cd, {"CD_CL2": "CL**2"}),
+        "cp_shift": (cm, {"Cm_1mXCL_ss": "(1 - X_ss)*CL", "Cm_1mXCL_w": "(1 - X_w)*CL"}),
+    }
+    for name, (base, added) in expect.items():
+        new = fx.LIBRARY[name].apply(base)
+        assert dict(new.regressors) == dict(base.regressors) | added, name
+        assert new.states == base.states
+    sep = fx.LIBRARY["separation_drag"].apply(find_candidate("CD-X"))
+    assert dict(sep.regressors)["CD_1mX_ss"] == "1 - X_ss"
+    lag = fx.LIBRARY["separation_delay"].apply(cl3)  # S -> Q on the only steady state, X_w
+    assert dict(lag.states) == {"ss": "U", "w": "Q"}
+    q_model = lag
+    assert dict(fx.LIBRARY["unsteady_lag"].apply(q_model).states) == {"ss": "U", "w": "U"}
+    two = fx.LIBRARY["second_separation_state"].apply(find_candidate("CL-II"))
+    assert dict(two.states) == {"": "U", "w2": "S"} and dict(two.regressors)["CL_X_w2"] == "K_L(X_w2)"
+
+
+def test_effect_errors():
+    with pytest.raises(DeclarationError, match="already contains the effect 'pitch_rate'"):
+        fx.LIBRARY["pitch_rate"].apply(find_candidate("CL-VI"))
+    with pytest.raises(DeclarationError, match="'induced_drag' does not apply to CL"):
+        fx.get("induced_drag", "CL")
+    with pytest.raises(DeclarationError, match="already contains the effect 'second_separation_state'"):
+        fx.LIBRARY["second_separation_state"].apply(find_candidate("CL-VI"))
+    with pytest.raises(DeclarationError, match="from its lift model"):
+        fx.LIBRARY["unsteady_lag"].apply(find_candidate("CD-IXr"))
+
+
+@pytest.mark.parametrize("effect,parameter,truth", [
+    ("elevator", "CL_de", FINAL_LIFT["CL_de"]),
+    ("induced_drag", "CD_CL2", FINAL_DRAG["CD_CL2"]),
+    ("cp_shift", "Cm_1mXCL_w", FINAL_PITCH["Cm_1mX_wCL"]),
+])
+def test_refit_with_the_effect_recovers_its_parameter(campaign, effect, parameter, truth):
+    base = baseline_without(effect)
+    model = fx.LIBRARY[effect].apply(base)
+    train, val = campaign.split("train"), campaign.split("validation")
+    lift = lift_c = None
+    if model.lift:
+        lift_c = load_grid("lift")[model.lift]
+        lift = fit_candidate(lift_c, train, val, None, None, SETTINGS)
+    s = fit_candidate(model, train, val, lift, lift_c, SETTINGS)
+    assert abs(s["params"][parameter] - truth) < 3 * s["stderr"][parameter] + 0.05 * abs(truth), s["params"]
+
+
+@pytest.fixture(scope="module")
+def withheld_elevator(campaign):
+    return diagnose(campaign, baseline_without("elevator"), settings=SETTINGS, max_rounds=2)
+
+
+def test_withheld_effect_ranked_first_and_gap_closed(withheld_elevator):
+    d = withheld_elevator
+    assert d["effects"][0]["name"] == "elevator"
+    assert d["effects"][0]["shrink"] > 0.8 and d["effects"][0]["p_value"] < 1e-6
+    assert not d["gap_explained_by_baseline"] and d["explained"]
+
+
+def test_where_shares_sum_to_one(withheld_elevator):
+    dims = {r["dimension"] for r in withheld_elevator["where"]}
+    assert {"maneuver", "alpha_band", "phase", "alpha_dot_sign", "frequency_band"} <= dims
+    for dim in dims:
+        total = sum(r["share"] for r in withheld_elevator["where"] if r["dimension"] == dim)
+        assert total == pytest.approx(1.0), dim
+
+
+def test_final_model_is_explained(campaign):
+    d = diagnose(campaign, find_candidate("Cm-XXXIIIr"), settings=SETTINGS, max_rounds=1)
+    assert d["gap_explained_by_baseline"] and d["explained"]
+    assert all(e["shrink"] == 0.0 for e in d["effects"] if "error" not in e)
+
+
+def test_deterministic(campaign):
+    a = diagnose(campaign, baseline_without("induced_drag"), settings=SETTINGS, max_rounds=1)
+    b = diagnose(campaign, baseline_without("induced_drag"), settings=SETTINGS, max_rounds=1)
+    a.pop("seconds"), b.pop("seconds")
+    assert json.dumps(a, default=float, sort_keys=True) == json.dumps(b, default=float, sort_keys=True)
+    assert a["effects"][0]["name"] == "induced_drag"
+
+
+def test_campaign_without_validation_maneuvers(campaign):
+    train_only = make_campaign("t", campaign.aircraft,
+                               [Maneuver(m.id, m.file, m.kind, "train") for m in campaign.maneuvers],
+                               [{k: v[sl] for k, v in campaign.data.columns.items()}
+                                for sl in campaign.data.segment_slices()])
+    with pytest.raises(DataError, match="no validation maneuvers"):
+        diagnose(train_only, find_candidate("CL-V"), settings=SETTINGS)
+
+
+def test_baselines_of_the_benchmark_are_final_minus_one():
+    for effect, (coef, drop, kinds) in WITHHELD.items():
+        base = baseline_without(effect)
+        final = find_candidate({"CL": "CL-VI", "CD": "CD-IXr", "Cm": "Cm-XXXIIIr"}[coef])
+        assert set(dict(final.regressors)) - set(dict(base.regressors)) == set(drop)
+        assert effect in {e.name for e in fx.applicable(base)}, effect
+
+
+def test_cli_diagnose(campaign, tmp_path):
+    from structsearch.campaign import write_campaign
+    write_campaign(campaign, tmp_path / "c")
+    proc = run_cli("diagnose", "--data", str(tmp_path / "c"), "--model", "CD-XI", "--coefficient", "CD",
+                   "--out", str(tmp_path / "o"), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
+    assert {"coefficient", "baseline", "mse", "noise_floor", "where", "effects", "explained"} <= set(doc)
+    assert set(doc["mse"]) == {"train", "validation"}
+    for e in doc["effects"]:
+        assert {"name", "shrink", "mse_validation_after", "p_value"} <= set(e) or "error" in e
+    assert (tmp_path / "o" / "diagnosis.md").read_text().startswith("# Diagnosis of CD")
+    bad = run_cli("diagnose", "--data", str(tmp_path / "c"), "--model", "CD-XI", "--coefficient", "CL",
+                  "--out", str(tmp_path / "o"))
+    assert bad.returncode == 2 and "models CD, not CL" in bad.stderr
