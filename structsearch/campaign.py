@@ -222,7 +222,7 @@ def read_campaign(directory: Path | str) -> Campaign:
     for m, s in zip(maneuvers, segments):
         missing = [c for c in set.union(*(set(s) for s in segments)) - common if c not in s]
         if missing:
-            raise DataError(f"column present in other maneuvers but missing here", source=str(directory / m.file),
+            raise DataError("column present in other maneuvers but missing here", source=str(directory / m.file),
                             column=sorted(missing)[0])
     data = from_segments([{k: s[k] for k in sorted(common)} for s in segments],
                          names=[m.id for m in maneuvers], source=str(directory), constants=aircraft)

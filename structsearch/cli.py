@@ -72,7 +72,7 @@ def _fit(args) -> int:
     import json
     from .campaign import read_campaign
     from .io_atomic import write_text
-    from .runner import Settings, build_model, fit_candidate
+    from .runner import Settings, fit_candidate
     from .specs import load_grid
     campaign = read_campaign(args.data)
     candidate = _resolve_candidate(args.model)

@@ -165,7 +165,6 @@ def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: fl
 
 def fly_batch(model: AeroModel, flown: list[Flown]):
     """Integrate maneuvers of one duration together; returns the truth Trajectory."""
-    n = len(flown[0].alpha_ref)
     stack = lambda attr: np.column_stack([getattr(f, attr) for f in flown])  # noqa: E731
     pilot = Pilot(stack("alpha_ref"), stack("de_extra"), stack("throttle"),
                   np.array([f.de_trim for f in flown]), np.array([f.gains for f in flown]))
@@ -187,14 +186,12 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
     rng = np.random.default_rng(seed)
     # fuel burns down over the test sequence; each flight has its own centre of gravity
     fuel = np.linspace(1500.0, 450.0, len(plan))
-    flights = np.array([p.number for p in plan])
     cg_by_flight = {k: rng.uniform(*ac.X_CG_RANGE) for k in range(4)}
     flown = []
     for i, p in enumerate(plan):
         flight = 0 if p.number <= 17 else 1 if p.number <= 34 else 2 if p.number <= 46 else 3
         mass = ac.EMPTY_MASS + ac.CREW_MASS + fuel[i]
         flown.append(fly(model, p, rng, mass, cg_by_flight[flight]))
-    del flights
     results: list[dict | None] = [None] * len(plan)
     for duration in sorted({len(f.alpha_ref) for f in flown}):
         idx = [i for i, f in enumerate(flown) if len(f.alpha_ref) == duration]

@@ -14,9 +14,9 @@ import io
 from pathlib import Path
 
 import numpy as np
-from tabulate import tabulate
 
 from .io_atomic import write_text
+from .report import render_table
 
 # A relative excess below this is never a reason to prefer a larger model.
 PRACTICAL_TOLERANCE = 0.01
@@ -95,17 +95,10 @@ def _fmt(v):
 def grid_table(ranked: list[dict], fmt: str) -> str:
     rows = table_rows(ranked)
     keys = [k if k != "name" else "model" for k, _ in COLUMNS]
-    headers = [h for _, h in COLUMNS]
-    body = [[_fmt(r.get(k)) for k in keys] for r in rows]
-    if fmt == "csv":
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(headers + ["error"])
-        for r, b in zip(rows, body):
-            w.writerow(b + [r.get("error", "")])
-        return buf.getvalue()
-    tablefmt = {"md": "github", "tex": "latex_booktabs"}[fmt]
-    return tabulate(body, headers=headers, tablefmt=tablefmt) + "\n"
+    headers = [h for _, h in COLUMNS] + ["error"]
+    body = [[_fmt(r.get(k)) for k in keys] + [r.get("error", "")] for r in rows]
+    out = render_table(body, headers, fmt)
+    return out if fmt == "csv" else out + "\n"
 
 
 def parameter_table(summary: dict, fmt: str) -> str:
@@ -121,14 +114,8 @@ def parameter_table(summary: dict, fmt: str) -> str:
             flags.append("|rho| > 0.9")
         rows.append([name, value, se, value / se if se else float("nan"), p, "; ".join(flags)])
     headers = ["parameter", "estimate", "std. dev.", "t", "p", "flags"]
-    if fmt == "csv":
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(headers)
-        w.writerows(rows)
-        return buf.getvalue()
-    return tabulate(rows, headers=headers, tablefmt={"md": "github", "tex": "latex_booktabs"}[fmt],
-                    floatfmt=".4g") + "\n"
+    out = render_table(rows, headers, fmt, floatfmt=".4g")
+    return out if fmt == "csv" else out + "\n"
 
 
 def correlation_table(summary: dict, fmt: str) -> str:
@@ -136,16 +123,10 @@ def correlation_table(summary: dict, fmt: str) -> str:
     names = summary["correlation"]["names"]
     matrix = np.asarray(summary["correlation"]["matrix"])
     if fmt == "csv":
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow([""] + names)
-        for n, row in zip(names, matrix):
-            w.writerow([n] + [f"{v:.4f}" for v in row])
-        return buf.getvalue()
+        return render_table([[n] + [f"{v:.4f}" for v in row] for n, row in zip(names, matrix)], [""] + names, fmt)
     body = [[n] + [f"{v:+.2f}" + ("*" if i != j and abs(v) > 0.9 else "") for j, v in enumerate(row)]
             for i, (n, row) in enumerate(zip(names, matrix))]
-    return tabulate(body, headers=[""] + names, tablefmt={"md": "github", "tex": "latex_booktabs"}[fmt],
-                    disable_numparse=True) + "\n"
+    return render_table(body, [""] + names, fmt, numparse=False) + "\n"
 
 
 def write_tables(ranked_by_grid: dict[str, list[dict]], out: Path) -> list[Path]:

@@ -10,7 +10,22 @@ from tabulate import tabulate
 from .results import FitResult
 
 FORMATS = ("text", "markdown", "latex", "html", "csv")
-_TABLEFMT = {"text": "simple", "markdown": "github", "latex": "latex_booktabs", "html": "html"}
+_TABLEFMT = {"text": "simple", "markdown": "github", "md": "github", "latex": "latex_booktabs",
+             "tex": "latex_booktabs", "html": "html"}
+
+
+def render_table(rows, headers, fmt: str, floatfmt: str = ".6g", numparse: bool = True) -> str:
+    """One table as text, Markdown ("markdown"/"md"), LaTeX ("latex"/"tex"), HTML or CSV."""
+    if fmt == "csv":
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(headers)
+        writer.writerows(rows)
+        return buf.getvalue()
+    if fmt not in _TABLEFMT:
+        raise ValueError(f"format must be one of {FORMATS}, not {fmt!r}")
+    return tabulate(rows, headers=headers, tablefmt=_TABLEFMT[fmt], floatfmt=floatfmt,
+                    disable_numparse=not numparse)
 
 
 def parameter_rows(result: FitResult) -> list[list]:
@@ -35,14 +50,7 @@ HEADERS = ["parameter", "kind", "estimate", "std. dev.", "t", "p (two-sided)", "
 def parameter_table(result: FitResult, fmt: str = "text") -> str:
     if fmt not in FORMATS:
         raise ValueError(f"format must be one of {FORMATS}, not {fmt!r}")
-    rows = parameter_rows(result)
-    if fmt == "csv":
-        buf = io.StringIO()
-        writer = csv.writer(buf, lineterminator="\n")
-        writer.writerow(HEADERS)
-        writer.writerows(rows)
-        return buf.getvalue()
-    return tabulate(rows, headers=HEADERS, tablefmt=_TABLEFMT[fmt], floatfmt=".6g")
+    return render_table(parameter_rows(result), HEADERS, fmt)
 
 
 def fit_report(result: FitResult, fmt: str = "text") -> str:

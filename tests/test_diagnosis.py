@@ -1,7 +1,6 @@
 """Diagnosis: effect library, where-breakdown, ranking of effects, determinism, bad input."""
 import json
 
-import numpy as np
 import pytest
 
 from structsearch import effects as fx

@@ -1,5 +1,4 @@
 """Identifiability on a simulated campaign (scaled down for CI): CL-VI recovers the truth."""
-import numpy as np
 import pytest
 
 from structsearch.flighttest import build_campaign

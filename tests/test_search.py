@@ -9,7 +9,7 @@ from structsearch.campaign import read_campaign, write_campaign
 from structsearch.enumeration import stepwise
 from structsearch.flighttest import build_campaign
 from structsearch.ranking import rank
-from structsearch.runner import Settings, run
+from structsearch.runner import run
 from structsearch.search import search
 from structsearch.specs import load_grid, roman
 
