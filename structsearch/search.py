@@ -25,16 +25,17 @@ def grids_for(spec: str) -> list[Grid]:
     return [load_grid(spec)]
 
 
-def _refined(c: Candidate, summary: dict, drop: list[str], suffix: str) -> Candidate:
+def _refined(c: Candidate, drop: list[str], suffix: str) -> Candidate:
+    """``c`` without the regressors in ``drop`` (all drops so far, relative to ``c``)."""
     regs = tuple(r for r in c.regressors if r[0] not in drop)
     return Candidate(f"{c.name}{suffix}", c.grid, c.coefficient, regs, c.states, c.lift,
-                     f"refined from {c.name}: dropped {', '.join(drop)}")
+                     f"refined from {c.name}: dropped {', '.join(drop)}", c.bounds)
 
 
 def refine(c: Candidate, summary: dict, fit: Callable[[Candidate], dict]) -> list[tuple[Candidate, dict]]:
     """Drop terms whose t-test accepts zero, then one of a strongly correlated pair while the fit barely changes."""
     out = []
-    current, current_summary = c, summary
+    current, current_summary, dropped = c, summary, []
     for step in range(1, 10):
         linear = [r[0] for r in current.regressors]
         constant = linear[0] if current.regressors[0][1].strip() == "1" else None
@@ -49,14 +50,12 @@ def refine(c: Candidate, summary: dict, fit: Callable[[Candidate], dict]) -> lis
             drop = [worse] if worse != constant else []
             if not drop:
                 break
-        candidate = _refined(c, current_summary, [r[0] for r in c.regressors if r[0] not in
-                                                  [x[0] for x in current.regressors if x[0] not in drop]],
-                             "r" + ("" if step == 1 else str(step)) + "-auto")
+        candidate = _refined(c, dropped + drop, "r" + ("" if step == 1 else str(step)) + "-auto")
         result = fit(candidate)
         if "error" in result or result["mse_validation"] > current_summary["mse_validation"] * (1 + REFINE_TOLERANCE):
             break
         out.append((candidate, result))
-        current, current_summary = candidate, result
+        current, current_summary, dropped = candidate, result, dropped + drop
     return out
 
 
