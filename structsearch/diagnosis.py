@@ -32,6 +32,7 @@ from .campaign import Campaign
 from .data import FlightData
 from .errors import DataError, DeclarationError
 from .runner import Settings, build_model, fit_candidate, with_lift_prediction
+from .regressors import declare
 from .separation import static_separation
 from .specs import Candidate, find_candidate, load_grid
 
@@ -195,7 +196,8 @@ def resolve_baseline(name: str, coefficient: str | None) -> Candidate:
 
 
 def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Settings(n_starts=2),
-             max_rounds: int = 3, progress: Callable[[str], None] | None = None, seed: int = 0) -> dict:
+             max_rounds: int = 3, progress: Callable[[str], None] | None = None, seed: int = 0,
+             states: bool = True) -> dict:
     """Diagnose one coefficient; returns the JSON document of interfaces.md section 3 (plus details)."""
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
@@ -213,6 +215,7 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
         raise DeclarationError(f"no effect of the library applies to {baseline.name} that it does not contain")
     rounds, current = [], baseline
     base_fit = _fit(current, train, val, lift, lift_c, settings)
+    baseline_fit, first_best = base_fit, None
     first = None
     for rnd in range(max_rounds):
         library = fx.applicable(current)
@@ -275,6 +278,8 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
         significant = best is not None and np.isfinite(best["p_value"]) and best["p_value"] < 0.01
         if explained_now or not significant or best["shrink"] <= 0:
             break
+        if first_best is None:
+            first_best = best["_fit"]
         current, base_fit = best["_fit"].candidate, best["_fit"]
         if explained:
             break
@@ -283,8 +288,14 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
            "noise_floor_spectral": first["noise_floor_spectral"], "where": first["where"],
            "effects": first["effects"], "explained": first["explained"],
            "gap_explained_by_baseline": first["explained_before"],
-           "rounds": rounds, "final_model": rounds[-1]["baseline"] if rounds else baseline.name,
-           "seconds": time.perf_counter() - t0}
+           "rounds": rounds, "final_model": rounds[-1]["baseline"] if rounds else baseline.name}
+    if states and first_best is not None:
+        say("state level: replaying the validation maneuvers before and after")
+        try:
+            doc["state_level"] = state_level(campaign, baseline_fit, first_best, lift, lift_c, settings)
+        except (DeclarationError, DataError) as exc:
+            doc["state_level"] = {"error": str(exc)}
+    doc["seconds"] = time.perf_counter() - t0
     return doc
 
 
@@ -298,3 +309,62 @@ def _state_for_phases(c: Candidate, summary: dict, lift: dict | None, data: Flig
             return static_separation(data["alpha"], params[f"a1{suffix}"], params[f"a_star{suffix}"])
     from .reference import FINAL_LIFT
     return static_separation(data["alpha"], FINAL_LIFT["a1_ss"], FINAL_LIFT["a_star_ss"])
+
+
+FINAL_STRUCTURES = {"CL": "CL-VI", "CD": "CD-IXr", "Cm": "Cm-XXXIIIr"}
+
+
+def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, lift_c, settings: Settings,
+                window_s: float = 5.0) -> dict:
+    """Forward-simulated state error on the validation maneuvers with the model before and after.
+
+    The diagnosed coefficient uses the baseline (before) or improved (after) fit; the other two use
+    the final structures of the thesis refitted on the training maneuvers with the same separation
+    states, so that the three form one simulator.
+    """
+    from .aero import AeroModel
+    from .replay import replay
+    train, val = campaign.split("train"), campaign.split("validation")
+    coef = before.candidate.coefficient
+
+    def aero(fitted: Fitted) -> AeroModel:
+        if coef == "CL":
+            lift_cand, lift_fit = fitted.candidate, fitted.summary
+        else:
+            lift_cand, lift_fit = lift_c, lift
+        models, params = {}, dict(lift_fit["params"])
+        models["CL"] = build_model(lift_cand)
+        for other in ("CD", "Cm"):
+            if other == coef:
+                models[other] = build_model(fitted.candidate, lift)
+                params.update(fitted.summary["params"])
+                continue
+            structure = find_candidate(FINAL_STRUCTURES[other])
+            # terms on states this lift model does not have are left out (before and after alike)
+            symbols = [f"X_{n}" if n else "X" for n, _ in lift_cand.states]
+            kept = []
+            for name, text in structure.regressors:
+                try:
+                    declare(name, text, states=symbols)
+                    kept.append((name, text))
+                except DeclarationError:
+                    continue
+            structure = Candidate(structure.name, structure.grid, structure.coefficient, tuple(kept),
+                                  lift_cand.states, lift_cand.name, structure.note, lift_cand.bounds)
+            s = fit_candidate(structure, train, val, lift_fit, lift_cand, settings)
+            if "error" in s:
+                raise DeclarationError(f"state-level comparison: {s['error']}")
+            models[other] = build_model(structure, lift_fit)
+            params.update({k: v for k, v in s["params"].items() if k not in lift_fit["nonlinear"]})
+        return AeroModel(models["CL"], models["CD"], models["Cm"], params, name=fitted.candidate.name)
+
+    out = {}
+    for label, fitted in (("before", before), ("after", after)):
+        runs = replay(val, aero(fitted), window_s=window_s)
+        n = sum(len(r.t) for r in runs)
+        out[label] = {s: float(np.sqrt(sum(r.rms[s] ** 2 * len(r.t) for r in runs) / n))
+                      for s in ("alpha", "q", "V", "theta")}
+    out["window_s"] = window_s
+    out["reduction"] = {s: 1 - out["after"][s] / out["before"][s] if out["before"][s] > 0 else 0.0
+                        for s in ("alpha", "q", "V", "theta")}
+    return out

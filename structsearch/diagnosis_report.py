@@ -51,6 +51,20 @@ def markdown(doc: dict) -> str:
         lines.append(f"{i + 1}. {r['baseline']}: validation MSE {r['mse']['validation']:.4g}, floor "
                      f"{r['noise_floor']:.4g}; {step}.")
     lines += ["", f"**Explained**: {'yes' if doc['explained'] else 'no'}. Final model: {doc['final_model']}.", ""]
+    sl = doc.get("state_level")
+    if sl:
+        lines += ["## At the state level", ""]
+        if "error" in sl:
+            lines += [f"Not available: {sl['error']}", ""]
+        else:
+            units = {"alpha": "rad", "q": "rad/s", "V": "m/s", "theta": "rad"}
+            body = [[s, units[s], f"{sl['before'][s]:.4g}", f"{sl['after'][s]:.4g}", f"{sl['reduction'][s]:+.0%}"]
+                    for s in ("alpha", "q", "theta", "V")]
+            lines += [f"Validation maneuvers replayed through the simulator (recorded elevator and thrust, "
+                      f"re-initialised on the measured states every {sl['window_s']:g} s); RMS state error with "
+                      f"the baseline and with the best effect added:", "",
+                      tabulate(body, headers=["state", "unit", "before", "after", "reduction"], tablefmt="github"),
+                      ""]
     return "\n".join(lines)
 
 

@@ -107,15 +107,18 @@ def _second_state() -> Effect:
             raise DeclarationError(f"baseline {c.name} already contains the effect {name!r} "
                                    f"({len(c.states)} separation states)" if len(c.states) > 1 else
                                    f"effect {name!r} needs one separation state to add a second to")
-        term = {"CL": "K_L(X_w2)", "CD": "1 - X_w2", "Cm": "(1 - X_w2)*CL"}[c.coefficient]
-        states = c.states + (("w2", "S"),)
-        bounds = c.bounds + (("a_star_w2", (0.22, 0.45)),)
+        # the added state is the wing's (separating after the first): X_w, unless that name is taken
+        state = "w" if "w" not in _state_names(c) else "w2"
+        x = _symbol(state)
+        term = {"CL": f"K_L({x})", "CD": f"1 - {x}", "Cm": f"(1 - {x})*CL"}[c.coefficient]
+        states = c.states + ((state, "S"),)
+        bounds = c.bounds + ((f"a_star_{state}", (0.22, 0.45)),)
         return Candidate(f"{c.name} + {name}", c.grid, c.coefficient,
-                         c.regressors + ((f"{c.coefficient}_X_w2", term),), states, c.lift,
+                         c.regressors + ((f"{c.coefficient}_{x}", term),), states, c.lift,
                          f"{c.name} with {name}", bounds)
 
     def new(base, changed):
-        return (f"{changed.coefficient}_X_w2",)
+        return (changed.regressors[-1][0],)
     return Effect(name, "a second separation state with its own K term", ALL, apply, new)
 
 

@@ -79,13 +79,15 @@ def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None,
                      "shrink_error": abs(reported["shrink"] - ref_shrink) if reported else None,
                      "gap_p_value": doc["rounds"][0]["gap_p_value"], "top_phase": top["phase"],
                      "top_alpha_band": top["alpha_band"], "explained": doc["explained"],
+                     "state_alpha_rms": (doc.get("state_level") or {}).get("before", {}).get("alpha"),
+                     "state_alpha_rms_after": (doc.get("state_level") or {}).get("after", {}).get("alpha"),
                      "seconds": doc["seconds"]})
     null = []
     for s in null_seeds:
         camp = campaign if s == seed else build_campaign(seed=s, scale=scale)
         for coef, name in FINAL.items():
             say(f"null case seed {s} {name}")
-            doc = diagnose(camp, find_candidate(name), settings=settings, max_rounds=1)
+            doc = diagnose(camp, find_candidate(name), settings=settings, max_rounds=1, states=False)
             null.append({"seed": s, "model": name, "explained": doc["explained"],
                          "gap_p_value": doc["rounds"][0]["gap_p_value"], "seconds": doc["seconds"]})
     return {"seed": seed, "scale": scale, "rows": rows, "null": null, "not_expressible": NOT_EXPRESSIBLE,
@@ -97,6 +99,8 @@ def markdown(res: dict) -> str:
     body = [[r["effect"], r["coefficient"], r["first"], "yes" if r["ranked_first"] else "NO",
              "-" if r["shrink"] is None else f"{r['shrink']:.2f}", f"{r['reference_shrink']:.2f}",
              "-" if r["shrink_error"] is None else f"{r['shrink_error']:.2f}", r["top_phase"], r["top_alpha_band"],
+             "-" if r.get("state_alpha_rms") is None else
+             f"{r['state_alpha_rms']:.4f} -> {r['state_alpha_rms_after']:.4f}",
              f"{r['seconds']:.0f}"] for r in res["rows"]]
     hits = sum(r["ranked_first"] for r in res["rows"])
     close = sum(r["shrink_error"] is not None and r["shrink_error"] <= 0.1 for r in res["rows"])
@@ -105,7 +109,8 @@ def markdown(res: dict) -> str:
              f"Default simulated campaign (seed {res['seed']}, scale {res['scale']}); baseline = final model of the "
              f"effect's coefficient without it.", "",
              tabulate(body, headers=["withheld effect", "coef.", "ranked first", "hit", "reported shrink",
-                                     "reference shrink", "|difference|", "top phase", "top alpha band", "s"],
+                                     "reference shrink", "|difference|", "top phase", "top alpha band",
+                                     "replayed alpha RMS [rad] before -> after", "s"],
                       tablefmt="github"), "",
              f"Withheld effect ranked first: **{hits}/{len(res['rows'])}**; reported shrink within 0.1 of the "
              f"reference: **{close}/{len(res['rows'])}**.", "",

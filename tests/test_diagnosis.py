@@ -45,7 +45,7 @@ def test_every_effect_changes_exactly_what_it_claims():
     q_model = lag
     assert dict(fx.LIBRARY["unsteady_lag"].apply(q_model).states) == {"ss": "U", "w": "U"}
     two = fx.LIBRARY["second_separation_state"].apply(find_candidate("CL-II"))
-    assert dict(two.states) == {"": "U", "w2": "S"} and dict(two.regressors)["CL_X_w2"] == "K_L(X_w2)"
+    assert dict(two.states) == {"": "U", "w": "S"} and dict(two.regressors)["CL_X_w"] == "K_L(X_w)"
 
 
 def test_effect_errors():
@@ -86,6 +86,13 @@ def test_withheld_effect_ranked_first_and_gap_closed(withheld_elevator):
     assert d["effects"][0]["name"] == "elevator"
     assert d["effects"][0]["shrink"] > 0.8 and d["effects"][0]["p_value"] < 1e-6
     assert not d["gap_explained_by_baseline"] and d["explained"]
+
+
+def test_state_level_error_shrinks_with_the_effect(withheld_elevator, campaign):
+    sl = withheld_elevator["state_level"]
+    assert set(sl["before"]) == {"alpha", "q", "V", "theta"}
+    d = diagnose(campaign, baseline_without("cp_shift"), settings=SETTINGS, max_rounds=1)
+    assert d["state_level"]["reduction"]["alpha"] > 0.5  # the replayed pitch dynamics follow the data
 
 
 def test_where_shares_sum_to_one(withheld_elevator):
@@ -138,7 +145,8 @@ def test_cli_diagnose(campaign, tmp_path):
     assert set(doc["mse"]) == {"train", "validation"}
     for e in doc["effects"]:
         assert {"name", "shrink", "mse_validation_after", "p_value"} <= set(e) or "error" in e
-    assert (tmp_path / "o" / "diagnosis.md").read_text().startswith("# Diagnosis of CD")
+    md = (tmp_path / "o" / "diagnosis.md").read_text()
+    assert md.startswith("# Diagnosis of CD") and "## At the state level" in md
     bad = run_cli("diagnose", "--data", str(tmp_path / "c"), "--model", "CD-XI", "--coefficient", "CL",
                   "--out", str(tmp_path / "o"))
     assert bad.returncode == 2 and "models CD, not CL" in bad.stderr
