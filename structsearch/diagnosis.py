@@ -177,15 +177,17 @@ def _wald(summary: dict, names) -> float:
 
 
 def _overlap(gap_rows, r_base, r_new, data, x):
-    """Histogram intersection of gap shares and improvement shares over alpha bands and phases."""
+    """Histogram intersection of gap shares and improvement shares over alpha bands and phases, and the
+    bins where the effect improves the fit most (where it acts)."""
     labels = _bins(data, x)
     improvement = r_base ** 2 - r_new ** 2
-    scores = []
+    scores, acts = [], {}
     for dim in ("alpha_band", "phase"):
         keys, imp = _shares(improvement, labels[dim])
         gap = {row["bin"]: row["share"] for row in gap_rows if row["dimension"] == dim}
         scores.append(float(sum(min(gap.get(k, 0.0), s) for k, s in zip(keys, imp))))
-    return float(np.mean(scores))
+        acts[dim] = str(keys[int(np.argmax(imp))])
+    return float(np.mean(scores)), acts
 
 
 def resolve_baseline(name: str, coefficient: str | None) -> Candidate:
@@ -256,7 +258,7 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
                 "name": e.name, "shrink": shrink,
                 "mse_validation_after": mse_after, "mse_train_after": f.summary["mse_train"],
                 "p_value": _wald(f.summary, e.new_parameters(current, changed)),
-                "overlap": _overlap(where_rows, base_fit.residual, f.residual, val, x),
+                **dict(zip(("overlap", "acts_in"), _overlap(where_rows, base_fit.residual, f.residual, val, x))),
                 "at_floor": bool(not (remaining_p(e.name) < 0.01)
                                  or _relative_excess(f.residual, sat_fit.residual, val)[0] <= 0.01),
                 "model": changed.name, "_fit": f, "_se": se_after})

@@ -37,12 +37,12 @@ def markdown(doc: dict) -> str:
     body = []
     for e in doc["effects"]:
         if "error" in e:
-            body.append([e["name"], "-", "-", "-", "-", e["error"]])
+            body.append([e["name"], "-", "-", "-", "-", "-", e["error"]])
         else:
             body.append([e["name"], f"{e['shrink']:.2f}", f"{e['mse_validation_after']:.4g}", f"{e['p_value']:.2g}",
-                         f"{e['overlap']:.2f}", "at floor" if e["at_floor"] else ""])
+                         f"{e['overlap']:.2f}", e["acts_in"]["phase"], "at floor" if e["at_floor"] else ""])
     lines += [tabulate(body, headers=["effect", "shrink", "validation MSE after", "p (Wald)",
-                                      "overlap with gap", ""], tablefmt="github"), ""]
+                                      "overlap with gap", "acts most in", ""], tablefmt="github"), ""]
     lines += ["## How far it shrinks", ""]
     for i, r in enumerate(doc["rounds"]):
         best = next((e for e in r["effects"] if "error" not in e), None)
