@@ -51,18 +51,6 @@ def _simulate(args) -> int:
     return 0
 
 
-def _resolve_candidate(name: str):
-    from .specs import find_candidate, load_grid
-    p = Path(name)
-    if p.suffix == ".toml" or p.exists():
-        grid = load_grid(str(p))
-        if len(grid.candidates) != 1:
-            raise_error(f"{p}: a model spec file must declare exactly one candidate "
-                        f"(it declares {len(grid.candidates)}; use it as a grid with 'search --grid')")
-        return grid.candidates[0]
-    return find_candidate(name)
-
-
 def raise_error(message: str):
     from .errors import DeclarationError
     raise DeclarationError(message)
@@ -72,18 +60,13 @@ def _fit(args) -> int:
     import json
     from .campaign import read_campaign
     from .io_atomic import write_text
-    from .runner import Settings, fit_candidate
-    from .specs import load_grid
+    from .runner import Settings, fit_candidate, fit_lift_model
+    from .specs import resolve_candidate
     campaign = read_campaign(args.data)
-    candidate = _resolve_candidate(args.model)
+    candidate = resolve_candidate(args.model)
     settings = Settings(n_starts=args.starts, seed=args.seed)
     train, validation = campaign.split("train"), campaign.split("validation")
-    lift = lift_candidate = None
-    if candidate.lift:
-        lift_candidate = load_grid("lift")[candidate.lift]
-        lift = fit_candidate(lift_candidate, train, validation, None, None, settings)
-        if "error" in lift:
-            raise_error(f"fitting the lift model {candidate.lift} failed: {lift['error']}")
+    lift, lift_candidate = fit_lift_model(candidate, train, validation, settings)
     summary = fit_candidate(candidate, train, validation, lift, lift_candidate, settings)
     if "error" in summary:
         raise_error(summary["error"])
@@ -200,11 +183,12 @@ def _diagnose(args) -> int:
     if not args.data or not args.model:
         raise_error("diagnose needs --data and --model (or --benchmark)")
     from .campaign import read_campaign
-    from .diagnosis import diagnose, resolve_baseline
+    from .diagnosis import diagnose
+    from .specs import resolve_candidate
     from .diagnosis_report import write
     from .runner import Settings
     campaign = read_campaign(args.data)
-    baseline = resolve_baseline(args.model, args.coefficient)
+    baseline = resolve_candidate(args.model, args.coefficient)
     doc = diagnose(campaign, baseline, settings=Settings(n_starts=args.starts, seed=args.seed),
                    progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr, flush=True))
     js, md = write(doc, out)

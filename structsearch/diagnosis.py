@@ -31,10 +31,10 @@ from . import effects as fx
 from .campaign import Campaign
 from .data import FlightData
 from .errors import DataError, DeclarationError
-from .runner import Settings, build_model, fit_candidate, with_lift_prediction
+from .runner import Settings, build_model, fit_candidate, fit_lift_model, with_lift_prediction
 from .regressors import declare
 from .separation import static_separation
-from .specs import Candidate, find_candidate, load_grid
+from .specs import Candidate, find_candidate
 
 ALPHA_BAND = 0.04          # rad
 FREQ_BANDS = (0.0, 0.5, 1.0, 2.0, 5.0, np.inf)  # Hz
@@ -190,13 +190,6 @@ def _overlap(gap_rows, r_base, r_new, data, x):
     return float(np.mean(scores)), acts
 
 
-def resolve_baseline(name: str, coefficient: str | None) -> Candidate:
-    c = find_candidate(name) if not name.endswith(".toml") else load_grid(name).candidates[0]
-    if coefficient is not None and c.coefficient != coefficient:
-        raise DeclarationError(f"baseline {c.name} models {c.coefficient}, not {coefficient}")
-    return c
-
-
 def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Settings(n_starts=2),
              max_rounds: int = 3, progress: Callable[[str], None] | None = None, seed: int = 0,
              states: bool = True) -> dict:
@@ -207,11 +200,9 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
     if baseline.coefficient not in val:
         raise DataError("the campaign has no column for the diagnosed coefficient", source=str(campaign.directory),
                         column=baseline.coefficient)
-    lift = lift_c = None
     if baseline.lift:
-        lift_c = load_grid("lift")[baseline.lift]
-        say(f"fitting the lift model {lift_c.name}")
-        lift = fit_candidate(lift_c, train, val, None, None, settings)
+        say(f"fitting the lift model {baseline.lift}")
+    lift, lift_c = fit_lift_model(baseline, train, val, settings)
     library = fx.applicable(baseline)
     if not library:
         raise DeclarationError(f"no effect of the library applies to {baseline.name} that it does not contain")

@@ -155,6 +155,18 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
 CACHE_VERSION = 3
 
 
+def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, settings: Settings):
+    """The fitted lift model a drag or pitch candidate names: (summary, lift candidate), or (None, None)."""
+    if not c.lift:
+        return None, None
+    from .specs import load_grid
+    lift_candidate = load_grid("lift")[c.lift]
+    lift = fit_candidate(lift_candidate, train, validation, None, None, settings)
+    if "error" in lift:
+        raise StructSearchError(f"fitting the lift model {c.lift} that {c.name} needs failed: {lift['error']}")
+    return lift, lift_candidate
+
+
 def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings) -> Path:
     from . import __version__
     blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params,

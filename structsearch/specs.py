@@ -140,3 +140,19 @@ def find_candidate(name: str) -> Candidate:
             if c.name == name or c.name.split(" ")[-1] == name:
                 return c
     raise DeclarationError(f"no candidate named {name!r} in the shipped grids ({', '.join(BUILTIN_GRIDS)})")
+
+
+def resolve_candidate(name_or_path: str, coefficient: str | None = None) -> Candidate:
+    """A candidate by catalogue name, or the single candidate of a model spec file."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.exists():
+        grid = load_grid(str(path))
+        if len(grid.candidates) != 1:
+            raise DeclarationError(f"{path}: a model spec file must declare exactly one candidate (it declares "
+                                   f"{len(grid.candidates)}; use it as a grid with 'search --grid')")
+        c = grid.candidates[0]
+    else:
+        c = find_candidate(name_or_path)
+    if coefficient is not None and c.coefficient != coefficient:
+        raise DeclarationError(f"{c.name} models {c.coefficient}, not {coefficient}")
+    return c

@@ -59,14 +59,10 @@ def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None,
         first = doc["effects"][0]
         reported = next((e for e in doc["effects"] if e["name"] == effect), None)
         from .diagnosis import _fit  # the reference: refit the true structure
-        from .specs import load_grid
+        from .runner import fit_lift_model
         truth = find_candidate(FINAL[base.coefficient])
         train, val = campaign.split("train"), campaign.split("validation")
-        lift = lift_c = None
-        if truth.lift:
-            from .runner import fit_candidate
-            lift_c = load_grid("lift")[truth.lift]
-            lift = fit_candidate(lift_c, train, val, None, None, settings)
+        lift, lift_c = fit_lift_model(truth, train, val, settings)
         ref = _fit(truth, train, val, lift, lift_c, settings)
         mse_ref = float((ref.residual ** 2).mean())
         gap = doc["mse"]["validation"] - doc["noise_floor"]

@@ -9,8 +9,8 @@ from structsearch.diagnosis import diagnose
 from structsearch.errors import DataError, DeclarationError
 from structsearch.flighttest import build_campaign
 from structsearch.reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH
-from structsearch.runner import Settings, fit_candidate
-from structsearch.specs import find_candidate, load_grid
+from structsearch.runner import Settings, fit_candidate, fit_lift_model
+from structsearch.specs import find_candidate
 from structsearch.withheld import WITHHELD, baseline_without
 
 from test_report_cli import run_cli
@@ -68,10 +68,7 @@ def test_refit_with_the_effect_recovers_its_parameter(campaign, effect, paramete
     base = baseline_without(effect)
     model = fx.LIBRARY[effect].apply(base)
     train, val = campaign.split("train"), campaign.split("validation")
-    lift = lift_c = None
-    if model.lift:
-        lift_c = load_grid("lift")[model.lift]
-        lift = fit_candidate(lift_c, train, val, None, None, SETTINGS)
+    lift, lift_c = fit_lift_model(model, train, val, SETTINGS)
     s = fit_candidate(model, train, val, lift, lift_c, SETTINGS)
     assert abs(s["params"][parameter] - truth) < 3 * s["stderr"][parameter] + 0.05 * abs(truth), s["params"]
 
