@@ -106,6 +106,18 @@ class AeroModel:
         except KeyError as exc:
             raise DeclarationError(f"{self.name}: {coef} needs {exc.args[0]!r}") from None
 
+    def partial(self, coef: str, wrt: str, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        """d coef / d ``wrt`` (a column such as C_L or delta_e) at ``values``, differentiated symbolically."""
+        expr, _ = self._compiled[coef]
+        derivative = sp.diff(expr, sp.Symbol(wrt, real=True))
+        args = tuple(sorted(s.name for s in derivative.free_symbols))
+        shape = np.shape(values["alpha"])
+        try:
+            out = compile_expression(derivative, args)(*(values[a] for a in args)) if args else float(derivative)
+        except KeyError as exc:
+            raise DeclarationError(f"{self.name}: d{coef}/d{wrt} needs {exc.args[0]!r}") from None
+        return np.broadcast_to(np.asarray(out, float), shape).copy()
+
     def coefficients(self, values: Mapping[str, np.ndarray]):
         """(C_L, C_D, C_m); ``values`` holds columns, constants and separation states."""
         cl = self.coefficient("CL", values)

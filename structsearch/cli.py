@@ -161,7 +161,33 @@ def _demo(args) -> int:
           f"({t_sim:.0f} s); search of {sum(len(r) for r in result['grids'].values())} candidates on {jobs} "
           f"process(es): {total - t_sim:.0f} s; total {total:.0f} s")
     print(f"tables and ranking.csv in {out}")
+    from . import figures
+    if figures.plt is None:
+        print("no figures: the report needs matplotlib (pip install 'structsearch[figures]')")
+        return 0
+    from .campaign_report import build
+    _print_report(build(campaign, out, settings=Settings(n_starts=args.starts), n_jobs=jobs,
+                        progress=None if args.quiet else stderr_progress))
     return 0
+
+
+def _report(args) -> int:
+    from .campaign import read_campaign
+    from .campaign_report import build
+    from .runner import Settings
+    campaign = read_campaign(args.data)
+    res = build(campaign, Path(args.out), settings=Settings(n_starts=args.starts, seed=args.seed), n_jobs=args.jobs,
+                diagnose_coefficient=None if args.diagnose == "none" else args.diagnose,
+                progress=None if args.quiet else lambda m: print(m, file=sys.stderr, flush=True))
+    _print_report(res)
+    return 0
+
+
+def _print_report(res: dict) -> None:
+    for note in res["notes"]:
+        print(f"note: {note}")
+    print(f"wrote {res['html']} with {len(res['figures'])} figures in {res['html'].parent / 'figures'} "
+          f"({res['seconds']:.0f} s)")
 
 
 def _diagnose(args) -> int:
@@ -261,7 +287,19 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--quiet", action="store_true")
     g.set_defaults(func=_diagnose)
 
-    d = sub.add_parser("demo", help="simulate the default campaign, search every grid, write all tables")
+    p = sub.add_parser("report", help="figures and one self-contained HTML page for a campaign")
+    p.add_argument("--data", required=True, help="campaign directory")
+    p.add_argument("--out", default="results", help="output directory: figures/, report.html; a search's "
+                   "ranking.csv and tables there are used (default: results)")
+    p.add_argument("--jobs", type=int, default=1, help="parallel processes for the fits")
+    p.add_argument("--starts", type=int, default=4, help="starts per nonlinear fit (as in search: cache hits)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--diagnose", choices=("CL", "CD", "Cm", "none"), default="Cm",
+                   help="coefficient whose gap breakdown is shown (default Cm; none: skip the diagnosis)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=_report)
+
+    d = sub.add_parser("demo", help="simulate the default campaign, search every grid, write all tables and the report")
     d.add_argument("--out", default="results", help="output directory (default: results)")
     d.add_argument("--jobs", type=int, default=0, help="parallel processes (default: all cores)")
     d.add_argument("--starts", type=int, default=4)

@@ -204,6 +204,8 @@ def test_cli_demo_small(tmp_path):
     for grid in ("separation", "lift", "drag", "pitch"):
         assert f"{grid}: " in proc.stdout
     assert (tmp_path / "ranking.csv").exists() and (tmp_path / "campaign" / "campaign.toml").exists()
+    # the demo ends with the report (matplotlib is part of the test extra)
+    assert (tmp_path / "report.html").exists() and (tmp_path / "figures" / "lift_static.png").exists()
 
 
 def test_unknown_model_name_is_one_line_error(tiny):

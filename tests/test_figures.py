@@ -1,0 +1,140 @@
+"""The campaign report: figures exist and carry content, derived curves match the thesis' equations."""
+import base64
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from structsearch import report_data as rd
+from structsearch.campaign import read_campaign, write_campaign
+from structsearch.flighttest import build_campaign
+from structsearch.runner import Settings
+from structsearch.separation import static_separation
+
+from test_report_cli import run_cli
+
+pytest.importorskip("matplotlib")
+
+FIGURES = ("separation_static", "lift_static", "drag_polar", "pitch_static", "centre_of_pressure",
+           "elevator_effectiveness", "time_traces", "hysteresis", "correlations", "gap_breakdown",
+           "forward_simulation")
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    path = tmp_path_factory.mktemp("campaign") / "c"
+    write_campaign(build_campaign(seed=3, scale=0.08), path)
+    return read_campaign(path)
+
+
+@pytest.fixture(scope="module")
+def report_run(small, tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    proc = run_cli("report", "--data", str(small.directory), "--out", str(out), "--starts", "2", "--quiet")
+    return proc, out
+
+
+@pytest.fixture(scope="module")
+def model_set(small, report_run):
+    # the report's cache serves these fits
+    return rd.fit_model_set("identified", rd.FINAL, small, report_run[1], Settings(n_starts=2))
+
+
+def test_report_writes_every_figure_with_content(report_run):
+    from matplotlib.image import imread
+    proc, out = report_run
+    assert proc.returncode == 0, proc.stderr
+    assert "report.html" in proc.stdout
+    for name in FIGURES:
+        path = out / "figures" / f"{name}.png"
+        assert path.exists(), name
+        assert path.stat().st_size > 15_000, name
+        image = imread(path)[..., :3]
+        # more than a blank canvas with axes: many distinct colours, and not mostly white
+        distinct = len(np.unique((image * 255).astype(np.uint8).reshape(-1, 3), axis=0))
+        assert distinct > 200, (name, distinct)
+        assert np.mean(image < 0.95) > 0.03, name
+
+
+def test_html_is_self_contained_with_captions(report_run):
+    _, out = report_run
+    page = (out / "report.html").read_text()
+    images = re.findall(r"<img src='data:image/png;base64,([A-Za-z0-9+/=]+)'", page)
+    assert len(images) == len(FIGURES)
+    assert all(base64.b64decode(i)[:8] == b"\x89PNG\r\n\x1a\n" for i in images)
+    assert page.count("<figcaption>") == len(FIGURES)
+    assert "http://" not in page and "https://" not in page
+    # no ranking.csv in the output directory: the final structures, and the page says so
+    assert "CL-VI" in page and "Cm-XXXIIIr" in page and "final structures" in page
+    assert "<table>" in page
+
+
+def test_centre_of_pressure_and_elevator_effectiveness_follow_eqs_32_33(model_set, small):
+    ref = rd.reference(small.split("train"))
+    alpha = np.linspace(0.0, 0.4, 41)
+    got = rd.derived_pitch(model_set, alpha, ref)
+    p = model_set.aero.params
+    x_ss = static_separation(alpha, p["a1_ss"], p["a_star_ss"])
+    x_w = static_separation(alpha, p["a1_w"], p["a_star_w"])
+    l_cp = -(p["Cm_CL"] + p["Cm_1mX_ssCL"] * (1 - x_ss) + p["Cm_1mX_wCL"] * (1 - x_w)
+             + p["Cm_xcgCL"] * ref.x_cg / ref.constants["cbar"])
+    np.testing.assert_allclose(got["l_cp"], l_cp, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(got["x_cp"], ref.x_cg + l_cp * ref.constants["cbar"], rtol=1e-12)
+    np.testing.assert_allclose(got["Cm_de"], p["Cm_de"] + p["Cm_Xde_ss"] * x_ss, rtol=1e-10, atol=1e-12)
+
+
+def test_static_lift_curve_is_eq_34_at_equilibrium(model_set, small):
+    ref = rd.reference(small.split("train"))
+    alpha = np.linspace(0.0, 0.4, 41)
+    p = model_set.aero.params
+    kl = lambda x: ((1 + np.sqrt(x)) / 2) ** 2 * alpha  # noqa: E731
+    expected = (p["CL0"] + p["CL_KL_ss"] * kl(static_separation(alpha, p["a1_ss"], p["a_star_ss"]))
+                + p["CL_KL_w"] * kl(static_separation(alpha, p["a1_w"], p["a_star_w"])))
+    np.testing.assert_allclose(rd.static_coefficients(model_set, alpha, ref)["CL"], expected, rtol=1e-12)
+
+
+def test_stall_stages_invert_the_separation_curve(model_set):
+    curves = rd.separation_curves(model_set, np.linspace(0, 0.4, 5))
+    for c in curves.values():
+        for (label, level), a in zip(rd.STAGES, c["stages"].values()):
+            assert static_separation(np.array([a]), c["a1"], c["a_star"])[0] == pytest.approx(level, abs=1e-12)
+
+
+def test_corrected_points_scatter_around_the_static_curve(model_set, small):
+    """Partial residuals: subtracting the static curve leaves the model's residuals (mean ~ 0)."""
+    ref = rd.reference(small.split("train"))
+    pts = rd.partial_points(model_set, small.data, ref, max_points=3000)
+    static = rd.static_coefficients(model_set, pts["alpha"], ref)
+    for coef in rd.COEFFICIENTS:
+        off = pts[coef] - static[coef]
+        spread = np.std(small.data[coef])
+        assert abs(np.mean(off)) < 0.05 * spread, coef
+
+
+def test_gap_cells_are_per_maneuver_band_mse(small):
+    val = small.split("validation")
+    rng = np.random.default_rng(5)
+    residual = rng.normal(size=val.n_samples)
+    bands = rd.alpha_bands(val["alpha"])
+    cells = rd.gap_cells(residual, val, bands)
+    sl = val.segment_slices()[0]
+    a = val["alpha"][sl]
+    for j in range(len(bands) - 1):
+        inside = (a >= bands[j]) & (a < bands[j + 1])
+        if inside.any():
+            assert cells[0, j] == pytest.approx(np.mean(residual[sl][inside] ** 2))
+        else:
+            assert np.isnan(cells[0, j])
+
+
+def test_core_imports_without_matplotlib():
+    code = ("import sys; sys.modules['matplotlib'] = None\n"
+            "import structsearch, structsearch.cli, structsearch.campaign_report as cr, structsearch.figures as f\n"
+            "assert f.plt is None\n"
+            "from structsearch.errors import StructSearchError\n"
+            "try:\n    f.require()\nexcept StructSearchError as e:\n    print(e)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "structsearch[figures]" in proc.stdout
