@@ -37,9 +37,13 @@ class Figure:
     caption: str
 
 
-def chosen_models(out: Path) -> tuple[dict[str, str], list[str]]:
-    """Rank-1 lift, drag and pitch models of ``out/ranking.csv`` where they resolve, else the final ones."""
+def chosen_models(out: Path, overrides: tuple[str, ...] = ()) -> tuple[dict[str, str], list[str]]:
+    """Rank-1 lift, drag and pitch models of ``out/ranking.csv`` where they resolve, else the final ones;
+    ``overrides`` (model names) replace the model of their coefficient."""
     names, notes = dict(rd.FINAL), []
+    if overrides:
+        names.update({rd.find_candidate(n).coefficient: rd.find_candidate(n).name for n in overrides})
+        return names, [f"Models chosen on the command line: {', '.join(overrides)}."]
     path = out / "ranking.csv"
     if not path.exists():
         notes.append(f"No {path}: the thesis' final structures are shown (run a search to rank your own).")
@@ -69,13 +73,14 @@ def _best_effect(doc: dict) -> str | None:
 
 
 def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_jobs: int = 1,
-          diagnose_coefficient: str | None = "Cm", progress: Callable[[str], None] | None = None) -> dict:
+          diagnose_coefficient: str | None = "Cm", models: tuple[str, ...] = (),
+          progress: Callable[[str], None] | None = None) -> dict:
     """Write ``out/figures/*.png`` and ``out/report.html``; returns what was written and the notes."""
     fg.require()
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     fig_dir = out / "figures"
-    names, notes = chosen_models(out)
+    names, notes = chosen_models(out, models)
     say(f"report: fitting {', '.join(names.values())} and the Van Ingen structures")
     ms = rd.fit_model_set("identified", names, campaign, out, settings, n_jobs=n_jobs)
     try:

@@ -177,7 +177,7 @@ def _report(args) -> int:
     from .runner import Settings
     campaign = read_campaign(args.data)
     res = build(campaign, Path(args.out), settings=Settings(n_starts=args.starts, seed=args.seed), n_jobs=args.jobs,
-                diagnose_coefficient=None if args.diagnose == "none" else args.diagnose,
+                diagnose_coefficient=None if args.diagnose == "none" else args.diagnose, models=tuple(args.model or ()),
                 progress=None if args.quiet else lambda m: print(m, file=sys.stderr, flush=True))
     _print_report(res)
     return 0
@@ -296,6 +296,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--diagnose", choices=("CL", "CD", "Cm", "none"), default="Cm",
                    help="coefficient whose gap breakdown is shown (default Cm; none: skip the diagnosis)")
+    p.add_argument("--model", action="append", metavar="NAME",
+                   help="use this lift, drag or pitch structure instead of the search's winner (repeatable)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_report)
 

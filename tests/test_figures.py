@@ -138,3 +138,16 @@ def test_core_imports_without_matplotlib():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "structsearch[figures]" in proc.stdout
+
+
+def test_report_models_come_from_the_ranking_or_the_command_line(tmp_path):
+    from structsearch.campaign_report import chosen_models
+    names, notes = chosen_models(tmp_path)
+    assert names == rd.FINAL and "final structures" in notes[0]
+    (tmp_path / "ranking.csv").write_text("grid,model,rank\nlift,CL-VI,1\ndrag,CD-IX,1\npitch,Cm-XXXIr-auto,1\n"
+                                          "pitch,Cm-XXXI,2\n")
+    names, notes = chosen_models(tmp_path)
+    assert names == {"CL": "CL-VI", "CD": "CD-IX", "Cm": "Cm-XXXIIIr"}
+    assert "Cm-XXXIr-auto" in notes[0]
+    names, _ = chosen_models(tmp_path, ("Cm-XXXI",))
+    assert names == {"CL": "CL-VI", "CD": "CD-IXr", "Cm": "Cm-XXXI"}
