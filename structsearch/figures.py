@@ -61,34 +61,38 @@ def separation(curves: dict, alpha: np.ndarray):
     return fig
 
 
-def static_curve(coef: str, alpha, model, van_ingen, points, names):
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    ax.scatter(points["alpha"], points[coef], s=2, color=COLOURS["measured"], alpha=0.35, rasterized=True,
-               label="measured, corrected to the static condition")
-    ax.plot(alpha, model[coef], color=COLOURS["model"], lw=2.2, label=f"{names[0]} (identified)")
-    if van_ingen is not None:
-        ax.plot(alpha, van_ingen[coef], color=COLOURS["van_ingen"], lw=1.8, ls="--",
-                label=f"{names[1]} (Van Ingen structure)")
-    ax.set_xlabel("alpha [rad]")
-    ax.set_ylabel(LABELS[coef])
-    _degrees_axis(ax)
+def _finish(ax, xlabel: str, ylabel: str, degrees: bool = True) -> None:
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if degrees:
+        _degrees_axis(ax)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
+
+
+def _compare(ax, model_xy, van_ingen_xy, names, points_xy=None) -> None:
+    """Measured points (corrected), the identified curve and the Van Ingen structure's curve."""
+    if points_xy is not None:
+        ax.scatter(*points_xy, s=2, color=COLOURS["measured"], alpha=0.35, rasterized=True,
+                   label="measured, corrected to the static condition")
+    ax.plot(*model_xy, color=COLOURS["model"], lw=2.2, label=f"{names[0]} (identified)")
+    if van_ingen_xy is not None:
+        ax.plot(*van_ingen_xy, color=COLOURS["van_ingen"], lw=1.8, ls="--", label=f"{names[1]} (Van Ingen structure)")
+
+
+def static_curve(coef: str, alpha, model, van_ingen, points, names):
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    _compare(ax, (alpha, model[coef]), (alpha, van_ingen[coef]) if van_ingen is not None else None, names,
+             (points["alpha"], points[coef]))
+    _finish(ax, "alpha [rad]", LABELS[coef])
     return fig
 
 
 def drag_polar(model, van_ingen, points, names):
     fig, ax = plt.subplots(figsize=(6, 4.5))
-    ax.scatter(points["CD"], points["CL"], s=2, color=COLOURS["measured"], alpha=0.35, rasterized=True,
-               label="measured, corrected to the static condition")
-    ax.plot(model["CD"], model["CL"], color=COLOURS["model"], lw=2.2, label=f"{names[0]} (identified)")
-    if van_ingen is not None:
-        ax.plot(van_ingen["CD"], van_ingen["CL"], color=COLOURS["van_ingen"], lw=1.8, ls="--",
-                label=f"{names[1]} (Van Ingen structure)")
-    ax.set_xlabel(LABELS["CD"])
-    ax.set_ylabel(LABELS["CL"])
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+    _compare(ax, (model["CD"], model["CL"]), (van_ingen["CD"], van_ingen["CL"]) if van_ingen is not None else None,
+             names, (points["CD"], points["CL"]))
+    _finish(ax, LABELS["CD"], LABELS["CL"], degrees=False)
     return fig
 
 
@@ -99,24 +103,14 @@ def centre_of_pressure(alpha, derived, curves, x_cg_range, x_cg_ref):
     ax.axhline(x_cg_ref, color="C2", lw=1, label=f"mean centre of gravity ({x_cg_ref:.3f} m)")
     for i, (symbol, c) in enumerate(curves.items()):
         ax.axvline(c["a_star"], color=f"C{3 + i}", ls="--", lw=1, label=f"alpha* of {symbol} ({c['a_star']:.3f} rad)")
-    ax.set_xlabel("alpha [rad]")
-    ax.set_ylabel("x from the datum 15 in ahead of the nose [m]")
-    _degrees_axis(ax)
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+    _finish(ax, "alpha [rad]", "x from the datum 15 in ahead of the nose [m]")
     return fig
 
 
 def elevator(alpha, model, van_ingen, names):
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    ax.plot(alpha, model, color=COLOURS["model"], lw=2.2, label=f"{names[0]} (identified)")
-    if van_ingen is not None:
-        ax.plot(alpha, van_ingen, color=COLOURS["van_ingen"], lw=1.8, ls="--", label=f"{names[1]} (Van Ingen structure)")
-    ax.set_xlabel("alpha [rad]")
-    ax.set_ylabel("C_m_delta_e* [1/rad]")
-    _degrees_axis(ax)
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+    _compare(ax, (alpha, model), (alpha, van_ingen) if van_ingen is not None else None, names)
+    _finish(ax, "alpha [rad]", "C_m_delta_e* [1/rad]")
     return fig
 
 
@@ -142,11 +136,7 @@ def hysteresis_loop(h: dict):
     ax.plot(h["alpha"], h["measured"], color=COLOURS["measured"], lw=0.6, label="measured")
     ax.plot(h["alpha"], h["model"], color=COLOURS["model"], lw=1.0, label="model (separation lag and delay)")
     ax.plot(h["static_alpha"], h["static"], color="k", ls="--", lw=1.5, label="static curve (no lag)")
-    ax.set_xlabel("alpha [rad]")
-    ax.set_ylabel(LABELS["CL"])
-    _degrees_axis(ax)
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+    _finish(ax, "alpha [rad]", LABELS["CL"])
     return fig
 
 
