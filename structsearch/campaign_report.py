@@ -224,7 +224,10 @@ def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, di
     if vi is not None:
         parts.append("<h3>Van Ingen structures, refitted on this campaign</h3><p>"
                      + "; ".join(f"{html.escape(s['name'])}: MSE validation {s['mse_validation']:.4g}"
-                                 for s in vi.summaries.values()) + "</p>")
+                                 + (f" (at a bound: {html.escape(', '.join(s['at_bound']))})" if s["at_bound"] else "")
+                                 for s in vi.summaries.values())
+                     + ". A structure with one separation state cannot follow two; its estimates drift to "
+                       "where they fit best on average, bounds included.</p>")
     if diagnosis is not None:
         parts.append(f"<h2>Diagnosis of {html.escape(diagnosis['baseline'])}</h2>"
                      f"<p>Validation MSE {diagnosis['mse']['validation']:.4g}, noise floor "
