@@ -226,8 +226,8 @@ def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, di
                      + "; ".join(f"{html.escape(s['name'])}: MSE validation {s['mse_validation']:.4g}"
                                  + (f" (at a bound: {html.escape(', '.join(s['at_bound']))})" if s["at_bound"] else "")
                                  for s in vi.summaries.values())
-                     + ". A structure with one separation state cannot follow two; its estimates drift to "
-                       "where they fit best on average, bounds included.</p>")
+                     + ". An estimate on its bound means the structure fits these data best at the edge of its "
+                       "physical range: a sign that it misses something the data contain.</p>")
     if diagnosis is not None:
         parts.append(f"<h2>Diagnosis of {html.escape(diagnosis['baseline'])}</h2>"
                      f"<p>Validation MSE {diagnosis['mse']['validation']:.4g}, noise floor "
