@@ -8,8 +8,12 @@ KINDS = ("quasi-steady", "dynamic", "deep-dynamic")
 
 
 @pytest.fixture(scope="module")
-def fits():
-    campaign = build_campaign(seed=0, scale=0.5)
+def campaign():
+    return build_campaign(seed=0, scale=0.5)
+
+
+@pytest.fixture(scope="module")
+def fits(campaign):
     model = final_lift_model()
     train = [i for i, m in enumerate(campaign.maneuvers) if m.split == "train" and m.kind in KINDS]
     quasi = [i for i in train if campaign.maneuvers[i].kind == "quasi-steady"]
@@ -41,3 +45,13 @@ def test_dynamic_stalls_decorrelate_tau1_and_tau2(fits):
 def test_thesis_level_decorrelation(fits):
     full, _ = fits
     assert abs(_tau_correlation(full)) < 0.3
+
+
+def test_dynamic_stalls_alone_separate_lag_from_delay(campaign):
+    """The dynamic stalls carry the information that tells tau1 from tau2 (what issue 3's 0.3 asks of the
+    whole campaign holds for them alone; the quasi-steady stalls outweigh them in the Table-4 mix)."""
+    model = final_lift_model()
+    dynamic = [i for i, m in enumerate(campaign.maneuvers) if m.kind == "dynamic"]
+    start = {k: FINAL_LIFT[k] for k in model.nonlinear_names}
+    result = model.fit(campaign.data.select(dynamic), start=start)
+    assert abs(_tau_correlation(result)) < 0.3
