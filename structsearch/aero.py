@@ -99,24 +99,22 @@ class AeroModel:
         return {s.symbol: static_separation(alpha - (s.tau2 if s.kind != "S" else 0.0) * alpha_dot,
                                             s.a1, s.a_star) for s in self.states}
 
-    def coefficient(self, coef: str, values: Mapping[str, np.ndarray]) -> np.ndarray:
-        expr, args = self._compiled[coef]
+    def _evaluate(self, expr: sp.Expr, args: tuple[str, ...], values: Mapping[str, np.ndarray], what: str):
         try:
             return compile_expression(expr, args)(*(values[a] for a in args))
         except KeyError as exc:
-            raise DeclarationError(f"{self.name}: {coef} needs {exc.args[0]!r}") from None
+            raise DeclarationError(f"{self.name}: {what} needs {exc.args[0]!r}") from None
+
+    def coefficient(self, coef: str, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        expr, args = self._compiled[coef]
+        return self._evaluate(expr, args, values, coef)
 
     def partial(self, coef: str, wrt: str, values: Mapping[str, np.ndarray]) -> np.ndarray:
         """d coef / d ``wrt`` (a column such as C_L or delta_e) at ``values``, differentiated symbolically."""
-        expr, _ = self._compiled[coef]
-        derivative = sp.diff(expr, sp.Symbol(wrt, real=True))
+        derivative = sp.diff(self._compiled[coef][0], sp.Symbol(wrt, real=True))
         args = tuple(sorted(s.name for s in derivative.free_symbols))
-        shape = np.shape(values["alpha"])
-        try:
-            out = compile_expression(derivative, args)(*(values[a] for a in args)) if args else float(derivative)
-        except KeyError as exc:
-            raise DeclarationError(f"{self.name}: d{coef}/d{wrt} needs {exc.args[0]!r}") from None
-        return np.broadcast_to(np.asarray(out, float), shape).copy()
+        out = self._evaluate(derivative, args, values, f"d{coef}/d{wrt}")
+        return np.broadcast_to(np.asarray(out, float), np.shape(values["alpha"])).copy()
 
     def coefficients(self, values: Mapping[str, np.ndarray]):
         """(C_L, C_D, C_m); ``values`` holds columns, constants and separation states."""

@@ -226,6 +226,14 @@ def _diagnose(args) -> int:
     return 0
 
 
+def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
+    """--data, --out, --starts, --seed: the options every command that fits a campaign shares."""
+    p.add_argument("--data", required=data_required, help="campaign directory")
+    p.add_argument("--out", default="results", help="output directory (default: results)")
+    p.add_argument("--starts", type=int, default=starts, help="starts per nonlinear fit (1: the default start)")
+    p.add_argument("--seed", type=int, default=0)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="structsearch", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -252,20 +260,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=_simulate)
 
     f = sub.add_parser("fit", help="fit one model structure to a campaign")
-    f.add_argument("--data", required=True, help="campaign directory")
+    _campaign_options(f)
     f.add_argument("--model", required=True, help="candidate name (CL-VI, CD-IXr, Cm-XXXIII, ...) or spec file")
-    f.add_argument("--out", default="results", help="output directory (default: results)")
-    f.add_argument("--starts", type=int, default=4, help="starts of the nonlinear search (1: default start)")
-    f.add_argument("--seed", type=int, default=0)
     f.set_defaults(func=_fit)
 
     r = sub.add_parser("search", help="fit and rank every candidate of a grid")
-    r.add_argument("--data", required=True, help="campaign directory")
+    _campaign_options(r)
     r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all, or a grid spec file")
-    r.add_argument("--out", default="results", help="output directory (default: results)")
     r.add_argument("--jobs", type=int, default=1, help="parallel processes")
-    r.add_argument("--starts", type=int, default=4, help="starts per nonlinear fit")
-    r.add_argument("--seed", type=int, default=0)
     r.add_argument("--backend", default="loky", choices=("loky", "dask"),
                    help="loky: local processes; dask: a dask.distributed cluster")
     r.add_argument("--scheduler", default=None,
@@ -274,12 +276,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_search)
 
     g = sub.add_parser("diagnose", help="where the model misses the data, which effect causes it, how far it shrinks")
-    g.add_argument("--data", help="campaign directory")
+    _campaign_options(g, starts=2, data_required=False)
     g.add_argument("--model", help="baseline candidate name or spec file")
     g.add_argument("--coefficient", choices=("CL", "CD", "Cm"), help="check that the baseline models this")
-    g.add_argument("--out", default="results", help="output directory")
-    g.add_argument("--starts", type=int, default=2)
-    g.add_argument("--seed", type=int, default=0)
     g.add_argument("--benchmark", action="store_true",
                    help="run the withheld-effect benchmark on simulated campaigns instead")
     g.add_argument("--scale", type=float, default=1.0, help="benchmark campaign scale")
@@ -288,12 +287,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.set_defaults(func=_diagnose)
 
     p = sub.add_parser("report", help="figures and one self-contained HTML page for a campaign")
-    p.add_argument("--data", required=True, help="campaign directory")
-    p.add_argument("--out", default="results", help="output directory: figures/, report.html; a search's "
-                   "ranking.csv and tables there are used (default: results)")
+    _campaign_options(p)  # the search's defaults, so that its cached fits are reused
     p.add_argument("--jobs", type=int, default=1, help="parallel processes for the fits")
-    p.add_argument("--starts", type=int, default=4, help="starts per nonlinear fit (as in search: cache hits)")
-    p.add_argument("--seed", type=int, default=0)
     p.add_argument("--diagnose", choices=("CL", "CD", "Cm", "none"), default="Cm",
                    help="coefficient whose gap breakdown is shown (default Cm; none: skip the diagnosis)")
     p.add_argument("--model", action="append", metavar="NAME",

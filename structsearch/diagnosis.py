@@ -31,7 +31,7 @@ from . import effects as fx
 from .campaign import Campaign
 from .data import FlightData
 from .errors import DataError, DeclarationError
-from .runner import Settings, build_model, fit_candidate, fit_lift_model, with_lift_prediction
+from .runner import Settings, build_model, fit_candidate, fit_lift_model, predict_candidate
 from .regressors import declare
 from .separation import static_separation
 from .specs import Candidate, find_candidate
@@ -53,8 +53,7 @@ def _fit(c: Candidate, train: FlightData, val: FlightData, lift, lift_c, setting
     summary = fit_candidate(c, train, val, lift, lift_c, settings, start=start)
     if "error" in summary:
         raise DeclarationError(f"fitting {c.name} failed: {summary['error']}")
-    data = with_lift_prediction(val, lift, lift_c) if c.lift else val
-    pred = build_model(c, lift).predict(data, summary["params"])
+    pred = predict_candidate(c, summary["params"], val, lift, lift_c)
     return Fitted(c, summary, val[c.coefficient] - pred)
 
 

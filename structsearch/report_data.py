@@ -20,7 +20,7 @@ from .aero import AeroModel
 from .campaign import Campaign
 from .data import FlightData
 from .errors import DeclarationError
-from .runner import Settings, build_model, run, with_lift_prediction
+from .runner import Settings, build_model, predict_candidate, run
 from .separation import static_separation
 from .specs import Candidate, find_candidate
 
@@ -45,12 +45,13 @@ class ModelSet:
     def lift_summary(self) -> dict:
         return self.summaries["CL"]
 
-    def predict(self, coef: str, data: FlightData) -> np.ndarray:
-        c = self.candidates[coef]
-        if coef == "CL":
-            return build_model(c).predict(data, self.summaries["CL"]["params"])
-        fed = with_lift_prediction(data, self.summaries["CL"], self.candidates["CL"])
-        return build_model(c, self.summaries["CL"]).predict(fed, self.summaries[coef]["params"])
+    def predict(self, coef: str, data: FlightData, candidate: Candidate | None = None,
+                params: dict | None = None) -> np.ndarray:
+        """Output of the set's ``coef`` model (or of ``candidate`` with ``params`` in its place) on ``data``."""
+        c = candidate or self.candidates[coef]
+        lift = None if coef == "CL" else self.lift_summary
+        return predict_candidate(c, params or self.summaries[coef]["params"], data, lift,
+                                 None if coef == "CL" else self.candidates["CL"])
 
 
 def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out: Path, settings: Settings,
@@ -103,10 +104,9 @@ def static_values(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, 
 
 
 def static_coefficients(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, np.ndarray]:
-    cl, cd, cm = ms.aero.coefficients(static_values(ms, alpha, ref))
-    return {"CL": np.broadcast_to(cl, np.shape(alpha)).astype(float),
-            "CD": np.broadcast_to(cd, np.shape(alpha)).astype(float),
-            "Cm": np.broadcast_to(cm, np.shape(alpha)).astype(float)}
+    values = ms.aero.coefficients(static_values(ms, alpha, ref))
+    # a coefficient without alpha-dependent terms comes back as a scalar
+    return {coef: np.broadcast_to(v, np.shape(alpha)).astype(float) for coef, v in zip(COEFFICIENTS, values)}
 
 
 def separation_curves(ms: ModelSet, alpha: np.ndarray) -> dict[str, dict]:
@@ -220,11 +220,7 @@ def with_effect(ms: ModelSet, coef: str, effect: str, campaign: Campaign, out: P
     if "error" in summary:
         raise DeclarationError(f"report: fitting {changed.name} failed: {summary['error']}")
     val = campaign.split("validation")
-    if coef == "CL":
-        after = build_model(changed).predict(val, summary["params"])
-    else:
-        fed = with_lift_prediction(val, ms.lift_summary, ms.candidates["CL"])
-        after = build_model(changed, ms.lift_summary).predict(fed, summary["params"])
+    after = ms.predict(coef, val, changed, summary["params"])
     bands = alpha_bands(val["alpha"])
     before_residual, after_residual = val[coef] - ms.predict(coef, val), val[coef] - after
     return {"baseline": baseline.name, "model": changed.name, "effect": effect, "bands": bands,

@@ -77,6 +77,14 @@ def with_lift_prediction(data: FlightData, lift: dict, lift_candidate: Candidate
     return FlightData(cols, data.starts, data.names, data.source, dict(data.constants))
 
 
+def predict_candidate(c: Candidate, params: dict, data: FlightData, lift: dict | None = None,
+                      lift_candidate: Candidate | None = None) -> np.ndarray:
+    """A fitted candidate's output on ``data``; drag and pitch candidates get the lift model's C_L."""
+    if c.lift and lift_candidate is not None:
+        data = with_lift_prediction(data, lift, lift_candidate)
+    return build_model(c, lift).predict(data, params)
+
+
 def _derived(coef: str, predicted: np.ndarray, data: FlightData, other: np.ndarray | None):
     """C_X and C_Z from a lift or drag prediction and the other coefficient (predicted or measured)."""
     alpha = data["alpha"]
