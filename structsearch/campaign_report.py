@@ -49,7 +49,11 @@ def chosen_models(out: Path, overrides: tuple[str, ...] = ()) -> tuple[dict[str,
         notes.append(f"No {path}: the thesis' final structures are shown (run a search to rank your own).")
         return names, notes
     with path.open(newline="", encoding="utf-8") as fh:
-        firsts = {row["grid"]: row["model"] for row in csv.DictReader(fh) if row.get("rank") == "1"}
+        reader = csv.DictReader(fh)
+        missing = [c for c in ("grid", "model", "rank") if c not in (reader.fieldnames or ())]
+        if missing:
+            raise DataError("a search ranking needs this column", source=str(path), column=missing[0], row=1)
+        firsts = {row["grid"]: row["model"] for row in reader if row["rank"] == "1"}
     for coef, grid in GRIDS.items():
         if grid not in firsts:
             continue

@@ -151,3 +151,10 @@ def test_report_models_come_from_the_ranking_or_the_command_line(tmp_path):
     assert "Cm-XXXIr-auto" in notes[0]
     names, _ = chosen_models(tmp_path, ("Cm-XXXI",))
     assert names == {"CL": "CL-VI", "CD": "CD-IXr", "Cm": "Cm-XXXI"}
+
+
+def test_a_ranking_without_its_columns_is_one_clear_error(small, tmp_path):
+    (tmp_path / "ranking.csv").write_text("grid,name\nlift,CL-VI\n")
+    proc = run_cli("report", "--data", str(small.directory), "--out", str(tmp_path), "--quiet")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1
+    assert "ranking.csv" in proc.stderr and "'model'" in proc.stderr and "row 1" in proc.stderr
