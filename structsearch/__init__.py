@@ -8,16 +8,19 @@ from importlib import import_module
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    "SeparableModel": "separable",
-    "StallModel": "stallmodel",
-    "FitResult": "results",
-    "fit_report": "report",
-    "FlightData": "data",
-    "StructSearchError": "errors",
-    "DataError": "errors",
-    "DeclarationError": "errors",
-    "FitError": "errors",
-    "RankDeficiencyError": "errors",
+    "SeparableModel": "engine.separable",
+    "StallModel": "engine.stallmodel",
+    "FitResult": "engine.results",
+    "fit_report": "report.fit_report",
+    "FlightData": "data.flightdata",
+    "read_campaign": "data.campaign",
+    "write_campaign": "data.campaign",
+    "Campaign": "data.campaign",
+    "StructSearchError": "data.errors",
+    "DataError": "data.errors",
+    "DeclarationError": "data.errors",
+    "FitError": "data.errors",
+    "RankDeficiencyError": "data.errors",
 }
 __all__ = sorted(_EXPORTS) + ["__version__"]
 

@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from .reference import FINAL_LIFT, final_lift_model
-from .snls import model_jacobian, project, solve
-from .synthetic import campaign, with_coefficient
+from .flight.reference import FINAL_LIFT, final_lift_model
+from .engine.snls import model_jacobian, project, solve
+from .flight.synthetic import campaign, with_coefficient
 
 
 @dataclass(frozen=True)
@@ -211,9 +211,10 @@ def _children(pid: int) -> list[int]:
 def run_search(n_jobs: int = 2, seed: int = 0, progress=None) -> dict:
     """``search --grid all`` on the default simulated campaign, from an empty cache."""
     import tempfile
-    from .flighttest import build_campaign
-    from .runner import Settings
-    from .search import search
+    from .flight.flighttest import build_campaign
+    from .search.runner import Settings
+    from .search.pipeline import search
+    from .report.tables import write_tables
     say = progress or (lambda m: None)
     say("simulating the default campaign for the search benchmark")
     t0 = time.perf_counter()
@@ -223,13 +224,14 @@ def run_search(n_jobs: int = 2, seed: int = 0, progress=None) -> dict:
         say("search --grid all from an empty cache")
         t0 = time.perf_counter()
         result = search(campaign, "all", Path(tmp), n_jobs=n_jobs, settings=Settings())
+        write_tables(result.grids, Path(tmp))
         total = time.perf_counter() - t0
         workers = _children(os.getpid())
         worker_peaks = [_peak_rss_mb(p) for p in workers]
-    winners = {g: next((s["name"] for s in r if "error" not in s), None) for g, r in result["grids"].items()}
+    winners = {g: next((s.name for s in r if not s.failed), None) for g, r in result.grids.items()}
     return {"samples": campaign.data.n_samples, "simulate_s": t_sim, "search_s": total,
-            "by_grid_s": result["seconds"], "candidates": {g: len(r) for g, r in result["grids"].items()},
-            "failed": {g: sum("error" in s for s in r) for g, r in result["grids"].items()},
+            "by_grid_s": result.seconds, "candidates": {g: len(r) for g, r in result.grids.items()},
+            "failed": {g: sum(s.failed for s in r) for g, r in result.grids.items()},
             "winners": winners, "n_jobs": n_jobs, "main_peak_rss_mb": _peak_rss_mb(os.getpid()),
             "worker_peak_rss_mb": worker_peaks}
 
@@ -303,7 +305,7 @@ def to_markdown(fig: dict) -> str:
 
 
 def write(fig: dict, out: Path) -> tuple[Path, Path]:
-    from .io_atomic import write_text
+    from .data.atomic import write_text
     out.mkdir(parents=True, exist_ok=True)
     md, js = out / "bench.md", out / "bench.json"
     write_text(md, to_markdown(fig))

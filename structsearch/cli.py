@@ -39,8 +39,8 @@ def _bench(args) -> int:
 
 
 def _simulate(args) -> int:
-    from .campaign import write_campaign
-    from .flighttest import build_campaign
+    from .data.campaign import write_campaign
+    from .flight.flighttest import build_campaign
     campaign = build_campaign(seed=args.seed, withhold=args.withhold or (), scale=args.scale,
                               extras=args.extras)
     out = write_campaign(campaign, Path(args.out), fmt=args.format)
@@ -52,45 +52,40 @@ def _simulate(args) -> int:
 
 
 def raise_error(message: str):
-    from .errors import DeclarationError
+    from .data.errors import DeclarationError
     raise DeclarationError(message)
 
 
 def _fit(args) -> int:
-    import json
-    from .campaign import read_campaign
-    from .io_atomic import write_text
-    from .runner import Settings, fit_candidate, fit_lift_model
-    from .specs import resolve_candidate
+    from .data.campaign import read_campaign
+    from .data.atomic import write_json, write_text
+    from .search.runner import Settings, fit_candidate, fit_lift_model
+    from .search.specs import resolve_candidate
+    from .report.documents import fit_document
+    from .report.tables import parameter_table
     campaign = read_campaign(args.data)
     candidate = resolve_candidate(args.model)
     settings = Settings(n_starts=args.starts, seed=args.seed)
     train, validation = campaign.split("train"), campaign.split("validation")
     lift, lift_candidate = fit_lift_model(candidate, train, validation, settings)
     summary = fit_candidate(candidate, train, validation, lift, lift_candidate, settings)
-    if "error" in summary:
-        raise_error(summary["error"])
+    if summary.failed:
+        raise_error(summary.error)
     out = Path(args.out)
-    doc = {"model": candidate.name, "params": summary["params"], "stderr": summary["stderr"],
-           "mse": {"train": summary["mse_train"], "validation": summary["mse_validation"]},
-           "p_values": summary["p_values"], "at_bound": summary["at_bound"],
-           "high_correlations": summary["high_correlations"], "insignificant": summary["insignificant"],
-           "r2": {"train": summary["r2_train"], "validation": summary["r2_validation"]},
-           "n_starts": summary["n_starts"], "n_reached_best": summary["n_reached_best"],
-           "lift": lift and {"model": candidate.lift, "params": lift["params"]}}
-    write_text(out / "fit.json", json.dumps(doc, indent=2, default=float))
-    from .ranking import parameter_table
+    write_json(out / "fit.json", fit_document(summary, lift))
     write_text(out / "fit.md", f"# {candidate.name}\n\n" + parameter_table(summary, "md"))
-    print(f"{candidate.name}: MSE train {summary['mse_train']:.4g}, validation {summary['mse_validation']:.4g}; "
-          f"{len(summary['insignificant'])} parameter(s) accept zero, {len(summary['at_bound'])} at a bound; "
-          f"wrote {out / 'fit.json'}")
+    not_converged = "" if summary.converged else f"; the optimizer did NOT converge ({summary.message})"
+    print(f"{candidate.name}: MSE train {summary.mse_train:.4g}, validation {summary.mse_validation:.4g}; "
+          f"{len(summary.insignificant)} parameter(s) accept zero, {len(summary.at_bound)} at a bound"
+          f"{not_converged}; wrote {out / 'fit.json'}")
     return 0
 
 
 def _search(args) -> int:
-    from .campaign import read_campaign
-    from .runner import Settings, stderr_progress
-    from .search import search
+    from .data.campaign import read_campaign
+    from .search.runner import Settings, stderr_progress
+    from .search.pipeline import search
+    from .report.tables import write_tables
     campaign = read_campaign(args.data)
     client = _dask_client(args) if args.backend == "dask" else None
     try:
@@ -100,6 +95,7 @@ def _search(args) -> int:
     finally:
         if client is not None:
             client.close()
+    write_tables(result.grids, Path(args.out))
     _print_winners(result)
     print(f"wrote {Path(args.out) / 'ranking.csv'} and the tables of each grid")
     return 0
@@ -119,8 +115,8 @@ def _dask_client(args):
 
 
 def _print_winners(result) -> None:
-    for grid, ranked in result["grids"].items():
-        ok = [s for s in ranked if "error" not in s]
+    for grid, ranked in result.grids.items():
+        ok = [s for s in ranked if not s.failed]
         failed = len(ranked) - len(ok)
         if not ok:
             print(f"{grid}: every candidate failed")
@@ -128,19 +124,22 @@ def _print_winners(result) -> None:
         best, runner_up = ok[0], (ok[1] if len(ok) > 1 else None)
         margin = ""
         if runner_up is not None:
-            margin = (f"; next {runner_up['name']} ({runner_up['n_params']} parameters, validation MSE "
-                      f"{runner_up['mse_validation'] / best['mse_validation'] - 1:+.1%})")
-        print(f"{grid}: {best['name']} ({best['n_params']} parameters, validation MSE {best['mse_validation']:.4g})"
-              f"{margin}; {len(ok)} fitted, {failed} failed, {result['seconds'][grid]:.1f} s")
+            margin = (f"; next {runner_up.name} ({runner_up.n_params} parameters, validation MSE "
+                      f"{runner_up.mse_validation / best.mse_validation - 1:+.1%})")
+        not_converged = [s.name for s in ok if not s.converged]
+        warning = (f"; optimizer did not converge for {', '.join(not_converged)}" if not_converged else "")
+        print(f"{grid}: {best.name} ({best.n_params} parameters, validation MSE {best.mse_validation:.4g})"
+              f"{margin}; {len(ok)} fitted, {failed} failed{warning}, {result.seconds[grid]:.1f} s")
 
 
 def _demo(args) -> int:
     import os
     import time
-    from .campaign import read_campaign, write_campaign
-    from .flighttest import build_campaign
-    from .runner import Settings, stderr_progress
-    from .search import search
+    from .data.campaign import read_campaign, write_campaign
+    from .flight.flighttest import build_campaign
+    from .search.runner import Settings, stderr_progress
+    from .search.pipeline import search
+    from .report.tables import write_tables
     out = Path(args.out)
     t0 = time.perf_counter()
     camp_dir = out / "campaign"
@@ -155,26 +154,27 @@ def _demo(args) -> int:
     jobs = args.jobs or os.cpu_count() or 1
     result = search(campaign, "all", out, n_jobs=jobs, settings=Settings(n_starts=args.starts),
                     progress=None if args.quiet else stderr_progress)
+    write_tables(result.grids, out)
     total = time.perf_counter() - t0
     _print_winners(result)
     print(f"campaign: {len(campaign.maneuvers)} maneuvers, {campaign.data.n_samples} samples "
-          f"({t_sim:.0f} s); search of {sum(len(r) for r in result['grids'].values())} candidates on {jobs} "
+          f"({t_sim:.0f} s); search of {sum(len(r) for r in result.grids.values())} candidates on {jobs} "
           f"process(es): {total - t_sim:.0f} s; total {total:.0f} s")
     print(f"tables and ranking.csv in {out}")
-    from . import figures
+    from .report import figures
     if figures.plt is None:
         print("no figures: the report needs matplotlib (pip install 'structsearch[figures]')")
         return 0
-    from .campaign_report import build
+    from .report.page import build
     _print_report(build(campaign, out, settings=Settings(n_starts=args.starts), n_jobs=jobs,
                         progress=None if args.quiet else stderr_progress))
     return 0
 
 
 def _report(args) -> int:
-    from .campaign import read_campaign
-    from .campaign_report import build
-    from .runner import Settings
+    from .data.campaign import read_campaign
+    from .report.page import build
+    from .search.runner import Settings
     campaign = read_campaign(args.data)
     res = build(campaign, Path(args.out), settings=Settings(n_starts=args.starts, seed=args.seed), n_jobs=args.jobs,
                 diagnose_coefficient=None if args.diagnose == "none" else args.diagnose, models=tuple(args.model or ()),
@@ -192,10 +192,10 @@ def _print_report(res: dict) -> None:
 
 def _diagnose(args) -> int:
     import json
-    from .io_atomic import write_text
+    from .data.atomic import write_text
     out = Path(args.out)
     if args.benchmark:
-        from . import withheld
+        from .diagnosis import withheld
         res = withheld.run(seed=args.seed, scale=args.scale, null_seeds=tuple(range(args.null_seeds)),
                            progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr,
                                                                            flush=True))
@@ -208,11 +208,11 @@ def _diagnose(args) -> int:
         return 0
     if not args.data or not args.model:
         raise_error("diagnose needs --data and --model (or --benchmark)")
-    from .campaign import read_campaign
-    from .diagnosis import diagnose
-    from .specs import resolve_candidate
-    from .diagnosis_report import write
-    from .runner import Settings
+    from .data.campaign import read_campaign
+    from .diagnosis.diagnose import diagnose
+    from .search.specs import resolve_candidate
+    from .report.diagnosis_doc import write
+    from .search.runner import Settings
     campaign = read_campaign(args.data)
     baseline = resolve_candidate(args.model, args.coefficient)
     doc = diagnose(campaign, baseline, settings=Settings(n_starts=args.starts, seed=args.seed),
@@ -247,7 +247,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--no-search", action="store_true", help="skip the search --grid all benchmark")
     b.set_defaults(func=_bench)
 
-    from .aero import WITHHOLDABLE
+    from .flight.aero import WITHHOLDABLE
     s = sub.add_parser("simulate", help="simulate the Citation II flight-test campaign (thesis Table 4)")
     s.add_argument("--out", required=True, help="campaign directory to write")
     s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same campaign bit for bit)")
@@ -308,7 +308,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from .errors import StructSearchError
+    from .data.errors import StructSearchError
     try:
         return args.func(args)
     except StructSearchError as exc:

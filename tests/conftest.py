@@ -6,8 +6,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from structsearch.reference import FINAL_LIFT, final_lift_model  # noqa: E402
-from structsearch.synthetic import campaign, with_coefficient  # noqa: E402
+from structsearch.flight.reference import FINAL_LIFT, final_lift_model  # noqa: E402
+from structsearch.flight.synthetic import campaign, with_coefficient  # noqa: E402
 
 
 @pytest.fixture(scope="session")

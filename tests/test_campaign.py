@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from structsearch.campaign import Maneuver, make_campaign, read_campaign, write_campaign
-from structsearch.errors import DataError
+from structsearch.data.campaign import Maneuver, make_campaign, read_campaign, write_campaign
+from structsearch.data.errors import DataError
 
 AIRCRAFT = {"S": 30.0, "cbar": 2.013, "b": 15.75}
 

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 from scipy.linalg import block_diag, toeplitz
 
-from structsearch.data import FlightData
-from structsearch.statistics import autocovariance, colored_covariance, lag_weights, white_covariance
-from structsearch.stallmodel import StallModel
-from structsearch.synthetic import ar1_noise, campaign
+from structsearch.data.flightdata import FlightData
+from structsearch.engine.statistics import autocovariance, colored_covariance, lag_weights, white_covariance
+from structsearch.engine.stallmodel import StallModel
+from structsearch.flight.synthetic import ar1_noise, campaign
 
 N_REFITS = 200
 TRUTH = {"tau1": 0.3, "tau2": 0.1, "a1": 30.0, "a_star": 0.2, "CL0": 0.2, "CL_KL": 5.0, "CL_de": -0.4}

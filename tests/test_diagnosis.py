@@ -3,15 +3,15 @@ import json
 
 import pytest
 
-from structsearch import effects as fx
-from structsearch.campaign import Maneuver, make_campaign
-from structsearch.diagnosis import diagnose
-from structsearch.errors import DataError, DeclarationError
-from structsearch.flighttest import build_campaign
-from structsearch.reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH
-from structsearch.runner import Settings, fit_candidate, fit_lift_model
-from structsearch.specs import find_candidate
-from structsearch.withheld import WITHHELD, baseline_without
+from structsearch.diagnosis import effects as fx
+from structsearch.data.campaign import Maneuver, make_campaign
+from structsearch.diagnosis.diagnose import diagnose
+from structsearch.data.errors import DataError, DeclarationError
+from structsearch.flight.flighttest import build_campaign
+from structsearch.flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH
+from structsearch.search.runner import Settings, fit_candidate, fit_lift_model
+from structsearch.search.specs import find_candidate
+from structsearch.diagnosis.withheld import WITHHELD, baseline_without
 
 from test_report_cli import run_cli
 
@@ -70,7 +70,7 @@ def test_refit_with_the_effect_recovers_its_parameter(campaign, effect, paramete
     train, val = campaign.split("train"), campaign.split("validation")
     lift, lift_c = fit_lift_model(model, train, val, SETTINGS)
     s = fit_candidate(model, train, val, lift, lift_c, SETTINGS)
-    assert abs(s["params"][parameter] - truth) < 3 * s["stderr"][parameter] + 0.05 * abs(truth), s["params"]
+    assert abs(s.params[parameter] - truth) < 3 * s.stderr[parameter] + 0.05 * abs(truth), s.params
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +132,7 @@ def test_baselines_of_the_benchmark_are_final_minus_one():
 
 
 def test_cli_diagnose(campaign, tmp_path):
-    from structsearch.campaign import write_campaign
+    from structsearch.data.campaign import write_campaign
     write_campaign(campaign, tmp_path / "c")
     proc = run_cli("diagnose", "--data", str(tmp_path / "c"), "--model", "CD-XI", "--coefficient", "CD",
                    "--out", str(tmp_path / "o"), "--quiet")

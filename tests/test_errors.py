@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 
 from structsearch import SeparableModel
-from structsearch.data import FlightData, from_segments
-from structsearch.errors import DataError, DeclarationError, FitError, RankDeficiencyError
-from structsearch.reference import final_lift_model
-from structsearch.stallmodel import StallModel
+from structsearch.data.flightdata import FlightData, from_segments
+from structsearch.data.errors import DataError, DeclarationError, FitError, RankDeficiencyError
+from structsearch.flight.reference import final_lift_model
+from structsearch.engine.stallmodel import StallModel
 
 
 def _replace(data, **cols):

@@ -7,11 +7,12 @@ import sys
 import numpy as np
 import pytest
 
-from structsearch import report_data as rd
-from structsearch.campaign import read_campaign, write_campaign
-from structsearch.flighttest import build_campaign
-from structsearch.runner import Settings
-from structsearch.separation import static_separation
+from structsearch.report import figure_data as rd
+from structsearch.data.campaign import read_campaign, write_campaign
+from structsearch.flight.flighttest import build_campaign
+from structsearch.search.runner import Settings
+from structsearch.flight.reference import FINAL_MODEL_NAMES
+from structsearch.engine.separation import static_separation
 
 from test_report_cli import run_cli
 
@@ -39,7 +40,7 @@ def report_run(small, tmp_path_factory):
 @pytest.fixture(scope="module")
 def model_set(small, report_run):
     # the report's cache serves these fits
-    return rd.fit_model_set("identified", rd.FINAL, small, report_run[1], Settings(n_starts=2))
+    return rd.fit_model_set("identified", FINAL_MODEL_NAMES, small, report_run[1], Settings(n_starts=2))
 
 
 def test_report_writes_every_figure_with_content(report_run):
@@ -131,9 +132,9 @@ def test_gap_cells_are_per_maneuver_band_mse(small):
 
 def test_core_imports_without_matplotlib():
     code = ("import sys; sys.modules['matplotlib'] = None\n"
-            "import structsearch, structsearch.cli, structsearch.campaign_report as cr, structsearch.figures as f\n"
+            "import structsearch, structsearch.cli, structsearch.report.page as cr, structsearch.report.figures as f\n"
             "assert f.plt is None\n"
-            "from structsearch.errors import StructSearchError\n"
+            "from structsearch.data.errors import StructSearchError\n"
             "try:\n    f.require()\nexcept StructSearchError as e:\n    print(e)\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
@@ -141,9 +142,9 @@ def test_core_imports_without_matplotlib():
 
 
 def test_report_models_come_from_the_ranking_or_the_command_line(tmp_path):
-    from structsearch.campaign_report import chosen_models
+    from structsearch.report.page import chosen_models
     names, notes = chosen_models(tmp_path)
-    assert names == rd.FINAL and "final structures" in notes[0]
+    assert names == FINAL_MODEL_NAMES and "final structures" in notes[0]
     (tmp_path / "ranking.csv").write_text("grid,model,rank\nlift,CL-VI,1\ndrag,CD-IX,1\npitch,Cm-XXXIr-auto,1\n"
                                           "pitch,Cm-XXXI,2\n")
     names, notes = chosen_models(tmp_path)

@@ -1,8 +1,8 @@
 """Identifiability on a simulated campaign (scaled down for CI): CL-VI recovers the truth."""
 import pytest
 
-from structsearch.flighttest import build_campaign
-from structsearch.reference import FINAL_LIFT, final_lift_model
+from structsearch.flight.flighttest import build_campaign
+from structsearch.flight.reference import FINAL_LIFT, final_lift_model
 
 KINDS = ("quasi-steady", "dynamic", "deep-dynamic")
 

@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from structsearch import SeparableModel
-from structsearch.reference import FINAL_LIFT, final_lift_model, van_ingen_lift_model
-from structsearch.snls import model_jacobian, project, residual_jacobian
-from structsearch.stallmodel import StallModel
+from structsearch.flight.reference import FINAL_LIFT, final_lift_model, van_ingen_lift_model
+from structsearch.engine.snls import model_jacobian, project, residual_jacobian
+from structsearch.engine.stallmodel import StallModel
 
 from conftest import central_difference
 
@@ -30,7 +30,7 @@ def test_golub_pereyra_jacobian(name, small_campaign):
     data = small_campaign.select([0, 3])
     cols = dict(data.columns)
     cols["CL"] = 0.2 + 5 * data["alpha"] + 0.02 * rng.standard_normal(data.n_samples)
-    from structsearch.data import FlightData
+    from structsearch.data.flightdata import FlightData
     data = FlightData(cols, data.starts, data.names, data.source, data.constants)
     problem = model.bind(data)
     lower, upper = model.bound_vectors()

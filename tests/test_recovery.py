@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from structsearch.reference import FINAL_LIFT
+from structsearch.flight.reference import FINAL_LIFT
 
 SEEDS = [0, 1, 2]
 
@@ -29,7 +29,7 @@ def test_default_start_converges_without_multistart(noise_free_lift):
 
 
 def test_linear_only_model_uses_ols(noise_free_lift):
-    from structsearch.stallmodel import StallModel
+    from structsearch.engine.stallmodel import StallModel
     _, data = noise_free_lift
     model = StallModel.declare("lin", "CL", regressors={"c0": "1", "ca": "alpha", "cq": "qstar"})
     result = model.fit(data)

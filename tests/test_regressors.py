@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from structsearch.data import single_segment
-from structsearch.errors import DataError, DeclarationError
-from structsearch.regressors import BUILDING_BLOCKS, block, declare
-from structsearch.stallmodel import StallModel
+from structsearch.data.flightdata import single_segment
+from structsearch.data.errors import DataError, DeclarationError
+from structsearch.engine.regressors import BUILDING_BLOCKS, block, declare
+from structsearch.engine.stallmodel import StallModel
 
 STATEFUL = sorted(n for n, text in BUILDING_BLOCKS.items() if "{X}" in text)
 EXTRA = {"two_states": "K_L(X_ss)*X_w"}
@@ -79,7 +79,7 @@ def test_every_block_declares_and_evaluates(name, columns):
     reg = declare(name, block(name, "X_w" if stateful else None), states=["X_w"])
     n = columns.n_samples
     cols = dict(columns.columns, CT=np.full(n, 0.03), x_cg=np.full(n, 7.2))
-    from structsearch.data import FlightData
+    from structsearch.data.flightdata import FlightData
     data = FlightData(cols, columns.starts, columns.names, columns.source, columns.constants)
     value = reg.value(data, {"X_w": np.full(n, 0.3)}, n)
     assert value.shape == (n,) and np.all(np.isfinite(value))

@@ -5,13 +5,17 @@ import json
 import numpy as np
 import pytest
 
-from structsearch.campaign import read_campaign, write_campaign
-from structsearch.enumeration import stepwise
-from structsearch.flighttest import build_campaign
-from structsearch.ranking import rank
-from structsearch.runner import run
-from structsearch.search import search
-from structsearch.specs import load_grid, roman
+from structsearch.data.campaign import read_campaign, write_campaign
+from structsearch.engine.scores import R2Summary
+from structsearch.report.tables import write_tables
+from structsearch.search.candidate_result import CandidateResult, SplitScores
+from structsearch.search.stepwise import stepwise
+from structsearch.flight.flighttest import build_campaign
+from structsearch.search.ranking import rank
+from structsearch.search.runner import run
+from structsearch.search.pipeline import search
+from structsearch.search.specs import load_grid
+from structsearch.search.candidates import roman
 
 from test_report_cli import run_cli
 
@@ -100,12 +104,15 @@ def test_stepwise_finds_the_true_regressors():
 
 def test_ranking_rule_prefers_the_smaller_model_within_noise():
     def summary(name, n, per):
-        return {"name": name, "grid": "g", "n_params": n, "mse_validation": float(np.mean(per)),
-                "mse_validation_maneuvers": per, "n_validation_maneuvers": [100] * len(per)}
+        scores = SplitScores(float(np.mean(per)), tuple(per), (100,) * len(per), R2Summary(0.9, 0.8, 1.0))
+        return CandidateResult(name, "g", "CL", None, 0.0, names=tuple(f"p{i}" for i in range(n)),
+                               train=scores, validation=scores)
+    broken = CandidateResult.failure(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
     ranked = rank([summary("big", 9, [1.0, 2.0, 3.0]), summary("small", 6, [1.001, 2.002, 2.999]),
-                   summary("bad", 5, [1.5, 2.9, 4.4]), {"name": "broken", "grid": "g", "error": "boom"}])
-    assert [r["name"] for r in ranked] == ["small", "big", "bad", "broken"]
-    assert ranked[-1]["rank"] is None and ranked[0]["within_noise"]
+                   summary("bad", 5, [1.5, 2.9, 4.4]), broken])
+    assert [r.name for r in ranked] == ["small", "big", "bad", "broken"]
+    assert ranked[-1].rank is None and ranked[0].within_noise and [r.rank for r in ranked[:3]] == [1, 2, 3]
+    assert ranked[1].within_noise and not ranked[2].within_noise
 
 
 @pytest.fixture(scope="module")
@@ -120,7 +127,7 @@ def test_jobs_do_not_change_results(tiny, tmp_path):
     one = run(lift.candidates, tiny, tmp_path / "a", n_jobs=1)
     two = run(lift.candidates, tiny, tmp_path / "b", n_jobs=2)
     for a, b in zip(one, two):
-        assert a["params"] == b["params"] and a["mse_validation"] == b["mse_validation"]
+        assert a.params == b.params and a.mse_validation == b.mse_validation
 
 
 def test_interrupted_search_resumes(tiny, tmp_path):
@@ -145,7 +152,7 @@ def test_interrupted_search_resumes(tiny, tmp_path):
     assert messages[0] == "5 of 12 candidates from the cache"
     assert sum(m.startswith("[") for m in messages) == 7
     fresh = run(grid.candidates[:12], tiny, tmp_path / "fresh", **context)
-    assert [r["params"] for r in resumed] == [r["params"] for r in fresh]
+    assert [r.params for r in resumed] == [r.params for r in fresh]
 
 
 def test_failing_candidate_is_recorded_and_the_search_goes_on(tiny, tmp_path):
@@ -156,9 +163,10 @@ def test_failing_candidate_is_recorded_and_the_search_goes_on(tiny, tmp_path):
                     '[[entry]]\nregressors = { c0 = "1", a = "alpha", b = "2*alpha" }\n'
                     '[[entry]]\nregressors = { c0 = "1", k = "K_L(X)" }\nstates = { "" = "U" }\n')
     result = search(tiny, str(spec), tmp_path / "out")
-    ranked = result["grids"]["mine"]
-    assert [r["name"] for r in ranked] == ["M-III", "M-I", "M-II"]
-    assert "linearly dependent" in ranked[-1]["error"] and ranked[-1]["rank"] is None
+    write_tables(result.grids, tmp_path / "out")
+    ranked = result.grids["mine"]
+    assert [r.name for r in ranked] == ["M-III", "M-I", "M-II"]
+    assert "linearly dependent" in ranked[-1].error and ranked[-1].rank is None
     rows = list(csv.DictReader((tmp_path / "out" / "ranking.csv").open()))
     assert rows[-1]["model"] == "M-II" and "linearly dependent" in rows[-1]["error"]
 
@@ -170,10 +178,10 @@ def test_refinement_drops_what_the_t_test_rejects(tiny, tmp_path):
                     'states = { "" = "U" }\n')
     # junk is constant per maneuver and carries no lift: its t-test should accept zero
     result = search(tiny, str(spec), tmp_path / "out")
-    names = [r["name"] for r in result["grids"]["r"]]
+    names = [r.name for r in result.grids["r"]]
     assert "R-Ir-auto" in names
-    refined = next(r for r in result["grids"]["r"] if r["name"] == "R-Ir-auto")
-    assert "junk" not in refined["params"]
+    refined = next(r for r in result.grids["r"] if r.name == "R-Ir-auto")
+    assert "junk" not in refined.params
 
 
 def test_cli_fit_search_and_dask(tiny, tmp_path):
@@ -224,5 +232,6 @@ def test_readme_grid_example_runs(tiny, tmp_path):
     grid = load_grid(str(spec))
     assert grid.names == ("P-I", "P-II", "P-IIr")
     result = search(tiny, str(spec), tmp_path / "out", do_refine=False)
-    assert all("error" not in r for r in result["grids"]["my-pitch"])
+    write_tables(result.grids, tmp_path / "out")
+    assert all(not r.failed for r in result.grids["my-pitch"])
     assert (tmp_path / "out" / "my-pitch_best_correlation.md").exists()

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from structsearch import separation as sep
-from structsearch.separation import SeparationState, evaluate_state, first_order_lag, linear_recurrence
+from structsearch.engine import separation as sep
+from structsearch.engine.separation import SeparationState, evaluate_state, first_order_lag, linear_recurrence
 
 from conftest import central_difference
 
@@ -120,7 +120,7 @@ def test_state_sensitivities_match_finite_differences(kind, uniform):
 
 
 def test_state_declaration_errors():
-    from structsearch.errors import DeclarationError
+    from structsearch.data.errors import DeclarationError
     with pytest.raises(DeclarationError, match="kind"):
         SeparationState("ss", "X")
     assert SeparationState("", "U").parameters == ("tau1", "tau2", "a1", "a_star")

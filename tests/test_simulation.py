@@ -2,13 +2,13 @@
 import numpy as np
 import pytest
 
-from structsearch import aircraft as ac
-from structsearch.aero import WITHHOLDABLE, truth_model
-from structsearch.errors import DeclarationError
-from structsearch.flighttest import build_campaign
-from structsearch.reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH
-from structsearch.replay import replay
-from structsearch.simulation import Condition, Pilot, _alpha_dot_with_states, simulate, trim
+from structsearch.flight import aircraft as ac
+from structsearch.flight.aero import WITHHOLDABLE, truth_model
+from structsearch.data.errors import DeclarationError
+from structsearch.flight.flighttest import build_campaign
+from structsearch.flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH
+from structsearch.flight.replay import replay
+from structsearch.flight.simulation import Condition, Pilot, _alpha_dot_with_states, simulate, trim
 
 
 @pytest.fixture(scope="module")

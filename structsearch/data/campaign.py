@@ -1,0 +1,291 @@
+"""Flight-test campaigns on disk (interfaces.md section 1): ``campaign.toml`` plus one file per maneuver.
+
+Maneuver files are CSV, Parquet (optional ``pyarrow``) or MATLAB ``.mat``
+(variables or one struct whose fields are the columns). Reading validates
+everything once and raises one :class:`~structsearch.errors.DataError` naming the
+file, the column and the row (0-based data row; for CSV also the line).
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .flightdata import FlightData, from_segments
+from .errors import DataError
+
+KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugoid", "other")
+SPLITS = ("train", "validation")
+REQUIRED = ("t", "alpha", "q", "V", "de")
+ANGLES = ("alpha", "de", "theta")
+# Largest plausible magnitude of an angle in radians; more looks like degrees.
+MAX_ANGLE_RAD = 1.2
+# Shortest maneuver that leaves room for separation dynamics (tau up to ~1 s).
+MIN_DURATION_S = 2.0
+MIN_SAMPLES = 20
+AIRCRAFT_KEYS = ("S", "cbar", "b")
+
+
+@dataclass(frozen=True)
+class Maneuver:
+    id: str
+    file: str
+    kind: str
+    split: str
+
+
+@dataclass(frozen=True, eq=False)
+class Campaign:
+    """A campaign: its manifest and all samples (maneuvers in manifest order)."""
+
+    name: str
+    aircraft: Mapping[str, float]
+    maneuvers: tuple[Maneuver, ...]
+    data: FlightData
+    directory: Path | None = None
+    extra: Mapping[str, object] = field(default_factory=dict)
+
+    def split(self, which: str) -> FlightData:
+        """The maneuvers of one split ("train" or "validation") as FlightData."""
+        if which not in SPLITS:
+            raise DataError(f"unknown split {which!r}; expected one of {SPLITS}")
+        idx = [i for i, m in enumerate(self.maneuvers) if m.split == which]
+        if not idx:
+            raise DataError(f"the campaign has no {which} maneuvers", source=self._where())
+        return self.data.select(idx)
+
+    def of_kind(self, *kinds: str) -> FlightData:
+        idx = [i for i, m in enumerate(self.maneuvers) if m.kind in kinds]
+        if not idx:
+            raise DataError(f"the campaign has no maneuvers of kind {', '.join(kinds)}", source=self._where())
+        return self.data.select(idx)
+
+    def _where(self) -> str:
+        return str(self.directory / "campaign.toml") if self.directory else self.name
+
+
+# ----- reading -----------------------------------------------------------------------------
+def _manifest(path: Path) -> dict:
+    toml = path / "campaign.toml"
+    if not toml.is_file():
+        raise DataError("campaign.toml not found", source=str(toml))
+    try:
+        return tomllib.loads(toml.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise DataError(f"not valid TOML: {exc}", source=str(toml)) from None
+
+
+def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
+    aircraft = doc.get("aircraft")
+    if not isinstance(aircraft, dict):
+        raise DataError("missing [aircraft] table", source=toml)
+    for key in AIRCRAFT_KEYS:
+        if not isinstance(aircraft.get(key), (int, float)) or aircraft[key] <= 0:
+            raise DataError(f"[aircraft] needs a positive number {key}", source=toml, column=key)
+    entries = doc.get("maneuver")
+    if not isinstance(entries, list) or not entries:
+        raise DataError("no [[maneuver]] entries", source=toml)
+    maneuvers, seen = [], set()
+    for i, e in enumerate(entries):
+        where = f"{toml} [[maneuver]] #{i + 1}"
+        for key in ("id", "file", "kind", "split"):
+            if not isinstance(e.get(key), str) or not e[key]:
+                raise DataError(f"missing or empty {key!r}", source=where, column=key)
+        if e["id"] in seen:
+            raise DataError(f"maneuver id {e['id']!r} appears twice", source=where, column="id")
+        seen.add(e["id"])
+        if e["kind"] not in KINDS:
+            raise DataError(f"unknown kind {e['kind']!r}; expected one of {', '.join(KINDS)}",
+                            source=where, column="kind")
+        if e["split"] not in SPLITS:
+            raise DataError(f"unknown split {e['split']!r}; expected one of {', '.join(SPLITS)}",
+                            source=where, column="split")
+        maneuvers.append(Maneuver(e["id"], e["file"], e["kind"], e["split"]))
+    return str(doc.get("name", "")), {k: float(aircraft[k]) for k in AIRCRAFT_KEYS}, maneuvers
+
+
+def _read_table(path: Path) -> dict[str, np.ndarray]:
+    suffix = path.suffix.lower()
+    if not path.is_file():
+        raise DataError("maneuver file not found", source=str(path))
+    import pandas as pd
+    if suffix == ".csv":
+        try:
+            frame = pd.read_csv(path)
+        except (ValueError, pd.errors.ParserError) as exc:
+            raise DataError(f"cannot read CSV: {exc}", source=str(path)) from None
+    elif suffix == ".parquet":
+        try:
+            frame = pd.read_parquet(path)
+        except ImportError:
+            raise DataError("reading Parquet needs the optional dependency pyarrow "
+                            "(pip install 'structsearch[parquet]')", source=str(path)) from None
+    elif suffix == ".mat":
+        return read_mat(path)
+    else:
+        raise DataError(f"unsupported maneuver file type {suffix!r} (csv, parquet, mat)", source=str(path))
+    out = {}
+    for col in frame.columns:
+        values = frame[col]
+        if not pd.api.types.is_numeric_dtype(values):
+            numeric = pd.to_numeric(values.astype(object), errors="coerce")
+            bad = np.flatnonzero(numeric.isna() & values.notna())
+            if bad.size:
+                raise DataError(f"value {values.iloc[bad[0]]!r} is not a number", source=str(path),
+                                column=str(col), row=int(bad[0]))
+            values = numeric
+        out[str(col)] = values.to_numpy(dtype=float)
+    return out
+
+
+def read_mat(path: Path | str) -> dict[str, np.ndarray]:
+    """Columns of a MATLAB maneuver file: top-level variables, or the fields of its only struct."""
+    from scipy.io import loadmat
+    path = Path(path)
+    try:
+        raw = loadmat(path, squeeze_me=True, struct_as_record=False)
+    except (ValueError, OSError, NotImplementedError) as exc:
+        raise DataError(f"cannot read MATLAB file: {exc}", source=str(path)) from None
+    variables = {k: v for k, v in raw.items() if not k.startswith("__")}
+    if len(variables) == 1:
+        (only,) = variables.values()
+        if hasattr(only, "_fieldnames"):
+            variables = {f: getattr(only, f) for f in only._fieldnames}
+    out = {}
+    for name, value in variables.items():
+        arr = np.asarray(value)
+        if arr.dtype.kind not in "fiu" or arr.ndim > 1:
+            continue  # strings, nested structs and matrices are not sample columns
+        out[name] = np.atleast_1d(arr).astype(float)
+    lengths = {len(v) for v in out.values() if len(v) > 1}
+    if len(lengths) > 1:
+        raise DataError(f"columns have different lengths {sorted(lengths)}", source=str(path))
+    return {k: v for k, v in out.items() if len(v) > 1}
+
+
+def _row_message(path: Path, row: int) -> str:
+    return f" (line {row + 2})" if path.suffix.lower() == ".csv" else ""
+
+
+def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path) -> None:
+    """One clear error for the first problem found in a maneuver's columns."""
+    source = str(path)
+    for col in REQUIRED:
+        if col not in columns:
+            close = [c for c in columns if c.lower() == col.lower()]
+            hint = f" (found {close[0]!r}: column names are case-sensitive)" if close else ""
+            raise DataError(f"required column is missing{hint}", source=source, column=col)
+    n = len(columns["t"])
+    for col, values in columns.items():
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise DataError("value is NaN or infinite" + _row_message(path, int(bad[0])), source=source,
+                            column=col, row=int(bad[0]))
+    t = columns["t"]
+    step = np.diff(t)
+    bad = np.flatnonzero(step <= 0)
+    if bad.size:
+        raise DataError("time is not strictly increasing" + _row_message(path, int(bad[0]) + 1),
+                        source=source, column="t", row=int(bad[0]) + 1)
+    if n < MIN_SAMPLES or t[-1] - t[0] < MIN_DURATION_S:
+        raise DataError(f"maneuver is too short to fit separation dynamics ({n} samples over "
+                        f"{t[-1] - t[0]:.2f} s; need at least {MIN_SAMPLES} samples and "
+                        f"{MIN_DURATION_S} s)", source=source, column="t")
+    for col in ANGLES:
+        if col in columns:
+            big = np.flatnonzero(np.abs(columns[col]) > MAX_ANGLE_RAD)
+            if big.size:
+                raise DataError(f"value {columns[col][big[0]]:g} looks like degrees; angles must be in "
+                                f"radians" + _row_message(path, int(big[0])), source=source, column=col,
+                                row=int(big[0]))
+
+
+def read_campaign(directory: Path | str) -> Campaign:
+    """Read and validate a campaign directory."""
+    directory = Path(directory)
+    toml = str(directory / "campaign.toml")
+    name, aircraft, maneuvers = _parse_manifest(_manifest(directory), toml)
+    segments = []
+    for m in maneuvers:
+        path = directory / m.file
+        columns = _read_table(path)
+        validate_maneuver(columns, path)
+        segments.append(columns)
+    # keep only the columns every maneuver has: optional columns must be all-or-nothing
+    common = set.intersection(*(set(s) for s in segments))
+    for m, s in zip(maneuvers, segments):
+        missing = [c for c in set.union(*(set(s) for s in segments)) - common if c not in s]
+        if missing:
+            raise DataError("column present in other maneuvers but missing here", source=str(directory / m.file),
+                            column=sorted(missing)[0])
+    data = from_segments([{k: s[k] for k in sorted(common)} for s in segments],
+                         names=[m.id for m in maneuvers], source=str(directory), constants=aircraft)
+    return Campaign(name, aircraft, tuple(maneuvers), data, directory)
+
+
+# ----- writing -----------------------------------------------------------------------------
+def _toml_value(v) -> str:
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+        return str(int(v))
+    return repr(float(v))
+
+
+def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") -> Path:
+    """Write a campaign atomically: everything goes to a temporary directory that replaces the target."""
+    if fmt not in ("csv", "parquet"):
+        raise DataError(f"unknown campaign file format {fmt!r} (csv or parquet)")
+    import pandas as pd
+    directory = Path(directory)
+    directory.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=directory.parent))
+    try:
+        lines = [f"name = {_toml_value(campaign.name)}", "", "[aircraft]"]
+        lines += [f"{k} = {_toml_value(campaign.aircraft[k])}" for k in AIRCRAFT_KEYS]
+        for key, value in campaign.extra.items():
+            lines.insert(1, f"{key} = {_toml_value(value)}")
+        slices = campaign.data.segment_slices()
+        for m, sl in zip(campaign.maneuvers, slices):
+            file = f"{m.id}.{fmt}"
+            lines += ["", "[[maneuver]]", f"id = {_toml_value(m.id)}", f"file = {_toml_value(file)}",
+                      f"kind = {_toml_value(m.kind)}", f"split = {_toml_value(m.split)}"]
+            frame = pd.DataFrame({k: v[sl] for k, v in campaign.data.columns.items()})
+            ordered = [c for c in ("t",) + REQUIRED[1:] if c in frame] + sorted(
+                c for c in frame if c not in REQUIRED)
+            frame = frame[ordered]
+            if fmt == "csv":
+                frame.to_csv(tmp / file, index=False, float_format="%.17g")
+            else:
+                try:
+                    frame.to_parquet(tmp / file, index=False)
+                except ImportError:
+                    raise DataError("writing Parquet needs the optional dependency pyarrow") from None
+        (tmp / "campaign.toml").write_text("\n".join(lines) + "\n", encoding="utf-8")
+        if directory.exists():
+            old = directory.with_name(f".{directory.name}.old")
+            if old.exists():
+                shutil.rmtree(old)
+            os.replace(directory, old)
+            os.replace(tmp, directory)
+            shutil.rmtree(old)
+        else:
+            os.replace(tmp, directory)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return directory
+
+
+def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[Maneuver],
+                  segments: Sequence[Mapping[str, np.ndarray]], extra: Mapping[str, object] | None = None
+                  ) -> Campaign:
+    data = from_segments(list(segments), names=[m.id for m in maneuvers], source=name,
+                         constants=dict(aircraft))
+    return Campaign(name, dict(aircraft), tuple(maneuvers), data, None, dict(extra or {}))

@@ -1,0 +1,360 @@
+"""Sim-to-real gap diagnosis: where the model misses the data, which unmodelled effect causes it,
+how far the gap shrinks once the effect is added.
+
+Noise floor. The floor is the validation MSE of the *saturated* model: the
+baseline with every applicable effect of the library added at once. It is the
+lowest error the library can reach, so it contains what no model of the states
+can remove, including low-frequency measurement errors (residual sensor bias,
+engine-model error, errors in the regressors) that a spectral estimate would
+count as model error. The high-frequency estimate (residual power above 3 Hz,
+with the same density assumed below) is reported beside it for comparison.
+
+Whether a gap is real: a Wald test (coloured covariance) of the parameters the
+saturated model adds beyond the baseline; "explained" means that after the best
+effect nothing the library adds is significant at 1 % (or the validation excess
+over the floor is below 1 %).
+
+Per sample, the excess is r_baseline^2 - r_saturated^2; ``where`` gives each
+bin's share of the summed excess (shares of one dimension sum to 1), with a
+bootstrap over validation maneuvers for uncertainty.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from scipy import stats
+
+from . import effects as fx
+from ..data.campaign import Campaign
+from ..data.flightdata import FlightData
+from ..data.errors import DataError, DeclarationError
+from ..search.runner import Settings, build_model, fit_candidate, fit_lift_model, predict_candidate
+from ..engine.regressors import declare
+from ..engine.separation import static_separation
+from ..search.candidates import Candidate
+from ..search.specs import find_candidate
+from ..search.candidate_result import CandidateResult
+from ..engine.scores import weighted_mean_se
+from ..flight.reference import FINAL_LIFT, FINAL_MODEL_NAMES
+
+ALPHA_BAND = 0.04          # rad
+FREQ_BANDS = (0.0, 0.5, 1.0, 2.0, 5.0, np.inf)  # Hz
+SPECTRAL_SPLIT_HZ = 3.0
+N_BOOTSTRAP = 200
+
+
+@dataclass
+class Fitted:
+    candidate: Candidate
+    summary: CandidateResult
+    residual: np.ndarray  # validation residual
+
+
+def _fit(c: Candidate, train: FlightData, val: FlightData, lift, lift_c, settings, start=None) -> Fitted:
+    summary = fit_candidate(c, train, val, lift, lift_c, settings, start=start)
+    if summary.failed:
+        raise DeclarationError(f"fitting {c.name} failed: {summary.error}")
+    pred = predict_candidate(c, summary.params, val, lift, lift_c)
+    return Fitted(c, summary, val[c.coefficient] - pred)
+
+
+def spectral_floor(residual: np.ndarray, data: FlightData) -> float:
+    """Spectral noise estimate: residual power above 3 Hz, and the same density below."""
+    total, n = 0.0, 0
+    for sl in data.segment_slices():
+        r = residual[sl] - residual[sl].mean()
+        dt = float(np.median(np.diff(data["t"][sl])))
+        spec = np.abs(np.fft.rfft(r)) ** 2 / len(r) ** 2 * 2
+        f = np.fft.rfftfreq(len(r), dt)
+        high = f >= SPECTRAL_SPLIT_HZ
+        density = spec[high].sum() / max(f[-1] - SPECTRAL_SPLIT_HZ, 1e-9)
+        total += (spec[high].sum() + density * SPECTRAL_SPLIT_HZ) * len(r)
+        n += len(r)
+    return total / n
+
+
+def _bins(data: FlightData, x: np.ndarray):
+    """Per sample: the bin label of each dimension."""
+    alpha, alpha_dot = data["alpha"], data["alpha_dot"]
+    labels = {"maneuver": np.concatenate([[name] * (sl.stop - sl.start) for name, sl in
+                                          zip(data.names, data.segment_slices())]).astype(object)}
+    lo = np.floor(alpha / ALPHA_BAND) * ALPHA_BAND
+    labels["alpha_band"] = np.array([f"{a:.2f}-{a + ALPHA_BAND:.2f}" for a in lo], dtype=object)
+    x_dot = np.concatenate([np.gradient(x[sl], data["t"][sl]) for sl in data.segment_slices()])
+    phase = np.where(x > 0.9, "attached", np.where(x < 0.1, "stalled",
+                                                   np.where(x_dot < 0, "separating", "reattaching")))
+    labels["phase"] = phase.astype(object)
+    labels["alpha_dot_sign"] = np.where(alpha_dot >= 0, "alpha increasing", "alpha decreasing").astype(object)
+    return labels
+
+
+def _shares(excess: np.ndarray, labels: np.ndarray, weights=None):
+    keys = sorted(set(labels))
+    sums = np.array([excess[labels == k].sum() for k in keys])
+    pos = np.clip(sums, 0, None)
+    total = pos.sum()
+    return keys, (pos / total if total > 0 else np.full(len(keys), 1.0 / len(keys)))
+
+
+def _frequency_excess(r_base, r_sat, data):
+    """Excess power per frequency band, summed over maneuvers (same normalisation as squared residuals)."""
+    out = np.zeros(len(FREQ_BANDS) - 1)
+    for sl in data.segment_slices():
+        f = np.fft.rfftfreq(sl.stop - sl.start, float(np.median(np.diff(data["t"][sl]))))
+        for r, sign in ((r_base[sl], 1.0), (r_sat[sl], -1.0)):
+            spec = np.abs(np.fft.rfft(r)) ** 2 / len(r) * 2
+            spec[0] /= 2
+            for i in range(len(out)):
+                out[i] += sign * spec[(f >= FREQ_BANDS[i]) & (f < FREQ_BANDS[i + 1])].sum()
+    return out
+
+
+def where(r_base, r_sat, data: FlightData, x: np.ndarray, seed: int = 0) -> list[dict]:
+    """Shares of the excess squared residual by bin, with bootstrap standard deviations over maneuvers."""
+    excess = r_base ** 2 - r_sat ** 2
+    labels = _bins(data, x)
+    rng = np.random.default_rng(seed)
+    slices = data.segment_slices()
+    out = []
+    for dim, lab in labels.items():
+        keys, shares = _shares(excess, lab)
+        boot = []
+        for _ in range(N_BOOTSTRAP if dim != "maneuver" else 0):
+            pick = rng.integers(0, len(slices), len(slices))
+            idx = np.concatenate([np.arange(slices[i].start, slices[i].stop) for i in pick])
+            sub = {k: excess[idx][lab[idx] == k].sum() for k in keys}
+            pos = np.clip(np.array([sub[k] for k in keys]), 0, None)
+            boot.append(pos / pos.sum() if pos.sum() > 0 else np.zeros(len(keys)))
+        spread = np.std(boot, axis=0) if boot else np.full(len(keys), np.nan)
+        for k, s, sd in zip(keys, shares, spread):
+            mask = lab == k
+            out.append({"dimension": dim, "bin": str(k), "share": float(s), "share_std": float(sd),
+                        "mse": float(np.mean(r_base[mask] ** 2)), "samples": int(mask.sum())})
+    fx_ = _frequency_excess(r_base, r_sat, data)
+    pos = np.clip(fx_, 0, None)
+    for i, s in enumerate(pos / pos.sum() if pos.sum() > 0 else pos):
+        hi = FREQ_BANDS[i + 1]
+        label = f"{FREQ_BANDS[i]:g}-{hi:g} Hz" if np.isfinite(hi) else f">{FREQ_BANDS[i]:g} Hz"
+        out.append({"dimension": "frequency_band", "bin": label, "share": float(s), "share_std": float("nan"),
+                    "mse": float("nan"), "samples": 0})
+    return out
+
+
+def _maneuver_weights(data: FlightData) -> np.ndarray:
+    return np.array([sl.stop - sl.start for sl in data.segment_slices()], float)
+
+
+def _mse_se(residual: np.ndarray, data: FlightData) -> tuple[float, float]:
+    """Validation MSE over all samples and the standard error of the maneuver-weighted mean MSE."""
+    per = np.array([np.mean(residual[sl] ** 2) for sl in data.segment_slices()])
+    return float(np.mean(residual ** 2)), weighted_mean_se(per, _maneuver_weights(data))[1]
+
+
+def _relative_excess(residual: np.ndarray, floor_residual: np.ndarray, data: FlightData) -> tuple[float, float]:
+    """Mean and standard error of the per-maneuver relative MSE excess over the floor model (paired)."""
+    d = np.array([np.mean(residual[sl] ** 2) / np.mean(floor_residual[sl] ** 2) - 1.0
+                  for sl in data.segment_slices()])
+    return weighted_mean_se(d, _maneuver_weights(data))
+
+
+def _wald(summary: CandidateResult, names) -> float:
+    names = [n for n in names if n in summary.params]
+    if not names:
+        return float("nan")
+    idx = [summary.names.index(n) for n in names]
+    corr = summary.correlation_matrix[np.ix_(idx, idx)]
+    sd = np.array([summary.stderr[n] for n in names])
+    cov = corr * np.outer(sd, sd)
+    b = np.array([summary.params[n] for n in names])
+    try:
+        w = float(b @ np.linalg.solve(cov, b))
+    except np.linalg.LinAlgError:
+        return float("nan")
+    return float(stats.chi2.sf(w, len(names)))
+
+
+def _overlap(gap_rows, r_base, r_new, data, x):
+    """Histogram intersection of gap shares and improvement shares over alpha bands and phases, and the
+    bins where the effect improves the fit most (where it acts)."""
+    labels = _bins(data, x)
+    improvement = r_base ** 2 - r_new ** 2
+    scores, acts = [], {}
+    for dim in ("alpha_band", "phase"):
+        keys, imp = _shares(improvement, labels[dim])
+        gap = {row["bin"]: row["share"] for row in gap_rows if row["dimension"] == dim}
+        scores.append(float(sum(min(gap.get(k, 0.0), s) for k, s in zip(keys, imp))))
+        acts[dim] = str(keys[int(np.argmax(imp))])
+    return float(np.mean(scores)), acts
+
+
+def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Settings(n_starts=2),
+             max_rounds: int = 3, progress: Callable[[str], None] | None = None, seed: int = 0,
+             states: bool = True) -> dict:
+    """Diagnose one coefficient; returns the JSON document of interfaces.md section 3 (plus details)."""
+    say = progress or (lambda m: None)
+    t0 = time.perf_counter()
+    train, val = campaign.split("train"), campaign.split("validation")
+    if baseline.coefficient not in val:
+        raise DataError("the campaign has no column for the diagnosed coefficient", source=str(campaign.directory),
+                        column=baseline.coefficient)
+    if baseline.lift:
+        say(f"fitting the lift model {baseline.lift}")
+    lift, lift_c = fit_lift_model(baseline, train, val, settings)
+    library = fx.applicable(baseline)
+    if not library:
+        raise DeclarationError(f"no effect of the library applies to {baseline.name} that it does not contain")
+    rounds, current = [], baseline
+    base_fit = _fit(current, train, val, lift, lift_c, settings)
+    baseline_fit, first_best = base_fit, None
+    first = None
+    for rnd in range(max_rounds):
+        library = fx.applicable(current)
+        if not library:
+            break
+        say(f"round {rnd + 1}: baseline {current.name}, {len(library)} effects")
+        saturated_c, added = current, {}
+        for e in library:
+            nxt = e.apply(saturated_c)
+            added[e.name] = e.new_parameters(saturated_c, nxt)
+            saturated_c = nxt
+        sat_fit = _fit(saturated_c, train, val, lift, lift_c, settings, start=base_fit.summary.params)
+
+        def remaining_p(skip: str | None) -> float:
+            """Wald p-value of what the saturated model adds beyond the baseline (and effect ``skip``)."""
+            names = [p for name, ps in added.items() if name != skip for p in ps]
+            return _wald(sat_fit.summary, names)
+        floor = min(float(np.mean(sat_fit.residual ** 2)), float(np.mean(base_fit.residual ** 2)))
+        mse_base, se_base = _mse_se(base_fit.residual, val)
+        gap = mse_base - floor
+        p_gap = remaining_p(None)
+        explained_now = bool(not (p_gap < 0.01) or _relative_excess(base_fit.residual, sat_fit.residual, val)[0]
+                             <= 0.01)
+        x = _state_for_phases(current, base_fit.summary, lift, val)
+        where_rows = where(base_fit.residual, sat_fit.residual, val, x, seed=seed)
+        ranked = []
+        for e in library:
+            changed = e.apply(current)
+            try:
+                f = _fit(changed, train, val, lift, lift_c, settings, start=base_fit.summary.params)
+            except DeclarationError as exc:
+                ranked.append({"name": e.name, "error": str(exc)})
+                continue
+            mse_after, se_after = _mse_se(f.residual, val)
+            # a gap within noise has no meaningful fraction to close
+            shrink = float((mse_base - mse_after) / gap) if gap > 0 and not explained_now else 0.0
+            ranked.append({
+                "name": e.name, "shrink": shrink,
+                "mse_validation_after": mse_after, "mse_train_after": f.summary.mse_train,
+                "p_value": _wald(f.summary, e.new_parameters(current, changed)),
+                **dict(zip(("overlap", "acts_in"), _overlap(where_rows, base_fit.residual, f.residual, val, x))),
+                "at_floor": bool(not (remaining_p(e.name) < 0.01)
+                                 or _relative_excess(f.residual, sat_fit.residual, val)[0] <= 0.01),
+                "model": changed.name, "_fit": f, "_se": se_after})
+        # significant effects first (Wald test with the coloured covariance), then by shrink
+        ok = sorted((r for r in ranked if "error" not in r),
+                    key=lambda r: (not (r["p_value"] < 0.01), -r["shrink"], r["p_value"]))
+        ranked = ok + [r for r in ranked if "error" in r]
+        best = ok[0] if ok else None
+        explained = bool(explained_now or (best is not None and best["at_floor"] and best["shrink"] > 0))
+        rows = [{k: v for k, v in r.items() if not k.startswith("_")} for r in ranked]
+        rounds.append({"baseline": current.name, "mse": {"train": base_fit.summary.mse_train,
+                                                         "validation": mse_base},
+                       "noise_floor": floor, "noise_floor_spectral": spectral_floor(base_fit.residual, val),
+                       "gap": gap, "gap_se": se_base, "where": where_rows, "effects": rows,
+                       "explained": explained, "explained_before": bool(explained_now),
+                       "gap_p_value": p_gap})
+        if first is None:
+            first = rounds[-1]
+        significant = best is not None and np.isfinite(best["p_value"]) and best["p_value"] < 0.01
+        if explained_now or not significant or best["shrink"] <= 0:
+            break
+        if first_best is None:
+            first_best = best["_fit"]
+        current, base_fit = best["_fit"].candidate, best["_fit"]
+        if explained:
+            break
+    doc = {"coefficient": baseline.coefficient, "baseline": baseline.name,
+           "mse": first["mse"], "noise_floor": first["noise_floor"],
+           "noise_floor_spectral": first["noise_floor_spectral"], "where": first["where"],
+           "effects": first["effects"], "explained": first["explained"],
+           "gap_explained_by_baseline": first["explained_before"],
+           "rounds": rounds, "final_model": rounds[-1]["baseline"] if rounds else baseline.name}
+    if states and first_best is not None:
+        say("state level: replaying the validation maneuvers before and after")
+        try:
+            doc["state_level"] = state_level(campaign, baseline_fit, first_best, lift, lift_c, settings)
+        except (DeclarationError, DataError) as exc:
+            doc["state_level"] = {"error": str(exc)}
+    doc["seconds"] = time.perf_counter() - t0
+    return doc
+
+
+def _state_for_phases(c: Candidate, summary: CandidateResult, lift: CandidateResult | None,
+                      data: FlightData) -> np.ndarray:
+    """The separation state that defines flight phases: the model's first state, or a static stall-strip
+    curve from the lift fit; without any, the thesis' stall-strip curve."""
+    params = summary.params if not c.lift else (lift.params if lift is not None else {})
+    for name, _ in (c.states or ()):
+        suffix = f"_{name}" if name else ""
+        if f"a1{suffix}" in params and f"a_star{suffix}" in params:
+            return static_separation(data["alpha"], params[f"a1{suffix}"], params[f"a_star{suffix}"])
+    return static_separation(data["alpha"], FINAL_LIFT["a1_ss"], FINAL_LIFT["a_star_ss"])
+
+
+def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, lift_c, settings: Settings,
+                window_s: float = 5.0) -> dict:
+    """Forward-simulated state error on the validation maneuvers with the model before and after.
+
+    The diagnosed coefficient uses the baseline (before) or improved (after) fit; the other two use
+    the final structures of the thesis refitted on the training maneuvers with the same separation
+    states, so that the three form one simulator.
+    """
+    from ..flight.aero import AeroModel
+    from ..flight.replay import replay
+    train, val = campaign.split("train"), campaign.split("validation")
+    coef = before.candidate.coefficient
+
+    def aero(fitted: Fitted) -> AeroModel:
+        if coef == "CL":
+            lift_cand, lift_fit = fitted.candidate, fitted.summary
+        else:
+            lift_cand, lift_fit = lift_c, lift
+        models, params = {}, dict(lift_fit.params)
+        models["CL"] = build_model(lift_cand)
+        for other in ("CD", "Cm"):
+            if other == coef:
+                models[other] = build_model(fitted.candidate, lift)
+                params.update(fitted.summary.params)
+                continue
+            structure = find_candidate(FINAL_MODEL_NAMES[other])
+            # terms on states this lift model does not have are left out (before and after alike)
+            symbols = [f"X_{n}" if n else "X" for n, _ in lift_cand.states]
+            kept = []
+            for name, text in structure.regressors:
+                try:
+                    declare(name, text, states=symbols)
+                    kept.append((name, text))
+                except DeclarationError:
+                    continue
+            structure = Candidate(structure.name, structure.grid, structure.coefficient, tuple(kept),
+                                  lift_cand.states, lift_cand.name, structure.note, lift_cand.bounds)
+            s = fit_candidate(structure, train, val, lift_fit, lift_cand, settings)
+            if s.failed:
+                raise DeclarationError(f"state-level comparison: {s.error}")
+            models[other] = build_model(structure, lift_fit)
+            params.update({k: v for k, v in s.params.items() if k not in lift_fit.nonlinear_names})
+        return AeroModel(models["CL"], models["CD"], models["Cm"], params, name=fitted.candidate.name)
+
+    out = {}
+    for label, fitted in (("before", before), ("after", after)):
+        runs = replay(val, aero(fitted), window_s=window_s)
+        n = sum(len(r.t) for r in runs)
+        out[label] = {s: float(np.sqrt(sum(r.rms[s] ** 2 * len(r.t) for r in runs) / n))
+                      for s in ("alpha", "q", "V", "theta")}
+    out["window_s"] = window_s
+    out["reduction"] = {s: 1 - out["after"][s] / out["before"][s] if out["before"][s] > 0 else 0.0
+                        for s in ("alpha", "q", "V", "theta")}
+    return out

@@ -1,0 +1,80 @@
+"""Fit a separable problem (SNLS, or OLS when it has no nonlinear parameter) into a FitResult."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..data.errors import DataError, FitError
+from .ols import ols
+from .results import FitResult
+from .snls import SeparableProblem, check_full_rank, model_jacobian, multistart, project
+from .scores import ManeuverScores, slices_of
+from .statistics import colored_covariance, white_covariance
+
+COVARIANCE_KINDS = ("colored", "white")
+
+
+def check_observed(y: np.ndarray, bounds: np.ndarray, names, source: str, column: str) -> np.ndarray:
+    y = np.asarray(y, dtype=float)
+    if y.ndim != 1 or len(y) != int(bounds[-1]):
+        raise DataError(f"observations have shape {y.shape}, expected ({int(bounds[-1])},)",
+                        source=source, column=column)
+    bad = np.flatnonzero(~np.isfinite(y))
+    if bad.size:
+        seg = int(np.searchsorted(bounds, bad[0], side="right") - 1)
+        raise DataError(f"value is NaN or infinite (maneuver {names[seg]!r})", source=source,
+                        column=column, row=int(bad[0] - bounds[seg]))
+    return y
+
+
+def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
+                segment_names, start=None, lower=None, upper=None, n_starts: int = 1,
+                seed: int = 0, n_jobs: int = 1, covariance: str = "colored", max_lag=None,
+                tol: float = 1e-10, max_nfev: int | None = None, model: str = "model",
+                coefficient: str | None = None, source: str = "<memory>") -> FitResult:
+    """Estimate all parameters and their statistics.
+
+    ``bounds`` are the maneuver boundaries ``[0, ..., m]``; they delimit the
+    residual autocorrelation and the per-maneuver R^2.
+    """
+    if covariance not in COVARIANCE_KINDS:
+        raise FitError(f"covariance must be one of {COVARIANCE_KINDS}, not {covariance!r}")
+    y = check_observed(y, bounds, segment_names, source, coefficient or "y")
+    k = len(problem.nonlinear_names)
+    where = f"model {model!r}"
+    if k == 0:
+        outcome = ols(problem, y, where)
+        n_starts_used, reached = 1, 1
+        lower = upper = np.zeros(0)
+    else:
+        lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+        # a regression matrix that is singular already at the start is a declaration problem
+        ev0 = problem.evaluate(np.asarray(start, float))
+        bad = np.argwhere(~np.isfinite(ev0.phi))
+        if bad.size:
+            raise DataError(f"regressor {problem.linear_names[bad[0][1]]!r} is NaN or infinite at the start",
+                            source=source, row=int(bad[0][0]))
+        check_full_rank(project(ev0.phi, y), problem.linear_names, where)
+        ms = multistart(problem, y, start, lower, upper, n_starts=n_starts, seed=seed,
+                        n_jobs=n_jobs, tol=tol, max_nfev=max_nfev)
+        outcome, n_starts_used, reached = ms.best, len(ms.outcomes), ms.n_reached_best
+    ev = problem.evaluate(outcome.theta)
+    proj = project(ev.phi, y)
+    check_full_rank(proj, problem.linear_names, f"{where} at the solution")
+    jac = model_jacobian(ev, proj.coef, k)
+    residual = proj.residual
+    if hasattr(problem, "extended_residual"):
+        residual = problem.extended_residual(outcome.theta, proj.coef, y)
+    white = white_covariance(jac, residual)
+    if covariance == "colored":
+        cov, lags = colored_covariance(jac, residual, bounds, max_lag)
+    else:
+        cov, lags = white, None
+    return FitResult(
+        model=model, coefficient=coefficient, nonlinear_names=tuple(problem.nonlinear_names),
+        linear_names=tuple(problem.linear_names),
+        values=np.concatenate([outcome.theta, proj.coef]), lower=lower, upper=upper,
+        covariance=cov, white_covariance=white, covariance_kind=covariance, max_lag=lags,
+        residuals=residual, segment_names=tuple(segment_names),
+        segments=ManeuverScores.of(y, residual, slices_of(bounds)), total_sst=float(np.sum((y - y.mean()) ** 2)),
+        nfev=outcome.nfev, njev=outcome.njev, message=outcome.message, success=outcome.success,
+        n_starts=n_starts_used, n_reached_best=reached, start=outcome.start)

@@ -1,0 +1,202 @@
+"""The immutable result of a fit; named statistics are derived lazily from stored arrays."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from .scores import ManeuverScores
+
+HIGH_CORRELATION = 0.9
+# A parameter closer than this fraction of its bound interval to a bound is "at the bound".
+AT_BOUND_RTOL = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """Estimates, covariance and fit statistics of one model on one data set.
+
+    Parameters are ordered nonlinear first, then linear. ``covariance`` is the
+    one requested (``covariance_kind``); ``white_covariance`` is always kept for
+    comparison.
+    """
+
+    model: str
+    coefficient: str | None
+    nonlinear_names: tuple[str, ...]
+    linear_names: tuple[str, ...]
+    values: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    covariance: np.ndarray
+    white_covariance: np.ndarray
+    covariance_kind: str
+    max_lag: int | None
+    residuals: np.ndarray
+    segment_names: tuple[str, ...]
+    segments: ManeuverScores
+    total_sst: float = float("nan")
+    nfev: int = 0
+    njev: int = 0
+    message: str = ""
+    success: bool = True
+    n_starts: int = 1
+    n_reached_best: int = 1
+    start: np.ndarray | None = None
+    significance: float = 0.05
+
+    # ----- sizes -------------------------------------------------------------
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.nonlinear_names + self.linear_names
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.segments.counts.sum())
+
+    @property
+    def n_params(self) -> int:
+        return len(self.values)
+
+    @property
+    def dof(self) -> int:
+        return self.n_samples - self.n_params
+
+    # ----- estimates ---------------------------------------------------------
+    @cached_property
+    def params(self) -> dict[str, float]:
+        return dict(zip(self.names, map(float, self.values)))
+
+    @cached_property
+    def stderr(self) -> dict[str, float]:
+        return dict(zip(self.names, map(float, self._stderr)))
+
+    @cached_property
+    def _stderr(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
+    @cached_property
+    def white_stderr(self) -> dict[str, float]:
+        return dict(zip(self.names, map(float, np.sqrt(np.clip(np.diag(self.white_covariance), 0, None)))))
+
+    @cached_property
+    def correlation(self) -> np.ndarray:
+        s = self._stderr.copy()
+        s[s == 0] = np.inf
+        corr = self.covariance / np.outer(s, s)
+        np.fill_diagonal(corr, 1.0)
+        return corr
+
+    @cached_property
+    def t_values(self) -> dict[str, float]:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = self.values / self._stderr
+        return dict(zip(self.names, map(float, t)))
+
+    @cached_property
+    def p_values(self) -> dict[str, float]:
+        """Two-sided t-test of H0: parameter = 0 with m - p degrees of freedom."""
+        t = np.array(list(self.t_values.values()))
+        return dict(zip(self.names, map(float, 2.0 * stats.t.sf(np.abs(t), max(self.dof, 1)))))
+
+    @cached_property
+    def significant(self) -> dict[str, bool]:
+        return {n: p < self.significance for n, p in self.p_values.items()}
+
+    @cached_property
+    def at_bound(self) -> dict[str, str]:
+        """Nonlinear parameters that ended on a bound: name -> "lower" or "upper"."""
+        flags = {}
+        for name, v, lo, hi in zip(self.nonlinear_names, self.values, self.lower, self.upper):
+            span = hi - lo if np.isfinite(hi - lo) else max(abs(v), 1.0)
+            if np.isfinite(lo) and v - lo <= AT_BOUND_RTOL * span:
+                flags[name] = "lower"
+            elif np.isfinite(hi) and hi - v <= AT_BOUND_RTOL * span:
+                flags[name] = "upper"
+        return flags
+
+    @cached_property
+    def high_correlations(self) -> list[tuple[str, str, float]]:
+        """Pairs with |correlation| above 0.9, strongest first."""
+        pairs = []
+        c = self.correlation
+        for i in range(self.n_params):
+            for j in range(i + 1, self.n_params):
+                if abs(c[i, j]) > HIGH_CORRELATION:
+                    pairs.append((self.names[i], self.names[j], float(c[i, j])))
+        return sorted(pairs, key=lambda x: -abs(x[2]))
+
+    # ----- goodness of fit ---------------------------------------------------
+    @property
+    def rss(self) -> float:
+        return float(self.segments.sse.sum())
+
+    @property
+    def mse(self) -> float:
+        return self.rss / self.n_samples
+
+    @property
+    def rmse(self) -> float:
+        return float(np.sqrt(self.mse))
+
+    @property
+    def r2(self) -> float:
+        """R^2 over all samples, about the overall mean (Eq. 24)."""
+        return float(1.0 - self.rss / self.total_sst) if self.total_sst > 0 else float("nan")
+
+    @cached_property
+    def r2_segments(self) -> np.ndarray:
+        return self.segments.r2
+
+    @cached_property
+    def r2_summary(self) -> dict[str, float]:
+        return self.segments.r2_summary().as_dict()
+
+    @cached_property
+    def mse_segments(self) -> dict[str, float]:
+        return dict(zip(self.segment_names, map(float, self.segments.mse)))
+
+    @cached_property
+    def aic(self) -> float:
+        return float(self.n_samples * np.log(self.mse) + 2 * self.n_params)
+
+    @cached_property
+    def bic(self) -> float:
+        return float(self.n_samples * np.log(self.mse) + self.n_params * np.log(self.n_samples))
+
+    # ----- serialisation -----------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready dict (no arrays of samples)."""
+        return {
+            "model": self.model,
+            "coefficient": self.coefficient,
+            "params": self.params,
+            "stderr": self.stderr,
+            "white_stderr": self.white_stderr,
+            "t_values": self.t_values,
+            "p_values": self.p_values,
+            "nonlinear": list(self.nonlinear_names),
+            "linear": list(self.linear_names),
+            "bounds": {n: [float(lo), float(hi)] for n, lo, hi in
+                       zip(self.nonlinear_names, self.lower, self.upper)},
+            "at_bound": self.at_bound,
+            "high_correlations": [list(p) for p in self.high_correlations],
+            "correlation": {"names": list(self.names), "matrix": self.correlation.tolist()},
+            "covariance": self.covariance_kind,
+            "max_lag": self.max_lag,
+            "rss": self.rss,
+            "mse": self.mse,
+            "r2": self.r2,
+            "r2_maneuvers": self.r2_summary,
+            "mse_maneuvers": self.mse_segments,
+            "n_samples": self.n_samples,
+            "n_params": self.n_params,
+            "aic": self.aic,
+            "bic": self.bic,
+            "optimizer": {"nfev": self.nfev, "njev": self.njev, "message": self.message,
+                          "success": self.success, "n_starts": self.n_starts,
+                          "n_reached_best": self.n_reached_best},
+        }

@@ -1,0 +1,257 @@
+"""Flow-separation states (Kirchhoff / Goman-Khrabrov) and their parameter sensitivities.
+
+    X0(a; a1, a_star) = 0.5 * (1 - tanh(a1 * (a - a_star)))
+    tau1 * dX/dt + X = X0(alpha - tau2 * alpha_dot)
+
+Three kinds: steady ``S`` (X = X0(alpha)), quasi-steady ``Q`` (X = X0(alpha -
+tau2*alpha_dot)) and unsteady ``U`` (first-order lag of the quasi-steady value).
+
+The lag is discretised exactly for an input that is linear between samples
+(first-order hold), on any strictly increasing time grid. Every maneuver starts
+in equilibrium with its first sample, X(t0) = X0(alpha0 - tau2*alpha_dot0), so a
+state never runs across a maneuver boundary. Sensitivities dX/dtheta are
+propagated through the same recursion, which is linear in the state.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy.signal import lfilter
+from scipy.special import expit
+
+from ..data.errors import DeclarationError
+
+KINDS = ("S", "Q", "U")
+PARAMETERS_OF_KIND = {
+    "S": ("a1", "a_star"),
+    "Q": ("tau2", "a1", "a_star"),
+    "U": ("tau1", "tau2", "a1", "a_star"),
+}
+# Physical search box for each parameter kind [s, s, 1/rad, rad].
+DEFAULT_BOUNDS = {
+    "tau1": (0.005, 2.0),
+    "tau2": (0.0, 1.0),
+    "a1": (2.0, 200.0),
+    "a_star": (0.05, 0.45),
+}
+DEFAULT_START = {"tau1": 0.2, "tau2": 0.05, "a1": 30.0, "a_star": 0.25}
+
+# A step of a uniform grid may differ from the first by this relative amount.
+_UNIFORM_RTOL = 1e-9
+# Largest log-decay inside one block of the time-varying recursion (small blocks keep the
+# cumulative sums accurate to ~1e-14; the loop is over blocks, not samples).
+_BLOCK_DECAY = 50.0
+
+
+@dataclass(frozen=True)
+class SeparationState:
+    """One separation state: ``name`` "ss" gives symbol ``X_ss`` and parameters ``tau1_ss``...
+
+    An empty name gives symbol ``X`` and parameters ``tau1, tau2, a1, a_star``.
+    """
+
+    name: str
+    kind: str
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise DeclarationError(f"separation state {self.symbol!r}: kind {self.kind!r} is not one of {KINDS}")
+        if self.name and not self.name.isidentifier():
+            raise DeclarationError(f"separation state name {self.name!r} is not an identifier")
+
+    @property
+    def symbol(self) -> str:
+        return f"X_{self.name}" if self.name else "X"
+
+    @property
+    def base_parameters(self) -> tuple[str, ...]:
+        return PARAMETERS_OF_KIND[self.kind]
+
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        return tuple(self.parameter_name(p) for p in self.base_parameters)
+
+    def parameter_name(self, base: str) -> str:
+        return f"{base}_{self.name}" if self.name else base
+
+
+def static_separation(alpha, a1, a_star):
+    """X0 = 0.5 (1 - tanh(a1 (alpha - a_star))), written as a logistic so it never rounds to 0."""
+    return expit(-2.0 * a1 * (np.asarray(alpha) - a_star))
+
+
+def _lag_coefficients(dt: np.ndarray, tau1: float):
+    """Coefficients of X_k = a X_{k-1} + b0 u_{k-1} + b1 u_k and their tau1-derivatives."""
+    x = dt / tau1
+    a = np.exp(-x)
+    one_minus_a = -np.expm1(-x)
+    g = one_minus_a / x
+    da = a * x / tau1
+    dg = one_minus_a / dt - a / tau1
+    return a, g - a, 1.0 - g, da, dg - da, -dg
+
+
+def _is_uniform(dt: np.ndarray) -> bool:
+    return bool(np.all(np.abs(dt - dt[0]) <= _UNIFORM_RTOL * dt[0]))
+
+
+def linear_recurrence(a: np.ndarray, f: np.ndarray, y0) -> np.ndarray:
+    """Solve y_0 = y0, y_k = a_k y_{k-1} + f_k (k >= 1) without a loop over samples.
+
+    ``a`` has length n (a[0] unused, every a_k in (0, 1]); ``f`` has shape (n,) or
+    (n, p). The closed form y_k = P_k (y0 + sum_j f_j / P_j) with P the running
+    product of ``a`` is evaluated in blocks over which P falls by at most e^-50,
+    so nothing under- or overflows; only the block carries are sequential.
+    """
+    f = np.asarray(f, dtype=float)
+    y = np.empty_like(f)
+    n = len(a)
+    y[0] = y0
+    if n == 1:
+        return y
+    log_a = np.log(a)
+    log_p = np.concatenate([[0.0], np.cumsum(log_a[1:])])
+    block = np.floor(-log_p / _BLOCK_DECAY).astype(np.int64)
+    edges = np.flatnonzero(np.diff(block)) + 1
+    starts = np.concatenate([[1], edges[edges > 1]])
+    stops = np.append(starts[1:], n)
+    expand = (slice(None),) + (None,) * (f.ndim - 1)
+    for s, e in zip(starts, stops):
+        # summed inside the block: differences of the global running sum lose ~1e-12
+        rel = np.concatenate([[0.0], np.cumsum(log_a[s + 1:e])])
+        y_s = a[s] * y[s - 1] + f[s]
+        y[s] = y_s
+        if e > s + 1:
+            acc = np.cumsum(f[s + 1:e] * np.exp(-rel[1:])[expand], axis=0)
+            y[s + 1:e] = np.exp(rel[1:])[expand] * (y_s + acc)
+    return y
+
+
+def common_step(t: np.ndarray, bounds: np.ndarray) -> float | None:
+    """The sample step if every maneuver has the same uniform step, else None."""
+    dt = np.diff(t)
+    inside = np.ones(len(dt), bool)
+    inside[bounds[1:-1] - 1] = False  # steps across maneuver boundaries do not count
+    steps = dt[inside]
+    if steps.size == 0 or not _is_uniform(steps):
+        return None
+    return float(steps[0])
+
+
+@lru_cache(maxsize=64)
+def _segment_heads(bounds_bytes: bytes, length: int):
+    """Indices of the first ``length`` samples of every maneuver, their offsets and maneuver numbers."""
+    bounds = np.frombuffer(bounds_bytes, dtype=np.int64)
+    starts, sizes = bounds[:-1], np.diff(bounds)
+    offset = np.arange(length)
+    keep = offset[None, :] < sizes[:, None]
+    index = (starts[:, None] + offset[None, :])[keep]
+    segment = np.broadcast_to(np.arange(len(starts))[:, None], keep.shape)[keep]
+    offsets = np.broadcast_to(offset[None, :], keep.shape)[keep].astype(float)
+    for a in (index, segment, offsets):
+        a.flags.writeable = False
+    return index, segment, offsets
+
+
+# Beyond this many time constants a^(k-s) < 1e-18: the boundary correction has vanished.
+_CORRECTION_TAUS = 41.5
+
+
+def _lag_common_step(t, u, du, tau1, bounds, step):
+    """All maneuvers on one uniform grid: filter the whole record at once, then correct.
+
+    Filtering across a boundary only changes the state at the maneuver's first
+    sample; by linearity the difference then decays as a^(k-s), so subtracting
+    a^(k-s) (X'_s - u_s) restores X_s = u_s exactly. The correction is applied
+    only where it has not yet decayed below 1e-18. The same holds for the
+    sensitivities.
+    """
+    a, b0, b1, da, db0, db1 = (float(v[0]) for v in _lag_coefficients(np.array([step]), tau1))
+    starts = bounds[:-1]
+    length = int(min(np.ceil(_CORRECTION_TAUS * tau1 / step) + 1, np.max(np.diff(bounds))))
+    index, segment, offsets = _segment_heads(bounds.tobytes(), length)
+    decay = np.exp(offsets * (-step / tau1))
+    x = lfilter([b1, b0], [1.0, -a], u)
+    x[index] -= decay * (x[starts] - u[starts])[segment]
+    dx = lfilter([b1, b0], [1.0, -a], du, axis=0)
+    dx[index] -= decay[:, None] * (dx[starts] - du[starts])[segment]
+    forcing = np.empty_like(u)
+    forcing[1:] = da * x[:-1] + db0 * u[:-1] + db1 * u[1:]
+    forcing[starts] = 0.0
+    dtau = lfilter([1.0], [1.0, -a], forcing)
+    dtau[index] -= decay * dtau[starts][segment]
+    return x, dx, dtau
+
+
+def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
+                    bounds: np.ndarray, step: float | None | bool = False):
+    """tau1 dX/dt + X = u on every maneuver, each starting at X = u(t0).
+
+    ``du`` (n, p) holds du/dtheta for the parameters inside u; returns ``X`` (n,),
+    ``dX`` (n, p) = dX/dtheta and ``dX_dtau1`` (n,). ``step`` may pass in the
+    result of :func:`common_step` for this grid (it is found here otherwise).
+    """
+    bounds = np.asarray(bounds, dtype=np.int64)
+    if step is False:
+        step = common_step(t, bounds)
+    if step is not None:
+        return _lag_common_step(t, u, du, tau1, bounds, step)
+    x_out = np.empty_like(u)
+    dx_out = np.empty_like(du)
+    dtau_out = np.empty_like(u)
+    for i in range(len(bounds) - 1):
+        s, e = int(bounds[i]), int(bounds[i + 1])
+        ts, us, dus = t[s:e], u[s:e], du[s:e]
+        dt = np.diff(ts)
+        a, b0, b1, da, db0, db1 = _lag_coefficients(dt, tau1)
+        if _is_uniform(dt):
+            a0, b00, b10 = a[0], b0[0], b1[0]
+            x = lfilter([b10, b00], [1.0, -a0], us, zi=[(1.0 - b10) * us[0]])[0]
+            dx = lfilter([b10, b00], [1.0, -a0], dus, axis=0, zi=((1.0 - b10) * dus[:1]))[0]
+            forcing = np.empty_like(us)
+            forcing[0] = 0.0
+            forcing[1:] = da[0] * x[:-1] + db0[0] * us[:-1] + db1[0] * us[1:]
+            dtau = lfilter([1.0], [1.0, -a0], forcing)
+        else:
+            a_full = np.concatenate([[1.0], a])
+            drive = np.zeros_like(us)
+            drive[1:] = b0 * us[:-1] + b1 * us[1:]
+            x = linear_recurrence(a_full, drive, us[0])
+            ddrive = np.zeros_like(dus)
+            ddrive[1:] = b0[:, None] * dus[:-1] + b1[:, None] * dus[1:]
+            dx = linear_recurrence(a_full, ddrive, dus[0])
+            forcing = np.zeros_like(us)
+            forcing[1:] = da * x[:-1] + db0 * us[:-1] + db1 * us[1:]
+            dtau = linear_recurrence(a_full, forcing, 0.0)
+        x_out[s:e], dx_out[s:e], dtau_out[s:e] = x, dx, dtau
+    return x_out, dx_out, dtau_out
+
+
+def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.ndarray,
+                   alpha_dot: np.ndarray, t: np.ndarray, bounds: np.ndarray,
+                   step: float | None | bool = False):
+    """Value of a separation state and its sensitivities.
+
+    ``values`` maps base parameter names (``a1``, ``tau2``...) to numbers. Returns
+    ``X`` (n,) and ``dX`` (n, k) with columns in ``state.base_parameters`` order.
+    """
+    a1, a_star = values["a1"], values["a_star"]
+    tau2 = values.get("tau2", 0.0)
+    effective_alpha = alpha - tau2 * alpha_dot if state.kind != "S" else alpha
+    x0 = static_separation(effective_alpha, a1, a_star)
+    slope = -2.0 * x0 * (1.0 - x0)  # dX0 / d(a1 (alpha_eff - a_star))
+    inner = ("tau2", "a1", "a_star") if state.kind != "S" else ("a1", "a_star")
+    du = np.empty((len(alpha), len(inner)), order="F")
+    du[:, inner.index("a1")] = slope * (effective_alpha - a_star)
+    du[:, inner.index("a_star")] = slope * (-a1)
+    if state.kind != "S":
+        du[:, 0] = slope * (-a1 * alpha_dot)
+    if state.kind != "U":
+        return x0, du  # S and Q: columns already in state.base_parameters order
+    x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step)
+    out = np.empty((len(alpha), 4), order="F")
+    out[:, 0] = dtau1
+    out[:, 1:] = dx  # U order: tau1, tau2, a1, a_star
+    return x, out

@@ -1,0 +1,201 @@
+"""Stall-model structures: separation states plus symbolic regressors, bound to flight data.
+
+>>> model = StallModel.declare(
+...     "CL-VI", "CL", states={"ss": "U", "w": "S"},
+...     regressors={"CL0": "1", "CL_KL_ss": "K_L(X_ss)", "CL_KL_w": "K_L(X_w)",
+...                 "CL_qstar": "qstar", "CL_de": "de"})
+>>> result = model.fit(data)   # doctest: +SKIP
+
+The model is checked when it is declared: every symbol must be a known data
+column, aircraft constant or declared separation state, every declared state
+must be used by a regressor (otherwise its parameters are unidentifiable), and
+start values and bounds may only name the model's nonlinear parameters.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Mapping
+
+import numpy as np
+
+from ..data.flightdata import FlightData
+from ..data.errors import DataError, DeclarationError
+from .fit import fit_problem
+from .regressors import Regressor, declare
+from .results import FitResult
+from .separation import DEFAULT_BOUNDS, DEFAULT_START, SeparationState, common_step, evaluate_state
+from .snls import BoundProblem, Evaluation
+
+
+@dataclass(frozen=True, eq=False)
+class StallModel:
+    name: str
+    coefficient: str
+    states: tuple[SeparationState, ...]
+    regressors: tuple[Regressor, ...]
+    start: Mapping[str, float] = field(default_factory=dict)
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    fixed: Mapping[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def declare(cls, name: str, coefficient: str, regressors: Mapping[str, str], *,
+                states: Mapping[str, str] | None = None, start: Mapping[str, float] | None = None,
+                bounds: Mapping[str, tuple[float, float]] | None = None,
+                fixed: Mapping[str, float] | None = None) -> "StallModel":
+        """``states`` maps a state name ("ss", "w", or "" for plain X) to its kind S, Q or U.
+
+        ``fixed`` holds separation parameters that are not estimated (a drag or
+        pitch model takes its states from the identified lift model); a model
+        whose separation parameters are all fixed is fitted by OLS.
+        """
+        state_objs = tuple(SeparationState(n, k) for n, k in (states or {}).items())
+        symbols = [s.symbol for s in state_objs]
+        if len(set(symbols)) != len(symbols):
+            raise DeclarationError(f"model {name!r}: separation state declared twice")
+        if not regressors:
+            raise DeclarationError(f"model {name!r}: no regressors declared")
+        regs = tuple(declare(rname, text, states=symbols, context=f"model {name!r}, regressor {rname!r}")
+                     for rname, text in regressors.items())
+        used = {s for r in regs for s in r.states}
+        for s in symbols:
+            if s not in used:
+                raise DeclarationError(f"model {name!r}: separation state {s!r} is declared but no regressor "
+                                       "uses it, so its parameters cannot be identified")
+        if coefficient in {c for r in regs for c in r.columns}:
+            raise DeclarationError(f"model {name!r}: the modelled coefficient {coefficient!r} appears in "
+                                   "its own regressors")
+        model = cls(name, coefficient, state_objs, regs, dict(start or {}), dict(bounds or {}),
+                    dict(fixed or {}))
+        all_params = tuple(p for s in state_objs for p in s.parameters)
+        for key in model.fixed:
+            if key not in all_params:
+                raise DeclarationError(f"model {name!r}: fixed parameter {key!r} is not one of its separation "
+                                       f"parameters ({', '.join(all_params) or 'none'})")
+        for key in list(model.start) + list(model.bounds):
+            if key not in model.nonlinear_names:
+                raise DeclarationError(f"model {name!r}: {key!r} is not one of its nonlinear parameters "
+                                       f"({', '.join(model.nonlinear_names) or 'none'})")
+        for key, (lo, hi) in model.bounds.items():
+            if not lo < hi:
+                raise DeclarationError(f"model {name!r}: bounds of {key!r} are not increasing: ({lo}, {hi})")
+        return model
+
+    @property
+    def nonlinear_names(self) -> tuple[str, ...]:
+        """Separation parameters that are estimated (all but the fixed ones)."""
+        return tuple(p for s in self.states for p in s.parameters if p not in self.fixed)
+
+    @property
+    def linear_names(self) -> tuple[str, ...]:
+        return tuple(r.name for r in self.regressors)
+
+    @property
+    def required_columns(self) -> tuple[str, ...]:
+        cols = {c for r in self.regressors for c in r.columns}
+        if self.states:
+            cols |= {"alpha", "alpha_dot", "t"}
+        return tuple(sorted(cols))
+
+    def _free(self):
+        return [(s, p) for s in self.states for p in s.base_parameters if s.parameter_name(p) not in self.fixed]
+
+    def start_vector(self) -> np.ndarray:
+        """Declared starts; else the middle of declared bounds (two states with their own ranges must not
+        start identical, their regressors would coincide); else the default start of the parameter kind."""
+        out = []
+        for s, p in self._free():
+            name = s.parameter_name(p)
+            if name in self.start:
+                out.append(self.start[name])
+            elif name in self.bounds:
+                out.append(0.5 * (self.bounds[name][0] + self.bounds[name][1]))
+            else:
+                out.append(DEFAULT_START[p])
+        return np.array(out, float)
+
+    def bound_vectors(self) -> tuple[np.ndarray, np.ndarray]:
+        pairs = [self.bounds.get(s.parameter_name(p), DEFAULT_BOUNDS[p]) for s, p in self._free()]
+        return np.array([p[0] for p in pairs], float), np.array([p[1] for p in pairs], float)
+
+    def bind(self, data: FlightData) -> "StallProblem":
+        for col in self.required_columns:
+            if col not in data:
+                raise DataError(f"model {self.name!r} needs this column", source=data.source, column=col)
+        return StallProblem(self, data)
+
+    def fit(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
+            seed: int = 0, n_jobs: int = 1, covariance: str = "colored", max_lag=None,
+            tol: float = 1e-10, max_nfev: int | None = None) -> FitResult:
+        """Fit the coefficient column of ``data``: SNLS when there are separation states, else OLS."""
+        problem = self.bind(data)
+        y = data[self.coefficient]
+        theta0 = self.start_vector()
+        for key, value in (start or {}).items():
+            if key not in self.nonlinear_names:
+                raise DeclarationError(f"model {self.name!r}: {key!r} is not one of its nonlinear parameters")
+            theta0[self.nonlinear_names.index(key)] = value
+        lower, upper = self.bound_vectors()
+        return fit_problem(problem, y, bounds=data.bounds, segment_names=data.names, start=theta0,
+                           lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
+                           covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev,
+                           model=self.name, coefficient=self.coefficient, source=data.source)
+
+    def predict(self, data: FlightData, params: Mapping[str, float]) -> np.ndarray:
+        """Model output for given parameter values (nonlinear and linear)."""
+        missing = [p for p in self.nonlinear_names + self.linear_names if p not in params]
+        if missing:
+            raise DeclarationError(f"model {self.name!r}: no value for parameter {missing[0]!r}")
+        ev = self.bind(data).evaluate(np.array([params[p] for p in self.nonlinear_names], float))
+
+        return ev.phi @ np.array([params[p] for p in self.linear_names], float)
+
+
+@dataclass(frozen=True, eq=False)
+class StallProblem(BoundProblem):
+    """A StallModel bound to FlightData: Phi(theta) and its non-zero derivative columns."""
+
+    model: StallModel
+    data: FlightData
+
+    @cached_property
+    def _step(self) -> float | None:
+        return common_step(self.data["t"], self.data.bounds) if self.model.states else None
+
+    def state_values(self, theta: np.ndarray):
+        """Each separation state: (index of each parameter's column in theta or -1 if fixed, X, dX/dparams)."""
+        out = {}
+        d = self.data
+        names = self.model.nonlinear_names
+        given = dict(zip(names, theta))
+        for s in self.model.states:
+            values = {p: given.get(s.parameter_name(p), self.model.fixed.get(s.parameter_name(p)))
+                      for p in s.base_parameters}
+            index = np.array([names.index(s.parameter_name(p)) if s.parameter_name(p) in given else -1
+                              for p in s.base_parameters])
+            x, dx = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step)
+            out[s.symbol] = (index, x, dx)
+        return out
+
+    def evaluate(self, theta: np.ndarray) -> Evaluation:
+        m = self.data.n_samples
+        states = self.state_values(np.asarray(theta, float))
+        x_values = {sym: v[1] for sym, v in states.items()}
+        phi = np.empty((m, len(self.model.regressors)), order="F")
+        # derivative columns only for (regressor, estimated parameter) pairs
+        pairs = [(i, sym, j) for i, reg in enumerate(self.model.regressors) for sym in reg.states
+                 for j in np.flatnonzero(states[sym][0] >= 0)]
+        dphi = np.empty((m, len(pairs)), order="F")
+        rows = np.array([p[0] for p in pairs], int)
+        params = np.array([states[p[1]][0][p[2]] for p in pairs], int)
+        col = 0
+        for i, reg in enumerate(self.model.regressors):
+            phi[:, i] = reg.value(self.data, x_values, m)
+            for sym in reg.states:
+                index, _, dx = states[sym]
+                free = np.flatnonzero(index >= 0)
+                if free.size:
+                    d_reg = reg.derivative(sym, self.data, x_values, m)
+                    np.multiply(dx[:, free], d_reg[:, None], out=dphi[:, col:col + free.size])
+                    col += free.size
+        return Evaluation(phi, dphi, rows, params)

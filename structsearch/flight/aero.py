@@ -1,0 +1,158 @@
+"""Pointwise aerodynamic models for the simulator: C_L, C_D, C_m from the instantaneous state.
+
+An :class:`AeroModel` is built from identified (or truth) lift, drag and pitch
+:class:`~structsearch.stallmodel.StallModel` structures and their parameters.
+Each coefficient is compiled into one numpy function of the data columns, the
+aircraft constants and the separation states; the simulator integrates the
+unsteady states and evaluates the steady and quasi-steady ones algebraically.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+import sympy as sp
+
+from ..data.errors import DeclarationError
+from .reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH, final_drag_model, final_lift_model, final_pitch_model
+from ..engine.regressors import compile_expression
+from ..engine.separation import SeparationState, static_separation
+from ..engine.stallmodel import StallModel
+
+# Effects of interfaces.md section 3 that the final model contains, and what withholding does.
+WITHHOLDABLE = {
+    "unsteady_lag": "X_ss without its lag: tau1_ss = 0 (U -> Q)",
+    "separation_delay": "X_ss without its delay: tau2_ss = 0",
+    "second_separation_state": "no X_w: the outboard wing never separates (X_w = 1)",
+    "pitch_rate": "no q* term in C_L (pitch damping Cm_q stays: the aircraft must stay flyable)",
+    "elevator": "no delta_e term in C_L and C_D (elevator control power Cm_de stays)",
+    "elevator_effectiveness_loss": "no X_ss*delta_e term in C_m",
+    "thrust": "no C_T terms in C_D and C_m",
+    "induced_drag": "no C_L^2 term in C_D",
+    "separation_drag": "no (1-X) terms in C_D",
+    "cp_shift": "no (1-X)*C_L terms in C_m",
+}
+_ZEROED = {
+    "pitch_rate": ("CL_qstar",),
+    "elevator": ("CL_de", "CD_de"),
+    "elevator_effectiveness_loss": ("Cm_Xde_ss",),
+    "thrust": ("CD_CT", "Cm_CT"),
+    "induced_drag": ("CD_CL2",),
+    "separation_drag": ("CD_1mX_ss", "CD_1mX_w"),
+    "cp_shift": ("Cm_1mX_ssCL", "Cm_1mX_wCL"),
+}
+
+
+@dataclass(frozen=True)
+class StateSpec:
+    symbol: str
+    kind: str
+    tau1: float
+    tau2: float
+    a1: float
+    a_star: float
+
+
+class AeroModel:
+    """C_L, C_D and C_m as compiled functions; drag and pitch take C_L from the lift model."""
+
+    def __init__(self, lift: StallModel, drag: StallModel, pitch: StallModel, params: Mapping[str, float],
+                 constant_states: Mapping[str, float] | None = None, name: str = "aero"):
+        self.name = name
+        self.models = {"CL": lift, "CD": drag, "Cm": pitch}
+        self.params = dict(params)
+        self.constant_states = dict(constant_states or {})
+        specs: dict[str, StateSpec] = {}
+        for model in self.models.values():
+            values = dict(model.fixed)
+            values.update({k: v for k, v in self.params.items()})
+            for s in model.states:
+                if s.symbol in self.constant_states:
+                    continue
+                get = {p: values.get(s.parameter_name(p)) for p in s.base_parameters}
+                missing = [s.parameter_name(p) for p, v in get.items() if v is None]
+                if missing:
+                    raise DeclarationError(f"{name}: no value for separation parameter {missing[0]!r}")
+                spec = StateSpec(s.symbol, s.kind, get.get("tau1", 0.0), get.get("tau2", 0.0),
+                                 get["a1"], get["a_star"])
+                if s.symbol in specs and specs[s.symbol] != spec:
+                    raise DeclarationError(f"{name}: separation state {s.symbol} differs between models")
+                specs[s.symbol] = spec
+        self.states = tuple(specs.values())
+        self._compiled = {}
+        for coef, model in self.models.items():
+            missing = [p for p in model.linear_names if p not in self.params]
+            if missing:
+                raise DeclarationError(f"{name}: no value for {coef} coefficient {missing[0]!r}")
+            expr = sum(sp.Float(self.params[r.name]) * r.expr for r in model.regressors)
+            expr = expr.subs({sp.Symbol(k, real=True): v for k, v in self.constant_states.items()})
+            args = tuple(sorted(s.name for s in expr.free_symbols))
+            self._compiled[coef] = (expr, args)
+
+    @property
+    def unsteady(self) -> tuple[StateSpec, ...]:
+        return tuple(s for s in self.states if s.kind == "U")
+
+    def separation_targets(self, alpha, alpha_dot) -> dict[str, np.ndarray]:
+        """X0(alpha - tau2 alpha_dot) of every state (the value a lagged state relaxes to)."""
+        return {s.symbol: static_separation(alpha - (s.tau2 if s.kind != "S" else 0.0) * alpha_dot,
+                                            s.a1, s.a_star) for s in self.states}
+
+    def _evaluate(self, expr: sp.Expr, args: tuple[str, ...], values: Mapping[str, np.ndarray], what: str):
+        try:
+            return compile_expression(expr, args)(*(values[a] for a in args))
+        except KeyError as exc:
+            raise DeclarationError(f"{self.name}: {what} needs {exc.args[0]!r}") from None
+
+    def coefficient(self, coef: str, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        expr, args = self._compiled[coef]
+        return self._evaluate(expr, args, values, coef)
+
+    def partial(self, coef: str, wrt: str, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        """d coef / d ``wrt`` (a column such as C_L or delta_e) at ``values``, differentiated symbolically."""
+        derivative = sp.diff(self._compiled[coef][0], sp.Symbol(wrt, real=True))
+        args = tuple(sorted(s.name for s in derivative.free_symbols))
+        out = self._evaluate(derivative, args, values, f"d{coef}/d{wrt}")
+        return np.broadcast_to(np.asarray(out, float), np.shape(values["alpha"])).copy()
+
+    def coefficients(self, values: Mapping[str, np.ndarray]):
+        """(C_L, C_D, C_m); ``values`` holds columns, constants and separation states."""
+        cl = self.coefficient("CL", values)
+        with_cl = dict(values, CL=cl)
+        return cl, self.coefficient("CD", with_cl), self.coefficient("Cm", with_cl)
+
+
+def truth_model(withhold=()) -> AeroModel:
+    """The final model of the thesis (CL-VI, CD-IXr, Cm-XXXIIIr) with named effects removed."""
+    withhold = tuple(dict.fromkeys(withhold))
+    unknown = [w for w in withhold if w not in WITHHOLDABLE]
+    if unknown:
+        raise DeclarationError(f"cannot withhold {unknown[0]!r}: effects of the final model are "
+                               f"{', '.join(WITHHOLDABLE)}")
+    lift_params = dict(FINAL_LIFT)
+    params = dict(FINAL_LIFT, **FINAL_DRAG, **FINAL_PITCH)
+    kind_ss = "U"
+    if "unsteady_lag" in withhold:
+        kind_ss = "Q"
+        lift_params.pop("tau1_ss")
+        params.pop("tau1_ss")
+    if "separation_delay" in withhold:
+        lift_params["tau2_ss"] = params["tau2_ss"] = 0.0
+    for effect in withhold:
+        for name in _ZEROED.get(effect, ()):
+            params[name] = 0.0
+    constant = {"X_w": 1.0} if "second_separation_state" in withhold else {}
+    lift = _with_kind(final_lift_model(), kind_ss)
+    drag = _with_kind(final_drag_model(lift_params), kind_ss)
+    pitch = _with_kind(final_pitch_model(lift_params), kind_ss)
+    label = "truth" + ("" if not withhold else " without " + ", ".join(withhold))
+    return AeroModel(lift, drag, pitch, params, constant, name=label)
+
+
+def _with_kind(model: StallModel, kind_ss: str) -> StallModel:
+    if kind_ss == "U":
+        return model
+    states = tuple(SeparationState(s.name, kind_ss) if s.name == "ss" else s for s in model.states)
+    fixed = {k: v for k, v in model.fixed.items() if k != "tau1_ss"}
+    return StallModel(model.name, model.coefficient, states, model.regressors, model.start, model.bounds, fixed)

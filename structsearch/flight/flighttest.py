@@ -1,0 +1,231 @@
+"""The flight-test campaign: the thesis' maneuver list (Table 4) and how the pilot flies each maneuver."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import aircraft as ac
+from .aero import AeroModel
+from .simulation import Condition, Pilot, simulate, trim
+from .synthetic import smooth_noise
+
+DT = 0.01  # truth and output sample time [s]
+# Quasi-random elevator wiggles of the quasi-steady stalls: slow and small, as flown by hand while
+# bleeding off 1 kt/s, and a gentle recovery: such stalls excite only tau1 + tau2 (thesis: corr 0.73)
+QS_WIGGLE_HZ = 0.3
+QS_WIGGLE_RAD = 0.003
+QS_RECOVERY_S = 8.0
+# Dynamic stall: repeated entries around the stall-strip boundary, small enough to stay in the
+# linear range of X0 (a1 ~ 70/rad) and fast enough (omega*tau1 ~ 1-2) to tell lag from delay
+DYN_CENTRE = (0.19, 0.20)
+DYN_AMPLITUDE = (0.02, 0.03)
+DYN_FREQ_HZ = (0.3, 1.2)  # frequency sweep from the first to the second value
+DYN_OSCILLATION_S = 45.0
+GAINS = (2.0, 1.5, 0.8)  # pilot PID on alpha: kp [-], ki [1/s], kd [s]
+DURATION = {"quasi-steady": 55.0, "dynamic": 50.0, "deep-dynamic": 50.0, "pullup": 25.0,
+            "pushover": 25.0, "phugoid": 125.0}
+
+
+@dataclass(frozen=True)
+class PlannedManeuver:
+    number: int
+    kind: str
+    split: str
+    fl_band: tuple[int, int]
+
+    @property
+    def id(self) -> str:
+        return f"m{self.number:02d}"
+
+
+def thesis_plan(extras: bool = False) -> list[PlannedManeuver]:
+    """46 maneuvers of thesis Table 4 ("This work"), optionally 11 pullup/pushover/phugoid maneuvers."""
+    validation = {7, 12, 16, 22, 23, 25, 38, 39, 46}
+    plan = []
+    for n in range(1, 47):
+        if n <= 34:
+            kind = "quasi-steady"
+            band = (80, 110) if n <= 2 else (110, 150) if n <= 6 else (150, 200)
+        elif n <= 39:
+            kind, band = "dynamic", (150, 200)
+        else:
+            kind, band = "deep-dynamic", (150, 200)
+        plan.append(PlannedManeuver(n, kind, "validation" if n in validation else "train", band))
+    if extras:
+        kinds = ["pullup"] * 5 + ["pushover"] * 3 + ["phugoid"] * 3
+        held_out = {51, 54, 57}
+        for i, kind in enumerate(kinds):
+            n = 47 + i
+            plan.append(PlannedManeuver(n, kind, "validation" if n in held_out else "train", (150, 200)))
+    return plan
+
+
+def scaled_plan(plan: list[PlannedManeuver], scale: float) -> list[PlannedManeuver]:
+    """Keep about ``scale`` of each kind's maneuvers, at least one per kind and split present."""
+    if not 0 < scale <= 1:
+        raise ValueError("scale must lie in (0, 1]")
+    keep = []
+    for kind in dict.fromkeys(p.kind for p in plan):
+        for split in ("train", "validation"):
+            group = [p for p in plan if p.kind == kind and p.split == split]
+            if group:
+                count = max(1, int(round(scale * len(group))))
+                idx = np.unique(np.linspace(0, len(group) - 1, count).round().astype(int))
+                keep += [group[i] for i in idx]
+    return sorted(keep, key=lambda p: p.number)
+
+
+def _smoothstep(x):
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3 - 2 * x)
+
+
+@dataclass(frozen=True)
+class Flown:
+    """What the pilot does in one maneuver and where it starts."""
+
+    condition: Condition
+    theta0: float
+    V0: float
+    alpha_ref: np.ndarray
+    de_extra: np.ndarray
+    throttle: np.ndarray
+    gains: tuple[float, float, float]
+    de_trim: float
+    alpha0: float
+
+
+def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: float, x_cg: float) -> Flown:
+    """Reference profiles for one maneuver (pilot-like, seeded)."""
+    duration = DURATION[p.kind] + (DYN_OSCILLATION_S - 23.0 if p.kind == "dynamic" else 0.0)
+    n = int(round(duration / DT))
+    t = np.arange(n) * DT
+    h = ac.flight_level_altitude(rng.uniform(*p.fl_band))
+    wiggle = smooth_noise(rng, n, DT, 1.5)
+    gains = GAINS
+    if p.kind == "quasi-steady":
+        V = rng.uniform(85.0, 95.0)
+        tr = trim(model, Condition(mass, x_cg, h, V))
+        peak = rng.uniform(0.24, 0.32)
+        t_up = rng.uniform(36.0, 42.0)
+        alpha_ref = tr.alpha + (peak - tr.alpha) * _smoothstep(t / t_up)
+        recover = t_up + rng.uniform(2.0, 4.0)
+        alpha_ref = np.where(t < recover, alpha_ref,
+                             0.06 + (peak - 0.06) * (1 - _smoothstep((t - recover) / QS_RECOVERY_S)))
+        throttle = np.where(t < recover, 0.45 * tr.throttle, 0.9)
+        de_extra = QS_WIGGLE_RAD * smooth_noise(rng, n, DT, QS_WIGGLE_HZ)
+    elif p.kind in ("dynamic", "deep-dynamic"):
+        # entered like a stall approach: power reduced, alpha raised as the speed bleeds off
+        V = rng.uniform(82.0, 90.0)
+        tr = trim(model, Condition(mass, x_cg, h, V))
+        deep = p.kind == "deep-dynamic"
+        centre = rng.uniform(0.32, 0.35) if deep else rng.uniform(*DYN_CENTRE)
+        amplitude = rng.uniform(0.025, 0.04) if deep else rng.uniform(*DYN_AMPLITUDE)
+        f_lo, f_hi = DYN_FREQ_HZ
+        f0, f1 = rng.uniform(f_lo, f_lo + 0.2), rng.uniform(f_hi - 0.2, f_hi)
+        t_up, t_osc = 18.0, 21.0
+        t_end = t_osc + (DYN_OSCILLATION_S if not deep else 23.0)
+        alpha_ref = tr.alpha + (centre - tr.alpha) * _smoothstep(t / t_up)
+        osc = (t >= t_osc) & (t < t_end)
+        if deep:
+            phase = 2 * np.pi * f0 * (t - t_osc)
+        else:  # linear sweep: a pilot speeding up the elevator oscillation
+            tau = np.clip(t - t_osc, 0, t_end - t_osc)
+            phase = 2 * np.pi * (f0 * tau + 0.5 * (f1 - f0) * tau ** 2 / (t_end - t_osc))
+        alpha_ref = alpha_ref + np.where(osc, amplitude * np.sin(phase), 0.0)
+        alpha_ref = np.where(t < t_end, alpha_ref, 0.06 + (centre - 0.06) * (1 - _smoothstep((t - t_end) / 3.0)))
+        throttle = np.where(t < t_end, 0.3 * tr.throttle, 0.9)
+        # sequential steps on the elevator during the approach, then small quasi-random inputs
+        de_extra = 0.004 * wiggle + np.where((t > 4.0) & (t < 5.5), 0.015, 0.0) \
+            - np.where((t > 6.0) & (t < 7.5), 0.015, 0.0)
+    elif p.kind in ("pullup", "pushover"):
+        V = rng.uniform(95.0, 110.0) if p.kind == "pullup" else rng.uniform(80.0, 90.0)
+        tr = trim(model, Condition(mass, x_cg, h, V))
+        target = tr.alpha + (0.04 if p.kind == "pullup" else -0.07)
+        alpha_ref = tr.alpha + (target - tr.alpha) * _smoothstep(t / 2.0)
+        throttle = np.full(n, tr.throttle if p.kind == "pullup" else 0.2 * tr.throttle)
+        de_extra = 0.003 * wiggle
+        theta0 = np.deg2rad(-10.0 if p.kind == "pullup" else 25.0)
+        return Flown(Condition(mass, x_cg, h, V), theta0, V, alpha_ref, de_extra, throttle, gains,
+                     tr.de, tr.alpha)
+    elif p.kind == "phugoid":
+        V = rng.uniform(85.0, 95.0)
+        tr = trim(model, Condition(mass, x_cg, h, V))
+        alpha_ref = np.full(n, tr.alpha)
+        throttle = np.full(n, tr.throttle)
+        de_extra = np.zeros(n)
+        # off-trim airspeed, elevator released at its trim position
+        return Flown(Condition(mass, x_cg, h, V), tr.alpha, V * rng.uniform(1.08, 1.14), alpha_ref, de_extra,
+                     throttle, (0.0, 0.0, 0.0), tr.de, tr.alpha)
+    else:
+        raise ValueError(f"no flying procedure for maneuver kind {p.kind!r}")
+    return Flown(Condition(mass, x_cg, h, V), tr.alpha, V, alpha_ref, de_extra, throttle, gains, tr.de, tr.alpha)
+
+
+def fly_batch(model: AeroModel, flown: list[Flown]):
+    """Integrate maneuvers of one duration together; returns the truth Trajectory."""
+    stack = lambda attr: np.column_stack([getattr(f, attr) for f in flown])  # noqa: E731
+    pilot = Pilot(stack("alpha_ref"), stack("de_extra"), stack("throttle"),
+                  np.array([f.de_trim for f in flown]), np.array([f.gains for f in flown]))
+    alpha0 = np.array([f.alpha0 for f in flown])
+    x0 = model.separation_targets(alpha0, np.zeros_like(alpha0))
+    y0 = {"V": np.array([f.V0 for f in flown]), "alpha": alpha0, "q": np.zeros(len(flown)),
+          "theta": np.array([f.theta0 for f in flown]), "h": np.array([f.condition.h for f in flown])}
+    y0.update({s.symbol: x0[s.symbol] for s in model.unsteady})
+    masses = np.array([f.condition.mass for f in flown])
+    # fuel burnt along the maneuver
+    burn = np.cumsum(stack("throttle"), axis=0) * DT * ac.MAX_FUEL_FLOW
+    mass = masses[None, :] - burn
+    return simulate(model, y0, pilot, mass, np.array([f.condition.x_cg for f in flown]), DT)
+
+
+def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int = 0):
+    """Fly every planned maneuver and measure it; returns (plan, list of column dicts) in plan order."""
+    from .measurement import measure
+    rng = np.random.default_rng(seed)
+    # fuel burns down over the test sequence; each flight has its own centre of gravity
+    fuel = np.linspace(1500.0, 450.0, len(plan))
+    cg_by_flight = {k: rng.uniform(*ac.X_CG_RANGE) for k in range(4)}
+    flown = []
+    for i, p in enumerate(plan):
+        flight = 0 if p.number <= 17 else 1 if p.number <= 34 else 2 if p.number <= 46 else 3
+        mass = ac.EMPTY_MASS + ac.CREW_MASS + fuel[i]
+        flown.append(fly(model, p, rng, mass, cg_by_flight[flight]))
+    results: list[dict | None] = [None] * len(plan)
+    for duration in sorted({len(f.alpha_ref) for f in flown}):
+        idx = [i for i, f in enumerate(flown) if len(f.alpha_ref) == duration]
+        traj = fly_batch(model, [flown[i] for i in idx])
+        for j, i in enumerate(idx):
+            truth = {name: getattr(traj, name)[:, j] for name in
+                     ("V", "alpha", "q", "theta", "h", "de", "thrust", "qbar", "mass", "x_cg", "CL", "CD", "Cm",
+                      "q_dot")}
+            for sym in ("X_ss", "X_w"):
+                truth[sym] = traj.X[sym][:, j] if sym in traj.X else np.ones(duration)
+            columns = measure(rng, traj.t, truth)
+            results[i] = _cut(plan[i], columns)
+    return results
+
+
+def _cut(p: PlannedManeuver, columns: dict) -> dict:
+    """Pullups and pushovers end where the pilot recovers (pitch attitude limit)."""
+    if p.kind not in ("pullup", "pushover"):
+        return columns
+    theta = np.rad2deg(columns["theta"])
+    over = np.flatnonzero(theta >= 30.0) if p.kind == "pullup" else np.flatnonzero(theta <= -20.0)
+    end = int(over[0]) if over.size and over[0] > 500 else len(theta)
+    return {k: v[:end] for k, v in columns.items()}
+
+
+def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False):
+    """The simulated flight-test campaign (thesis Table 4), ready for :func:`write_campaign`."""
+    from .aero import truth_model
+    from ..data.campaign import Maneuver, make_campaign
+    from .reference import AIRCRAFT
+    model = truth_model(withhold)
+    plan = scaled_plan(thesis_plan(extras), scale)
+    segments = simulate_campaign(plan, model, seed)
+    maneuvers = [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split) for p in plan]
+    extra = {"seed": int(seed), "truth": model.name, "withheld": ",".join(withhold) or "none"}
+    name = f"simulated Citation II stall campaign (seed {seed})"
+    return make_campaign(name, AIRCRAFT, maneuvers, segments, extra)

@@ -1,0 +1,104 @@
+"""The measurement chain: sensors at their own rates, buffet and boom vibration, pre-filter, and
+reconstruction of the aerodynamic coefficients from specific forces and rates (thesis Eqs. 3-4).
+
+What comes out is what a flight-test engineer has after flight-path reconstruction:
+the interface columns plus theta, h, CX, CZ, and the truth coefficients for reference.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import aircraft as ac
+from ..data.prefilter import derivative, prefilter
+
+# Sensor rates [Hz] (thesis Table 2) and noise standard deviations (SI units) as left after
+# flight-path reconstruction (alpha: vane noise would turn into alpha_dot noise of ~0.02 rad/s).
+RATES = {"ahrs": 52.0, "boom": 100.0, "tas": 16.0, "qbar": 8.0, "synchro": 100.0, "gps": 1.0}
+NOISE = {"alpha": 0.0002, "q": 0.0015, "theta": 0.001, "ax": 0.04, "az": 0.06, "V": 0.25,
+         "qbar": 12.0, "de": 0.0005, "h": 2.0}
+# Residual sensor biases after flight-path reconstruction (the Kalman filter estimates the raw biases)
+BIAS = {"alpha": 0.0005, "q": 0.0002, "ax": 0.005, "az": 0.01}
+BUFFET_HZ = (6.0, 10.0, 12.0, 15.0)
+BUFFET_WEIGHTS = (1.0, 0.6, 0.5, 0.35)
+BUFFET_HALF_WIDTH_HZ = 0.8
+BUFFET_AZ = 0.5          # m/s^2 per unit of separation (residual MSEs near thesis Table 7)
+BOOM_VIBRATION = 0.0015  # rad, 8-12 Hz
+ENGINE_MODEL_ERROR = 0.03  # relative, per maneuver
+
+
+def _resample(t_out, t_in, values):
+    return np.interp(t_out, t_in, values)
+
+
+def _sensor(rng, t, truth, rate, noise, bias=0.0):
+    """Sample ``truth`` at ``rate`` with white noise and a constant bias, then back onto ``t``."""
+    t_s = np.arange(t[0], t[-1] + 1e-9, 1.0 / rate)
+    sampled = _resample(t_s, t, truth) + rng.normal(0.0, noise, len(t_s)) + bias
+    return _resample(t, t_s, sampled)
+
+
+def _band_noise(rng, n, fs, low, high):
+    from scipy.signal import butter, sosfiltfilt
+    sos = butter(2, [low, high], btype="band", fs=fs, output="sos")
+    x = sosfiltfilt(sos, rng.standard_normal(n + 400))[200:-200]
+    return x / (x.std() or 1.0)
+
+
+def measure(rng: np.random.Generator, t: np.ndarray, truth: dict) -> dict:
+    """One maneuver's measured, pre-filtered, reconstructed columns from its truth histories.
+
+    ``truth`` holds 1-D arrays: V, alpha, q, theta, h, de, thrust, qbar, mass, x_cg,
+    CL, CD, Cm, X_ss, X_w (1 where a state is absent), q_dot.
+    """
+    fs = 1.0 / (t[1] - t[0])
+    n = len(t)
+    alpha, V = truth["alpha"], truth["V"]
+    # body-axis specific forces measured by the AHRS (aerodynamic and thrust forces over mass)
+    qs = truth["qbar"] * ac.S
+    cx = -truth["CD"] * np.cos(alpha) + truth["CL"] * np.sin(alpha)
+    cz = -truth["CL"] * np.cos(alpha) - truth["CD"] * np.sin(alpha)
+    ax_true = (qs * cx + truth["thrust"]) / truth["mass"]
+    az_true = qs * cz / truth["mass"]
+    # buffet while the flow is separated, boom vibration always
+    separation = np.clip((1 - truth["X_ss"]) + (1 - truth["X_w"]), 0, 2)
+    # narrow-band random vibration around each buffet peak (not pure tones: real buffet decorrelates)
+    def vibration():
+        return sum(w * _band_noise(rng, n, fs, f - BUFFET_HALF_WIDTH_HZ, f + BUFFET_HALF_WIDTH_HZ)
+                   for f, w in zip(BUFFET_HZ, BUFFET_WEIGHTS)) * separation
+
+    buffet = vibration()
+    # the rate gyro sees the same frequencies through other mode shapes: its own realisation
+    gyro_buffet = vibration()
+    boom = BOOM_VIBRATION * _band_noise(rng, n, fs, 8.0, 12.0)
+
+    raw = {
+        "alpha": _sensor(rng, t, alpha + boom, RATES["boom"], NOISE["alpha"], rng.normal(0, BIAS["alpha"])),
+        "q": _sensor(rng, t, truth["q"] + 0.004 * gyro_buffet, RATES["ahrs"], NOISE["q"], rng.normal(0, BIAS["q"])),
+        "theta": _sensor(rng, t, truth["theta"], RATES["ahrs"], NOISE["theta"]),
+        "ax": _sensor(rng, t, ax_true + 0.25 * BUFFET_AZ * buffet, RATES["ahrs"], NOISE["ax"],
+                      rng.normal(0, BIAS["ax"])),
+        "az": _sensor(rng, t, az_true + BUFFET_AZ * buffet, RATES["ahrs"], NOISE["az"], rng.normal(0, BIAS["az"])),
+        "V": _sensor(rng, t, V, RATES["tas"], NOISE["V"]),
+        "qbar": _sensor(rng, t, truth["qbar"], RATES["qbar"], NOISE["qbar"]),
+        "de": _sensor(rng, t, truth["de"], RATES["synchro"], NOISE["de"]),
+        "h": _sensor(rng, t, truth["h"], RATES["gps"], NOISE["h"]),
+    }
+    f = {name: prefilter(name, values, fs) for name, values in raw.items()}
+    q_dot = derivative(f["q"], t)
+    alpha_dot = derivative(f["alpha"], t)
+    thrust_model = truth["thrust"] * (1 + rng.normal(0, ENGINE_MODEL_ERROR))
+    mass = truth["mass"]
+    qs_m = f["qbar"] * ac.S
+    cx_m = (mass * f["ax"] - thrust_model) / qs_m
+    cz_m = mass * f["az"] / qs_m
+    a = f["alpha"]
+    return {
+        "t": t - t[0], "alpha": a, "q": f["q"], "V": f["V"], "de": f["de"],
+        "CL": cx_m * np.sin(a) - cz_m * np.cos(a),
+        "CD": -cx_m * np.cos(a) - cz_m * np.sin(a),
+        "Cm": ac.inertia(mass) * q_dot / (qs_m * ac.CBAR),
+        "alpha_dot": alpha_dot, "CT": thrust_model / qs_m, "x_cg": truth["x_cg"],
+        "theta": f["theta"], "h": f["h"], "CX": cx_m, "CZ": cz_m,
+        "mass": mass, "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
+        "X_ss_true": truth["X_ss"], "X_w_true": truth["X_w"],
+    }

@@ -1,0 +1,75 @@
+"""diagnosis.json and a readable diagnosis.md (no figures), and the withheld-effect benchmark."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from tabulate import tabulate
+
+from ..data.atomic import write_text
+
+
+def public(doc: dict) -> dict:
+    """The interfaces.md section 3 document (extra fields kept)."""
+    return json.loads(json.dumps(doc, default=float))
+
+
+def markdown(doc: dict) -> str:
+    lines = [f"# Diagnosis of {doc['coefficient']} (baseline {doc['baseline']})", ""]
+    m = doc["mse"]
+    lines += [f"Validation MSE {m['validation']:.4g} (training {m['train']:.4g}); noise floor {doc['noise_floor']:.4g} "
+              f"(saturated model; spectral estimate {doc['noise_floor_spectral']:.4g}).", ""]
+    if doc["gap_explained_by_baseline"]:
+        lines += ["**The baseline is already at the noise floor**: nothing the effect library adds is significant "
+                  "(Wald test with the coloured covariance, 1 %).", ""]
+    else:
+        lines += [f"**Gap**: {m['validation'] - doc['noise_floor']:.4g} "
+                  f"({(m['validation'] / doc['noise_floor'] - 1):.1%} above the floor).", ""]
+        lines += ["## Where the gap lies", ""]
+        for dim in ("phase", "alpha_band", "alpha_dot_sign", "frequency_band", "maneuver"):
+            rows = sorted((r for r in doc["where"] if r["dimension"] == dim), key=lambda r: -r["share"])
+            body = [[r["bin"], f"{r['share']:.2f}", "-" if not np.isfinite(r["share_std"]) else f"{r['share_std']:.2f}",
+                     "-" if not np.isfinite(r["mse"]) else f"{r['mse']:.3g}"] for r in rows[:8]]
+            lines += [f"### by {dim.replace('_', ' ')}", "",
+                      tabulate(body, headers=["bin", "share of excess", "+-", "MSE"], tablefmt="github"), ""]
+    lines += ["## Which effect", ""]
+    body = []
+    for e in doc["effects"]:
+        if "error" in e:
+            body.append([e["name"], "-", "-", "-", "-", "-", e["error"]])
+        else:
+            body.append([e["name"], f"{e['shrink']:.2f}", f"{e['mse_validation_after']:.4g}", f"{e['p_value']:.2g}",
+                         f"{e['overlap']:.2f}", e["acts_in"]["phase"], "at floor" if e["at_floor"] else ""])
+    lines += [tabulate(body, headers=["effect", "shrink", "validation MSE after", "p (Wald)",
+                                      "overlap with gap", "acts most in", ""], tablefmt="github"), ""]
+    lines += ["## How far it shrinks", ""]
+    for i, r in enumerate(doc["rounds"]):
+        best = next((e for e in r["effects"] if "error" not in e), None)
+        step = f"adding {best['name']} closes {best['shrink']:.0%} of the gap" if best and not r["explained_before"] \
+            else "nothing significant left to add"
+        lines.append(f"{i + 1}. {r['baseline']}: validation MSE {r['mse']['validation']:.4g}, floor "
+                     f"{r['noise_floor']:.4g}; {step}.")
+    lines += ["", f"**Explained**: {'yes' if doc['explained'] else 'no'}. Final model: {doc['final_model']}.", ""]
+    sl = doc.get("state_level")
+    if sl:
+        lines += ["## At the state level", ""]
+        if "error" in sl:
+            lines += [f"Not available: {sl['error']}", ""]
+        else:
+            units = {"alpha": "rad", "q": "rad/s", "V": "m/s", "theta": "rad"}
+            body = [[s, units[s], f"{sl['before'][s]:.4g}", f"{sl['after'][s]:.4g}", f"{sl['reduction'][s]:+.0%}"]
+                    for s in ("alpha", "q", "theta", "V")]
+            lines += [f"Validation maneuvers replayed through the simulator (recorded elevator and thrust, "
+                      f"re-initialised on the measured states every {sl['window_s']:g} s); RMS state error with "
+                      f"the baseline and with the best effect added:", "",
+                      tabulate(body, headers=["state", "unit", "before", "after", "reduction"], tablefmt="github"),
+                      ""]
+    return "\n".join(lines)
+
+
+def write(doc: dict, out: Path) -> tuple[Path, Path]:
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(out / "diagnosis.json", json.dumps(public(doc), indent=2))
+    write_text(out / "diagnosis.md", markdown(doc))
+    return out / "diagnosis.json", out / "diagnosis.md"

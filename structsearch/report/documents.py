@@ -1,0 +1,19 @@
+"""JSON documents the commands write (``fit.json``; interfaces.md sections 2 and 5.4)."""
+from __future__ import annotations
+
+from ..search.candidate_result import CandidateResult
+
+
+def fit_document(fit: CandidateResult, lift: CandidateResult | None) -> dict:
+    """``fit.json`` of one fitted candidate (and the lift model whose states it uses); written with
+    :func:`structsearch.data.atomic.write_json`, which turns what could not be estimated into null."""
+    return {
+        "model": fit.name, "coefficient": fit.coefficient, "params": fit.params, "stderr": fit.stderr,
+        "mse": {"train": fit.mse_train, "validation": fit.mse_validation},
+        "p_values": fit.p_values, "at_bound": fit.at_bound,
+        "high_correlations": [list(p) for p in fit.high_correlations], "insignificant": list(fit.insignificant),
+        "r2": {"train": fit.train.r2.as_dict(), "validation": fit.validation.r2.as_dict()},
+        "n_starts": fit.n_starts, "n_reached_best": fit.n_reached_best,
+        "converged": fit.converged, "message": fit.message, "nfev": fit.nfev,
+        "lift": lift and {"model": lift.name, "params": lift.params},
+    }

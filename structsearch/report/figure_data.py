@@ -1,0 +1,230 @@
+"""What the campaign report plots, as plain arrays (no matplotlib, no files).
+
+A :class:`ModelSet` is one simulator: a lift, a drag and a pitch structure fitted
+on the training maneuvers (through the runner's cache). From it come the static
+curves of the thesis' figures 6-11 (separation states at equilibrium, q = 0,
+delta_e = 0, C_T = 0, mean centre of gravity and airspeed), the measured points
+corrected for everything the static curve leaves out (partial residuals: static
+model at the sample's alpha plus the sample's residual), time traces, a
+hysteresis loop, and the gap breakdown of a diagnosis.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from ..flight.aero import AeroModel
+from ..data.campaign import Campaign
+from ..data.flightdata import FlightData
+from ..data.errors import DeclarationError
+from ..search.runner import Settings, build_model, predict_candidate, run
+from ..engine.separation import static_separation
+from ..search.candidates import Candidate
+from ..search.specs import find_candidate
+from ..search.candidate_result import CandidateResult
+from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_MODEL_NAMES
+
+COEFFICIENTS = ("CL", "CD", "Cm")
+# Stall stages on the static separation curve (thesis Fig. 6)
+STAGES = (("flow starts to separate", 0.9), ("half separated (alpha*)", 0.5), ("fully stalled", 0.1))
+ALPHA_BAND = 0.04  # rad, as in the diagnosis
+
+
+@dataclass(frozen=True)
+class ModelSet:
+    """Lift, drag and pitch structures fitted together (drag and pitch on the lift model's states)."""
+
+    label: str
+    candidates: Mapping[str, Candidate]
+    summaries: Mapping[str, CandidateResult]
+    aero: AeroModel
+
+    @property
+    def lift_summary(self) -> CandidateResult:
+        return self.summaries["CL"]
+
+    def predict(self, coef: str, data: FlightData, candidate: Candidate | None = None,
+                params: dict | None = None) -> np.ndarray:
+        """Output of the set's ``coef`` model (or of ``candidate`` with ``params`` in its place) on ``data``."""
+        c = candidate or self.candidates[coef]
+        lift = None if coef == "CL" else self.lift_summary
+        return predict_candidate(c, params or self.summaries[coef].params, data, lift,
+                                 None if coef == "CL" else self.candidates["CL"])
+
+
+def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out: Path, settings: Settings,
+                  n_jobs: int = 1, progress=None) -> ModelSet:
+    """Fit the named lift, drag and pitch structures (cached under ``out/cache``)."""
+    cands = {coef: find_candidate(names[coef]) for coef in COEFFICIENTS}
+    for coef in ("CD", "Cm"):
+        if cands[coef].lift != cands["CL"].name:
+            raise DeclarationError(f"{cands[coef].name} takes its separation states from {cands[coef].lift}, "
+                                   f"not from the lift model {cands['CL'].name} of the same model set")
+    lift = run([cands["CL"]], campaign, out, settings=settings, progress=progress)[0]
+    others = run([cands["CD"], cands["Cm"]], campaign, out, lift_results={cands["CL"].name: lift},
+                 lift_candidates={cands["CL"].name: cands["CL"]}, settings=settings, n_jobs=n_jobs,
+                 progress=progress)
+    summaries = {"CL": lift, "CD": others[0], "Cm": others[1]}
+    for coef, s in summaries.items():
+        if s.failed:
+            raise DeclarationError(f"report: fitting {cands[coef].name} failed: {s.error}")
+    params = dict(lift.params)
+    for coef in ("CD", "Cm"):
+        params.update({k: v for k, v in summaries[coef].params.items() if k not in lift.params})
+    aero = AeroModel(build_model(cands["CL"]), build_model(cands["CD"], lift), build_model(cands["Cm"], lift),
+                     params, name=label)
+    return ModelSet(label, cands, summaries, aero)
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The flight condition of the static curves."""
+
+    V: float
+    x_cg: float
+    constants: Mapping[str, float]
+
+
+def reference(data: FlightData) -> Reference:
+    return Reference(float(np.mean(data["V"])), float(np.mean(data["x_cg"])) if "x_cg" in data else 0.0,
+                     dict(data.constants))
+
+
+def static_values(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, np.ndarray]:
+    """Inputs of the aerodynamic model in the static condition at each alpha."""
+    alpha = np.asarray(alpha, float)
+    zero = np.zeros_like(alpha)
+    values = {"alpha": alpha, "alpha_dot": zero, "q": zero, "de": zero, "CT": zero,
+              "V": np.full_like(alpha, ref.V), "x_cg": np.full_like(alpha, ref.x_cg)}
+    values.update({k: np.full_like(alpha, v) for k, v in ref.constants.items()})
+    values.update(ms.aero.separation_targets(alpha, zero))
+    return values
+
+
+def static_coefficients(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, np.ndarray]:
+    values = ms.aero.coefficients(static_values(ms, alpha, ref))
+    # a coefficient without alpha-dependent terms comes back as a scalar
+    return {coef: np.broadcast_to(v, np.shape(alpha)).astype(float) for coef, v in zip(COEFFICIENTS, values)}
+
+
+def separation_curves(ms: ModelSet, alpha: np.ndarray) -> dict[str, dict]:
+    """X_0(alpha) of every state and the alpha of each stall stage."""
+    out = {}
+    for s in ms.aero.states:
+        x0 = static_separation(alpha, s.a1, s.a_star)
+        # X_0 = 1/2 - 1/2 tanh(a1 (alpha - a*)) inverted at each stage's level
+        stages = {label: float(s.a_star + np.arctanh(1 - 2 * level) / s.a1) for label, level in STAGES}
+        out[s.symbol] = {"x0": x0, "a1": s.a1, "a_star": s.a_star, "kind": s.kind, "stages": stages}
+    return out
+
+
+def partial_points(ms: ModelSet, data: FlightData, ref: Reference, max_points: int = 5000,
+                   seed: int = 0) -> dict[str, np.ndarray]:
+    """Measured coefficients corrected to the static condition, on a seeded subsample."""
+    rng = np.random.default_rng(seed)
+    idx = np.sort(rng.choice(data.n_samples, size=min(max_points, data.n_samples), replace=False))
+    alpha = data["alpha"][idx]
+    static = static_coefficients(ms, alpha, ref)
+    out = {"alpha": alpha}
+    for coef in COEFFICIENTS:
+        residual = data[coef][idx] - ms.predict(coef, data)[idx]
+        out[coef] = static[coef] + residual
+    return out
+
+
+def derived_pitch(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, np.ndarray]:
+    """Centre-of-pressure arm l_cp = -dC_m/dC_L and elevator effectiveness dC_m/d delta_e (Eqs. 31-33).
+
+    Both are partial derivatives of the fitted pitch model in the static condition, so they
+    follow whatever structure won the search. ``x_cp`` is measured from the campaign's x_cg datum.
+    """
+    values = static_values(ms, alpha, ref)
+    values["CL"] = static_coefficients(ms, alpha, ref)["CL"]
+    l_cp = -ms.aero.partial("Cm", "CL", values)
+    cbar = ref.constants.get("cbar", 1.0)
+    return {"l_cp": l_cp, "x_cp": ref.x_cg + l_cp * cbar, "Cm_de": ms.aero.partial("Cm", "de", values),
+            "depends_on_CL": bool(np.any(l_cp != 0))}
+
+
+def r2(y: np.ndarray, pred: np.ndarray) -> float:
+    sst = float(np.sum((y - y.mean()) ** 2))
+    return 1 - float(np.sum((y - pred) ** 2)) / sst if sst > 0 else float("nan")
+
+
+def trace_selection(ms: ModelSet, data: FlightData) -> dict[str, list[dict]]:
+    """Per coefficient, the best, median and worst maneuver of ``data`` by R^2, with their traces."""
+    out = {}
+    for coef in COEFFICIENTS:
+        pred = ms.predict(coef, data)
+        scored = []
+        for name, sl in zip(data.names, data.segment_slices()):
+            scored.append((r2(data[coef][sl], pred[sl]), name, sl))
+        scored.sort(key=lambda s: -s[0] if np.isfinite(s[0]) else np.inf)
+        picks = [("best", scored[0]), ("median", scored[len(scored) // 2]), ("worst", scored[-1])]
+        out[coef] = [{"which": which, "maneuver": name, "r2": score, "t": data["t"][sl] - data["t"][sl][0],
+                      "measured": data[coef][sl], "model": pred[sl]}
+                     for which, (score, name, sl) in picks]
+    return out
+
+
+def hysteresis_maneuver(campaign: Campaign) -> int:
+    """Index of the maneuver for the hysteresis loop: a validation dynamic stall if there is one."""
+    ranked = []
+    for i, m in enumerate(campaign.maneuvers):
+        sl = campaign.data.segment_slices()[i]
+        span = float(np.ptp(campaign.data["alpha"][sl]))
+        ranked.append(((m.kind == "dynamic") + (m.kind in ("dynamic", "deep-dynamic")) + (m.split == "validation"),
+                       span, i))
+    return max(ranked)[2]
+
+
+def hysteresis(ms: ModelSet, campaign: Campaign, ref: Reference) -> dict:
+    i = hysteresis_maneuver(campaign)
+    data = campaign.data.select([i])
+    m = campaign.maneuvers[i]
+    grid = np.linspace(data["alpha"].min(), data["alpha"].max(), 200)
+    return {"maneuver": m.id, "kind": m.kind, "split": m.split, "alpha": data["alpha"],
+            "measured": data["CL"], "model": ms.predict("CL", data), "static_alpha": grid,
+            "static": static_coefficients(ms, grid, ref)["CL"], "index": i}
+
+
+def gap_cells(residual: np.ndarray, data: FlightData, bands: np.ndarray) -> np.ndarray:
+    """Mean squared residual per (maneuver, alpha band); NaN where a maneuver never visits a band."""
+    band = np.clip(np.searchsorted(bands, data["alpha"], side="right") - 1, 0, len(bands) - 2)
+    cells = np.full((data.n_segments, len(bands) - 1), np.nan)
+    for row, sl in enumerate(data.segment_slices()):
+        sums = np.bincount(band[sl], weights=residual[sl] ** 2, minlength=len(bands) - 1)
+        counts = np.bincount(band[sl], minlength=len(bands) - 1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cells[row] = np.where(counts > 0, sums / counts, np.nan)
+    return cells
+
+
+def alpha_bands(alpha: np.ndarray) -> np.ndarray:
+    lo = np.floor(alpha.min() / ALPHA_BAND) * ALPHA_BAND
+    hi = np.ceil(alpha.max() / ALPHA_BAND) * ALPHA_BAND
+    return np.arange(lo, hi + ALPHA_BAND / 2, ALPHA_BAND)
+
+
+def with_effect(ms: ModelSet, coef: str, effect: str, campaign: Campaign, out: Path,
+                settings: Settings) -> dict:
+    """Validation residuals of the set's ``coef`` model before and after adding a library effect."""
+    from ..diagnosis import effects as fx
+    baseline = ms.candidates[coef]
+    changed = fx.get(effect, coef).apply(baseline)
+    lift_kw = {} if coef == "CL" else {"lift_results": {ms.candidates["CL"].name: ms.lift_summary},
+                                       "lift_candidates": {ms.candidates["CL"].name: ms.candidates["CL"]}}
+    summary = run([changed], campaign, out, settings=settings, **lift_kw)[0]
+    if summary.failed:
+        raise DeclarationError(f"report: fitting {changed.name} failed: {summary.error}")
+    val = campaign.split("validation")
+    after = ms.predict(coef, val, changed, summary.params)
+    bands = alpha_bands(val["alpha"])
+    before_residual, after_residual = val[coef] - ms.predict(coef, val), val[coef] - after
+    return {"baseline": baseline.name, "model": changed.name, "effect": effect, "bands": bands,
+            "maneuvers": list(val.names), "before": gap_cells(before_residual, val, bands),
+            "after": gap_cells(after_residual, val, bands),
+            "mse_before": float(np.mean(before_residual ** 2)), "mse_after": float(np.mean(after_residual ** 2))}

@@ -1,0 +1,191 @@
+"""The report's figures (matplotlib, an optional extra: ``pip install 'structsearch[figures]'``).
+
+Each function takes arrays from :mod:`structsearch.report_data` and returns a
+matplotlib Figure; :func:`save` writes it atomically as PNG. Angles are plotted in
+radians (the project's unit) with degrees on a secondary axis.
+"""
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from ..data.errors import StructSearchError
+from ..data.atomic import write_bytes
+
+try:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import LogNorm
+except ImportError:  # the core works without it; only the report needs it
+    plt = None
+
+COLOURS = {"model": "C0", "van_ingen": "C1", "measured": "0.55"}
+LABELS = {"CL": "C_L [-]", "CD": "C_D [-]", "Cm": "C_m [-]"}
+
+
+def require() -> None:
+    if plt is None:
+        raise StructSearchError("figures need matplotlib, an optional dependency: "
+                                "pip install 'structsearch[figures]'")
+
+
+def save(fig, path: Path) -> Path:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    write_bytes(path, buffer.getvalue())
+    return path
+
+
+def _degrees_axis(ax) -> None:
+    ax.secondary_xaxis("top", functions=(np.degrees, np.radians)).set_xlabel("alpha [deg]")
+
+
+def separation(curves: dict, alpha: np.ndarray):
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for i, (symbol, c) in enumerate(curves.items()):
+        colour = f"C{i}"
+        ax.plot(alpha, c["x0"], color=colour, lw=2,
+                label=f"{symbol} ({c['kind']}): a1 = {c['a1']:.1f}, alpha* = {c['a_star']:.3f} rad")
+        for (label, a), style in zip(c["stages"].items(), (":", "--", "-.")):
+            ax.axvline(a, color=colour, ls=style, lw=1, label=f"{symbol} {label}: {a:.3f} rad")
+    ax.set_xlabel("alpha [rad]")
+    ax.set_ylabel("X_0 [-] (1 attached, 0 separated)")
+    ax.set_ylim(-0.03, 1.03)
+    _degrees_axis(ax)
+    ax.legend(fontsize=7, loc="lower left")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def _finish(ax, xlabel: str, ylabel: str, degrees: bool = True) -> None:
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if degrees:
+        _degrees_axis(ax)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+
+
+def _compare(ax, model_xy, van_ingen_xy, names, points_xy=None) -> None:
+    """Measured points (corrected), the identified curve and the Van Ingen structure's curve."""
+    if points_xy is not None:
+        ax.scatter(*points_xy, s=2, color=COLOURS["measured"], alpha=0.35, rasterized=True,
+                   label="measured, corrected to the static condition")
+    ax.plot(*model_xy, color=COLOURS["model"], lw=2.2, label=f"{names[0]} (identified)")
+    if van_ingen_xy is not None:
+        ax.plot(*van_ingen_xy, color=COLOURS["van_ingen"], lw=1.8, ls="--", label=f"{names[1]} (Van Ingen structure)")
+
+
+def static_curve(coef: str, alpha, model, van_ingen, points, names):
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    _compare(ax, (alpha, model[coef]), (alpha, van_ingen[coef]) if van_ingen is not None else None, names,
+             (points["alpha"], points[coef]))
+    _finish(ax, "alpha [rad]", LABELS[coef])
+    return fig
+
+
+def drag_polar(model, van_ingen, points, names):
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    _compare(ax, (model["CD"], model["CL"]), (van_ingen["CD"], van_ingen["CL"]) if van_ingen is not None else None,
+             names, (points["CD"], points["CL"]))
+    _finish(ax, LABELS["CD"], LABELS["CL"], degrees=False)
+    return fig
+
+
+def centre_of_pressure(alpha, derived, curves, x_cg_range, x_cg_ref):
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    ax.plot(alpha, derived["x_cp"], color=COLOURS["model"], lw=2.2, label="centre of pressure x_cp")
+    ax.axhspan(*x_cg_range, color="C2", alpha=0.15, label="centre-of-gravity envelope")
+    ax.axhline(x_cg_ref, color="C2", lw=1, label=f"mean centre of gravity ({x_cg_ref:.3f} m)")
+    for i, (symbol, c) in enumerate(curves.items()):
+        ax.axvline(c["a_star"], color=f"C{3 + i}", ls="--", lw=1, label=f"alpha* of {symbol} ({c['a_star']:.3f} rad)")
+    _finish(ax, "alpha [rad]", "x from the datum 15 in ahead of the nose [m]")
+    return fig
+
+
+def elevator(alpha, model, van_ingen, names):
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    _compare(ax, (alpha, model), (alpha, van_ingen) if van_ingen is not None else None, names)
+    _finish(ax, "alpha [rad]", "C_m_delta_e* [1/rad]")
+    return fig
+
+
+def traces(selection: dict):
+    fig, axes = plt.subplots(3, 3, figsize=(12, 8), squeeze=False)
+    for row, (coef, picks) in enumerate(selection.items()):
+        for col, p in enumerate(picks):
+            ax = axes[row][col]
+            ax.plot(p["t"], p["measured"], color=COLOURS["measured"], lw=0.8, label="measured")
+            ax.plot(p["t"], p["model"], color=COLOURS["model"], lw=1.2, label="model")
+            ax.set_title(f"{coef}: {p['which']} ({p['maneuver']}, R^2 = {p['r2']:.3f})", fontsize=9)
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel(LABELS[coef])
+            ax.grid(alpha=0.3)
+            if row == 0 and col == 0:
+                ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def hysteresis_loop(h: dict):
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.plot(h["alpha"], h["measured"], color=COLOURS["measured"], lw=0.6, label="measured")
+    ax.plot(h["alpha"], h["model"], color=COLOURS["model"], lw=1.0, label="model (separation lag and delay)")
+    ax.plot(h["static_alpha"], h["static"], color="k", ls="--", lw=1.5, label="static curve (no lag)")
+    _finish(ax, "alpha [rad]", LABELS["CL"])
+    return fig
+
+
+def correlations(summaries: dict):
+    fig, axes = plt.subplots(1, len(summaries), figsize=(5.2 * len(summaries), 5), squeeze=False)
+    image = None
+    for ax, (coef, s) in zip(axes[0], summaries.items()):
+        names, matrix = list(s.names), s.correlation_matrix
+        image = ax.imshow(matrix, vmin=-1, vmax=1, cmap="RdBu_r")
+        ax.set_xticks(range(len(names)), names, rotation=90, fontsize=7)
+        ax.set_yticks(range(len(names)), names, fontsize=7)
+        for i in range(len(names)):
+            for j in range(len(names)):
+                if i != j and abs(matrix[i, j]) > 0.9:
+                    ax.text(j, i, "!", ha="center", va="center", fontsize=9, fontweight="bold", color="w")
+        ax.set_title(f"{s.name} ({coef})", fontsize=10)
+    fig.colorbar(image, ax=axes[0].tolist(), shrink=0.8, label="correlation [-] (! where |rho| > 0.9)")
+    return fig
+
+
+def gap(before: np.ndarray, after: np.ndarray, maneuvers, bands, labels):
+    fig, axes = plt.subplots(1, 2, figsize=(12, 0.9 + 0.32 * len(maneuvers) + 1.5), squeeze=False)
+    finite = np.concatenate([before[np.isfinite(before)], after[np.isfinite(after)]])
+    positive = finite[finite > 0]
+    norm = LogNorm(vmin=positive.min(), vmax=positive.max()) if positive.size else None
+    image = None
+    for ax, cells, title in zip(axes[0], (before, after), labels):
+        image = ax.imshow(np.ma.masked_invalid(cells), aspect="auto", cmap="viridis", norm=norm,
+                          extent=(bands[0], bands[-1], len(maneuvers) - 0.5, -0.5), interpolation="nearest")
+        ax.set_yticks(range(len(maneuvers)), maneuvers, fontsize=7)
+        ax.set_xlabel("alpha band [rad]")
+        ax.set_ylabel("validation maneuver")
+        ax.set_title(title, fontsize=10)
+    fig.colorbar(image, ax=axes[0].tolist(), label="validation MSE in the cell [-]")
+    return fig
+
+
+def replay_traces(r, states=("alpha", "q", "V", "theta")):
+    units = {"alpha": "[rad]", "q": "[rad/s]", "V": "[m/s]", "theta": "[rad]"}
+    fig, axes = plt.subplots(len(states), 1, figsize=(10, 2.1 * len(states)), sharex=True)
+    t = r.t - r.t[0]
+    for ax, s in zip(axes, states):
+        ax.plot(t, r.measured[s], color=COLOURS["measured"], lw=1.0, label="measured")
+        ax.plot(t, r.simulated[s], color=COLOURS["model"], lw=1.0, label="simulated (identified model)")
+        for start in r.window_starts[1:]:
+            ax.axvline(t[start], color="0.8", lw=0.6)
+        ax.set_ylabel(f"{s} {units[s]}")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, loc="upper right")
+    axes[-1].set_xlabel("time [s] (grey lines: re-initialised on the measured states)")
+    fig.tight_layout()
+    return fig

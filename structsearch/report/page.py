@@ -1,0 +1,249 @@
+"""``structsearch report``: PNG figures and one self-contained HTML page for a campaign.
+
+The models are the winners of a search written to the output directory
+(``ranking.csv``) when their names resolve, else the thesis' final structures;
+the Van Ingen structures (CL-I, CD-I, Cm-I) are fitted beside them for
+comparison. Fits go through the runner's cache, so after ``structsearch demo``
+the report refits nothing it has already fitted.
+"""
+from __future__ import annotations
+
+import base64
+import csv
+import html
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from . import figures as fg
+from . import figure_data as rd
+from ..flight.aircraft import X_CG_RANGE
+from ..data.campaign import Campaign
+from ..data.errors import DataError, DeclarationError
+from ..data.atomic import write_text
+from .tables import parameter_table, render_table
+from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_MODEL_NAMES
+from ..search.runner import Settings
+
+GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
+
+
+@dataclass(frozen=True)
+class Figure:
+    file: str
+    title: str
+    caption: str
+
+
+def chosen_models(out: Path, overrides: tuple[str, ...] = ()) -> tuple[dict[str, str], list[str]]:
+    """Rank-1 lift, drag and pitch models of ``out/ranking.csv`` where they resolve, else the final ones;
+    ``overrides`` (model names) replace the model of their coefficient."""
+    names, notes = dict(FINAL_MODEL_NAMES), []
+    if overrides:
+        names.update({rd.find_candidate(n).coefficient: rd.find_candidate(n).name for n in overrides})
+        return names, [f"Models chosen on the command line: {', '.join(overrides)}."]
+    path = out / "ranking.csv"
+    if not path.exists():
+        notes.append(f"No {path}: the thesis' final structures are shown (run a search to rank your own).")
+        return names, notes
+    with path.open(newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        missing = [c for c in ("grid", "model", "rank") if c not in (reader.fieldnames or ())]
+        if missing:
+            raise DataError("a search ranking needs this column", source=str(path), column=missing[0], row=1)
+        firsts = {row["grid"]: row["model"] for row in reader if row["rank"] == "1"}
+    for coef, grid in GRIDS.items():
+        if grid not in firsts:
+            continue
+        try:
+            rd.find_candidate(firsts[grid])
+            names[coef] = firsts[grid]
+        except DeclarationError:
+            notes.append(f"The {grid} winner {firsts[grid]} is an automatic refinement that is not in the shipped "
+                         f"grids; the report shows {names[coef]} instead.")
+    lifts = {rd.find_candidate(names[c]).lift for c in ("CD", "Cm")}
+    if lifts != {names["CL"]}:
+        notes.append(f"The drag and pitch winners take their states from {', '.join(sorted(lifts))}, not from the "
+                     f"lift winner {names['CL']}; the report shows the final structures.")
+        names = dict(FINAL_MODEL_NAMES)
+    return names, notes
+
+
+def _best_effect(doc: dict) -> str | None:
+    ok = [e for e in doc["effects"] if "error" not in e]
+    return ok[0]["name"] if ok else None
+
+
+def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_jobs: int = 1,
+          diagnose_coefficient: str | None = "Cm", models: tuple[str, ...] = (),
+          progress: Callable[[str], None] | None = None) -> dict:
+    """Write ``out/figures/*.png`` and ``out/report.html``; returns what was written and the notes."""
+    fg.require()
+    say = progress or (lambda m: None)
+    t0 = time.perf_counter()
+    fig_dir = out / "figures"
+    names, notes = chosen_models(out, models)
+    say(f"report: fitting {', '.join(names.values())} and the Van Ingen structures")
+    ms = rd.fit_model_set("identified", names, campaign, out, settings, n_jobs=n_jobs)
+    try:
+        vi = rd.fit_model_set("Van Ingen", VAN_INGEN_MODEL_NAMES, campaign, out, settings, n_jobs=n_jobs)
+    except DeclarationError as exc:
+        vi = None
+        notes.append(f"The Van Ingen comparison is left out: {exc}")
+    train, val = campaign.split("train"), campaign.split("validation")
+    ref = rd.reference(train)
+    alpha = np.linspace(min(0.0, float(campaign.data["alpha"].min())), float(campaign.data["alpha"].max()), 400)
+    static = rd.static_coefficients(ms, alpha, ref)
+    static_vi = rd.static_coefficients(vi, alpha, ref) if vi else None
+    points = rd.partial_points(ms, campaign.data, ref)
+    curves = rd.separation_curves(ms, alpha)
+    pair = (names["CL"], VAN_INGEN_MODEL_NAMES["CL"])
+    cond = (f"static condition: separation states at equilibrium, q = 0, delta_e = 0, C_T = 0, V = {ref.V:.1f} m/s, "
+            f"x_cg = {ref.x_cg:.3f} m")
+    corrected = ("Grey points: every maneuver's measurements (a seeded subsample of 5000) corrected to the static "
+                 "condition, i.e. the static model at the sample's alpha plus the sample's residual.")
+    written: list[Figure] = []
+
+    def emit(fig, file, title, caption):
+        fg.save(fig, fig_dir / file)
+        written.append(Figure(file, title, caption))
+
+    emit(fg.separation(curves, alpha), "separation_static.png", "Static flow separation",
+         f"X_0(alpha) of each separation state of {names['CL']} with the stall stages marked: flow starts to "
+         "separate (X_0 = 0.9), half separated (alpha*, X_0 = 0.5), fully stalled (X_0 = 0.1) (thesis Fig. 6).")
+    emit(fg.static_curve("CL", alpha, static, static_vi, points, pair), "lift_static.png", "Static lift curve",
+         f"C_L(alpha) of {names['CL']} and of the Van Ingen structure {pair[1]} in the {cond}. {corrected} "
+         "(thesis Fig. 7)")
+    emit(fg.drag_polar(static, static_vi, points, (names["CD"], VAN_INGEN_MODEL_NAMES["CD"])), "drag_polar.png",
+         "Static drag polar",
+         f"C_L against C_D of {names['CD']} (with {names['CL']}) and of {VAN_INGEN_MODEL_NAMES['CD']} (with "
+         f"{VAN_INGEN_MODEL_NAMES['CL']}) in the {cond}. {corrected} (thesis Fig. 8)")
+    emit(fg.static_curve("Cm", alpha, static, static_vi, points, (names["Cm"], VAN_INGEN_MODEL_NAMES["Cm"])),
+         "pitch_static.png", "Static pitch moment",
+         f"C_m(alpha) of {names['Cm']} and {VAN_INGEN_MODEL_NAMES['Cm']} in the {cond}; C_L from the lift model. "
+         f"{corrected} Both curves hold delta_e = 0: a structure whose elevator term cannot be told apart from "
+         "alpha in trimmed flight (the elevator follows alpha) carries part of the alpha slope in that term. "
+         "(thesis Fig. 11)")
+    derived = rd.derived_pitch(ms, alpha, ref)
+    if derived["depends_on_CL"]:
+        emit(fg.centre_of_pressure(alpha, derived, curves, X_CG_RANGE, ref.x_cg), "centre_of_pressure.png",
+             "Centre of pressure",
+             f"x_cp = x_cg + l_cp * cbar with l_cp = -dC_m/dC_L of {names['Cm']} (Eq. 32) at the mean centre of "
+             "gravity, against the centre-of-gravity envelope (276-286 in); dashed: alpha* of each separation "
+             "state (thesis Fig. 9). The aircraft is statically stable where x_cp lies aft of x_cg.")
+    else:
+        notes.append(f"{names['Cm']} has no C_L term, so it implies no centre of pressure; that figure is left out.")
+    vi_de = rd.derived_pitch(vi, alpha, ref)["Cm_de"] if vi else None
+    emit(fg.elevator(alpha, derived["Cm_de"], vi_de, (names["Cm"], VAN_INGEN_MODEL_NAMES["Cm"])), "elevator_effectiveness.png",
+         "Elevator effectiveness",
+         f"C_m_delta_e*(alpha) = dC_m/d delta_e of {names['Cm']} (Eq. 33) and of {VAN_INGEN_MODEL_NAMES['Cm']}, whose "
+         "max(1/2, X) term forces a 50 % loss, with the separation states at equilibrium (thesis Fig. 10).")
+    selection = rd.trace_selection(ms, val)
+    emit(fg.traces(selection), "time_traces.png", "Measured and modelled coefficients",
+         "Validation maneuvers with the best, median and worst R^2 of each coefficient (one row per coefficient; "
+         f"models {names['CL']}, {names['CD']}, {names['Cm']} fitted on the training maneuvers) (thesis Fig. 13).")
+    hyst = rd.hysteresis(ms, campaign, ref)
+    emit(fg.hysteresis_loop(hyst), "hysteresis.png", "Dynamic stall hysteresis",
+         f"C_L against alpha during maneuver {hyst['maneuver']} ({hyst['kind']}, {hyst['split']}): the separation "
+         "lag makes lift overshoot the static curve while alpha rises and fall below it while alpha falls.")
+    emit(fg.correlations(ms.summaries), "correlations.png", "Parameter correlations",
+         "Correlation matrices of the estimates (coloured-residual covariance); '!' marks |rho| > 0.9.")
+    diagnosis = None
+    if diagnose_coefficient:
+        from ..diagnosis.diagnose import diagnose
+        say(f"report: diagnosing {names[diagnose_coefficient]}")
+        diagnosis = diagnose(campaign, ms.candidates[diagnose_coefficient], settings=settings, max_rounds=1,
+                             states=False)
+        best = _best_effect(diagnosis)
+        if best is not None:
+            g = rd.with_effect(ms, diagnose_coefficient, best, campaign, out, settings)
+            verdict = ("the baseline is at the noise floor, so little changes"
+                       if diagnosis["gap_explained_by_baseline"] else f"the gap shrinks by "
+                       f"{next(e['shrink'] for e in diagnosis['effects'] if e['name'] == best):.0%}")
+            emit(fg.gap(g["before"], g["after"], g["maneuvers"], g["bands"],
+                        (f"before: {g['baseline']} (MSE {g['mse_before']:.3g})",
+                         f"after adding {best}: {g['model']} (MSE {g['mse_after']:.3g})")),
+                 "gap_breakdown.png", "Where the model misses the data",
+                 f"Validation MSE of {diagnose_coefficient} per maneuver and alpha band ({rd.ALPHA_BAND} rad) before "
+                 f"and after the best effect of the library, {best}; noise floor {diagnosis['noise_floor']:.3g}; "
+                 f"{verdict}. Empty cells: the maneuver never flew that band.")
+    try:
+        from ..flight.replay import replay
+        runs = replay(campaign.data.select([hyst["index"]]), ms.aero, window_s=5.0)
+        rms = runs[0].rms
+        emit(fg.replay_traces(runs[0]), "forward_simulation.png", "Forward simulation",
+             f"Maneuver {hyst['maneuver']} replayed through the simulator with the identified models: recorded "
+             "elevator and thrust drive it open loop in 5 s windows, each started from the measured states. RMS "
+             f"error: alpha {rms['alpha']:.4f} rad, q {rms['q']:.4f} rad/s, V {rms['V']:.2f} m/s.")
+    except DataError as exc:
+        notes.append(f"No forward simulation: {exc}")
+    page = render_html(campaign, out, names, ms, vi, written, notes, diagnosis)
+    write_text(out / "report.html", page)
+    return {"html": out / "report.html", "figures": [fig_dir / f.file for f in written], "notes": notes,
+            "seconds": time.perf_counter() - t0}
+
+
+def _image(path: Path) -> str:
+    return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode("ascii")
+
+
+def _ranking_table(out: Path, grid: str, top: int = 10) -> str | None:
+    path = out / f"{grid}.csv"
+    if not path.exists():
+        return None
+    with path.open(newline="", encoding="utf-8") as fh:
+        rows = list(csv.reader(fh))
+    if len(rows) < 2:
+        return None
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in rows[0])
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(v)}</td>" for v in r) + "</tr>" for r in rows[1:top + 1])
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+STYLE = """body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
+table{border-collapse:collapse;font-size:12px;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:2px 6px}
+figure{margin:1.5em 0}img{max-width:100%}figcaption{font-size:13px;color:#444}.note{color:#8a5a00}"""
+
+
+def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, diagnosis) -> str:
+    d = campaign.data
+    n_val = sum(m.split == "validation" for m in campaign.maneuvers)
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>structsearch report: "
+             f"{html.escape(campaign.name)}</title><style>{STYLE}</style></head><body>",
+             f"<h1>{html.escape(campaign.name)}</h1>",
+             f"<p>{len(campaign.maneuvers)} maneuvers ({n_val} validation), {d.n_samples} samples. Models: "
+             + ", ".join(f"{c} {html.escape(n)}" for c, n in names.items()) + ".</p>"]
+    parts += [f"<p class='note'>{html.escape(n)}</p>" for n in notes]
+    parts.append("<h2>Figures</h2>")
+    for f in written:
+        parts.append(f"<figure><h3>{html.escape(f.title)}</h3><img src='{_image(out / 'figures' / f.file)}' "
+                     f"alt='{html.escape(f.title)}'><figcaption>{html.escape(f.caption)}</figcaption></figure>")
+    parts.append("<h2>Identified parameters</h2>")
+    for coef in rd.COEFFICIENTS:
+        s = ms.summaries[coef]
+        parts.append(f"<h3>{html.escape(s.name)}</h3><p>MSE training {s.mse_train:.4g}, validation "
+                     f"{s.mse_validation:.4g}</p>" + parameter_table(s, "html"))
+    if vi is not None:
+        parts.append("<h3>Van Ingen structures, refitted on this campaign</h3><p>"
+                     + "; ".join(f"{html.escape(s.name)}: MSE validation {s.mse_validation:.4g}"
+                                 + (f" (at a bound: {html.escape(', '.join(s.at_bound))})" if s.at_bound else "")
+                                 for s in vi.summaries.values())
+                     + ". An estimate on its bound means the structure fits these data best at the edge of its "
+                       "physical range: a sign that it misses something the data contain.</p>")
+    if diagnosis is not None:
+        parts.append(f"<h2>Diagnosis of {html.escape(diagnosis['baseline'])}</h2>"
+                     f"<p>Validation MSE {diagnosis['mse']['validation']:.4g}, noise floor "
+                     f"{diagnosis['noise_floor']:.4g}; explained: {'yes' if diagnosis['explained'] else 'no'}.</p>")
+        rows = [[e["name"], e.get("shrink", float("nan")), e.get("p_value", float("nan")),
+                 e.get("acts_in", "-"), e.get("error", "")] for e in diagnosis["effects"]]
+        parts.append(render_table(rows, ["effect", "shrink", "p-value", "acts in", "error"], "html",
+                                  floatfmt=".3g"))
+    tables = [(grid, _ranking_table(out, grid)) for grid in ("separation", "lift", "drag", "pitch")]
+    if any(t for _, t in tables):
+        parts.append("<h2>Search rankings (first ten of each grid)</h2>")
+        parts += [f"<h3>{grid}</h3>{t}" for grid, t in tables if t]
+    parts.append("</body></html>")
+    return "\n".join(parts)

@@ -1,0 +1,159 @@
+"""Every table structsearch prints or writes, rendered one way (text, Markdown, LaTeX, HTML, CSV).
+
+Parameter and correlation tables accept anything that reads like a fit: a
+:class:`~structsearch.engine.results.FitResult` or a search's
+:class:`~structsearch.search.candidate_result.CandidateResult` (``names``,
+``nonlinear_names``, ``params``, ``stderr``, ``p_values``, ``significant``,
+``at_bound``, ``high_correlations``, ``correlation``).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+from tabulate import tabulate
+
+from ..data.atomic import write_text
+from ..engine.results import HIGH_CORRELATION
+from ..search.candidate_result import CandidateResult
+
+FORMATS = ("text", "markdown", "latex", "html", "csv")
+TABLEFMT = {"text": "simple", "markdown": "github", "md": "github", "latex": "latex_booktabs",
+             "tex": "latex_booktabs", "html": "html"}
+
+
+def render_table(rows, headers, fmt: str, floatfmt: str = ".6g", numparse: bool = True) -> str:
+    """One table as text, Markdown ("markdown"/"md"), LaTeX ("latex"/"tex"), HTML or CSV."""
+    if fmt == "csv":
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(headers)
+        writer.writerows(rows)
+        return buf.getvalue()
+    if fmt not in TABLEFMT:
+        raise ValueError(f"format must be one of {FORMATS}, not {fmt!r}")
+    return tabulate(rows, headers=headers, tablefmt=TABLEFMT[fmt], floatfmt=floatfmt,
+                    disable_numparse=not numparse)
+
+
+def _with_newline(text: str, fmt: str) -> str:
+    return text if fmt == "csv" else text + "\n"
+
+
+# ----- parameters and correlations of one fit -------------------------------------------------
+PARAMETER_HEADERS = ["parameter", "kind", "estimate", "std. dev.", "t", "p (two-sided)", "flags"]
+
+
+def parameter_flags(fit, name: str) -> list[str]:
+    flags = []
+    if name in fit.at_bound:
+        flags.append(f"at {fit.at_bound[name]} bound")
+    if not fit.significant[name]:
+        flags.append("t-test accepts 0")
+    if any(name in pair[:2] for pair in fit.high_correlations):
+        flags.append(f"|rho| > {HIGH_CORRELATION}")
+    return flags
+
+
+def parameter_rows(fit) -> list[list]:
+    rows = []
+    for name in fit.names:
+        value, se = fit.params[name], fit.stderr[name]
+        t = value / se if se > 0 else math.nan  # a zero standard deviation is not an infinite t
+        kind = "nonlinear" if name in fit.nonlinear_names else "linear"
+        rows.append([name, kind, value, se, t, fit.p_values[name], "; ".join(parameter_flags(fit, name))])
+    return rows
+
+
+def parameter_table(fit, fmt: str = "text") -> str:
+    """Estimates, standard deviations, t-tests and flags (thesis Tables 11, 13, 15)."""
+    return _with_newline(render_table(parameter_rows(fit), PARAMETER_HEADERS, fmt, floatfmt=".4g"), fmt)
+
+
+def correlation_table(fit, fmt: str = "text") -> str:
+    """Parameter correlation matrix (thesis Tables 12, 14, 16); |rho| above the flag level marked *."""
+    names = list(fit.names)
+    matrix = np.asarray(fit.correlation, float).reshape(len(names), len(names))
+    if fmt == "csv":
+        return render_table([[n] + [f"{v:.4f}" for v in row] for n, row in zip(names, matrix)], [""] + names, fmt)
+    body = [[n] + [f"{v:+.2f}" + ("*" if i != j and abs(v) > HIGH_CORRELATION else "") for j, v in enumerate(row)]
+            for i, (n, row) in enumerate(zip(names, matrix))]
+    return _with_newline(render_table(body, [""] + names, fmt, numparse=False), fmt)
+
+
+# ----- the ranking of a grid ----------------------------------------------------------------
+# (ranking.csv field, table header); ranking.csv also carries "grid", "message" and "error".
+COLUMNS = [("rank", "rank"), ("model", "model"), ("lift", "lift model"), ("n_params", "parameters"),
+           ("mse_train", "MSE train"), ("mse_validation", "MSE validation"),
+           ("mse_cx_validation", "MSE C_X val."), ("mse_cz_validation", "MSE C_Z val."),
+           ("r2_validation_mean", "R2 val. mean"), ("r2_validation_min", "R2 val. min"),
+           ("r2_validation_max", "R2 val. max"), ("aic", "AIC"), ("n_insignificant", "t-test accepts 0"),
+           ("n_high_corr", f"|rho| > {HIGH_CORRELATION}"), ("within_noise", "within noise of best"),
+           ("converged", "converged"), ("nfev", "evaluations")]
+RANKING_FIELDS = ["grid", "model", "rank", "mse_train", "mse_validation", "n_params", "lift", "mse_cx_validation",
+                  "mse_cz_validation", "r2_validation_mean", "r2_validation_min", "r2_validation_max", "aic",
+                  "n_insignificant", "n_high_corr", "within_noise", "converged", "nfev", "message", "error"]
+
+
+def table_row(s: CandidateResult) -> dict:
+    """One candidate as the fields of ``ranking.csv`` (None where there is no value)."""
+    row = {"grid": s.grid, "model": s.name, "rank": s.rank, "lift": s.lift or "-", "error": s.error}
+    if not s.failed:
+        v = s.validation
+        row.update({"n_params": s.n_params, "mse_train": s.mse_train, "mse_validation": s.mse_validation,
+                    "mse_cx_validation": v.mse_cx, "mse_cz_validation": v.mse_cz,
+                    "r2_validation_mean": v.r2.mean, "r2_validation_min": v.r2.min, "r2_validation_max": v.r2.max,
+                    "aic": s.aic, "n_insignificant": len(s.insignificant), "n_high_corr": len(s.high_correlations),
+                    "within_noise": s.within_noise, "converged": s.converged, "nfev": s.nfev,
+                    "message": s.message})
+    return row
+
+
+def _cell(v):
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return "-" if math.isnan(v) else f"{v:.4g}"
+    return v
+
+
+def grid_table(ranked: list[CandidateResult], fmt: str) -> str:
+    """A grid's ranking (thesis Tables 8, 9, 10, 20): one row per candidate, best first."""
+    headers = [h for _, h in COLUMNS] + ["error"]
+    body = []
+    for s in ranked:
+        row = table_row(s)
+        body.append([_cell(row.get(k)) for k, _ in COLUMNS] + [row["error"] or ""])
+    return _with_newline(render_table(body, headers, fmt), fmt)
+
+
+def ranking_csv(ranked_by_grid: dict[str, list[CandidateResult]]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(RANKING_FIELDS)
+    for ranked in ranked_by_grid.values():
+        for s in ranked:
+            row = table_row(s)
+            w.writerow(["" if row.get(f) is None else row[f] for f in RANKING_FIELDS])
+    return buf.getvalue()
+
+
+def write_tables(ranked_by_grid: dict[str, list[CandidateResult]], out: Path) -> list[Path]:
+    """``ranking.csv`` plus, per grid, the ranking (thesis Tables 8, 9, 10, 20) and the best candidate's
+    parameters (Tables 11, 13, 15) and correlation matrix (Tables 12, 14, 16) in md/tex/csv."""
+    out = Path(out)
+    written = [write_text(out / "ranking.csv", ranking_csv(ranked_by_grid))]
+    for grid, ranked in ranked_by_grid.items():
+        safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in grid)
+        best = next((s for s in ranked if not s.failed), None)
+        for fmt in ("md", "tex", "csv"):
+            written.append(write_text(out / f"{safe}.{fmt}", grid_table(ranked, fmt)))
+            if best is not None:
+                written.append(write_text(out / f"{safe}_best_parameters.{fmt}", parameter_table(best, fmt)))
+                written.append(write_text(out / f"{safe}_best_correlation.{fmt}", correlation_table(best, fmt)))
+    return written

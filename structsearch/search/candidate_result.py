@@ -1,0 +1,188 @@
+"""The typed result of one candidate of a search: its fit, its scores on both splits, its rank.
+
+The runner caches it as JSON (``to_json``/``from_json``), the ranking orders it, and the
+tables, ``fit.json`` and ``ranking.csv`` read it; a failed candidate carries its reason
+in ``error`` and no estimates.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+import numpy as np
+
+from ..data.atomic import json_ready
+from ..engine.results import FitResult
+from ..engine.scores import ManeuverScores, R2Summary
+
+# Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
+JSON_LAYOUT = 1
+
+
+def _finite_or_none(v: float | None) -> float | None:
+    return None if v is None or not math.isfinite(v) else float(v)
+
+
+def _nan_if_none(v) -> float:
+    return float("nan") if v is None else float(v)
+
+
+@dataclass(frozen=True)
+class SplitScores:
+    """How a fitted candidate scores on the training or the validation maneuvers."""
+
+    mse: float                          # pooled over samples
+    mse_maneuvers: tuple[float, ...]    # per maneuver
+    n_maneuvers: tuple[int, ...]        # samples per maneuver
+    r2: R2Summary                       # per-maneuver R^2: mean / min / max
+    mse_cx: float | None = None         # derived body-axis coefficients (lift and drag candidates)
+    mse_cz: float | None = None
+
+    @classmethod
+    def of(cls, scores: ManeuverScores, derived: tuple[float, float] | None) -> "SplitScores":
+        cx, cz = derived if derived else (None, None)
+        return cls(scores.pooled_mse, tuple(map(float, scores.mse)), tuple(map(int, scores.counts)),
+                   scores.r2_summary(), cx, cz)
+
+    def to_json(self) -> dict:
+        return {"mse": self.mse, "mse_maneuvers": list(self.mse_maneuvers), "n_maneuvers": list(self.n_maneuvers),
+                "r2": self.r2.as_dict(),
+                "mse_cx": self.mse_cx, "mse_cz": self.mse_cz}
+
+    @classmethod
+    def from_json(cls, doc: dict) -> "SplitScores":
+        r2 = doc["r2"]
+        return cls(float(doc["mse"]), tuple(map(float, doc["mse_maneuvers"])), tuple(map(int, doc["n_maneuvers"])),
+                   R2Summary(_nan_if_none(r2["mean"]), _nan_if_none(r2["min"]), _nan_if_none(r2["max"])),
+                   doc.get("mse_cx"), doc.get("mse_cz"))
+
+
+@dataclass(frozen=True)
+class CandidateResult:
+    """One candidate of a grid after fitting (or failing) and, once ranked, its place.
+
+    Parameter tables read ``names``, ``nonlinear_names``, ``params``, ``stderr``,
+    ``p_values``, ``significant``, ``at_bound``, ``high_correlations`` and
+    ``correlation`` as they read a :class:`~structsearch.engine.results.FitResult`.
+    """
+
+    name: str
+    grid: str
+    coefficient: str
+    lift: str | None
+    seconds: float
+    error: str | None = None
+    # --- the fit (None when it failed) ---
+    names: tuple[str, ...] = ()
+    nonlinear_names: tuple[str, ...] = ()
+    params: dict[str, float] | None = None
+    stderr: dict[str, float] | None = None
+    p_values: dict[str, float] | None = None
+    at_bound: dict[str, str] | None = None
+    high_correlations: tuple[tuple[str, str, float], ...] = ()
+    correlation: tuple[tuple[float, ...], ...] = ()
+    significance: float = 0.05
+    n_starts: int = 0
+    n_reached_best: int = 0
+    aic: float | None = None
+    bic: float | None = None
+    max_lag: int | None = None
+    converged: bool | None = None      # the optimizer's own verdict on the best start
+    message: str = ""                  # and its words
+    nfev: int = 0                      # residual evaluations of the best start
+    train: SplitScores | None = None
+    validation: SplitScores | None = None
+    # --- set by the ranking ---
+    rank: int | None = None
+    within_noise: bool | None = None
+    gap: float | None = None            # mean per-maneuver relative validation MSE excess over the best
+    gap_se: float | None = None         # its standard error
+
+    # ----- construction ---------------------------------------------------------------
+    @classmethod
+    def from_fit(cls, *, name: str, grid: str, coefficient: str, lift: str | None, result: FitResult,
+                 train: SplitScores, validation: SplitScores, seconds: float) -> "CandidateResult":
+        return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds,
+                   names=tuple(result.names), nonlinear_names=tuple(result.nonlinear_names),
+                   params=dict(result.params), stderr=dict(result.stderr), p_values=dict(result.p_values),
+                   at_bound=dict(result.at_bound),
+                   high_correlations=tuple((a, b, float(c)) for a, b, c in result.high_correlations),
+                   correlation=tuple(tuple(map(float, row)) for row in np.asarray(result.correlation)),
+                   significance=result.significance, n_starts=result.n_starts,
+                   n_reached_best=result.n_reached_best, aic=result.aic, bic=result.bic, max_lag=result.max_lag,
+                   converged=bool(result.success), message=result.message, nfev=int(result.nfev),
+                   train=train, validation=validation)
+
+    @classmethod
+    def failure(cls, *, name: str, grid: str, coefficient: str, lift: str | None, error: str,
+                seconds: float) -> "CandidateResult":
+        return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds, error=error)
+
+    def ranked(self, **placing: Any) -> "CandidateResult":
+        """A copy with the ranking's fields (``rank``, ``within_noise``, ``gap``, ``gap_se``) set."""
+        return replace(self, **placing)
+
+    # ----- derived ----------------------------------------------------------------------
+    @property
+    def failed(self) -> bool:
+        return self.error is not None
+
+    @property
+    def n_params(self) -> int:
+        return len(self.names)
+
+    @property
+    def linear_names(self) -> tuple[str, ...]:
+        return tuple(n for n in self.names if n not in self.nonlinear_names)
+
+    @property
+    def mse_train(self) -> float:
+        return self.train.mse
+
+    @property
+    def mse_validation(self) -> float:
+        return self.validation.mse
+
+    @property
+    def significant(self) -> dict[str, bool]:
+        return {n: p < self.significance for n, p in self.p_values.items()}
+
+    @property
+    def insignificant(self) -> tuple[str, ...]:
+        """Parameters whose t-test accepts zero."""
+        return tuple(n for n, s in self.significant.items() if not s)
+
+    @property
+    def correlation_matrix(self) -> np.ndarray:
+        return np.asarray(self.correlation, float).reshape(len(self.names), len(self.names))
+
+    # ----- JSON (the cache) -------------------------------------------------------------
+    def to_json(self) -> dict:
+        doc = asdict(self)
+        doc["layout"] = JSON_LAYOUT
+        for split in ("train", "validation"):
+            s = getattr(self, split)
+            doc[split] = s.to_json() if s is not None else None
+        doc["high_correlations"] = [list(p) for p in self.high_correlations]
+        doc["correlation"] = [list(row) for row in self.correlation]
+        doc["names"], doc["nonlinear_names"] = list(self.names), list(self.nonlinear_names)
+        return json_ready(doc)
+
+    @classmethod
+    def from_json(cls, doc: dict) -> "CandidateResult":
+        if doc.get("layout") != JSON_LAYOUT:
+            raise ValueError(f"candidate result of layout {doc.get('layout')!r}, expected {JSON_LAYOUT}")
+        known = {f.name for f in fields(cls)}
+        values = {k: v for k, v in doc.items() if k in known}
+        for split in ("train", "validation"):
+            if values.get(split) is not None:
+                values[split] = SplitScores.from_json(values[split])
+        values["names"] = tuple(values.get("names", ()))
+        values["nonlinear_names"] = tuple(values.get("nonlinear_names", ()))
+        values["high_correlations"] = tuple((a, b, float(c)) for a, b, c in values.get("high_correlations", ()))
+        values["correlation"] = tuple(tuple(map(_nan_if_none, row)) for row in values.get("correlation", ()))
+        for key in ("params", "stderr", "p_values"):
+            if values.get(key) is not None:
+                values[key] = {k: _nan_if_none(v) for k, v in values[key].items()}
+        return cls(**values)

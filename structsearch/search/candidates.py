@@ -1,0 +1,72 @@
+"""Candidate model structures and the grids that hold them (declared in model_specs/ or in code)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..data.errors import DeclarationError
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One model structure of a grid."""
+
+    name: str
+    grid: str
+    coefficient: str
+    regressors: tuple[tuple[str, str], ...]
+    states: tuple[tuple[str, str], ...] = ()
+    lift: str | None = None
+    note: str = ""
+    bounds: tuple[tuple[str, tuple[float, float]], ...] = ()
+
+    @property
+    def n_linear(self) -> int:
+        return len(self.regressors)
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "grid": self.grid, "coefficient": self.coefficient,
+                "regressors": dict(self.regressors), "states": dict(self.states), "lift": self.lift,
+                "note": self.note, "bounds": {k: list(v) for k, v in self.bounds}}
+
+
+@dataclass(frozen=True)
+class Grid:
+    name: str
+    coefficient: str
+    candidates: tuple[Candidate, ...]
+    source: str = ""
+    lift_grid: "Grid | None" = field(default=None, repr=False)
+
+    def __getitem__(self, name: str) -> Candidate:
+        for c in self.candidates:
+            if c.name == name:
+                return c
+        raise DeclarationError(f"grid {self.name!r} has no candidate {name!r}")
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(c.name for c in self.candidates)
+
+
+_ROMAN = [(1000, "M"), (900, "CM"), (500, "D"), (400, "CD"), (100, "C"), (90, "XC"), (50, "L"),
+          (40, "XL"), (10, "X"), (9, "IX"), (5, "V"), (4, "IV"), (1, "I")]
+
+
+def roman(n: int) -> str:
+    out = ""
+    for value, letters in _ROMAN:
+        while n >= value:
+            out += letters
+            n -= value
+    return out
+
+
+def from_roman(text: str) -> int | None:
+    values = {"I": 1, "V": 5, "X": 10, "L": 50, "C": 100, "D": 500, "M": 1000}
+    if not text or any(ch not in values for ch in text):
+        return None
+    total = 0
+    for a, b in zip(text, text[1:] + " "):
+        v = values[a]
+        total += -v if b != " " and values.get(b, 0) > v else v
+    return total if roman(total) == text else None

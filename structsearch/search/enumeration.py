@@ -1,0 +1,94 @@
+"""Grid expansion: the candidates a grid document declares by blocks and rules, in order."""
+from __future__ import annotations
+
+from itertools import product
+from typing import Sequence
+
+from ..data.errors import DeclarationError
+from ..engine.separation import SeparationState
+from .candidates import Candidate, Grid, from_roman, roman
+
+
+def _blocks(doc: dict, names: Sequence[str], where: str) -> list[tuple[str, str]]:
+    table = doc.get("blocks", {})
+    out: list[tuple[str, str]] = []
+    for b in names:
+        if b not in table:
+            raise DeclarationError(f"{where}: unknown block {b!r} (blocks: {', '.join(table)})")
+        for reg, expr in table[b].items():
+            if any(reg == r for r, _ in out):
+                raise DeclarationError(f"{where}: regressor {reg!r} appears twice")
+            out.append((reg, str(expr)))
+    return out
+
+
+def expand(doc: dict, source: str) -> Grid:
+    """Expand a grid document (see :mod:`structsearch.search.specs`) into its candidates, in order."""
+    for key in ("name", "coefficient", "entry"):
+        if key not in doc:
+            raise DeclarationError(f"{source}: missing {key!r}")
+    name, coefficient = doc["name"], doc["coefficient"]
+    prefix = doc.get("prefix", f"{name}-")
+    default_lift = doc.get("lift")
+    sets = doc.get("sets", {})
+    counter = 0
+    candidates: list[Candidate] = []
+
+    def add(cand_name: str | None, regs, states, lift, note, where, bounds=()):
+        nonlocal counter
+        if cand_name is None:
+            counter += 1
+            cand_name = prefix + roman(counter)
+        else:
+            number = from_roman(cand_name[len(prefix):]) if cand_name.startswith(prefix) else None
+            if number is not None:
+                counter = number
+        if any(c.name == cand_name for c in candidates):
+            raise DeclarationError(f"{where}: candidate name {cand_name!r} used twice")
+        if not regs:
+            raise DeclarationError(f"{where}: candidate {cand_name!r} has no regressors")
+        own = {p for k, kind in states for p in _state_params(k, kind)}
+        candidates.append(Candidate(cand_name, name, coefficient, tuple(regs), tuple(states), lift, note,
+                                    tuple(b for b in bounds if b[0] in own)))
+
+    for i, entry in enumerate(doc["entry"]):
+        where = f"{source} [[entry]] #{i + 1}"
+        lift = entry.get("lift", default_lift)
+        states = tuple((k, v) for k, v in entry.get("states", {}).items())
+        note = entry.get("note", "")
+        bounds = tuple((k, (float(v[0]), float(v[1]))) for k, v in doc.get("bounds", {}).items())
+        bounds += tuple((k, (float(v[0]), float(v[1]))) for k, v in entry.get("bounds", {}).items())
+        if "from" in entry:
+            base = next((c for c in candidates if c.name == entry["from"]), None)
+            if base is None:
+                raise DeclarationError(f"{where}: 'from' names {entry['from']!r}, which is not declared before it")
+            drop = entry.get("drop", [])
+            missing = [d for d in drop if d not in dict(base.regressors)]
+            if missing:
+                raise DeclarationError(f"{where}: cannot drop {missing[0]!r}: not a regressor of {base.name}")
+            regs = [r for r in base.regressors if r[0] not in drop]
+            add(entry.get("name"), regs, base.states, base.lift, note, where, base.bounds)
+        elif "kinds" in entry:
+            kinds = entry["kinds"]
+            regs = _blocks(doc, entry.get("blocks", []), where)
+            for combo in product(*kinds.values()):
+                st = tuple(zip(kinds.keys(), combo))
+                add(prefix + "/".join(combo), regs, st, lift, note, where, bounds)
+        elif "combinations" in entry:
+            combos = entry["combinations"]
+            if isinstance(combos, str):
+                if combos not in sets:
+                    raise DeclarationError(f"{where}: unknown set {combos!r}")
+                combos = sets[combos]
+            for combo in combos:
+                add(None, _blocks(doc, list(entry.get("always", [])) + list(combo), where), states, lift, note,
+                    where, bounds)
+        else:
+            regs = _blocks(doc, entry.get("blocks", []), where)
+            regs += [(k, str(v)) for k, v in entry.get("regressors", {}).items()]
+            add(entry.get("name"), regs, states, lift, note, where, bounds)
+    return Grid(name, coefficient, tuple(candidates), source)
+
+
+def _state_params(state: str, kind: str) -> list[str]:
+    return list(SeparationState(state, kind).parameters)

@@ -1,0 +1,46 @@
+"""Ranking of a grid's candidates (the tables are rendered by :mod:`structsearch.report.tables`).
+
+Ranking rule (one-standard-error rule on validation data): the candidate with
+the lowest validation MSE of the modelled coefficient sets the bar; every
+candidate whose per-maneuver relative excess in validation MSE is, on average,
+less than one standard error of that excess (or below 1 %) is "within noise" of it. Those come first, fewest
+parameters first (then lowest validation MSE); the rest follow by validation MSE.
+Failed candidates come last with their reason.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..engine.scores import weighted_mean_se
+from .candidate_result import CandidateResult
+
+# A relative excess below this is never a reason to prefer a larger model.
+PRACTICAL_TOLERANCE = 0.01
+
+
+def _paired_gap(a: CandidateResult, best: CandidateResult) -> tuple[float, float]:
+    """Mean and standard error of the per-maneuver relative validation MSE excess over the best.
+
+    Relative, because maneuvers differ in difficulty by orders of magnitude (a deep
+    stall against a pullup); a missing effect shows as a consistent relative excess.
+    """
+    excess = np.array(a.validation.mse_maneuvers) / np.array(best.validation.mse_maneuvers) - 1.0
+    return weighted_mean_se(excess, np.array(a.validation.n_maneuvers, float))
+
+
+def rank(results: list[CandidateResult]) -> list[CandidateResult]:
+    """One grid's results, best first, with ``rank``, ``within_noise``, ``gap`` and ``gap_se`` set."""
+    ok = [s for s in results if not s.failed]
+    failed = [s for s in results if s.failed]
+    if ok:
+        best = min(ok, key=lambda s: s.mse_validation)
+        placed = []
+        for s in ok:
+            gap, se = _paired_gap(s, best)
+            # one validation maneuver gives no standard error: only the practical tolerance applies
+            bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
+            placed.append(s.ranked(gap=gap, gap_se=se, within_noise=bool(s is best or gap <= bar)))
+        top = sorted((s for s in placed if s.within_noise), key=lambda s: (s.n_params, s.mse_validation))
+        rest = sorted((s for s in placed if not s.within_noise), key=lambda s: s.mse_validation)
+        ok = top + rest
+    return [s.ranked(rank=i + 1) for i, s in enumerate(ok)] + failed

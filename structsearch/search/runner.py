@@ -1,0 +1,207 @@
+"""Runner: fit every candidate of a grid in parallel, cache each result on disk, resume.
+
+Every finished candidate is written to ``<out>/cache/<grid>/<name>-<key>.json``
+(atomically); the key hashes the candidate, the data, the lift parameters it
+depends on and the settings, so an interrupted search resumes where it stopped
+and a changed input is never served from a stale cache. A failing candidate is
+recorded with its reason and never stops the search. Results are identical for
+any number of jobs: each fit is seeded and runs on one process.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..data.campaign import Campaign
+from ..data.flightdata import FlightData
+from ..data.errors import StructSearchError
+from ..data.atomic import write_json
+from ..engine.regressors import declare
+from ..engine.separation import SeparationState
+from .candidates import Candidate
+from .specs import load_grid
+from ..engine.scores import ManeuverScores
+from ..engine.stallmodel import StallModel
+from .candidate_result import JSON_LAYOUT, CandidateResult, SplitScores
+
+@dataclass(frozen=True)
+class Settings:
+    n_starts: int = 4
+    seed: int = 0
+    significance: float = 0.05
+
+    def key(self) -> dict:
+        return {"n_starts": self.n_starts, "seed": self.seed}
+
+
+def fingerprint(data: FlightData) -> str:
+    h = hashlib.sha256()
+    for name in sorted(data.columns):
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(data.columns[name]).tobytes())
+    h.update(np.asarray(data.starts).tobytes())
+    return h.hexdigest()[:16]
+
+
+def build_model(c: Candidate, lift: CandidateResult | None = None) -> StallModel:
+    """The StallModel of a candidate; ``lift`` is the fitted lift model it names."""
+    fixed = None
+    states = dict(c.states)
+    if c.lift:
+        if lift is None or lift.failed:
+            raise StructSearchError(f"candidate {c.name} needs the fitted lift model {c.lift}")
+        # only the lift model's states this candidate's regressors use (CD-X has none)
+        symbols = {SeparationState(n, k).symbol: n for n, k in states.items()}
+        used = {s for name, text in c.regressors
+                for s in declare(name, text, states=list(symbols)).states}
+        states = {symbols[s]: states[symbols[s]] for s in symbols if s in used}
+        own = {p for n, k in states.items() for p in SeparationState(n, k).parameters}
+        fixed = {k: lift.params[k] for k in lift.nonlinear_names if k in own}
+    free_bounds = {k: v for k, v in c.bounds if not fixed or k not in fixed}
+    free_bounds = {k: v for k, v in free_bounds.items()
+                   if k in {p for n, kd in states.items() for p in SeparationState(n, kd).parameters}}
+    return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states, fixed=fixed,
+                              bounds=free_bounds)
+
+
+def with_lift_prediction(data: FlightData, lift: CandidateResult, lift_candidate: Candidate) -> FlightData:
+    """``data`` with column CL replaced by the lift model's output (the thesis feeds the lift model to
+    drag and pitch; the measured C_L carries buffet noise that would bias them as errors in variables)."""
+    cols = dict(data.columns)
+    cols["CL_measured"] = data["CL"]
+    cols["CL"] = build_model(lift_candidate).predict(data, lift.params)
+    return FlightData(cols, data.starts, data.names, data.source, dict(data.constants))
+
+
+def predict_candidate(c: Candidate, params: dict, data: FlightData, lift: CandidateResult | None = None,
+                      lift_candidate: Candidate | None = None) -> np.ndarray:
+    """A fitted candidate's output on ``data``; drag and pitch candidates get the lift model's C_L."""
+    if c.lift and lift_candidate is not None:
+        data = with_lift_prediction(data, lift, lift_candidate)
+    return build_model(c, lift).predict(data, params)
+
+
+def _derived(coef: str, predicted: np.ndarray, data: FlightData, other: np.ndarray | None):
+    """C_X and C_Z from a lift or drag prediction and the other coefficient (predicted or measured)."""
+    alpha = data["alpha"]
+    if coef == "CL":
+        cl, cd = predicted, (other if other is not None else data["CD"])
+    elif coef == "CD":
+        cd, cl = predicted, (other if other is not None else data["CL"])
+    else:
+        return None
+    cx = -cd * np.cos(alpha) + cl * np.sin(alpha)
+    cz = -cl * np.cos(alpha) - cd * np.sin(alpha)
+    cl_meas = data["CL_measured"] if "CL_measured" in data else data["CL"]
+    mx = data["CX"] if "CX" in data else -data["CD"] * np.cos(alpha) + cl_meas * np.sin(alpha)
+    mz = data["CZ"] if "CZ" in data else -cl_meas * np.cos(alpha) - data["CD"] * np.sin(alpha)
+    return float(np.mean((cx - mx) ** 2)), float(np.mean((cz - mz) ** 2))
+
+
+def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift: CandidateResult | None,
+                  lift_candidate: Candidate | None, settings: Settings,
+                  start: dict | None = None) -> CandidateResult:
+    """Fit one candidate on the training maneuvers and score it on both splits."""
+    t0 = time.perf_counter()
+    try:
+        model = build_model(c, lift)
+        if c.lift and lift_candidate is not None:
+            train = with_lift_prediction(train, lift, lift_candidate)
+            validation = with_lift_prediction(validation, lift, lift_candidate)
+        warm = {k: v for k, v in (start or {}).items() if k in model.nonlinear_names}
+        if warm:  # a warm start inside the bounds (a baseline's estimates for an extended model)
+            lo, hi = model.bound_vectors()
+            bounds = dict(zip(model.nonlinear_names, zip(lo, hi)))
+            warm = {k: float(np.clip(v, *bounds[k])) for k, v in warm.items()}
+        result = model.fit(train, start=warm or None,
+                           n_starts=settings.n_starts if model.nonlinear_names else 1, seed=settings.seed)
+        scores = {}
+        for split, data in (("train", train), ("validation", validation)):
+            y = data[c.coefficient]
+            pred = model.predict(data, result.params)
+            other = data["CL"] if c.lift and c.coefficient == "CD" else None  # the lift model's output
+            scores[split] = SplitScores.of(ManeuverScores.of(y, y - pred, data.segment_slices()),
+                                           _derived(c.coefficient, pred, data, other))
+        return CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
+                                        result=result, train=scores["train"], validation=scores["validation"],
+                                        seconds=time.perf_counter() - t0)
+    except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+        return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
+                                       error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
+
+
+# Part of every cache key: bump it when a change to the fitting code changes results.
+CACHE_VERSION = 4
+
+
+def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, settings: Settings):
+    """The fitted lift model a drag or pitch candidate names: (summary, lift candidate), or (None, None)."""
+    if not c.lift:
+        return None, None
+    lift_candidate = load_grid("lift")[c.lift]
+    lift = fit_candidate(lift_candidate, train, validation, None, None, settings)
+    if lift.failed:
+        raise StructSearchError(f"fitting the lift model {c.lift} that {c.name} needs failed: {lift.error}")
+    return lift, lift_candidate
+
+
+def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings) -> Path:
+    from .. import __version__
+    blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params,
+                       "settings": settings.key(), "version": [__version__, CACHE_VERSION, JSON_LAYOUT]},
+                      sort_keys=True, default=float)
+    key = hashlib.sha256(blob.encode()).hexdigest()[:16]
+    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in c.name)
+    return out / "cache" / c.grid / f"{safe}-{key}.json"
+
+
+def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_results: dict | None = None,
+        lift_candidates: dict | None = None, settings: Settings = Settings(), n_jobs: int = 1,
+        backend: str = "loky", progress: Callable[[str], None] | None = None) -> list[CandidateResult]:
+    """Fit candidates (cached, in parallel); results in the order of ``candidates``."""
+    say = progress or (lambda msg: None)
+    train, validation = campaign.split("train"), campaign.split("validation")
+    data_key = fingerprint(campaign.data)
+    lift_results = lift_results or {}
+    lift_candidates = lift_candidates or {}
+    todo, results, paths = [], [None] * len(candidates), []
+    for i, c in enumerate(candidates):
+        lift = lift_results.get(c.lift) if c.lift else None
+        path = cache_path(out, c, data_key, lift.params if lift else None, settings)
+        paths.append(path)
+        if path.exists():
+            results[i] = CandidateResult.from_json(json.loads(path.read_text()))
+        else:
+            todo.append(i)
+    if len(todo) < len(candidates):
+        say(f"{len(candidates) - len(todo)} of {len(candidates)} candidates from the cache")
+
+    def task(i):
+        c = candidates[i]
+        return fit_candidate(c, train, validation, lift_results.get(c.lift) if c.lift else None,
+                             lift_candidates.get(c.lift), settings)
+
+    if todo:
+        from joblib import Parallel, delayed, parallel_config
+        done = 0
+        t0 = time.perf_counter()
+        with parallel_config(backend=backend, n_jobs=n_jobs):
+            for i, summary in zip(todo, Parallel(return_as="generator")(delayed(task)(i) for i in todo)):
+                write_json(paths[i], summary.to_json(), indent=1)
+                results[i] = summary
+                done += 1
+                status = "failed: " + summary.error if summary.failed else f"{summary.seconds:.1f} s"
+                say(f"[{done}/{len(todo)}] {candidates[i].grid} {candidates[i].name}: {status} "
+                    f"({time.perf_counter() - t0:.0f} s elapsed)")
+    return results
+
+
+def stderr_progress(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)

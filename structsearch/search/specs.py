@@ -1,0 +1,94 @@
+"""Model specs: TOML files declaring regressor blocks and candidate grids (``model_specs/``).
+
+A grid file has ``name``, ``coefficient``, ``prefix`` (for numbered names), an
+optional default ``lift`` model (drag and pitch candidates take their separation
+states, with parameters held fixed, from it), ``[blocks]`` of named regressors,
+optional ``[sets]`` of block combinations, and an ordered list of ``[[entry]]``
+tables, each one of:
+
+* an explicit candidate: ``name`` plus ``blocks`` and/or ``regressors``;
+* a series: ``always`` blocks plus each of ``combinations`` (a list, or the name
+  of a set), one candidate per combination, numbered on in Roman numerals;
+* a product over separation-state kinds: ``kinds = {ss = ["S", "Q", "U"], ...}``;
+* a derived candidate: ``from`` another candidate, ``drop`` some regressors.
+
+Any entry may set ``states`` (name -> kind) and ``bounds`` (parameter -> [lo, hi]).
+
+Unnamed candidates take the next number (prefix + Roman numeral); named ones
+whose name is prefix + Roman numeral also advance the count.
+"""
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+
+from ..data.errors import DeclarationError
+from .candidates import Candidate, Grid
+from .enumeration import expand
+
+# Shipped inside the package (a link to the top-level model_specs/ in a checkout).
+SPEC_DIR = resources.files("structsearch") / "model_specs"
+BUILTIN_GRIDS = ("separation", "lift", "drag", "pitch")
+
+
+def read_toml(path) -> dict:
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DeclarationError(f"model spec file {path} not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DeclarationError(f"{path}: not valid TOML: {exc}") from None
+
+
+def grid_path(name_or_path: str):
+    if name_or_path in BUILTIN_GRIDS:
+        return SPEC_DIR / f"{name_or_path}.toml"
+    return Path(name_or_path)
+
+
+def load_grid(name_or_path: str, lift_grid: Grid | None = None) -> Grid:
+    """Load and expand a grid; drag and pitch grids resolve their lift models in ``lift_grid``."""
+    path = grid_path(name_or_path)
+    doc = read_toml(path)
+    grid = expand(doc, str(path))
+    if any(c.lift for c in grid.candidates):
+        if lift_grid is None:
+            lift_grid = load_grid("lift") if grid.name != "lift" else grid
+        grid = Grid(grid.name, grid.coefficient, tuple(_with_lift_states(c, lift_grid) for c in grid.candidates),
+                    grid.source, lift_grid)
+    return grid
+
+
+def _with_lift_states(c: Candidate, lift_grid: Grid) -> Candidate:
+    if not c.lift:
+        return c
+    lift = lift_grid[c.lift]
+    return Candidate(c.name, c.grid, c.coefficient, c.regressors, lift.states, c.lift, c.note, lift.bounds)
+
+
+def find_candidate(name: str) -> Candidate:
+    """A candidate of the shipped grids by name (``CL-VI``, ``CD-IXr``, ``Cm-XXXIII``, ``U/S``)."""
+    lift = load_grid("lift")
+    for grid_name in BUILTIN_GRIDS:
+        grid = lift if grid_name == "lift" else load_grid(grid_name, lift)
+        for c in grid.candidates:
+            if c.name == name or c.name.split(" ")[-1] == name:
+                return c
+    raise DeclarationError(f"no candidate named {name!r} in the shipped grids ({', '.join(BUILTIN_GRIDS)})")
+
+
+def resolve_candidate(name_or_path: str, coefficient: str | None = None) -> Candidate:
+    """A candidate by catalogue name, or the single candidate of a model spec file."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.exists():
+        grid = load_grid(str(path))
+        if len(grid.candidates) != 1:
+            raise DeclarationError(f"{path}: a model spec file must declare exactly one candidate (it declares "
+                                   f"{len(grid.candidates)}; use it as a grid with 'search --grid')")
+        c = grid.candidates[0]
+    else:
+        c = find_candidate(name_or_path)
+    if coefficient is not None and c.coefficient != coefficient:
+        raise DeclarationError(f"{c.name} models {c.coefficient}, not {coefficient}")
+    return c

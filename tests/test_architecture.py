@@ -1,0 +1,172 @@
+"""The house rules: no import cycles, one source of truth for the final models, typed candidate results
+that survive the cache, and a wheel that works outside the checkout."""
+import json
+import math
+import os
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+import grimp
+import numpy as np
+import pytest
+import sympy as sp
+
+from structsearch.engine.regressors import declare
+from structsearch.engine.scores import ManeuverScores, R2Summary, weighted_mean_se
+from structsearch.flight import reference
+from structsearch.search.candidate_result import CandidateResult, SplitScores
+from structsearch.search.specs import find_candidate
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _cycles(graph) -> list[list[str]]:
+    """Every strongly connected group of more than one module (Tarjan)."""
+    index, low, stack, on_stack, groups = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.find_modules_directly_imported_by(v):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                groups.append(sorted(group))
+
+    for m in sorted(graph.modules):
+        if m not in index:
+            visit(m)
+    return groups
+
+
+def test_no_import_cycles_between_modules():
+    graph = grimp.build_graph("structsearch")
+    assert len(graph.modules) > 40  # the whole package was read
+    assert _cycles(graph) == []
+
+
+def test_cycle_finder_sees_a_cycle():
+    class Graph:
+        modules = {"a", "b", "c"}
+        edges = {"a": {"b"}, "b": {"a"}, "c": {"a"}}
+
+        def find_modules_directly_imported_by(self, m):
+            return self.edges[m]
+
+    assert _cycles(Graph()) == [["a", "b"]]
+
+
+@pytest.mark.parametrize("coefficient,declared", [
+    ("CL", reference.final_lift_model()),
+    ("CD", reference.final_drag_model()),
+    ("Cm", reference.final_pitch_model()),
+    ("CL-vi", reference.van_ingen_lift_model()),
+])
+def test_python_declarations_of_the_final_models_equal_the_grids(coefficient, declared):
+    names = reference.VAN_INGEN_MODEL_NAMES if coefficient.endswith("-vi") else reference.FINAL_MODEL_NAMES
+    candidate = find_candidate(names[coefficient.split("-")[0]])
+    assert declared.name == candidate.name
+    assert declared.coefficient == candidate.coefficient
+    assert {s.name: s.kind for s in declared.states} == dict(candidate.states)
+    symbols = [s.symbol for s in declared.states]
+    from_grid = {name: declare(name, text, states=symbols).expr for name, text in candidate.regressors}
+    in_code = {r.name: r.expr for r in declared.regressors}
+    assert from_grid.keys() == in_code.keys()
+    for name in in_code:
+        assert sp.simplify(from_grid[name] - in_code[name]) == 0, name
+    if candidate.lift:
+        assert candidate.lift == reference.FINAL_MODEL_NAMES["CL"]
+
+
+def _result(error=None) -> CandidateResult:
+    scores = SplitScores(0.5, (0.25, 0.75), (10, 10), R2Summary(0.9, float("nan"), 0.95), 0.1, None)
+    if error:
+        return CandidateResult.failure(name="X", grid="g", coefficient="CL", lift=None, error=error, seconds=1.5)
+    return CandidateResult("CD-I", "drag", "CD", "CL-VI", 2.0, names=("a", "b"), nonlinear_names=("a",),
+                           params={"a": 1.0, "b": -2.0}, stderr={"a": 0.1, "b": float("nan")},
+                           p_values={"a": 0.001, "b": 0.2}, at_bound={"a": "lower"},
+                           high_correlations=(("a", "b", 0.95),), correlation=((1.0, 0.95), (0.95, 1.0)),
+                           n_starts=4, n_reached_best=3, aic=-10.0, bic=-8.0, max_lag=12, converged=False,
+                           message="max_nfev reached", nfev=200, train=scores, validation=scores, rank=2,
+                           within_noise=True, gap=0.01, gap_se=0.02)
+
+
+@pytest.mark.parametrize("error", [None, "FitError: boom"])
+def test_candidate_result_survives_the_cache_as_json(error):
+    r = _result(error)
+    text = json.dumps(r.to_json(), allow_nan=False)  # the cache holds strict JSON: no NaN
+    back = CandidateResult.from_json(json.loads(text))
+    if error:
+        assert back == r
+        return
+    assert back.validation.r2.mean == r.validation.r2.mean and math.isnan(back.validation.r2.min)
+    assert back.params == r.params and back.converged is False and back.message == "max_nfev reached"
+    assert back.high_correlations == r.high_correlations and back.insignificant == ("b",)
+    np.testing.assert_array_equal(back.correlation_matrix, [[1.0, 0.95], [0.95, 1.0]])
+
+
+def test_a_cache_entry_of_another_layout_is_refused():
+    doc = _result().to_json()
+    doc["layout"] = 0
+    with pytest.raises(ValueError, match="layout"):
+        CandidateResult.from_json(doc)
+
+
+def test_maneuver_scores_against_direct_formulas():
+    rng = np.random.default_rng(7)
+    y = rng.standard_normal(30)
+    r = 0.3 * rng.standard_normal(30)
+    slices = [slice(0, 10), slice(10, 25), slice(25, 30)]
+    s = ManeuverScores.of(y, r, slices)
+    for k, sl in enumerate(slices):
+        assert s.mse[k] == pytest.approx(np.mean(r[sl] ** 2))
+        assert s.r2[k] == pytest.approx(1 - np.sum(r[sl] ** 2) / np.sum((y[sl] - y[sl].mean()) ** 2))
+    assert s.pooled_mse == pytest.approx(np.mean(r ** 2))
+    constant = ManeuverScores.of(np.ones(10), np.zeros(10), [slice(0, 10)])
+    assert math.isnan(constant.r2[0]) and math.isnan(constant.r2_summary().mean)
+
+
+def test_weighted_mean_and_standard_error():
+    mean, se = weighted_mean_se(np.array([1.0, 3.0]), np.array([1.0, 3.0]))
+    assert mean == pytest.approx(2.5)
+    assert se == pytest.approx(np.sqrt((0.25 * 1.5 ** 2 + 0.75 * 0.5 ** 2) / 1))
+    assert math.isnan(weighted_mean_se(np.array([2.0]), np.array([5.0]))[1])  # one maneuver: no spread
+
+
+def test_the_wheel_works_outside_the_checkout(tmp_path):
+    """Build the wheel, install it into a fresh virtual environment and fit a small campaign from elsewhere."""
+    dist = tmp_path / "dist"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist), str(ROOT)],
+                   check=True, cwd=tmp_path)
+    wheel = next(dist.glob("structsearch-*.whl"))
+    env_dir = tmp_path / "venv"
+    venv.EnvBuilder(with_pip=True).create(env_dir)
+    python = env_dir / "bin" / "python"
+    subprocess.run([str(python), "-m", "pip", "install", "-q", str(wheel)], check=True, cwd=tmp_path)
+    clean = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    where = subprocess.run([str(python), "-c", "import structsearch, sys; print(structsearch.__file__)"],
+                           check=True, cwd=tmp_path, env=clean, capture_output=True, text=True).stdout
+    assert str(env_dir) in where and str(ROOT) not in where
+    exe = env_dir / "bin" / "structsearch"
+    subprocess.run([str(exe), "simulate", "--out", "camp", "--scale", "0.05", "--seed", "3"], check=True,
+                   cwd=tmp_path, env=clean, capture_output=True)
+    fit = subprocess.run([str(exe), "fit", "--data", "camp", "--model", "CD-IXr", "--out", "fit", "--starts", "1"],
+                         cwd=tmp_path, env=clean, capture_output=True, text=True)
+    assert fit.returncode == 0, fit.stderr
+    doc = json.loads((tmp_path / "fit" / "fit.json").read_text())
+    assert doc["model"] == "CD-IXr" and doc["lift"]["model"] == "CL-VI"
+    assert doc["params"].keys() == doc["stderr"].keys() and isinstance(doc["converged"], bool)
