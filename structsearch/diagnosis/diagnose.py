@@ -37,7 +37,7 @@ from ..engine.separation import static_separation
 from ..search.candidates import Candidate
 from ..search.specs import find_candidate
 from ..search.candidate_result import CandidateResult
-from ..engine.scores import weighted_mean_se
+from ..engine.scores import maneuver_mse, weighted_mean_se
 from ..flight.reference import FINAL_LIFT, FINAL_MODEL_NAMES
 
 ALPHA_BAND = 0.04          # rad
@@ -149,14 +149,14 @@ def _maneuver_weights(data: FlightData) -> np.ndarray:
 
 def _mse_se(residual: np.ndarray, data: FlightData) -> tuple[float, float]:
     """Validation MSE over all samples and the standard error of the maneuver-weighted mean MSE."""
-    per = np.array([np.mean(residual[sl] ** 2) for sl in data.segment_slices()])
+    per = maneuver_mse(residual, data.segment_slices())
     return float(np.mean(residual ** 2)), weighted_mean_se(per, _maneuver_weights(data))[1]
 
 
 def _relative_excess(residual: np.ndarray, floor_residual: np.ndarray, data: FlightData) -> tuple[float, float]:
     """Mean and standard error of the per-maneuver relative MSE excess over the floor model (paired)."""
-    d = np.array([np.mean(residual[sl] ** 2) / np.mean(floor_residual[sl] ** 2) - 1.0
-                  for sl in data.segment_slices()])
+    slices = data.segment_slices()
+    d = maneuver_mse(residual, slices) / maneuver_mse(floor_residual, slices) - 1.0
     return weighted_mean_se(d, _maneuver_weights(data))
 
 

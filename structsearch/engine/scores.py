@@ -35,13 +35,9 @@ class ManeuverScores:
 
     @classmethod
     def of(cls, observed: np.ndarray, residual: np.ndarray, slices: Sequence[slice]) -> "ManeuverScores":
-        counts, sse, sst = [], [], []
-        for sl in slices:
-            y, r = observed[sl], residual[sl]
-            counts.append(len(r))
-            sse.append(float(r @ r))
-            sst.append(float(np.sum((y - y.mean()) ** 2)))
-        return cls(np.array(counts, dtype=int), np.array(sse, float), np.array(sst, float))
+        counts = np.array([sl.stop - sl.start for sl in slices], dtype=int)
+        sst = np.array([float(np.sum((observed[sl] - observed[sl].mean()) ** 2)) for sl in slices])
+        return cls(counts, maneuver_sse(residual, slices), sst)
 
     @property
     def mse(self) -> np.ndarray:
@@ -64,6 +60,16 @@ class ManeuverScores:
         if r.size == 0:
             return R2Summary(float("nan"), float("nan"), float("nan"))
         return R2Summary(float(r.mean()), float(r.min()), float(r.max()))
+
+
+def maneuver_sse(residual: np.ndarray, slices: Sequence[slice]) -> np.ndarray:
+    """Residual sum of squares of each maneuver."""
+    return np.array([float(residual[sl] @ residual[sl]) for sl in slices])
+
+
+def maneuver_mse(residual: np.ndarray, slices: Sequence[slice]) -> np.ndarray:
+    """MSE of each maneuver (when only the residual is at hand)."""
+    return maneuver_sse(residual, slices) / np.array([sl.stop - sl.start for sl in slices], float)
 
 
 def slices_of(bounds: np.ndarray) -> list[slice]:

@@ -21,6 +21,7 @@ from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.errors import DeclarationError
 from ..search.runner import Settings, build_model, predict_candidate, run
+from ..engine.scores import ManeuverScores
 from ..engine.separation import static_separation
 from ..search.candidates import Candidate
 from ..search.specs import find_candidate
@@ -149,19 +150,14 @@ def derived_pitch(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, 
             "depends_on_CL": bool(np.any(l_cp != 0))}
 
 
-def r2(y: np.ndarray, pred: np.ndarray) -> float:
-    sst = float(np.sum((y - y.mean()) ** 2))
-    return 1 - float(np.sum((y - pred) ** 2)) / sst if sst > 0 else float("nan")
-
-
 def trace_selection(ms: ModelSet, data: FlightData) -> dict[str, list[dict]]:
     """Per coefficient, the best, median and worst maneuver of ``data`` by R^2, with their traces."""
     out = {}
     for coef in COEFFICIENTS:
         pred = ms.predict(coef, data)
-        scored = []
-        for name, sl in zip(data.names, data.segment_slices()):
-            scored.append((r2(data[coef][sl], pred[sl]), name, sl))
+        slices = data.segment_slices()
+        per_maneuver = ManeuverScores.of(data[coef], data[coef] - pred, slices).r2
+        scored = [(float(score), name, sl) for score, name, sl in zip(per_maneuver, data.names, slices)]
         scored.sort(key=lambda s: -s[0] if np.isfinite(s[0]) else np.inf)
         picks = [("best", scored[0]), ("median", scored[len(scored) // 2]), ("worst", scored[-1])]
         out[coef] = [{"which": which, "maneuver": name, "r2": score, "t": data["t"][sl] - data["t"][sl][0],
