@@ -125,3 +125,20 @@ def test_state_declaration_errors():
         SeparationState("ss", "X")
     assert SeparationState("", "U").parameters == ("tau1", "tau2", "a1", "a_star")
     assert SeparationState("w", "S").parameters == ("a1_w", "a_star_w")
+
+
+@pytest.mark.parametrize("tau", [0.01, 0.4])
+def test_a_long_time_gap_inside_a_maneuver_gives_finite_exact_states(tau):
+    """10 s gaps in the time stamps (1000 tau1 for tau1 = 0.01, beyond exp underflow) keep the recursion exact."""
+    rng = np.random.default_rng(5)
+    t = np.r_[np.arange(0.0, 2.0, 0.01), 12.0 + np.arange(0.0, 2.0, 0.01), 24.0 + np.arange(0.0, 1.0, 0.01)]
+    u = 0.5 + 0.4 * np.sin(1.3 * t) + 0.01 * rng.standard_normal(len(t))
+    du = np.column_stack([np.cos(t), t / 10])
+    bounds = np.array([0, len(t)])
+    x, dx, dtau = first_order_lag(t, u, du, tau, bounds)
+    assert np.all(np.isfinite(x)) and np.all(np.isfinite(dx)) and np.all(np.isfinite(dtau))
+    np.testing.assert_allclose(x, reference_lag(t, u, tau), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(dx[:, 0], reference_lag(t, du[:, 0], tau), rtol=0, atol=1e-12)
+    h = 1e-6 * tau
+    fd = (reference_lag(t, u, tau + h) - reference_lag(t, u, tau - h)) / (2 * h)
+    np.testing.assert_allclose(dtau, fd, rtol=1e-5, atol=1e-7)

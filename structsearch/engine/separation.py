@@ -111,8 +111,11 @@ def linear_recurrence(a: np.ndarray, f: np.ndarray, y0) -> np.ndarray:
     y[0] = y0
     if n == 1:
         return y
-    log_a = np.log(a)
-    log_p = np.concatenate([[0.0], np.cumsum(log_a[1:])])
+    with np.errstate(divide="ignore"):
+        log_a = np.log(a)  # -inf where a step is so long (dt > ~745 tau1) that the state forgets all
+    # A step that alone decays by more than e^-BLOCK starts a block of its own, where the sequential
+    # formula below uses a_k itself (0 included); clipping keeps the running sum finite.
+    log_p = np.concatenate([[0.0], np.cumsum(np.maximum(log_a[1:], -2.0 * _BLOCK_DECAY))])
     block = np.floor(-log_p / _BLOCK_DECAY).astype(np.int64)
     edges = np.flatnonzero(np.diff(block)) + 1
     starts = np.concatenate([[1], edges[edges > 1]])
