@@ -8,9 +8,9 @@ from .ols import ols
 from .results import FitResult
 from .snls import SeparableProblem, check_full_rank, model_jacobian, multistart, project
 from .scores import ManeuverScores, slices_of
-from .statistics import colored_covariance, white_covariance
+from .statistics import HAC_KERNELS, colored_covariance, hac_covariance, white_covariance
 
-COVARIANCE_KINDS = ("colored", "white")
+COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs")
 
 
 def check_observed(y: np.ndarray, bounds: np.ndarray, names, source: str, column: str) -> np.ndarray:
@@ -65,15 +65,18 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
     if hasattr(problem, "extended_residual"):
         residual = problem.extended_residual(outcome.theta, proj.coef, y)
     white = white_covariance(jac, residual)
+    lags = bandwidth = None
     if covariance == "colored":
         cov, lags = colored_covariance(jac, residual, bounds, max_lag)
+    elif covariance in HAC_KERNELS:
+        cov, bandwidth = hac_covariance(jac, residual, bounds, covariance)
     else:
-        cov, lags = white, None
+        cov = white
     return FitResult(
         model=model, coefficient=coefficient, nonlinear_names=tuple(problem.nonlinear_names),
         linear_names=tuple(problem.linear_names),
         values=np.concatenate([outcome.theta, proj.coef]), lower=lower, upper=upper,
-        covariance=cov, white_covariance=white, covariance_kind=covariance, max_lag=lags,
+        covariance=cov, white_covariance=white, covariance_kind=covariance, max_lag=lags, bandwidth=bandwidth,
         residuals=residual, segment_names=tuple(segment_names),
         segments=ManeuverScores.of(y, residual, slices_of(bounds)), total_sst=float(np.sum((y - y.mean()) ** 2)),
         nfev=outcome.nfev, njev=outcome.njev, message=outcome.message, success=outcome.success,

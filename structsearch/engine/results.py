@@ -47,6 +47,7 @@ class FitResult:
     n_reached_best: int = 1
     start: np.ndarray | None = None
     significance: float = 0.05
+    bandwidth: float | None = None   # HAC kernel bandwidth in samples (covariance "hac"/"hac-qs")
 
     # ----- sizes -------------------------------------------------------------
     @property
@@ -187,6 +188,7 @@ class FitResult:
             "correlation": {"names": list(self.names), "matrix": self.correlation.tolist()},
             "covariance": self.covariance_kind,
             "max_lag": self.max_lag,
+            "bandwidth": self.bandwidth,
             "rss": self.rss,
             "mse": self.mse,
             "r2": self.r2,

@@ -18,6 +18,17 @@ residuals oscillate (buffet). By default lags are kept up to four times the lag
 from which the autocorrelation envelope stays inside the +-2/sqrt(m) white-noise
 band, tapered by a Bartlett window (a positive semi-definite estimate).
 ``max_lag="full"`` reproduces the thesis (every lag, no taper).
+
+``hac`` (Bartlett kernel) and ``hac-qs`` (quadratic-spectral kernel) are
+heteroscedasticity- and autocorrelation-consistent sandwiches (Newey-West 1987,
+Andrews 1991): the meat is sum_t sum_s w(|t-s|/b) g_t g_s^T over the scores
+g_t = F_t r_t of each maneuver (never across a boundary), so noise whose level
+changes along a maneuver (buffet growing with flow separation) is weighted where
+it occurs, which the stationary Toeplitz estimate cannot do. Both kernels have a
+non-negative spectral window, so the estimate is positive semi-definite by
+construction. The bandwidth b follows Andrews' (1991) AR(1) plug-in rule on the
+standardised score columns; the sums over lags are FFT convolutions per maneuver,
+O(p m log m) plus O(p^2 m) for the products.
 """
 from __future__ import annotations
 
@@ -113,3 +124,66 @@ def colored_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray
     middle = jac.T @ toeplitz_product(jac, lam, bounds)
     middle = 0.5 * (middle + middle.T)
     return a_inv @ middle @ a_inv, lags
+
+
+# ----- heteroscedasticity- and autocorrelation-consistent (HAC) sandwich --------------------------
+HAC_KERNELS = {"hac": "bartlett", "hac-qs": "quadratic-spectral"}
+
+
+def kernel_weights(kernel: str, bandwidth: float, n_lags: int) -> np.ndarray:
+    """w(j / b) for lags j = 0..n_lags: Bartlett 1 - x on [0, 1], or the quadratic-spectral kernel."""
+    x = np.arange(n_lags + 1) / bandwidth
+    if kernel == "bartlett":
+        return np.clip(1.0 - x, 0.0, None)
+    if kernel == "quadratic-spectral":
+        z = 6.0 * np.pi * x[1:] / 5.0
+        return np.concatenate([[1.0], 3.0 / z ** 2 * (np.sin(z) / z - np.cos(z))])
+    raise ValueError(f"unknown HAC kernel {kernel!r}")
+
+
+def andrews_bandwidth(scores: np.ndarray, bounds: np.ndarray, kernel: str) -> float:
+    """Andrews' (1991) AR(1) plug-in bandwidth for the score columns, pooled within maneuvers.
+
+    Columns are standardised first (the rule is not scale invariant across columns), AR(1)
+    coefficients are estimated from pairs inside each maneuver only, and the sample size is
+    the mean maneuver length, because every maneuver is its own series.
+    """
+    inside = np.ones(len(scores), bool)
+    inside[np.asarray(bounds[:-1], int)] = False  # a maneuver's first sample has no predecessor in it
+    num = den = 0.0
+    for g in scores.T:
+        sd = g.std()
+        if not np.isfinite(sd) or sd == 0:
+            continue
+        g = g / sd
+        cur, prev = g[1:][inside[1:]], g[:-1][inside[1:]]
+        rho = float(np.clip(cur @ prev / (prev @ prev), -0.999, 0.999))
+        s4 = float(np.mean((cur - rho * prev) ** 2)) ** 2
+        if kernel == "bartlett":
+            num += 4 * rho ** 2 * s4 / ((1 - rho) ** 6 * (1 + rho) ** 2)
+        else:
+            num += 4 * rho ** 2 * s4 / (1 - rho) ** 8
+        den += s4 / (1 - rho) ** 4
+    if den == 0:
+        return 1.0
+    n = len(scores) / (len(bounds) - 1)
+    if kernel == "bartlett":
+        return float(max(1.1447 * (num / den * n) ** (1 / 3), 1.0))
+    return float(max(1.3221 * (num / den * n) ** (1 / 5), 1.0))
+
+
+def hac_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, kind: str = "hac",
+                   bandwidth: float | None = None) -> tuple[np.ndarray, float]:
+    """HAC sandwich A^-1 (sum_maneuvers G^T W G) A^-1 * m/(m-p); returns (covariance, bandwidth)."""
+    kernel = HAC_KERNELS[kind]
+    m, p = jac.shape
+    scores = jac * residual[:, None]
+    b = float(bandwidth) if bandwidth is not None else andrews_bandwidth(scores, bounds, kernel)
+    longest = int(np.max(np.diff(bounds))) - 1
+    n_lags = min(int(np.ceil(b)), longest) if kernel == "bartlett" else longest
+    weights = kernel_weights(kernel, b, n_lags)
+    meat = scores.T @ toeplitz_product(scores, weights, bounds)
+    meat = 0.5 * (meat + meat.T)
+    r_inv = _inverse_factor(jac)
+    a_inv = r_inv @ r_inv.T
+    return a_inv @ meat @ a_inv * (m / max(m - p, 1)), b

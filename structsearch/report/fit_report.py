@@ -20,8 +20,9 @@ def fit_report(result: FitResult, fmt: str = "text") -> str:
         ["MSE", f"{result.mse:.6g}"],
         ["R^2 (all samples)", f"{result.r2:.6f}"],
         ["R^2 per maneuver mean / min / max", f"{r2['mean']:.4f} / {r2['min']:.4f} / {r2['max']:.4f}"],
-        ["covariance", result.covariance_kind + (f" (lags <= {result.max_lag})"
-                                                 if result.max_lag is not None else "")],
+        ["covariance", result.covariance_kind
+         + (f" (lags <= {result.max_lag})" if result.max_lag is not None else "")
+         + (f" (bandwidth {result.bandwidth:.1f} samples)" if result.bandwidth is not None else "")],
         ["optimizer", f"{'converged' if result.success else 'NOT CONVERGED'}: {result.message} "
                       f"({result.nfev} evaluations)"],
         ["starts reaching the best cost", f"{result.n_reached_best} of {result.n_starts}"],
