@@ -37,7 +37,7 @@ from ..engine.separation import static_separation
 from ..search.candidates import Candidate
 from ..search.specs import find_candidate
 from ..search.candidate_result import CandidateResult
-from ..engine.scores import maneuver_mse, weighted_mean_se
+from ..engine.scores import maneuver_mse, sizes_of, weighted_mean_se
 from ..flight.reference import FINAL_LIFT, FINAL_MODEL_NAMES
 
 ALPHA_BAND = 0.04          # rad
@@ -143,21 +143,17 @@ def where(r_base, r_sat, data: FlightData, x: np.ndarray, seed: int = 0) -> list
     return out
 
 
-def _maneuver_weights(data: FlightData) -> np.ndarray:
-    return np.array([sl.stop - sl.start for sl in data.segment_slices()], float)
-
-
 def _mse_se(residual: np.ndarray, data: FlightData) -> tuple[float, float]:
     """Validation MSE over all samples and the standard error of the maneuver-weighted mean MSE."""
     per = maneuver_mse(residual, data.segment_slices())
-    return float(np.mean(residual ** 2)), weighted_mean_se(per, _maneuver_weights(data))[1]
+    return float(np.mean(residual ** 2)), weighted_mean_se(per, sizes_of(data.segment_slices()))[1]
 
 
 def _relative_excess(residual: np.ndarray, floor_residual: np.ndarray, data: FlightData) -> tuple[float, float]:
     """Mean and standard error of the per-maneuver relative MSE excess over the floor model (paired)."""
     slices = data.segment_slices()
     d = maneuver_mse(residual, slices) / maneuver_mse(floor_residual, slices) - 1.0
-    return weighted_mean_se(d, _maneuver_weights(data))
+    return weighted_mean_se(d, sizes_of(slices))
 
 
 def _wald(summary: CandidateResult, names) -> float:

@@ -35,7 +35,7 @@ class ManeuverScores:
 
     @classmethod
     def of(cls, observed: np.ndarray, residual: np.ndarray, slices: Sequence[slice]) -> "ManeuverScores":
-        counts = np.array([sl.stop - sl.start for sl in slices], dtype=int)
+        counts = sizes_of(slices)
         sst = np.array([float(np.sum((observed[sl] - observed[sl].mean()) ** 2)) for sl in slices])
         return cls(counts, maneuver_sse(residual, slices), sst)
 
@@ -69,7 +69,12 @@ def maneuver_sse(residual: np.ndarray, slices: Sequence[slice]) -> np.ndarray:
 
 def maneuver_mse(residual: np.ndarray, slices: Sequence[slice]) -> np.ndarray:
     """MSE of each maneuver (when only the residual is at hand)."""
-    return maneuver_sse(residual, slices) / np.array([sl.stop - sl.start for sl in slices], float)
+    return maneuver_sse(residual, slices) / sizes_of(slices)
+
+
+def sizes_of(slices: Sequence[slice]) -> np.ndarray:
+    """Samples in each maneuver."""
+    return np.array([sl.stop - sl.start for sl in slices], dtype=int)
 
 
 def slices_of(bounds: np.ndarray) -> list[slice]:

@@ -8,7 +8,7 @@ from __future__ import annotations
 from ..engine.stallmodel import StallModel
 
 # The final models of the thesis, by coefficient: the one place these names are written.
-# Their structures are declared below for the simulator's truth; tests/test_reference.py
+# Their structures are declared below for the simulator's truth; tests/test_architecture.py
 # checks them equal to the candidates of the same names in model_specs/.
 FINAL_MODEL_NAMES = {"CL": "CL-VI", "CD": "CD-IXr", "Cm": "Cm-XXXIIIr"}
 VAN_INGEN_MODEL_NAMES = {"CL": "CL-I", "CD": "CD-I", "Cm": "Cm-I"}

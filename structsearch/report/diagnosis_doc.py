@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 from tabulate import tabulate
 
-from ..data.atomic import write_text
+from ..data.atomic import json_ready, write_json, write_text
 
 
 def public(doc: dict) -> dict:
-    """The interfaces.md section 3 document (extra fields kept)."""
-    return json.loads(json.dumps(doc, default=float))
+    """The interfaces.md section 3 document (extra fields kept); what could not be estimated is null."""
+    return json_ready(json.loads(json.dumps(doc, default=float)))
 
 
 def markdown(doc: dict) -> str:
@@ -70,6 +70,6 @@ def markdown(doc: dict) -> str:
 
 def write(doc: dict, out: Path) -> tuple[Path, Path]:
     out.mkdir(parents=True, exist_ok=True)
-    write_text(out / "diagnosis.json", json.dumps(public(doc), indent=2))
+    write_json(out / "diagnosis.json", public(doc))
     write_text(out / "diagnosis.md", markdown(doc))
     return out / "diagnosis.json", out / "diagnosis.md"

@@ -1,4 +1,4 @@
-"""JSON documents the commands write (``fit.json``; interfaces.md sections 2 and 5.4)."""
+"""JSON documents the commands write: ``fit.json`` (interfaces.md section 2, plus ``converged`` of 5.4)."""
 from __future__ import annotations
 
 from ..search.candidate_result import CandidateResult

@@ -30,9 +30,9 @@ def fit_report(result: FitResult, fmt: str = "text") -> str:
     if fmt not in FORMATS:
         raise ValueError(f"format must be one of {FORMATS}, not {fmt!r}")
     if fmt == "csv":
-        return parameter_table(result, "csv")
+        return parameter_table(result, "csv", floatfmt=".6g")
     tablefmt = TABLEFMT.get(fmt, "simple")
-    parts = [tabulate(head, tablefmt=tablefmt), parameter_table(result, fmt).rstrip("\n")]
+    parts = [tabulate(head, tablefmt=tablefmt), parameter_table(result, fmt, floatfmt=".6g").rstrip("\n")]
     if result.high_correlations:
         corr = [[a, b, f"{c:+.3f}"] for a, b, c in result.high_correlations]
         parts.append(tabulate(corr, headers=["parameter", "parameter", "correlation"], tablefmt=tablefmt))

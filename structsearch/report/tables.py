@@ -68,15 +68,15 @@ def parameter_rows(fit) -> list[list]:
     return rows
 
 
-def parameter_table(fit, fmt: str = "text") -> str:
+def parameter_table(fit, fmt: str = "text", floatfmt: str = ".4g") -> str:
     """Estimates, standard deviations, t-tests and flags (thesis Tables 11, 13, 15)."""
-    return _with_newline(render_table(parameter_rows(fit), PARAMETER_HEADERS, fmt, floatfmt=".4g"), fmt)
+    return _with_newline(render_table(parameter_rows(fit), PARAMETER_HEADERS, fmt, floatfmt=floatfmt), fmt)
 
 
 def correlation_table(fit, fmt: str = "text") -> str:
     """Parameter correlation matrix (thesis Tables 12, 14, 16); |rho| above the flag level marked *."""
     names = list(fit.names)
-    matrix = np.asarray(fit.correlation, float).reshape(len(names), len(names))
+    matrix = np.asarray(fit.correlation, float)
     if fmt == "csv":
         return render_table([[n] + [f"{v:.4f}" for v in row] for n, row in zip(names, matrix)], [""] + names, fmt)
     body = [[n] + [f"{v:+.2f}" + ("*" if i != j and abs(v) > HIGH_CORRELATION else "") for j, v in enumerate(row)]
@@ -105,7 +105,8 @@ def table_row(s: CandidateResult) -> dict:
         v = s.validation
         row.update({"n_params": s.n_params, "mse_train": s.mse_train, "mse_validation": s.mse_validation,
                     "mse_cx_validation": v.mse_cx, "mse_cz_validation": v.mse_cz,
-                    "r2_validation_mean": v.r2.mean, "r2_validation_min": v.r2.min, "r2_validation_max": v.r2.max,
+                    # no maneuver with an R^2 (constant signal): empty, not "nan"
+                    **{f"r2_validation_{k}": (x if math.isfinite(x) else None) for k, x in v.r2.as_dict().items()},
                     "aic": s.aic, "n_insignificant": len(s.insignificant), "n_high_corr": len(s.high_correlations),
                     "within_noise": s.within_noise, "converged": s.converged, "nfev": s.nfev,
                     "message": s.message})

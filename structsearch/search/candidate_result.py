@@ -155,7 +155,7 @@ class CandidateResult:
 
     @property
     def correlation_matrix(self) -> np.ndarray:
-        return np.asarray(self.correlation, float).reshape(len(self.names), len(self.names))
+        return np.asarray(self.correlation, float)
 
     # ----- JSON (the cache) -------------------------------------------------------------
     def to_json(self) -> dict:
