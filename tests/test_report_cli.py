@@ -108,3 +108,32 @@ def test_simulate_rejects_effects_outside_the_final_model(tmp_path):
     proc = run_cli("simulate", "--out", str(tmp_path / "x"), "--withhold", "alpha_dot")
     assert proc.returncode != 0 and "invalid choice: 'alpha_dot'" in proc.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_a_variance_that_is_not_positive_is_named_and_never_clipped(flagged_fit):
+    """A covariance with a negative diagonal entry (an indefinite estimate) gives NaN, a reason and a flag."""
+    import dataclasses
+    import math
+    cov = flagged_fit.covariance.copy()
+    name = flagged_fit.names[-1]
+    cov[-1, -1] = -abs(cov[-1, -1]) - 1e-12
+    broken = dataclasses.replace(flagged_fit, covariance=cov)
+    assert math.isnan(broken.stderr[name]) and math.isnan(broken.p_values[name]) and math.isnan(broken.t_values[name])
+    assert list(broken.not_identifiable) == [name] and "negative" in broken.not_identifiable[name]
+    assert not broken.identifiable and flagged_fit.identifiable
+    assert all(math.isnan(broken.correlation[-1, j]) for j in range(len(broken.names) - 1))
+    row = next(line for line in fit_report(broken, "markdown").splitlines() if line.startswith(f"| {name} "))
+    assert "not identifiable" in row
+    doc = broken.to_dict()
+    assert doc["identifiable"] is False and name in doc["not_identifiable"]
+
+
+def test_condition_number_of_the_scaled_jacobian():
+    from structsearch.engine.statistics import scaled_condition_number
+    rng = np.random.default_rng(3)
+    jac = rng.standard_normal((200, 3)) * [1e-4, 1.0, 1e5]
+    jac[:, 2] += 1e5 * 0.999 * jac[:, 1]  # nearly collinear columns
+    unit = jac / np.linalg.norm(jac, axis=0)
+    assert scaled_condition_number(jac) == pytest.approx(np.linalg.cond(unit), rel=1e-8)
+    jac[:, 0] = 0.0
+    assert scaled_condition_number(jac) == float("inf")

@@ -8,7 +8,8 @@ from .ols import ols
 from .results import FitResult
 from .snls import SeparableProblem, check_full_rank, model_jacobian, multistart, project
 from .scores import ManeuverScores, slices_of
-from .statistics import HAC_KERNELS, colored_covariance, hac_covariance, white_covariance
+from .statistics import (HAC_KERNELS, colored_covariance, hac_covariance, scaled_condition_number,
+                         white_covariance)
 
 COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs")
 
@@ -77,6 +78,7 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
         linear_names=tuple(problem.linear_names),
         values=np.concatenate([outcome.theta, proj.coef]), lower=lower, upper=upper,
         covariance=cov, white_covariance=white, covariance_kind=covariance, max_lag=lags, bandwidth=bandwidth,
+        condition_number=scaled_condition_number(jac),
         residuals=residual, segment_names=tuple(segment_names),
         segments=ManeuverScores.of(y, residual, slices_of(bounds)), total_sst=float(np.sum((y - y.mean()) ** 2)),
         nfev=outcome.nfev, njev=outcome.njev, message=outcome.message, success=outcome.success,

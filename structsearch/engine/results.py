@@ -48,6 +48,7 @@ class FitResult:
     start: np.ndarray | None = None
     significance: float = 0.05
     bandwidth: float | None = None   # HAC kernel bandwidth in samples (covariance "hac"/"hac-qs")
+    condition_number: float = float("nan")  # of the column-scaled Jacobian at the solution
 
     # ----- sizes -------------------------------------------------------------
     @property
@@ -77,17 +78,33 @@ class FitResult:
 
     @cached_property
     def _stderr(self) -> np.ndarray:
-        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return _standard_deviations(self.covariance)
 
     @cached_property
     def white_stderr(self) -> dict[str, float]:
-        return dict(zip(self.names, map(float, np.sqrt(np.clip(np.diag(self.white_covariance), 0, None)))))
+        return dict(zip(self.names, map(float, _standard_deviations(self.white_covariance))))
+
+    @cached_property
+    def not_identifiable(self) -> dict[str, str]:
+        """Parameters whose standard deviation cannot be estimated, with the reason (never reported as 0)."""
+        out = {}
+        for name, v in zip(self.names, np.diag(self.covariance)):
+            if not np.isfinite(v):
+                out[name] = "its variance estimate is not finite: the data cannot identify it"
+            elif v <= 0:
+                out[name] = (f"its {self.covariance_kind} variance estimate is {'zero' if v == 0 else 'negative'} "
+                             f"({v:.3g}): the data cannot identify it")
+        return out
+
+    @property
+    def identifiable(self) -> bool:
+        return not self.not_identifiable
 
     @cached_property
     def correlation(self) -> np.ndarray:
-        s = self._stderr.copy()
-        s[s == 0] = np.inf
-        corr = self.covariance / np.outer(s, s)
+        s = self._stderr
+        with np.errstate(divide="ignore", invalid="ignore"):
+            corr = self.covariance / np.outer(s, s)  # NaN for a parameter without a standard deviation
         np.fill_diagonal(corr, 1.0)
         return corr
 
@@ -189,6 +206,9 @@ class FitResult:
             "covariance": self.covariance_kind,
             "max_lag": self.max_lag,
             "bandwidth": self.bandwidth,
+            "condition_number": self.condition_number,
+            "identifiable": self.identifiable,
+            "not_identifiable": self.not_identifiable,
             "rss": self.rss,
             "mse": self.mse,
             "r2": self.r2,
@@ -202,3 +222,10 @@ class FitResult:
                           "success": self.success, "n_starts": self.n_starts,
                           "n_reached_best": self.n_reached_best},
         }
+
+
+def _standard_deviations(covariance: np.ndarray) -> np.ndarray:
+    """sqrt of the diagonal; NaN where a variance is zero, negative or not finite (never clipped to 0)."""
+    v = np.diag(covariance)
+    with np.errstate(invalid="ignore"):
+        return np.where(np.isfinite(v) & (v > 0), np.sqrt(np.abs(v)), np.nan)

@@ -108,6 +108,15 @@ def _inverse_factor(jac: np.ndarray) -> np.ndarray:
     return r_inv / scale[:, None]
 
 
+def scaled_condition_number(jac: np.ndarray) -> float:
+    """Condition number of the Jacobian with unit-norm columns (its thin-QR factor has the same one)."""
+    scale = np.sqrt(np.sum(jac * jac, axis=0))
+    scale[scale == 0] = 1.0
+    r = qr(jac / scale, mode="r", check_finite=False)[0][: jac.shape[1]]
+    s = np.linalg.svd(r, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
 def white_covariance(jac: np.ndarray, residual: np.ndarray) -> np.ndarray:
     m, p = jac.shape
     r_inv = _inverse_factor(jac)

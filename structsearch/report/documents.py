@@ -1,4 +1,5 @@
-"""JSON documents the commands write: ``fit.json`` (interfaces.md section 2, plus ``converged`` of 5.4)."""
+"""JSON documents the commands write: ``fit.json`` (interfaces.md section 2, plus ``converged``, ``identifiable``,
+``not_identifiable`` and ``condition_number`` of 5.4)."""
 from __future__ import annotations
 
 from ..search.candidate_result import CandidateResult
@@ -15,5 +16,7 @@ def fit_document(fit: CandidateResult, lift: CandidateResult | None) -> dict:
         "r2": {"train": fit.train.r2.as_dict(), "validation": fit.validation.r2.as_dict()},
         "n_starts": fit.n_starts, "n_reached_best": fit.n_reached_best,
         "converged": fit.converged, "message": fit.message, "nfev": fit.nfev,
+        "identifiable": fit.identifiable, "not_identifiable": fit.not_identifiable,
+        "condition_number": fit.condition_number,
         "lift": lift and {"model": lift.name, "params": lift.params},
     }

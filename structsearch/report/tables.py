@@ -51,7 +51,9 @@ def parameter_flags(fit, name: str) -> list[str]:
     flags = []
     if name in fit.at_bound:
         flags.append(f"at {fit.at_bound[name]} bound")
-    if not fit.significant[name]:
+    if name in (fit.not_identifiable or {}):
+        flags.append("not identifiable")
+    elif not fit.significant[name]:
         flags.append("t-test accepts 0")
     if any(name in pair[:2] for pair in fit.high_correlations):
         flags.append(f"|rho| > {HIGH_CORRELATION}")
@@ -62,7 +64,7 @@ def parameter_rows(fit) -> list[list]:
     rows = []
     for name in fit.names:
         value, se = fit.params[name], fit.stderr[name]
-        t = value / se if se > 0 else math.nan  # a zero standard deviation is not an infinite t
+        t = value / se if se > 0 else math.nan  # no standard deviation, no t
         kind = "nonlinear" if name in fit.nonlinear_names else "linear"
         rows.append([name, kind, value, se, t, fit.p_values[name], "; ".join(parameter_flags(fit, name))])
     return rows
@@ -92,10 +94,12 @@ COLUMNS = [("rank", "rank"), ("model", "model"), ("lift", "lift model"), ("n_par
            ("r2_validation_mean", "R2 val. mean"), ("r2_validation_min", "R2 val. min"),
            ("r2_validation_max", "R2 val. max"), ("aic", "AIC"), ("n_insignificant", "t-test accepts 0"),
            ("n_high_corr", f"|rho| > {HIGH_CORRELATION}"), ("within_noise", "within noise of best"),
-           ("converged", "converged"), ("nfev", "evaluations")]
+           ("converged", "converged"), ("nfev", "evaluations"), ("identifiable", "identifiable"),
+           ("condition_number", "cond. (scaled J)")]
 RANKING_FIELDS = ["grid", "model", "rank", "mse_train", "mse_validation", "n_params", "lift", "mse_cx_validation",
                   "mse_cz_validation", "r2_validation_mean", "r2_validation_min", "r2_validation_max", "aic",
-                  "n_insignificant", "n_high_corr", "within_noise", "converged", "nfev", "message", "error"]
+                  "n_insignificant", "n_high_corr", "within_noise", "converged", "nfev", "message", "identifiable",
+                  "condition_number", "not_identifiable", "error"]
 
 
 def table_row(s: CandidateResult) -> dict:
@@ -109,7 +113,8 @@ def table_row(s: CandidateResult) -> dict:
                     **{f"r2_validation_{k}": (x if math.isfinite(x) else None) for k, x in v.r2.as_dict().items()},
                     "aic": s.aic, "n_insignificant": len(s.insignificant), "n_high_corr": len(s.high_correlations),
                     "within_noise": s.within_noise, "converged": s.converged, "nfev": s.nfev,
-                    "message": s.message})
+                    "message": s.message, "identifiable": s.identifiable, "condition_number": s.condition_number,
+                    "not_identifiable": "; ".join(f"{k}: {v}" for k, v in s.not_identifiable.items())})
     return row
 
 

@@ -17,7 +17,7 @@ from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores, R2Summary
 
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
-JSON_LAYOUT = 1
+JSON_LAYOUT = 2
 
 
 def _finite_or_none(v: float | None) -> float | None:
@@ -89,6 +89,8 @@ class CandidateResult:
     bic: float | None = None
     max_lag: int | None = None
     converged: bool | None = None      # the optimizer's own verdict on the best start
+    not_identifiable: dict[str, str] | None = None  # parameter -> why its standard deviation is NaN
+    condition_number: float | None = None  # of the column-scaled Jacobian at the solution
     message: str = ""                  # and its words
     nfev: int = 0                      # residual evaluations of the best start
     train: SplitScores | None = None
@@ -112,6 +114,8 @@ class CandidateResult:
                    significance=result.significance, n_starts=result.n_starts,
                    n_reached_best=result.n_reached_best, aic=result.aic, bic=result.bic, max_lag=result.max_lag,
                    converged=bool(result.success), message=result.message, nfev=int(result.nfev),
+                   not_identifiable=dict(result.not_identifiable),
+                   condition_number=float(result.condition_number),
                    train=train, validation=validation)
 
     @classmethod
@@ -131,6 +135,10 @@ class CandidateResult:
     @property
     def n_params(self) -> int:
         return len(self.names)
+
+    @property
+    def identifiable(self) -> bool | None:
+        return None if self.failed else not self.not_identifiable
 
     @property
     def linear_names(self) -> tuple[str, ...]:
