@@ -8,6 +8,7 @@ from .tables import TABLEFMT, FORMATS, correlation_table, parameter_table
 
 __all__ = ["fit_report", "parameter_table", "correlation_table", "FORMATS"]
 
+
 def fit_report(result: FitResult, fmt: str = "text") -> str:
     """One summary of a fit: goodness of fit, parameters with tests and flags, strong correlations."""
     r2 = result.r2_summary
