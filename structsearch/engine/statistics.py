@@ -99,21 +99,30 @@ def toeplitz_product(matrix: np.ndarray, lam: np.ndarray, bounds: np.ndarray) ->
     return out
 
 
-def _inverse_factor(jac: np.ndarray) -> np.ndarray:
-    """R^-1 of the thin QR of the column-scaled Jacobian, with the scaling folded back in."""
+def _scaled_factor(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R of the thin QR of the Jacobian with unit-norm columns, and the column norms."""
     scale = np.sqrt(np.sum(jac * jac, axis=0))
     scale[scale == 0] = 1.0
-    r = qr(jac / scale, mode="r", check_finite=False)[0][: jac.shape[1]]
+    return qr(jac / scale, mode="r", check_finite=False)[0][: jac.shape[1]], scale
+
+
+def _inverse_factor(jac: np.ndarray) -> np.ndarray:
+    """R^-1 of the thin QR of the column-scaled Jacobian, with the scaling folded back in."""
+    r, scale = _scaled_factor(jac)
     r_inv = solve_triangular(r, np.eye(r.shape[0]), check_finite=False)
     return r_inv / scale[:, None]
 
 
+def _sandwich(jac: np.ndarray, meat: np.ndarray) -> np.ndarray:
+    """(F^T F)^-1 meat (F^T F)^-1, with the meat symmetrised."""
+    r_inv = _inverse_factor(jac)
+    a_inv = r_inv @ r_inv.T
+    return a_inv @ (0.5 * (meat + meat.T)) @ a_inv
+
+
 def scaled_condition_number(jac: np.ndarray) -> float:
     """Condition number of the Jacobian with unit-norm columns (its thin-QR factor has the same one)."""
-    scale = np.sqrt(np.sum(jac * jac, axis=0))
-    scale[scale == 0] = 1.0
-    r = qr(jac / scale, mode="r", check_finite=False)[0][: jac.shape[1]]
-    s = np.linalg.svd(r, compute_uv=False)
+    s = np.linalg.svd(_scaled_factor(jac)[0], compute_uv=False)
     return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
@@ -128,11 +137,7 @@ def colored_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray
     """Toeplitz-autocorrelation sandwich; returns (covariance, number of lags used)."""
     lags = choose_max_lag(residual, bounds, max_lag)
     lam = autocovariance(residual, bounds, lags) * lag_weights(lags, max_lag)
-    r_inv = _inverse_factor(jac)
-    a_inv = r_inv @ r_inv.T
-    middle = jac.T @ toeplitz_product(jac, lam, bounds)
-    middle = 0.5 * (middle + middle.T)
-    return a_inv @ middle @ a_inv, lags
+    return _sandwich(jac, jac.T @ toeplitz_product(jac, lam, bounds)), lags
 
 
 # ----- heteroscedasticity- and autocorrelation-consistent (HAC) sandwich --------------------------
@@ -192,7 +197,4 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, ki
     n_lags = min(int(np.ceil(b)), longest) if kernel == "bartlett" else longest
     weights = kernel_weights(kernel, b, n_lags)
     meat = scores.T @ toeplitz_product(scores, weights, bounds)
-    meat = 0.5 * (meat + meat.T)
-    r_inv = _inverse_factor(jac)
-    a_inv = r_inv @ r_inv.T
-    return a_inv @ meat @ a_inv * (m / max(m - p, 1)), b
+    return _sandwich(jac, meat) * (m / max(m - p, 1)), b
