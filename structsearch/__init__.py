@@ -20,7 +20,6 @@ _EXPORTS = {
     "DataError": "data.errors",
     "DeclarationError": "data.errors",
     "FitError": "data.errors",
-    "RankDeficiencyError": "data.errors",
 }
 __all__ = sorted(_EXPORTS) + ["__version__"]
 

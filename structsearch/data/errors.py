@@ -34,13 +34,5 @@ class DataError(StructSearchError):
         super().__init__(prefix + message)
 
 
-class RankDeficiencyError(StructSearchError):
-    """The regression matrix does not have full column rank."""
-
-    def __init__(self, message: str, dependent: tuple[str, ...] = ()):
-        self.dependent = dependent
-        super().__init__(message)
-
-
 class FitError(StructSearchError):
     """The optimiser could not produce a usable fit."""

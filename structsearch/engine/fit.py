@@ -6,12 +6,11 @@ import numpy as np
 from ..data.errors import DataError, FitError
 from .ols import ols
 from .results import FitResult
-from .snls import SeparableProblem, check_full_rank, model_jacobian, multistart, project
+from .identifiability import covariance_basis, rank_reasons
+from .snls import SeparableProblem, model_jacobian, multistart, project
 from .scores import ManeuverScores, slices_of
-from .statistics import (HAC_KERNELS, colored_covariance, hac_covariance, scaled_condition_number,
-                         white_covariance)
+from .statistics import COVARIANCE_KINDS, Covariances, scaled_condition_number
 
-COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs")
 
 
 def check_observed(y: np.ndarray, bounds: np.ndarray, names, source: str, column: str) -> np.ndarray:
@@ -41,44 +40,39 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
         raise FitError(f"covariance must be one of {COVARIANCE_KINDS}, not {covariance!r}")
     y = check_observed(y, bounds, segment_names, source, coefficient or "y")
     k = len(problem.nonlinear_names)
-    where = f"model {model!r}"
     if k == 0:
-        outcome = ols(problem, y, where)
+        outcome = ols(problem, y)
         n_starts_used, reached = 1, 1
         lower = upper = np.zeros(0)
     else:
         lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-        # a regression matrix that is singular already at the start is a declaration problem
         ev0 = problem.evaluate(np.asarray(start, float))
         bad = np.argwhere(~np.isfinite(ev0.phi))
         if bad.size:
             raise DataError(f"regressor {problem.linear_names[bad[0][1]]!r} is NaN or infinite at the start",
                             source=source, row=int(bad[0][0]))
-        check_full_rank(project(ev0.phi, y), problem.linear_names, where)
         ms = multistart(problem, y, start, lower, upper, n_starts=n_starts, seed=seed,
                         n_jobs=n_jobs, tol=tol, max_nfev=max_nfev)
         outcome, n_starts_used, reached = ms.best, len(ms.outcomes), ms.n_reached_best
     ev = problem.evaluate(outcome.theta)
     proj = project(ev.phi, y)
-    check_full_rank(proj, problem.linear_names, f"{where} at the solution")
     jac = model_jacobian(ev, proj.coef, k)
     residual = proj.residual
     if hasattr(problem, "extended_residual"):
         residual = problem.extended_residual(outcome.theta, proj.coef, y)
-    white = white_covariance(jac, residual)
-    lags = bandwidth = None
-    if covariance == "colored":
-        cov, lags = colored_covariance(jac, residual, bounds, max_lag)
-    elif covariance in HAC_KERNELS:
-        cov, bandwidth = hac_covariance(jac, residual, bounds, covariance)
-    else:
-        cov = white
+    names = tuple(problem.nonlinear_names) + tuple(problem.linear_names)
+    reasons = dict(problem.identifiability(outcome.theta)) if hasattr(problem, "identifiability") else {}
+    reasons.update(rank_reasons(jac, names, skip=tuple(reasons)))
+    basis = covariance_basis(jac, names, reasons, k)
+    estimate = Covariances.on(jac, basis, residual, bounds, covariance, max_lag).without(
+        [i for i, n in enumerate(names) if n in reasons])
     return FitResult(
         model=model, coefficient=coefficient, nonlinear_names=tuple(problem.nonlinear_names),
         linear_names=tuple(problem.linear_names),
         values=np.concatenate([outcome.theta, proj.coef]), lower=lower, upper=upper,
-        covariance=cov, white_covariance=white, covariance_kind=covariance, max_lag=lags, bandwidth=bandwidth,
-        condition_number=scaled_condition_number(jac),
+        covariance=estimate.covariance, white_covariance=estimate.white, covariance_kind=covariance,
+        max_lag=estimate.max_lag, bandwidth=estimate.bandwidth, condition_number=scaled_condition_number(jac),
+        unidentifiable=reasons,
         residuals=residual, segment_names=tuple(segment_names),
         segments=ManeuverScores.of(y, residual, slices_of(bounds)), total_sst=float(np.sum((y - y.mean()) ** 2)),
         nfev=outcome.nfev, njev=outcome.njev, message=outcome.message, success=outcome.success,

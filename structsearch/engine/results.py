@@ -1,9 +1,9 @@
 """The immutable result of a fit; named statistics are derived lazily from stored arrays."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 from scipy import stats
@@ -11,8 +11,10 @@ from scipy import stats
 from .scores import ManeuverScores
 
 HIGH_CORRELATION = 0.9
-# A parameter closer than this fraction of its bound interval to a bound is "at the bound".
-AT_BOUND_RTOL = 1e-6
+# A parameter closer than this fraction of its bound interval to a bound is "at the bound". The
+# trust-region solver stops short of an active bound by ~1e-7..1e-6 of the range (it keeps iterates
+# strictly inside), so 1e-5 catches those stops without touching an interior optimum.
+AT_BOUND_RTOL = 1e-5
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,6 +51,8 @@ class FitResult:
     significance: float = 0.05
     bandwidth: float | None = None   # HAC kernel bandwidth in samples (covariance "hac"/"hac-qs")
     condition_number: float = float("nan")  # of the column-scaled Jacobian at the solution
+    # parameters the data cannot identify at the solution -> why (their covariance rows are NaN)
+    unidentifiable: Mapping[str, str] = field(default_factory=dict)
 
     # ----- sizes -------------------------------------------------------------
     @property
@@ -87,8 +91,10 @@ class FitResult:
     @cached_property
     def not_identifiable(self) -> dict[str, str]:
         """Parameters whose standard deviation cannot be estimated, with the reason (never reported as 0)."""
-        out = {}
+        out = dict(self.unidentifiable)
         for name, v in zip(self.names, np.diag(self.covariance)):
+            if name in out:
+                continue
             if not np.isfinite(v):
                 out[name] = "its variance estimate is not finite: the data cannot identify it"
             elif v <= 0:
@@ -99,6 +105,21 @@ class FitResult:
     @property
     def identifiable(self) -> bool:
         return not self.not_identifiable
+
+    @cached_property
+    def covariance_psd(self) -> bool:
+        """Whether the estimated covariance of the identifiable parameters is positive semi-definite.
+
+        Judged on the correlation scale (eigenvalues above -1e-10); an indefinite estimate is
+        reported as such, never repaired by clipping.
+        """
+        finite = np.all(np.isfinite(self.covariance), axis=0)
+        block = self.covariance[np.ix_(finite, finite)]
+        if block.size == 0:
+            return True
+        d = np.sqrt(np.abs(np.diag(block)))
+        d[d == 0] = 1.0
+        return bool(np.linalg.eigvalsh(block / np.outer(d, d)).min() > -1e-10)
 
     @cached_property
     def correlation(self) -> np.ndarray:
@@ -208,6 +229,7 @@ class FitResult:
             "bandwidth": self.bandwidth,
             "condition_number": self.condition_number,
             "identifiable": self.identifiable,
+            "covariance_psd": self.covariance_psd,
             "not_identifiable": self.not_identifiable,
             "rss": self.rss,
             "mse": self.mse,

@@ -18,14 +18,14 @@ ever formed.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol, Sequence
+from typing import Protocol
 
 import numpy as np
 from scipy.linalg import qr, solve_triangular
 from scipy.optimize import least_squares
 from scipy.stats import qmc
 
-from ..data.errors import FitError, RankDeficiencyError
+from ..data.errors import FitError
 
 
 @dataclass(frozen=True)
@@ -118,16 +118,6 @@ def residual_jacobian(ev: Evaluation, proj: Projection, k: int) -> np.ndarray:
 def model_jacobian(ev: Evaluation, coef: np.ndarray, k: int) -> np.ndarray:
     """Jacobian of the model Phi(theta) c w.r.t. (theta, c) with c held fixed: [DPhi c, Phi]."""
     return np.hstack([_dphi_times_coef(ev, coef, k), ev.phi])
-
-
-def check_full_rank(proj: Projection, names: Sequence[str], where: str) -> None:
-    if proj.dependent.size:
-        dropped = tuple(names[i] for i in proj.dependent)
-        raise RankDeficiencyError(
-            f"{where}: the regressors are linearly dependent (rank {proj.rank} of {len(names)}); "
-            f"{', '.join(repr(d) for d in dropped)} {'is a' if len(dropped) == 1 else 'are'} "
-            f"combination{'s' if len(dropped) > 1 else ''} of the others (a constant or "
-            f"collinear regressor)", dropped)
 
 
 # Slow but steady starts (NIST Rat42 from start 1 needs ~380 evaluations) should finish.

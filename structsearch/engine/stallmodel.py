@@ -22,7 +22,8 @@ import numpy as np
 from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
 from .fit import fit_problem
-from .regressors import Regressor, declare
+from .identifiability import SATURATION, collinear_with, join_names
+from .regressors import X_FLOOR, Regressor, declare
 from .results import FitResult
 from .separation import DEFAULT_BOUNDS, DEFAULT_START, SeparationState, common_step, evaluate_state
 from .snls import BoundProblem, Evaluation
@@ -199,3 +200,52 @@ class StallProblem(BoundProblem):
                     np.multiply(dx[:, free], d_reg[:, None], out=dphi[:, col:col + free.size])
                     col += free.size
         return Evaluation(phi, dphi, rows, params)
+
+    def identifiability(self, theta: np.ndarray) -> dict[str, str]:
+        """Parameters a saturated separation state leaves unidentifiable, with the reason.
+
+        A state above 1 - SATURATION (attached) or below SATURATION (separated) on every
+        sample carries no information on its own parameters; a regressor of it is then
+        (nearly) a function of the data alone and may coincide with other regressors.
+        """
+        states = self.state_values(np.asarray(theta, float))
+        names = self.model.nonlinear_names
+        reasons: dict[str, str] = {}
+        saturated: dict[str, tuple[float, str]] = {}
+        for s in self.model.states:
+            index, x, _ = states[s.symbol]
+            if float(np.min(x)) > 1.0 - SATURATION:
+                saturated[s.symbol] = (1.0, f"{s.symbol} stays above {1.0 - SATURATION:g} on every sample "
+                                            "(attached flow throughout)")
+            elif float(np.max(x)) < SATURATION:
+                saturated[s.symbol] = (X_FLOOR, f"{s.symbol} stays below {SATURATION:g} on every sample "
+                                                "(separated flow throughout)")
+            else:
+                continue
+            free = [names[i] for i in index if i >= 0]
+            if free:
+                why = saturated[s.symbol][1]
+                for p in free:
+                    reasons[p] = f"{why}: {join_names(free)} cannot be identified from this data"
+        if not saturated:
+            return reasons
+        m = self.data.n_samples
+        frozen = {sym: (np.full(m, saturated[sym][0]) if sym in saturated else v[1]) for sym, v in states.items()}
+        regs = self.model.regressors
+        phi = np.column_stack([r.value(self.data, frozen, m) for r in regs])
+        for i, reg in enumerate(regs):
+            hit = [sym for sym in reg.states if sym in saturated]
+            if not hit:
+                continue
+            others = [j for j in range(len(regs)) if j != i]
+            partners = collinear_with(phi[:, i], phi[:, others])
+            if partners is None:
+                continue
+            group = [reg.name] + [regs[others[j]].name for j in partners]
+            why = saturated[hit[0]][1]
+            text = (f"{why}, so regressor {reg.name!r} is zero on every sample" if len(group) == 1 else
+                    f"{why}, so regressor {reg.name!r} is collinear with the others: {join_names(group)} "
+                    "cannot be separated")
+            for p in group:
+                reasons.setdefault(p, text)
+        return reasons

@@ -32,6 +32,8 @@ O(p m log m) plus O(p^2 m) for the products.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.linalg import qr, solve_triangular
 from scipy.signal import fftconvolve
@@ -198,3 +200,47 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, ki
     weights = kernel_weights(kernel, b, n_lags)
     meat = scores.T @ toeplitz_product(scores, weights, bounds)
     return _sandwich(jac, meat) * (m / max(m - p, 1)), b
+
+
+COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs")
+
+
+@dataclass(frozen=True)
+class Covariances:
+    """The requested covariance and the white one, on the identifiable parameters (NaN elsewhere)."""
+
+    covariance: np.ndarray
+    white: np.ndarray
+    max_lag: int | None = None
+    bandwidth: float | None = None
+
+    @classmethod
+    def on(cls, jac: np.ndarray, keep: np.ndarray, residual: np.ndarray, bounds: np.ndarray, kind: str,
+           max_lag=None) -> "Covariances":
+        """Covariances of the parameters selected by ``keep`` (the others held at their estimates)."""
+        p = jac.shape[1]
+        full, white = np.full((p, p), np.nan), np.full((p, p), np.nan)
+        lags = bandwidth = None
+        sub = jac[:, keep]
+        if sub.shape[1] and np.all(np.isfinite(sub)) and np.all(np.isfinite(residual)):
+            block = np.ix_(keep, keep)
+            try:
+                white[block] = white_covariance(sub, residual)
+                if kind == "colored":
+                    full[block], lags = colored_covariance(sub, residual, bounds, max_lag)
+                elif kind in HAC_KERNELS:
+                    full[block], bandwidth = hac_covariance(sub, residual, bounds, kind)
+                else:
+                    full[block] = white[block]
+            except np.linalg.LinAlgError:
+                # an exactly singular factor despite the basis choice: report "not estimable" (NaN)
+                full[block] = white[block] = np.nan
+        return cls(full, white, lags, bandwidth)
+
+    def without(self, indices) -> "Covariances":
+        """The same estimate with the rows and columns of ``indices`` set to NaN (not estimable)."""
+        cov, white = self.covariance.copy(), self.white.copy()
+        for m in (cov, white):
+            m[indices, :] = np.nan
+            m[:, indices] = np.nan
+        return Covariances(cov, white, self.max_lag, self.bandwidth)

@@ -27,7 +27,11 @@ def fit_report(result: FitResult, fmt: str = "text") -> str:
         ["optimizer", f"{'converged' if result.success else 'NOT CONVERGED'}: {result.message} "
                       f"({result.nfev} evaluations)"],
         ["starts reaching the best cost", f"{result.n_reached_best} of {result.n_starts}"],
+        ["scaled condition number", f"{result.condition_number:.3g}"],
+        ["identifiable", "yes" if result.identifiable else f"NO ({len(result.not_identifiable)} parameters)"],
     ]
+    if not result.covariance_psd:
+        head.append(["covariance", "INDEFINITE: some standard deviations or correlations are not estimable"])
     if fmt not in FORMATS:
         raise ValueError(f"format must be one of {FORMATS}, not {fmt!r}")
     if fmt == "csv":
@@ -37,5 +41,8 @@ def fit_report(result: FitResult, fmt: str = "text") -> str:
     if result.high_correlations:
         corr = [[a, b, f"{c:+.3f}"] for a, b, c in result.high_correlations]
         parts.append(tabulate(corr, headers=["parameter", "parameter", "correlation"], tablefmt=tablefmt))
+    if result.not_identifiable:
+        why = [[name, reason] for name, reason in result.not_identifiable.items()]
+        parts.append(tabulate(why, headers=["not identifiable", "why"], tablefmt=tablefmt))
     sep = "\n\n" if fmt != "html" else "\n"
     return sep.join(parts) + "\n"

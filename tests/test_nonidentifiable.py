@@ -1,0 +1,132 @@
+"""Identifiability instead of crashes: named parameters, NaN standard deviations, no LinAlgError."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from structsearch.data.flightdata import FlightData
+from structsearch.engine.identifiability import RANK_RTOL, rank_reasons
+from structsearch import SeparableModel
+from structsearch.engine.stallmodel import StallModel
+from structsearch.report.fit_report import fit_report
+
+
+def _noisy(data, sigma=0.01, seed=3):
+    cols = dict(data.columns)
+    cols["CL"] = cols["CL"] + sigma * np.random.default_rng(seed).standard_normal(len(cols["CL"]))
+    return FlightData(cols, data.starts, data.names, data.source, data.constants)
+
+
+@pytest.fixture(scope="module")
+def saturated_fit(noise_free_lift):
+    """A second state whose break point lies beyond every angle of attack flown (X_w = 1 throughout)."""
+    _, data = noise_free_lift
+    assert data["alpha"].max() < 0.45
+    model = StallModel.declare(
+        "two-states", "CL", states={"ss": "U", "w": "S"},
+        regressors={"CL0": "1", "CL_KL_ss": "K_L(X_ss)", "CL_Xw": "X_w", "CL_qstar": "qstar", "CL_de": "de"},
+        bounds={"a_star_w": (0.6, 0.8), "a1_w": (30.0, 60.0)})
+    return model.fit(_noisy(data))
+
+
+def test_saturated_state_names_its_parameters(saturated_fit):
+    why = saturated_fit.not_identifiable
+    assert not saturated_fit.identifiable
+    for name in ("a1_w", "a_star_w"):
+        assert "X_w stays above 0.999 on every sample" in why[name]
+        assert "a1_w and a_star_w cannot be identified" in why[name]
+    # with X_w = 1 its regressor is the constant column: CL_Xw and the intercept cannot be told apart
+    assert "CL_Xw and CL0 cannot be separated" in why["CL_Xw"] and why["CL0"] == why["CL_Xw"]
+    assert set(why) == {"a1_w", "a_star_w", "CL_Xw", "CL0"}
+
+
+def test_saturated_state_gives_nan_not_zero(saturated_fit):
+    for name in saturated_fit.names:
+        sd = saturated_fit.stderr[name]
+        if name in saturated_fit.not_identifiable:
+            assert np.isnan(sd) and np.isnan(saturated_fit.p_values[name])
+        else:
+            assert np.isfinite(sd) and sd > 0, name
+    doc = saturated_fit.to_dict()
+    assert doc["identifiable"] is False and set(doc["not_identifiable"]) == set(saturated_fit.not_identifiable)
+    assert "X_w stays above 0.999" in fit_report(saturated_fit)
+
+
+def test_identified_part_keeps_its_statistics(saturated_fit, noise_free_lift):
+    """The covariance of the identifiable parameters is that of the model without the saturated state."""
+    _, data = noise_free_lift
+    reduced = StallModel.declare("one-state", "CL", states={"ss": "U"},
+                                 regressors={"CL0": "1", "CL_KL_ss": "K_L(X_ss)", "CL_qstar": "qstar",
+                                             "CL_de": "de"})
+    fit = reduced.fit(_noisy(data))
+    for name in ("tau1_ss", "a_star_ss", "CL_KL_ss", "CL_de"):
+        assert saturated_fit.params[name] == pytest.approx(fit.params[name], rel=1e-3)
+        assert saturated_fit.stderr[name] == pytest.approx(fit.stderr[name], rel=0.05), name
+
+
+def test_constant_regressor_named_with_the_intercept(noise_free_lift):
+    _, data = noise_free_lift
+    model = StallModel.declare("m", "CL", states={"ss": "U"},
+                               regressors={"CL0": "1", "CL_KL": "K_L(X_ss)", "CL_cg": "x_cg/x_cg"})
+    fit = model.fit(data)
+    assert set(fit.not_identifiable) == {"CL0", "CL_cg"}
+    assert "CL0 and CL_cg are collinear" in fit.not_identifiable["CL_cg"]
+    assert np.isnan(fit.stderr["CL0"]) and np.isnan(fit.stderr["CL_cg"])
+    assert np.isfinite(fit.stderr["CL_KL"])
+
+
+def test_collinear_regressors_in_ols(noise_free_lift):
+    _, data = noise_free_lift
+    model = StallModel.declare("m", "CL", regressors={"a": "alpha", "b": "de", "c": "2*alpha - 3*de"})
+    fit = model.fit(data)
+    assert set(fit.not_identifiable) == {"a", "b", "c"}
+    assert "a, b and c are collinear" in fit.not_identifiable["a"]
+    # the fitted values are still the least-squares ones
+    direct = np.linalg.lstsq(np.column_stack([data["alpha"], data["de"]]), data["CL"], rcond=None)[0]
+    assert fit.rss == pytest.approx(float(np.sum((data["CL"] - np.column_stack(
+        [data["alpha"], data["de"]]) @ direct) ** 2)), rel=1e-9)
+
+
+def test_rank_reasons_on_known_jacobians():
+    rng = np.random.default_rng(0)
+    base = rng.standard_normal((200, 3))
+    assert rank_reasons(base, ["a", "b", "c"]) == {}
+    dup = np.column_stack([base, 2.0 * base[:, 1]])
+    why = rank_reasons(dup, ["a", "b", "c", "d"])
+    assert set(why) == {"b", "d"} and "b and d are collinear" in why["b"]
+    zero = np.column_stack([base, np.zeros(200)])
+    assert set(rank_reasons(zero, ["a", "b", "c", "z"])) == {"z"}
+    # just inside the limit: a direction 100 times stronger than the limit stays identifiable
+    near = np.column_stack([base, base[:, 0] + 100 * RANK_RTOL * rng.standard_normal(200)])
+    assert rank_reasons(near, ["a", "b", "c", "n"]) == {}
+    beyond = np.column_stack([base, base[:, 0] + 0.01 * RANK_RTOL * rng.standard_normal(200)])
+    assert set(rank_reasons(beyond, ["a", "b", "c", "n"])) == {"a", "n"}
+
+
+@pytest.fixture(scope="module")
+def exponential_fit():
+    rng = np.random.default_rng(5)
+    x = np.linspace(0.0, 4.0, 300)
+    y = 2.0 * np.exp(-1.3 * x) + 0.5 + 0.01 * rng.standard_normal(300)
+    return SeparableModel({"c": "exp(-k*x)", "d": "1"}, variables=["x"]).fit(
+        {"x": x}, y, start={"k": 1.0}, bounds={"k": (0.5, 1.3 + 0.1)}, covariance="white")
+
+
+def test_indefinite_covariance_is_flagged_not_repaired(exponential_fit):
+    cov = exponential_fit.covariance.copy()
+    s = np.sqrt(cov[0, 0] * cov[1, 1])
+    cov[0, 1] = cov[1, 0] = 1.5 * s  # |correlation| 1.5: positive variances, indefinite matrix
+    broken = dataclasses.replace(exponential_fit, covariance=cov)
+    assert exponential_fit.covariance_psd and not broken.covariance_psd
+    assert broken.stderr["k"] == pytest.approx(np.sqrt(cov[0, 0]))
+    assert "INDEFINITE" in fit_report(broken) and broken.to_dict()["covariance_psd"] is False
+
+
+@pytest.mark.parametrize("inside,flag", [(4e-7, "lower"), (1e-6 * 0.8, "lower"), (1e-3, None)])
+def test_at_bound_is_relative_to_the_range(exponential_fit, inside, flag):
+    """k's box is [0.5, 1.4]; 4e-7 of absolute distance (4.4e-7 of the range) is at the bound."""
+    lo, hi = exponential_fit.lower[0], exponential_fit.upper[0]
+    values = exponential_fit.values.copy()
+    values[0] = lo + inside * (hi - lo) if flag != "upper" else hi - inside * (hi - lo)
+    moved = dataclasses.replace(exponential_fit, values=values)
+    assert moved.at_bound == ({"k": flag} if flag else {})
