@@ -155,20 +155,30 @@ def test_interrupted_search_resumes(tiny, tmp_path):
     assert [r.params for r in resumed] == [r.params for r in fresh]
 
 
-def test_failing_candidate_is_recorded_and_the_search_goes_on(tiny, tmp_path):
+def test_collinear_candidate_ranked_after_identifiable_and_failure_recorded(tiny, tmp_path):
     spec = tmp_path / "grid.toml"
     spec.write_text('name = "mine"\ncoefficient = "CL"\nprefix = "M-"\n'
                     '[blocks]\nbase = { c0 = "1", ca = "alpha" }\n'
                     '[[entry]]\nblocks = ["base"]\n'
                     '[[entry]]\nregressors = { c0 = "1", a = "alpha", b = "2*alpha" }\n'
-                    '[[entry]]\nregressors = { c0 = "1", k = "K_L(X)" }\nstates = { "" = "U" }\n')
+                    '[[entry]]\nregressors = { c0 = "1", k = "K_L(X)" }\nstates = { "" = "U" }\n'
+                    '[[entry]]\nregressors = { c0 = "1", bad = "log(alpha - 1)" }\n')
     result = search(tiny, str(spec), tmp_path / "out")
     write_tables(result.grids, tmp_path / "out")
     ranked = result.grids["mine"]
-    assert [r.name for r in ranked] == ["M-III", "M-I", "M-II"]
-    assert "linearly dependent" in ranked[-1].error and ranked[-1].rank is None
+    assert [r.name for r in ranked] == ["M-III", "M-I", "M-II", "M-IV"]
+    # a failing candidate is recorded with a reason naming the regressor and the row; the search goes on
+    assert ranked[-1].failed and ranked[-1].rank is None
+    assert "regressor 'bad' is NaN or infinite" in ranked[-1].error and "row 0" in ranked[-1].error
+    ranked = ranked[:-1]
+    # collinear a and b: a result without standard deviations for them, ranked after the identifiable ones
+    assert ranked[-1].error is None and not ranked[-1].identifiable and ranked[-1].rank == 3
+    assert "a and b are collinear" in ranked[-1].not_identifiable["a"]
+    assert np.isnan(ranked[-1].stderr["a"]) and np.isnan(ranked[-1].stderr["b"])
     rows = list(csv.DictReader((tmp_path / "out" / "ranking.csv").open()))
-    assert rows[-1]["model"] == "M-II" and "linearly dependent" in rows[-1]["error"]
+    assert rows[-2]["model"] == "M-II" and rows[-2]["identifiable"] == "False"
+    assert "a and b are collinear" in rows[-2]["not_identifiable"]
+    assert rows[-1]["model"] == "M-IV" and "NaN or infinite" in rows[-1]["error"]
 
 
 def test_refinement_drops_what_the_t_test_rejects(tiny, tmp_path):

@@ -31,7 +31,8 @@ from . import effects as fx
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
-from ..search.runner import Settings, build_model, fit_candidate, fit_lift_model, predict_candidate
+from ..search.models import build_model, predict_candidate
+from ..search.runner import Settings, fit_candidate, fit_lift_model
 from ..engine.regressors import declare
 from ..engine.separation import static_separation
 from ..search.candidates import Candidate
@@ -156,7 +157,18 @@ def _relative_excess(residual: np.ndarray, floor_residual: np.ndarray, data: Fli
     return weighted_mean_se(d, sizes_of(slices))
 
 
-def _wald(summary: CandidateResult, names) -> float:
+def saturated(current: Candidate, library) -> tuple[Candidate, dict[str, tuple[str, ...]]]:
+    """``current`` with every effect of ``library`` added, and the parameters each effect adds."""
+    saturated_c, added = current, {}
+    for e in library:
+        nxt = e.apply(saturated_c)
+        added[e.name] = e.new_parameters(saturated_c, nxt)
+        saturated_c = nxt
+    return saturated_c, added
+
+
+def wald_p_value(summary: CandidateResult, names) -> float:
+    """p-value of the Wald test that the parameters ``names`` are all zero (NaN if not estimable)."""
     names = [n for n in names if n in summary.params]
     if not names:
         return float("nan")
@@ -211,17 +223,13 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
         if not library:
             break
         say(f"round {rnd + 1}: baseline {current.name}, {len(library)} effects")
-        saturated_c, added = current, {}
-        for e in library:
-            nxt = e.apply(saturated_c)
-            added[e.name] = e.new_parameters(saturated_c, nxt)
-            saturated_c = nxt
+        saturated_c, added = saturated(current, library)
         sat_fit = _fit(saturated_c, train, val, lift, lift_c, settings, start=base_fit.summary.params)
 
         def remaining_p(skip: str | None) -> float:
             """Wald p-value of what the saturated model adds beyond the baseline (and effect ``skip``)."""
             names = [p for name, ps in added.items() if name != skip for p in ps]
-            return _wald(sat_fit.summary, names)
+            return wald_p_value(sat_fit.summary, names)
         floor = min(float(np.mean(sat_fit.residual ** 2)), float(np.mean(base_fit.residual ** 2)))
         mse_base, se_base = _mse_se(base_fit.residual, val)
         gap = mse_base - floor
@@ -244,7 +252,7 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
             ranked.append({
                 "name": e.name, "shrink": shrink,
                 "mse_validation_after": mse_after, "mse_train_after": f.summary.mse_train,
-                "p_value": _wald(f.summary, e.new_parameters(current, changed)),
+                "p_value": wald_p_value(f.summary, e.new_parameters(current, changed)),
                 **dict(zip(("overlap", "acts_in"), _overlap(where_rows, base_fit.residual, f.residual, val, x))),
                 "at_floor": bool(not (remaining_p(e.name) < 0.01)
                                  or _relative_excess(f.residual, sat_fit.residual, val)[0] <= 0.01),

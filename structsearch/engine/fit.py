@@ -40,17 +40,20 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
         raise FitError(f"covariance must be one of {COVARIANCE_KINDS}, not {covariance!r}")
     y = check_observed(y, bounds, segment_names, source, coefficient or "y")
     k = len(problem.nonlinear_names)
+    with np.errstate(all="ignore"):
+        ev0 = problem.evaluate(np.asarray(start if k else np.zeros(0), float))
+    bad = np.argwhere(~np.isfinite(ev0.phi))
+    if bad.size:
+        seg = int(np.searchsorted(bounds, bad[0][0], side="right") - 1)
+        raise DataError(f"regressor {problem.linear_names[bad[0][1]]!r} is NaN or infinite"
+                        f"{' at the start' if k else ''} (maneuver {segment_names[seg]!r})", source=source,
+                        row=int(bad[0][0] - bounds[seg]))
     if k == 0:
         outcome = ols(problem, y)
         n_starts_used, reached = 1, 1
         lower = upper = np.zeros(0)
     else:
         lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-        ev0 = problem.evaluate(np.asarray(start, float))
-        bad = np.argwhere(~np.isfinite(ev0.phi))
-        if bad.size:
-            raise DataError(f"regressor {problem.linear_names[bad[0][1]]!r} is NaN or infinite at the start",
-                            source=source, row=int(bad[0][0]))
         ms = multistart(problem, y, start, lower, upper, n_starts=n_starts, seed=seed,
                         n_jobs=n_jobs, tol=tol, max_nfev=max_nfev)
         outcome, n_starts_used, reached = ms.best, len(ms.outcomes), ms.n_reached_best

@@ -124,6 +124,12 @@ NAMED_EXPRESSIONS = {"qstar": reduced_pitch_rate, "spline": van_ingen_spline}
 
 def parse(text: str, *, known: Iterable[str], context: str = "") -> sp.Expr:
     """Parse a regressor or basis expression; every name becomes a real symbol."""
+    return _parse(text, tuple(known), context)
+
+
+@lru_cache(maxsize=4096)
+def _parse(text: str, known: tuple[str, ...], context: str) -> sp.Expr:
+    """Cached: a search declares the same expressions thousands of times (sympy expressions are immutable)."""
     local: dict = {name: _real(name) for name in known}
     local.update(HELPERS)
     local.update({name: make() for name, make in NAMED_EXPRESSIONS.items()})

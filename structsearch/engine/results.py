@@ -53,6 +53,8 @@ class FitResult:
     condition_number: float = float("nan")  # of the column-scaled Jacobian at the solution
     # parameters the data cannot identify at the solution -> why (their covariance rows are NaN)
     unidentifiable: Mapping[str, str] = field(default_factory=dict)
+    # what the covariance accounts for beyond this fit (drag/pitch: the lift model's estimation error)
+    generated_regressors: str | None = None
 
     # ----- sizes -------------------------------------------------------------
     @property
@@ -225,6 +227,7 @@ class FitResult:
             "high_correlations": [list(p) for p in self.high_correlations],
             "correlation": {"names": list(self.names), "matrix": self.correlation.tolist()},
             "covariance": self.covariance_kind,
+            "generated_regressors": self.generated_regressors,
             "max_lag": self.max_lag,
             "bandwidth": self.bandwidth,
             "condition_number": self.condition_number,

@@ -203,6 +203,8 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, ki
 
 
 COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs")
+# Chosen by the Monte Carlo calibration on the flight simulator (structsearch bench --calibration).
+DEFAULT_COVARIANCE = "colored"
 
 
 @dataclass(frozen=True)

@@ -20,13 +20,13 @@ from ..flight.aero import AeroModel
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.errors import DeclarationError
-from ..search.runner import Settings, build_model, predict_candidate, run
+from ..search.models import build_model, predict_candidate
+from ..search.runner import Settings, run
 from ..engine.scores import ManeuverScores
 from ..engine.separation import static_separation
 from ..search.candidates import Candidate
 from ..search.specs import find_candidate
 from ..search.candidate_result import CandidateResult
-from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_MODEL_NAMES
 
 COEFFICIENTS = ("CL", "CD", "Cm")
 # Stall stages on the static separation curve (thesis Fig. 6)

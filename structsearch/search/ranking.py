@@ -5,7 +5,9 @@ the lowest validation MSE of the modelled coefficient sets the bar; every
 candidate whose per-maneuver relative excess in validation MSE is, on average,
 less than one standard error of that excess (or below 1 %) is "within noise" of it. Those come first, fewest
 parameters first (then lowest validation MSE); the rest follow by validation MSE.
-Failed candidates come last with their reason.
+A candidate the data cannot identify (a parameter without a standard deviation)
+is ranked after every identifiable one, whatever its error: its estimates mean
+nothing. Failed candidates come last with their reason.
 """
 from __future__ import annotations
 
@@ -42,5 +44,5 @@ def rank(results: list[CandidateResult]) -> list[CandidateResult]:
             placed.append(s.ranked(gap=gap, gap_se=se, within_noise=bool(s is best or gap <= bar)))
         top = sorted((s for s in placed if s.within_noise), key=lambda s: (s.n_params, s.mse_validation))
         rest = sorted((s for s in placed if not s.within_noise), key=lambda s: s.mse_validation)
-        ok = top + rest
+        ok = [s for s in top + rest if s.identifiable] + [s for s in top + rest if not s.identifiable]
     return [s.ranked(rank=i + 1) for i, s in enumerate(ok)] + failed

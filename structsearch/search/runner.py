@@ -23,22 +23,23 @@ from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.errors import StructSearchError
 from ..data.atomic import write_json
-from ..engine.regressors import declare
-from ..engine.separation import SeparationState
 from .candidates import Candidate
 from .specs import load_grid
 from ..engine.scores import ManeuverScores
-from ..engine.stallmodel import StallModel
+from ..engine.statistics import DEFAULT_COVARIANCE
 from .candidate_result import JSON_LAYOUT, CandidateResult, SplitScores
+from .generated import with_lift_uncertainty
+from .models import build_model, with_lift_prediction
 
 @dataclass(frozen=True)
 class Settings:
     n_starts: int = 4
     seed: int = 0
     significance: float = 0.05
+    covariance: str = DEFAULT_COVARIANCE
 
     def key(self) -> dict:
-        return {"n_starts": self.n_starts, "seed": self.seed}
+        return {"n_starts": self.n_starts, "seed": self.seed, "covariance": self.covariance}
 
 
 def fingerprint(data: FlightData) -> str:
@@ -48,44 +49,6 @@ def fingerprint(data: FlightData) -> str:
         h.update(np.ascontiguousarray(data.columns[name]).tobytes())
     h.update(np.asarray(data.starts).tobytes())
     return h.hexdigest()[:16]
-
-
-def build_model(c: Candidate, lift: CandidateResult | None = None) -> StallModel:
-    """The StallModel of a candidate; ``lift`` is the fitted lift model it names."""
-    fixed = None
-    states = dict(c.states)
-    if c.lift:
-        if lift is None or lift.failed:
-            raise StructSearchError(f"candidate {c.name} needs the fitted lift model {c.lift}")
-        # only the lift model's states this candidate's regressors use (CD-X has none)
-        symbols = {SeparationState(n, k).symbol: n for n, k in states.items()}
-        used = {s for name, text in c.regressors
-                for s in declare(name, text, states=list(symbols)).states}
-        states = {symbols[s]: states[symbols[s]] for s in symbols if s in used}
-        own = {p for n, k in states.items() for p in SeparationState(n, k).parameters}
-        fixed = {k: lift.params[k] for k in lift.nonlinear_names if k in own}
-    free_bounds = {k: v for k, v in c.bounds if not fixed or k not in fixed}
-    free_bounds = {k: v for k, v in free_bounds.items()
-                   if k in {p for n, kd in states.items() for p in SeparationState(n, kd).parameters}}
-    return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states, fixed=fixed,
-                              bounds=free_bounds)
-
-
-def with_lift_prediction(data: FlightData, lift: CandidateResult, lift_candidate: Candidate) -> FlightData:
-    """``data`` with column CL replaced by the lift model's output (the thesis feeds the lift model to
-    drag and pitch; the measured C_L carries buffet noise that would bias them as errors in variables)."""
-    cols = dict(data.columns)
-    cols["CL_measured"] = data["CL"]
-    cols["CL"] = build_model(lift_candidate).predict(data, lift.params)
-    return FlightData(cols, data.starts, data.names, data.source, dict(data.constants))
-
-
-def predict_candidate(c: Candidate, params: dict, data: FlightData, lift: CandidateResult | None = None,
-                      lift_candidate: Candidate | None = None) -> np.ndarray:
-    """A fitted candidate's output on ``data``; drag and pitch candidates get the lift model's C_L."""
-    if c.lift and lift_candidate is not None:
-        data = with_lift_prediction(data, lift, lift_candidate)
-    return build_model(c, lift).predict(data, params)
 
 
 def _derived(coef: str, predicted: np.ndarray, data: FlightData, other: np.ndarray | None):
@@ -112,6 +75,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
     t0 = time.perf_counter()
     try:
         model = build_model(c, lift)
+        measured = train
         if c.lift and lift_candidate is not None:
             train = with_lift_prediction(train, lift, lift_candidate)
             validation = with_lift_prediction(validation, lift, lift_candidate)
@@ -120,8 +84,10 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
             lo, hi = model.bound_vectors()
             bounds = dict(zip(model.nonlinear_names, zip(lo, hi)))
             warm = {k: float(np.clip(v, *bounds[k])) for k, v in warm.items()}
-        result = model.fit(train, start=warm or None,
-                           n_starts=settings.n_starts if model.nonlinear_names else 1, seed=settings.seed)
+        result = model.fit(train, start=warm or None, n_starts=settings.n_starts if model.nonlinear_names else 1,
+                           seed=settings.seed, covariance=settings.covariance)
+        if c.lift and lift_candidate is not None:
+            result = with_lift_uncertainty(result, c, measured, lift, lift_candidate)
         scores = {}
         for split, data in (("train", train), ("validation", validation)):
             y = data[c.coefficient]
@@ -138,7 +104,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
 
 
 # Part of every cache key: bump it when a change to the fitting code changes results.
-CACHE_VERSION = 4
+CACHE_VERSION = 5
 
 
 def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, settings: Settings):

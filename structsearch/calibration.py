@@ -1,0 +1,201 @@
+"""Calibration of the reported uncertainty by Monte Carlo on the flight simulator.
+
+N seeded campaigns (scaled down) are simulated with the full measurement chain,
+the three final models are fitted on each, and for every covariance kind:
+
+- the coverage of the 68 % and 95 % intervals (estimate +- z * reported standard
+  deviation) of every parameter around its simulator truth;
+- the ratio of the mean reported standard deviation to the Monte Carlo one (the
+  spread of the estimates over the campaigns);
+- the rejection rate at 1 % of the diagnosis' gap test (Wald test of what the
+  saturated model adds to the final model) on these null campaigns: the truth is
+  the final model, so every added parameter is truly zero.
+
+Fits start at the truth (the estimator is the optimum; multistart would only
+find the same point slower); each covariance kind refits from the previous
+optimum, so the estimates agree across kinds and only the covariances differ.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+from scipy import stats
+
+from .diagnosis import effects as fx
+from .diagnosis.diagnose import saturated, wald_p_value
+from .engine.statistics import COVARIANCE_KINDS
+from .flight.flighttest import build_campaign
+from .flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_MODEL_NAMES, FINAL_PITCH
+from .search.runner import Settings, fit_candidate
+from .search.specs import find_candidate
+
+TRUTH = {"CL": FINAL_LIFT, "CD": FINAL_DRAG, "Cm": FINAL_PITCH}
+Z68, Z95 = float(stats.norm.ppf(0.5 + 0.6827 / 2)), float(stats.norm.ppf(0.975))
+GAP_LEVEL = 0.01
+# goals of issue 11
+COVERAGE_RANGE = (0.92, 0.98)
+COVERAGE_FLOOR = 0.85
+REJECTION_CEILING = 0.03
+
+
+@dataclass(frozen=True)
+class CampaignDraw:
+    """One campaign's estimates, reported standard deviations and gap-test p-values, per kind."""
+
+    seed: int
+    samples: int
+    estimates: Mapping[str, Mapping[str, float]]               # model -> parameter -> value
+    stderr: Mapping[str, Mapping[str, Mapping[str, float]]]     # kind -> model -> parameter -> sd
+    gap_p: Mapping[str, Mapping[str, float]]                    # kind -> model -> p-value
+
+
+def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
+    """Simulate one campaign and fit the final models with every covariance kind."""
+    campaign = build_campaign(seed=seed, scale=scale)
+    train, val = campaign.split("train"), campaign.split("validation")
+    finals = {coef: find_candidate(name) for coef, name in FINAL_MODEL_NAMES.items()}
+    lift_candidate = finals["CL"]
+    estimates, stderr, gap = {}, {}, {}
+    starts = {coef: dict(TRUTH[coef]) for coef in finals}
+    for kind in kinds:
+        settings = Settings(n_starts=1, covariance=kind)
+        stderr[kind], gap[kind] = {}, {}
+        lift = None
+        for coef, cand in finals.items():
+            fit = fit_candidate(cand, train, val, lift, lift_candidate if cand.lift else None, settings,
+                                start=starts[coef])
+            if fit.failed:
+                raise RuntimeError(f"seed {seed}: {cand.name} failed: {fit.error}")
+            if coef == "CL":
+                lift = fit
+            starts[coef] = dict(fit.params)
+            estimates.setdefault(cand.name, dict(fit.params))
+            stderr[kind][cand.name] = dict(fit.stderr)
+            sat_cand, added = saturated(cand, fx.applicable(cand))
+            sat = fit_candidate(sat_cand, train, val, lift, lift_candidate if cand.lift else None, settings,
+                                start=fit.params)
+            names = [p for ps in added.values() for p in ps]
+            gap[kind][cand.name] = float("nan") if sat.failed else wald_p_value(sat, names)
+    return CampaignDraw(seed, train.n_samples, estimates, stderr, gap)
+
+
+@dataclass(frozen=True)
+class ParameterCalibration:
+    model: str
+    parameter: str
+    truth: float
+    mean: float
+    mc_sd: float                # spread of the estimates over the campaigns
+    reported_sd: float          # mean reported standard deviation
+    coverage68: float
+    coverage95: float
+    n: int                      # campaigns with a finite reported standard deviation
+
+    @property
+    def ratio(self) -> float:
+        return self.reported_sd / self.mc_sd if self.mc_sd > 0 else float("nan")
+
+    @property
+    def bias_in_sd(self) -> float:
+        return (self.mean - self.truth) / self.mc_sd if self.mc_sd > 0 else float("nan")
+
+
+@dataclass(frozen=True)
+class KindCalibration:
+    kind: str
+    parameters: tuple[ParameterCalibration, ...]
+    rejections: int             # gap tests with p < 1 %
+    gap_tests: int              # gap tests with a finite p-value
+    not_estimable: int          # gap tests whose p-value could not be computed
+
+    @property
+    def pooled68(self) -> float:
+        return _pooled(self.parameters, "coverage68")
+
+    @property
+    def pooled95(self) -> float:
+        return _pooled(self.parameters, "coverage95")
+
+    @property
+    def worst95(self) -> ParameterCalibration:
+        return min(self.parameters, key=lambda p: p.coverage95)
+
+    @property
+    def rejection_rate(self) -> float:
+        return self.rejections / self.gap_tests if self.gap_tests else float("nan")
+
+    @property
+    def meets_goals(self) -> bool:
+        lo, hi = COVERAGE_RANGE
+        return bool(lo <= self.pooled95 <= hi and self.worst95.coverage95 >= COVERAGE_FLOOR
+                    and self.rejection_rate <= REJECTION_CEILING)
+
+    @property
+    def score(self) -> float:
+        """Distance from the goals (0 when met): how the default covariance is chosen."""
+        lo, hi = COVERAGE_RANGE
+        return (max(lo - self.pooled95, 0.0, self.pooled95 - hi) + max(COVERAGE_FLOOR - self.worst95.coverage95, 0)
+                + max(self.rejection_rate - REJECTION_CEILING, 0.0) + 0.01 * abs(self.pooled95 - 0.95))
+
+
+def _pooled(parameters, attr: str) -> float:
+    n = sum(p.n for p in parameters)
+    return sum(getattr(p, attr) * p.n for p in parameters) / n if n else float("nan")
+
+
+@dataclass(frozen=True)
+class Calibration:
+    seeds: tuple[int, ...]
+    scale: float
+    samples: int                # training samples per campaign (mean)
+    kinds: tuple[KindCalibration, ...]
+    seconds: float = 0.0
+    draws: tuple[CampaignDraw, ...] = field(default=(), repr=False)
+
+    @property
+    def best(self) -> KindCalibration:
+        return min(self.kinds, key=lambda k: k.score)
+
+
+def summarise(draws: Sequence[CampaignDraw], scale: float, seconds: float = 0.0) -> Calibration:
+    """Coverage, standard-deviation ratios and gap-test rejections from the per-campaign draws."""
+    kinds = tuple(draws[0].stderr)
+    out = []
+    for kind in kinds:
+        rows = []
+        for coef, name in FINAL_MODEL_NAMES.items():
+            for p, truth in TRUTH[coef].items():
+                est = np.array([d.estimates[name][p] for d in draws])
+                sd = np.array([d.stderr[kind][name][p] for d in draws])
+                ok = np.isfinite(sd)
+                miss = np.abs(est - truth)
+                rows.append(ParameterCalibration(
+                    name, p, float(truth), float(est.mean()), float(est.std(ddof=1)),
+                    float(sd[ok].mean()) if ok.any() else float("nan"),
+                    float(np.mean(miss[ok] <= Z68 * sd[ok])) if ok.any() else float("nan"),
+                    float(np.mean(miss[ok] <= Z95 * sd[ok])) if ok.any() else float("nan"), int(ok.sum())))
+        ps = np.array([d.gap_p[kind][name] for d in draws for name in FINAL_MODEL_NAMES.values()])
+        finite = np.isfinite(ps)
+        out.append(KindCalibration(kind, tuple(rows), int(np.sum(ps[finite] < GAP_LEVEL)), int(finite.sum()),
+                                   int((~finite).sum())))
+    return Calibration(tuple(d.seed for d in draws), scale, int(np.mean([d.samples for d in draws])),
+                       tuple(out), seconds, tuple(draws))
+
+
+def run(n_campaigns: int = 50, scale: float = 0.1, kinds: Sequence[str] = COVARIANCE_KINDS, first_seed: int = 1000,
+        n_jobs: int = 2, progress: Callable[[str], None] | None = None) -> Calibration:
+    """Simulate ``n_campaigns`` seeded campaigns and calibrate every covariance kind on them."""
+    import time
+
+    from joblib import Parallel, delayed
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    seeds = range(first_seed, first_seed + n_campaigns)
+    draws = []
+    for i, d in enumerate(Parallel(n_jobs=n_jobs, return_as="generator")(
+            delayed(draw)(s, scale, tuple(kinds)) for s in seeds)):
+        draws.append(d)
+        say(f"calibration: campaign {i + 1}/{n_campaigns} ({time.perf_counter() - t0:.0f} s)")
+    return summarise(draws, scale, time.perf_counter() - t0)

@@ -1,0 +1,105 @@
+"""Covariance of a second-step fit whose regressors come from a first-step fit (generated regressors).
+
+Drag and pitch models take their separation states and C_L from the fitted lift
+model, so their estimates inherit the lift model's estimation error. Linearising
+both least-squares problems about the truth (Murphy & Topel 1985; Newey &
+McFadden 1994, section 6) gives
+
+    beta2_hat - beta2 ~ H2^-1 sum_t u_t,   u_t = F2_t e2_t - K F1_t e1_t,
+    K = F2^T G21 H1^-1,
+
+with F1, F2 the model Jacobians of the two steps, H = F^T F, e the residuals and
+G21 = d f2 / d beta1 the sensitivity of the second model's output to the
+first model's parameters. The correction term therefore enters as an extra score
+series, and every covariance kind estimates the variance of sum_t u_t the way it
+estimates its one-step meat:
+
+- ``hac``/``hac-qs``: the kernel estimate on the corrected scores u_t;
+- ``colored``: the stationary version, with the Bartlett-tapered auto- and
+  cross-covariances of (e1, e2) (the lift and drag residuals of one maneuver are
+  correlated: buffet moves both);
+- ``white``: the same with only lag 0 (homoscedastic, serially independent).
+
+Everything is conditional on the measured inputs (alpha, q, V, de, ...) being
+exact; the lift model's own covariance is unaffected.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import fftconvolve
+
+from .statistics import (HAC_KERNELS, _inverse_factor, _sandwich, andrews_bandwidth, autocovariance,
+                         choose_max_lag, kernel_weights, lag_weights, toeplitz_product)
+
+
+def cross_covariance(ra: np.ndarray, rb: np.ndarray, bounds: np.ndarray, max_lag: int) -> np.ndarray:
+    """gamma(k) = (1/m) sum_t ra(t) rb(t + k) for k = -max_lag..max_lag, within maneuvers only."""
+    out = np.zeros(2 * max_lag + 1)
+    for i in range(len(bounds) - 1):
+        a, b = ra[int(bounds[i]):int(bounds[i + 1])], rb[int(bounds[i]):int(bounds[i + 1])]
+        n = len(a)
+        nfft = 1 << int(np.ceil(np.log2(2 * n)))
+        full = np.fft.irfft(np.conj(np.fft.rfft(a, nfft)) * np.fft.rfft(b, nfft), nfft)
+        upto = min(max_lag, n - 1)
+        out[max_lag:max_lag + upto + 1] += full[:upto + 1]                 # k >= 0
+        if upto:
+            out[max_lag - upto:max_lag] += full[nfft - upto:]              # k < 0
+    return out / len(ra)
+
+
+def shifted_product(matrix: np.ndarray, gamma: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """out_t = sum_k gamma(k) matrix_{t+k} within each maneuver; ``gamma`` holds k = -L..L."""
+    lags = (len(gamma) - 1) // 2
+    out = np.empty_like(matrix)
+    for i in range(len(bounds) - 1):
+        s, e = int(bounds[i]), int(bounds[i + 1])
+        use = min(lags, e - s - 1)
+        kernel = gamma[lags - use:lags + use + 1][::-1]  # convolution flips the kernel back
+        out[s:e] = fftconvolve(matrix[s:e], kernel[:, None], mode="same", axes=0) if use else gamma[lags] * matrix[s:e]
+    return out
+
+
+def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1: np.ndarray,
+                                   residual1: np.ndarray, sensitivity: np.ndarray, bounds: np.ndarray,
+                                   kind: str, max_lag=None):
+    """Covariance of the second-step parameters including the first step's estimation error.
+
+    ``jac1`` (m x p1) and ``jac2`` (m x p2) are the model Jacobians on the identifiable parameters of
+    each step, ``sensitivity`` (m x p1) is d f2 / d beta1 on the same first-step parameters. Returns
+    (covariance, lags, bandwidth) like the one-step estimators.
+    """
+    m, p2 = jac2.shape
+    a1_inv = _inverse_factor(jac1)
+    gain = (jac2.T @ sensitivity) @ (a1_inv @ a1_inv.T)        # K, p2 x p1
+    carry = -(jac1 @ gain.T)                                    # multiplies e1 in u_t
+    lags = bandwidth = None
+    if kind in HAC_KERNELS:
+        kernel = HAC_KERNELS[kind]
+        scores = jac2 * residual2[:, None] + carry * residual1[:, None]
+        b = andrews_bandwidth(scores, bounds, kernel)
+        longest = int(np.max(np.diff(bounds))) - 1
+        n_lags = min(int(np.ceil(b)), longest) if kernel == "bartlett" else longest
+        meat = scores.T @ toeplitz_product(scores, kernel_weights(kernel, b, n_lags), bounds)
+        meat *= m / max(m - p2, 1)
+        bandwidth = b
+    elif kind == "white":
+        s22 = float(residual2 @ residual2) / max(m - p2, 1)
+        s11 = float(residual1 @ residual1) / max(m - jac1.shape[1], 1)
+        s12 = float(residual1 @ residual2) / m
+        cross = jac2.T @ carry
+        meat = s22 * (jac2.T @ jac2) + s11 * (carry.T @ carry) + s12 * (cross + cross.T)
+    elif kind == "colored":
+        lags = max(choose_max_lag(residual2, bounds, max_lag), choose_max_lag(residual1, bounds, max_lag))
+        taper = lag_weights(lags, max_lag)
+        two_sided = np.concatenate([taper[:0:-1], taper])
+        lam22 = autocovariance(residual2, bounds, lags) * taper
+        lam11 = autocovariance(residual1, bounds, lags) * taper
+        gamma12 = cross_covariance(residual1, residual2, bounds, lags) * two_sided  # E e1(t) e2(t+k)
+        # sum_ts A_t' E[e_a(t) e_b(s)] B_s for (a, b) in {2, 1}^2; gamma21(k) = gamma12(-k)
+        meat = (jac2.T @ toeplitz_product(jac2, lam22, bounds)
+                + carry.T @ toeplitz_product(carry, lam11, bounds)
+                + carry.T @ shifted_product(jac2, gamma12, bounds)
+                + jac2.T @ shifted_product(carry, gamma12[::-1], bounds))
+    else:
+        raise ValueError(f"unknown covariance kind {kind!r}")
+    return _sandwich(jac2, meat), lags, bandwidth

@@ -1,0 +1,92 @@
+"""Standard errors of drag and pitch candidates that include the lift model's estimation error.
+
+A drag or pitch candidate is fitted with the lift model's separation parameters
+held fixed and with C_L replaced by the lift model's output (``runner``). Its
+one-step covariance is therefore conditional on the lift estimates. This module
+replaces it by the two-step covariance of :mod:`structsearch.engine.twostep`,
+which needs three things at the estimates: the lift model's Jacobian and residual
+on the training maneuvers, the candidate's own Jacobian, and the sensitivity of
+the candidate's output to every lift parameter. The sensitivity is taken by
+central differences (step 1e-6 of each parameter's magnitude): it enters the
+covariance linearly, where eight digits are far more than the Monte Carlo check
+of the correction (20 %) can see.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..data.flightdata import FlightData
+from ..engine.identifiability import covariance_basis
+from ..engine.results import FitResult
+from ..engine.snls import model_jacobian
+from ..engine.stallmodel import StallModel
+from ..engine.statistics import Covariances
+from ..engine.twostep import generated_regressor_covariance
+from .candidate_result import CandidateResult
+from .candidates import Candidate
+from .models import model_with_lift, with_lift_prediction
+
+STEP = 1e-6
+
+
+def _jacobian(model, data: FlightData, params) -> tuple[np.ndarray, np.ndarray]:
+    """Model Jacobian [DPhi c, Phi] and output of a StallModel at ``params`` on ``data``."""
+    theta = np.array([params[n] for n in model.nonlinear_names], float)
+    coef = np.array([params[n] for n in model.linear_names], float)
+    ev = model.bind(data).evaluate(theta)
+    return model_jacobian(ev, coef, len(theta)), ev.phi @ coef
+
+
+def lift_sensitivity(model: StallModel, params: dict, train: FlightData, lift_model: StallModel,
+                     lift_params: dict, names) -> np.ndarray:
+    """d (candidate output) / d (lift parameter), one column per name in ``names``.
+
+    ``model`` is the candidate with the lift model's separation parameters fixed; a perturbed lift
+    parameter moves those fixed values and the C_L column the candidate sees.
+    """
+    def output(values):
+        cols = dict(train.columns)
+        cols["CL"] = lift_model.predict(train, values)
+        data = FlightData(cols, train.starts, train.names, train.source, dict(train.constants))
+        moved = dataclasses.replace(model, fixed={k: values[k] for k in model.fixed})
+        return moved.predict(data, params)
+    cols = []
+    for name in names:
+        h = STEP * max(abs(lift_params[name]), 1e-3)
+        up, down = dict(lift_params), dict(lift_params)
+        up[name] += h
+        down[name] -= h
+        cols.append((output(up) - output(down)) / (2 * h))
+    return np.column_stack(cols)
+
+
+def with_lift_uncertainty(result: FitResult, c: Candidate, train: FlightData, lift: CandidateResult,
+                          lift_candidate: Candidate) -> FitResult:
+    """``result`` (fitted on ``train`` with the lift prediction) with the two-step covariance.
+
+    ``train`` is the training data as measured (column CL is the measured lift coefficient).
+    """
+    lift_model = model_with_lift(lift_candidate, None)
+    lift_names = lift_model.nonlinear_names + lift_model.linear_names
+    jac1, fitted1 = _jacobian(lift_model, train, lift.params)
+    residual1 = train["CL"] - fitted1
+    basis1 = covariance_basis(jac1, lift_names, lift.not_identifiable, len(lift_model.nonlinear_names))
+
+    model = model_with_lift(c, lift.params)
+    jac2, _ = _jacobian(model, with_lift_prediction(train, lift, lift_candidate), result.params)
+    basis2 = covariance_basis(jac2, result.names, dict(result.unidentifiable), len(result.nonlinear_names))
+    sensitivity = lift_sensitivity(model, result.params, train, lift_model, lift.params,
+                                   [n for n, keep in zip(lift_names, basis1) if keep])
+    cov = np.full((result.n_params, result.n_params), np.nan)
+    block, lags, bandwidth = generated_regressor_covariance(
+        jac2[:, basis2], result.residuals, jac1[:, basis1], residual1, sensitivity, train.bounds,
+        result.covariance_kind)
+    cov[np.ix_(basis2, basis2)] = block
+    estimate = Covariances(cov, result.white_covariance, lags, bandwidth).without(
+        [i for i, n in enumerate(result.names) if n in result.unidentifiable])
+    return dataclasses.replace(
+        result, covariance=estimate.covariance, max_lag=estimate.max_lag, bandwidth=estimate.bandwidth,
+        generated_regressors=f"includes the estimation error of the lift model {lift.name} "
+                             "(two-step, Murphy-Topel)")

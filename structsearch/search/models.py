@@ -1,0 +1,61 @@
+"""A candidate as a StallModel: drag and pitch candidates take the lift model's states and output."""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from ..data.errors import StructSearchError
+from ..data.flightdata import FlightData
+from ..engine.regressors import declare
+from ..engine.separation import SeparationState
+from ..engine.stallmodel import StallModel
+from .candidate_result import CandidateResult
+from .candidates import Candidate
+
+
+def build_model(c: Candidate, lift: CandidateResult | None = None) -> StallModel:
+    """The StallModel of a candidate; ``lift`` is the fitted lift model it names."""
+    if c.lift and (lift is None or lift.failed):
+        raise StructSearchError(f"candidate {c.name} needs the fitted lift model {c.lift}")
+    return model_with_lift(c, lift.params if c.lift else None)
+
+
+def model_with_lift(c: Candidate, lift_params: Mapping[str, float] | None) -> StallModel:
+    """The StallModel of a candidate whose lift-model states take the separation parameters in
+    ``lift_params`` (a drag or pitch candidate; ignored for the others)."""
+    fixed = None
+    states = dict(c.states)
+    if c.lift:
+        # only the lift model's states this candidate's regressors use (CD-X has none)
+        symbols = {SeparationState(n, k).symbol: n for n, k in states.items()}
+        used = {s for name, text in c.regressors
+                for s in declare(name, text, states=list(symbols)).states}
+        states = {symbols[s]: states[symbols[s]] for s in symbols if s in used}
+        own = {p for n, k in states.items() for p in SeparationState(n, k).parameters}
+        fixed = {k: v for k, v in lift_params.items() if k in own}
+    free_bounds = {k: v for k, v in c.bounds if not fixed or k not in fixed}
+    free_bounds = {k: v for k, v in free_bounds.items()
+                   if k in {p for n, kd in states.items() for p in SeparationState(n, kd).parameters}}
+    return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states, fixed=fixed,
+                              bounds=free_bounds)
+
+
+def with_lift_prediction(data: FlightData, lift: CandidateResult | Mapping[str, float],
+                         lift_candidate: Candidate) -> FlightData:
+    """``data`` with column CL replaced by the lift model's output (the thesis feeds the lift model to
+    drag and pitch; the measured C_L carries buffet noise that would bias them as errors in variables).
+    ``lift`` is the fitted lift model or its parameter values."""
+    params = lift.params if isinstance(lift, CandidateResult) else lift
+    cols = dict(data.columns)
+    cols["CL_measured"] = data["CL_measured"] if "CL_measured" in data else data["CL"]
+    cols["CL"] = model_with_lift(lift_candidate, None).predict(data, params)
+    return FlightData(cols, data.starts, data.names, data.source, dict(data.constants))
+
+
+def predict_candidate(c: Candidate, params: dict, data: FlightData, lift: CandidateResult | None = None,
+                      lift_candidate: Candidate | None = None) -> np.ndarray:
+    """A fitted candidate's output on ``data``; drag and pitch candidates get the lift model's C_L."""
+    if c.lift and lift_candidate is not None:
+        data = with_lift_prediction(data, lift, lift_candidate)
+    return build_model(c, lift).predict(data, params)
