@@ -13,7 +13,27 @@ import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 
+def _calibration(args) -> int:
+    from .calibration import run
+    from .data.atomic import write_json, write_text
+    from .report.calibration_doc import calibration_dict, calibration_markdown
+    say = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
+    cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=args.jobs, progress=say)
+    out = Path(args.out)
+    command = f"structsearch bench --calibration --campaigns {args.campaigns} --scale {args.scale}"
+    write_text(out / "calibration.md", calibration_markdown(cal, command))
+    write_json(out / "calibration.json", calibration_dict(cal), indent=1)
+    for k in cal.kinds:
+        print(f"{k.kind}: 95 % coverage {k.pooled95:.3f} (worst {k.worst95.coverage95:.2f} "
+              f"{k.worst95.model} {k.worst95.parameter}), 68 % {k.pooled68:.3f}; gap test rejects "
+              f"{k.rejections}/{k.gap_tests}; goals {'met' if k.meets_goals else 'NOT met'}")
+    print(f"best calibrated: {cal.best.kind}; wrote {out / 'calibration.md'}")
+    return 0
+
+
 def _bench(args) -> int:
+    if args.calibration:
+        return _calibration(args)
     from .bench import BenchConfig, run, write
     config = BenchConfig(samples=args.samples, repeats=args.repeats, random_starts=args.starts,
                          seed=args.seed, n_jobs=args.jobs)
@@ -245,6 +265,11 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seed", type=int, default=2025)
     b.add_argument("--jobs", type=int, default=2, help="processes for the random starts and the search")
     b.add_argument("--no-search", action="store_true", help="skip the search --grid all benchmark")
+    b.add_argument("--calibration", action="store_true",
+                   help="instead: Monte Carlo calibration of the covariances on simulated campaigns "
+                        "(writes calibration.md and calibration.json)")
+    b.add_argument("--campaigns", type=int, default=50, help="--calibration: number of seeded campaigns")
+    b.add_argument("--scale", type=float, default=0.1, help="--calibration: fraction of the maneuvers flown")
     b.set_defaults(func=_bench)
 
     from .flight.aero import WITHHOLDABLE
