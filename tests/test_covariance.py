@@ -5,7 +5,8 @@ from scipy.linalg import block_diag, toeplitz
 
 from structsearch.data.flightdata import FlightData
 from structsearch.engine.separation import static_separation
-from structsearch.engine.statistics import (andrews_bandwidth, autocovariance, colored_covariance, hac_covariance,
+from structsearch.engine.statistics import (andrews_bandwidth, autocovariance, cluster_covariance, cluster_meat,
+                                            colored_covariance, hac_covariance,
                                            kernel_weights, lag_weights, white_covariance)
 from structsearch.engine.stallmodel import StallModel
 from structsearch.flight.synthetic import ar1_noise, campaign
@@ -203,3 +204,35 @@ def test_stationary_sandwich_misjudges_heteroscedastic_noise(heteroscedastic_mon
     """The reason HAC exists: the Toeplitz estimate assumes one noise level for the whole record."""
     ratio = heteroscedastic_monte_carlo["colored"].mean(axis=0)
     assert np.max(np.abs(ratio - 1)) > 0.3, ratio
+
+
+def test_cluster_meat_sums_scores_per_maneuver():
+    rng = np.random.default_rng(8)
+    scores, bounds = rng.standard_normal((50, 3)), np.array([0, 10, 25, 50])
+    sums = [scores[s:e].sum(axis=0) for s, e in zip(bounds[:-1], bounds[1:])]
+    dense = sum(np.outer(v, v) for v in sums) * 3 / 2
+    assert np.allclose(cluster_meat(scores, bounds), dense, rtol=1e-12)
+
+
+def test_cluster_covariance_sees_a_maneuver_level_error():
+    """Each maneuver carries its own sensor bias (a constant error) on top of white noise: the clustered
+    sandwich matches the Monte Carlo spread, a short-memory HAC does not."""
+    rng_design = np.random.default_rng(21)
+    g, n = 40, 60
+    bounds = np.arange(0, g * n + 1, n)
+    x = rng_design.standard_normal((g * n, 2)) + np.repeat(rng_design.standard_normal((g, 2)), n, axis=0)
+    jac = np.column_stack([np.ones(g * n), x])
+    estimates, sd = [], {"cluster": [], "hac": []}
+    for i in range(400):
+        rng = np.random.default_rng(300 + i)
+        y = jac @ np.array([0.1, 1.0, -0.5]) + np.repeat(0.3 * rng.standard_normal(g), n) \
+            + 0.5 * rng.standard_normal(g * n)
+        coef, *_ = np.linalg.lstsq(jac, y, rcond=None)
+        residual = y - jac @ coef
+        estimates.append(coef)
+        sd["cluster"].append(np.sqrt(np.diag(cluster_covariance(jac, residual, bounds))))
+        sd["hac"].append(np.sqrt(np.diag(hac_covariance(jac, residual, bounds, "hac")[0])))
+    spread = np.std(estimates, axis=0, ddof=1)
+    cluster = np.mean(sd["cluster"], axis=0) / spread
+    assert np.all(np.abs(cluster - 1) < 0.15), cluster
+    assert np.mean(sd["hac"], axis=0)[1] / spread[1] < 0.8

@@ -49,7 +49,7 @@ def two_step(seed, kind, phi):
         np.array([fit2.stderr["b"], fit2.stderr["g"]])
 
 
-@pytest.mark.parametrize("kind,phi", [("white", 0.0), ("hac", 0.6), ("colored", 0.6)])
+@pytest.mark.parametrize("kind,phi", [("white", 0.0), ("hac", 0.6), ("colored", 0.6), ("cluster", 0.6)])
 def test_correction_matches_monte_carlo_of_the_two_step_fit(kind, phi):
     runs = [two_step(seed, kind, phi) for seed in range(400)]
     estimates = np.array([r[0] for r in runs])

@@ -97,7 +97,10 @@ class FitResult:
         for name, v in zip(self.names, np.diag(self.covariance)):
             if name in out:
                 continue
-            if not np.isfinite(v):
+            if not np.isfinite(v) and self.covariance_kind == "cluster" and len(self.segment_names) <= self.n_params:
+                out[name] = (f"the maneuver-clustered covariance needs more maneuvers ({len(self.segment_names)}) "
+                             f"than parameters + 1 ({self.n_params + 1})")
+            elif not np.isfinite(v):
                 out[name] = "its variance estimate is not finite: the data cannot identify it"
             elif v <= 0:
                 out[name] = (f"its {self.covariance_kind} variance estimate is {'zero' if v == 0 else 'negative'} "

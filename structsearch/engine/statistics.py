@@ -202,7 +202,25 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, ki
     return _sandwich(jac, meat) * (m / max(m - p, 1)), b
 
 
-COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs")
+def cluster_meat(scores: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """sum over maneuvers of (sum of the maneuver's scores)(...)^T, times G/(G-1) (CR1)."""
+    sums = np.add.reduceat(scores, np.asarray(bounds[:-1], int), axis=0)
+    g = len(sums)
+    return sums.T @ sums * (g / (g - 1) if g > 1 else float("nan"))
+
+
+def cluster_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """Maneuver-clustered sandwich (Liang-Zeger; CR1 small-sample factor): any correlation and any
+    change of variance inside a maneuver, independence between maneuvers. Its meat has rank at most
+    G - 1 for G maneuvers, so with fewer than p + 1 maneuvers it is not estimable (NaN, never a
+    variance of 0); it needs many more maneuvers than parameters to be accurate."""
+    m, p = jac.shape
+    if len(bounds) - 2 < p:  # rank of the meat <= G - 1: some combinations would get variance 0
+        return np.full((p, p), np.nan)
+    return _sandwich(jac, cluster_meat(jac * residual[:, None], bounds)) * ((m - 1) / max(m - p, 1))
+
+
+COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs", "cluster")
 # Chosen by the Monte Carlo calibration on the flight simulator (structsearch bench --calibration).
 DEFAULT_COVARIANCE = "colored"
 
@@ -232,6 +250,8 @@ class Covariances:
                     full[block], lags = colored_covariance(sub, residual, bounds, max_lag)
                 elif kind in HAC_KERNELS:
                     full[block], bandwidth = hac_covariance(sub, residual, bounds, kind)
+                elif kind == "cluster":
+                    full[block] = cluster_covariance(sub, residual, bounds)
                 else:
                     full[block] = white[block]
             except np.linalg.LinAlgError:

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from .statistics import (HAC_KERNELS, _inverse_factor, _sandwich, andrews_bandwidth, autocovariance,
-                         choose_max_lag, kernel_weights, lag_weights, toeplitz_product)
+                         choose_max_lag, cluster_meat, kernel_weights, lag_weights, toeplitz_product)
 
 
 def cross_covariance(ra: np.ndarray, rb: np.ndarray, bounds: np.ndarray, max_lag: int) -> np.ndarray:
@@ -82,6 +82,11 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
         meat = scores.T @ toeplitz_product(scores, kernel_weights(kernel, b, n_lags), bounds)
         meat *= m / max(m - p2, 1)
         bandwidth = b
+    elif kind == "cluster":
+        if len(bounds) - 2 < p2:  # not estimable with fewer than p + 1 maneuvers (see cluster_covariance)
+            return np.full((p2, p2), np.nan), lags, bandwidth
+        scores = jac2 * residual2[:, None] + carry * residual1[:, None]
+        meat = cluster_meat(scores, bounds) * ((m - 1) / max(m - p2, 1))
     elif kind == "white":
         s22 = float(residual2 @ residual2) / max(m - p2, 1)
         s11 = float(residual1 @ residual1) / max(m - jac1.shape[1], 1)

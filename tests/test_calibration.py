@@ -1,0 +1,67 @@
+"""Calibration: the coverage arithmetic on constructed draws, and a small end-to-end run (CI version)."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from structsearch.calibration import TRUTH, Z95, CampaignDraw, summarise
+from structsearch.flight.reference import FINAL_MODEL_NAMES
+
+
+def _draws(offsets_in_sd, sd=0.01, p_values=(0.5, 0.005, 0.2)):
+    """Campaigns whose every estimate is truth + offset * sd, reported with standard deviation sd."""
+    out = []
+    for i, off in enumerate(offsets_in_sd):
+        est = {FINAL_MODEL_NAMES[c]: {p: v + off * sd for p, v in TRUTH[c].items()} for c in TRUTH}
+        sds = {"white": {FINAL_MODEL_NAMES[c]: {p: sd for p in TRUTH[c]} for c in TRUTH}}
+        gap = {"white": dict(zip(FINAL_MODEL_NAMES.values(), p_values))}
+        out.append(CampaignDraw(seed=i, samples=100, estimates=est, stderr=sds, gap_p=gap))
+    return out
+
+
+def test_coverage_ratio_and_rejections_from_known_draws():
+    offsets = [0.0, 0.5, -1.5, 2.5, -3.0]          # inside 95 %: 0, 0.5, -1.5 -> 3 of 5
+    cal = summarise(_draws(offsets), scale=0.1)
+    kind = cal.kinds[0]
+    assert {p.parameter for p in kind.parameters} == {p for c in TRUTH for p in TRUTH[c]}
+    for p in kind.parameters:
+        assert p.coverage95 == pytest.approx(3 / 5)
+        assert p.coverage68 == pytest.approx(2 / 5)   # |offset| <= 0.9945: 0 and 0.5
+        assert p.mc_sd == pytest.approx(0.01 * np.std(offsets, ddof=1))
+        assert p.ratio == pytest.approx(1 / np.std(offsets, ddof=1))
+        assert p.bias_in_sd == pytest.approx(np.mean(offsets) / np.std(offsets, ddof=1))
+    assert kind.rejections == 5 and kind.gap_tests == 15 and kind.rejection_rate == pytest.approx(1 / 3)
+    assert not kind.meets_goals and Z95 == pytest.approx(1.959964, abs=1e-6)
+
+
+def test_missing_standard_deviation_is_left_out_and_counted():
+    draws = _draws([0.0, 0.1, -0.2])
+    name = FINAL_MODEL_NAMES["CL"]
+    draws[0].stderr["white"][name]["tau1_ss"] = float("nan")
+    row = next(p for p in summarise(draws, 0.1).kinds[0].parameters if p.parameter == "tau1_ss")
+    assert row.n == 2 and row.coverage95 == 1.0
+
+
+def test_calibration_command_end_to_end(tmp_path):
+    """The CI version: two scaled campaigns, every covariance kind, strict JSON and the markdown."""
+    out = subprocess.run([sys.executable, "-m", "structsearch", "bench", "--calibration", "--campaigns", "2",
+                          "--scale", "0.05", "--jobs", "2", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads((tmp_path / "calibration.json").read_text(), parse_constant=lambda c: pytest.fail(c))
+    assert set(doc["kinds"]) == {"colored", "white", "hac", "hac-qs", "cluster"}
+    for name, kind in doc["kinds"].items():
+        assert kind["gap_tests"] + kind["gap_tests_not_estimable"] == 6
+        rows = kind["parameters"]
+        assert len(rows) == sum(len(t) for t in TRUTH.values())
+        if name == "cluster":
+            # four training maneuvers, up to 11 parameters: not estimable, reported as null (never 0)
+            assert all(r["n"] == 0 and r["reported_sd"] is None for r in rows)
+            assert kind["pooled_coverage95"] is None
+        else:  # every final-model parameter got a positive standard deviation in both campaigns
+            assert all(r["n"] == 2 and r["reported_sd"] > 0 for r in rows)
+    text = (tmp_path / "calibration.md").read_text()
+    assert "bench --calibration --campaigns 2 --scale 0.05" in text and "## cluster" in text
+    assert "best calibrated" in out.stdout
