@@ -85,7 +85,7 @@ def _fit(args) -> int:
     from .report.tables import parameter_table
     campaign = read_campaign(args.data)
     candidate = resolve_candidate(args.model)
-    settings = Settings(n_starts=args.starts, seed=args.seed)
+    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance)
     train, validation = campaign.split("train"), campaign.split("validation")
     lift, lift_candidate = fit_lift_model(candidate, train, validation, settings)
     summary = fit_candidate(candidate, train, validation, lift, lift_candidate, settings)
@@ -110,7 +110,8 @@ def _search(args) -> int:
     client = _dask_client(args) if args.backend == "dask" else None
     try:
         result = search(campaign, args.grid, Path(args.out), n_jobs=args.jobs,
-                        settings=Settings(n_starts=args.starts, seed=args.seed), backend=args.backend,
+                        settings=Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance),
+                        backend=args.backend,
                         progress=None if args.quiet else stderr_progress)
     finally:
         if client is not None:
@@ -196,7 +197,8 @@ def _report(args) -> int:
     from .report.page import build
     from .search.runner import Settings
     campaign = read_campaign(args.data)
-    res = build(campaign, Path(args.out), settings=Settings(n_starts=args.starts, seed=args.seed), n_jobs=args.jobs,
+    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance)
+    res = build(campaign, Path(args.out), settings=settings, n_jobs=args.jobs,
                 diagnose_coefficient=None if args.diagnose == "none" else args.diagnose, models=tuple(args.model or ()),
                 progress=None if args.quiet else lambda m: print(m, file=sys.stderr, flush=True))
     _print_report(res)
@@ -235,7 +237,8 @@ def _diagnose(args) -> int:
     from .search.runner import Settings
     campaign = read_campaign(args.data)
     baseline = resolve_candidate(args.model, args.coefficient)
-    doc = diagnose(campaign, baseline, settings=Settings(n_starts=args.starts, seed=args.seed),
+    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance)
+    doc = diagnose(campaign, baseline, settings=settings,
                    progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr, flush=True))
     js, md = write(doc, out)
     best = next((e for e in doc["effects"] if "error" not in e), None)
@@ -252,6 +255,10 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
     p.add_argument("--out", default="results", help="output directory (default: results)")
     p.add_argument("--starts", type=int, default=starts, help="starts per nonlinear fit (1: the default start)")
     p.add_argument("--seed", type=int, default=0)
+    from .engine.statistics import COVARIANCE_KINDS, DEFAULT_COVARIANCE
+    p.add_argument("--covariance", choices=COVARIANCE_KINDS, default=DEFAULT_COVARIANCE,
+                   help=f"covariance estimate of every fit (default {DEFAULT_COVARIANCE}, the best calibrated "
+                        "by `bench --calibration`)")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -9,7 +9,7 @@ engine-model error, errors in the regressors) that a spectral estimate would
 count as model error. The high-frequency estimate (residual power above 3 Hz,
 with the same density assumed below) is reported beside it for comparison.
 
-Whether a gap is real: a Wald test (coloured covariance) of the parameters the
+Whether a gap is real: a Wald test (the settings' covariance) of the parameters the
 saturated model adds beyond the baseline; "explained" means that after the best
 effect nothing the library adds is significant at 1 % (or the validation excess
 over the floor is below 1 %).
@@ -257,7 +257,7 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
                 "at_floor": bool(not (remaining_p(e.name) < 0.01)
                                  or _relative_excess(f.residual, sat_fit.residual, val)[0] <= 0.01),
                 "model": changed.name, "_fit": f, "_se": se_after})
-        # significant effects first (Wald test with the coloured covariance), then by shrink
+        # significant effects first (Wald test with the settings' covariance), then by shrink
         ok = sorted((r for r in ranked if "error" not in r),
                     key=lambda r: (not (r["p_value"] < 0.01), -r["shrink"], r["p_value"]))
         ranked = ok + [r for r in ranked if "error" in r]

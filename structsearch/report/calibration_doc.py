@@ -52,7 +52,8 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
         f"{REJECTION_CEILING:.0%} of the null cases ({n} campaigns x 3 models).", "",
         tabulate([_summary_row(k) for k in cal.kinds],
                  headers=["covariance", "pooled 68 % coverage", "pooled 95 % coverage", "worst 95 % coverage",
-                          "pooled 95 % coverage of the MC mean", "gap test rejections at 1 %", "meets goals"], tablefmt="github"), "",
+                          "pooled 95 % coverage of the MC mean", "gap test rejections at 1 %", "meets goals"],
+                 tablefmt="github"), "",
         f"Best calibrated: **{cal.best.kind}** (pooled 95 % coverage of the truth and of the Monte Carlo mean "
         "closest to 95 %, gap-test rejections over the goal as a penalty).", "",
         "Coverage of the Monte Carlo mean measures the standard deviations alone; coverage of the truth "
