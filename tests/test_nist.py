@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from structsearch import SeparableModel
+from structsearch.engine.identifiability import RANK_RTOL
 
 from nist import SEPARABLE, load
 
@@ -28,6 +29,8 @@ def test_certified_values(name, start):
     result = model.fit(problem.variables, problem.y,
                        start={p: problem.starts[start - 1][p] for p in model.nonlinear_names},
                        covariance="white")
+    # far from the rank limit: a certified problem is identifiable, nothing is named
+    assert result.identifiable and result.condition_number < 1e-3 / RANK_RTOL, result.not_identifiable
     for p, certified in problem.certified.items():
         assert log_relative_error(result.params[p], certified) >= 6, (p, result.params[p], certified)
         assert log_relative_error(result.stderr[p], problem.certified_stderr[p]) >= 3, (
