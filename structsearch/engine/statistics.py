@@ -29,6 +29,10 @@ non-negative spectral window, so the estimate is positive semi-definite by
 construction. The bandwidth b follows Andrews' (1991) AR(1) plug-in rule on the
 standardised score columns; the sums over lags are FFT convolutions per maneuver,
 O(p m log m) plus O(p^2 m) for the products.
+
+``cluster`` sums the scores of each maneuver and allows any dependence inside it
+(a per-maneuver sensor bias, for one); it needs more maneuvers than parameters.
+Which estimate is the default is decided by ``structsearch bench --calibration``.
 """
 from __future__ import annotations
 
