@@ -6,7 +6,6 @@ from structsearch import SeparableModel
 from structsearch.data.flightdata import FlightData, from_segments
 from structsearch.data.errors import DataError, DeclarationError, FitError
 from structsearch.flight.reference import final_lift_model
-from structsearch.engine.stallmodel import StallModel
 
 
 def _replace(data, **cols):

@@ -6,7 +6,8 @@ import pytest
 from structsearch import SeparableModel
 from structsearch.engine.snls import model_jacobian
 from structsearch.engine.statistics import lag_weights
-from structsearch.engine.twostep import cross_covariance, generated_regressor_covariance
+from structsearch.engine.statistics import cross_covariance
+from structsearch.engine.twostep import generated_regressor_covariance
 
 M, SEGMENTS = 1600, 8
 X = np.tile(np.linspace(0.0, 4.0, M // SEGMENTS), SEGMENTS)

@@ -2,7 +2,7 @@
 
 Two sources of reasons, merged by the fit:
 
-- *domain rules* a problem may supply (``problem.identifiability(theta, coef)``):
+- *domain rules* a problem may supply (``problem.identifiability(theta)``):
   a stall model names the parameters of a separation state that stays saturated
   (X above 0.999 or below 0.001 on every sample) and the coefficients whose
   regressors become collinear with the others once that state is a constant;
@@ -11,8 +11,9 @@ Two sources of reasons, merged by the fit:
   non-negligible loading on it is named, grouped with the parameters it is
   collinear with.
 
-The covariance is then computed on the identifiable parameters only (conditional
-on the others at their estimates) and the named ones get NaN standard deviations.
+The covariance is then computed on the identifiable parameters plus one member of
+each collinear group of regressors (:func:`covariance_basis`), and every named
+parameter gets a NaN standard deviation.
 """
 from __future__ import annotations
 

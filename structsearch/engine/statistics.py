@@ -43,18 +43,25 @@ from scipy.linalg import qr, solve_triangular
 from scipy.signal import fftconvolve
 
 
+def cross_covariance(ra: np.ndarray, rb: np.ndarray, bounds: np.ndarray, max_lag: int) -> np.ndarray:
+    """gamma(k) = (1/m) sum_t ra(t) rb(t + k) for k = -max_lag..max_lag, pooled over maneuvers and never
+    across a boundary (biased, 1/m)."""
+    out = np.zeros(2 * max_lag + 1)
+    for i in range(len(bounds) - 1):
+        a, b = ra[int(bounds[i]):int(bounds[i + 1])], rb[int(bounds[i]):int(bounds[i + 1])]
+        n = len(a)
+        nfft = 1 << int(np.ceil(np.log2(2 * n)))
+        full = np.fft.irfft(np.conj(np.fft.rfft(a, nfft)) * np.fft.rfft(b, nfft), nfft)
+        upto = min(max_lag, n - 1)
+        out[max_lag:max_lag + upto + 1] += full[:upto + 1]                 # k >= 0
+        if upto:
+            out[max_lag - upto:max_lag] += full[nfft - upto:]              # k < 0
+    return out / len(ra)
+
+
 def autocovariance(residual: np.ndarray, bounds: np.ndarray, max_lag: int) -> np.ndarray:
     """lambda_0..lambda_max_lag, pooled over maneuvers, never across a boundary (biased, 1/m)."""
-    acc = np.zeros(max_lag + 1)
-    for i in range(len(bounds) - 1):
-        seg = residual[int(bounds[i]):int(bounds[i + 1])]
-        n = len(seg)
-        nfft = 1 << int(np.ceil(np.log2(2 * n)))
-        spec = np.fft.rfft(seg, nfft)
-        full = np.fft.irfft(spec * np.conj(spec), nfft)
-        upto = min(max_lag, n - 1)
-        acc[:upto + 1] += full[:upto + 1]
-    return acc / len(residual)
+    return cross_covariance(residual, residual, bounds, max_lag)[max_lag:]
 
 
 def choose_max_lag(residual: np.ndarray, bounds: np.ndarray, max_lag) -> int:
@@ -89,20 +96,24 @@ def lag_weights(lags: int, max_lag) -> np.ndarray:
     return 1.0 - np.arange(lags + 1) / (lags + 1.0)
 
 
-def toeplitz_product(matrix: np.ndarray, lam: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """Lambda @ matrix for the block-diagonal symmetric Toeplitz Lambda built from ``lam``."""
+def shifted_product(matrix: np.ndarray, gamma: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """out_t = sum_k gamma(k) matrix_{t+k} within each maneuver (FFT convolution); ``gamma`` holds
+    k = -L..L. With a symmetric gamma this is Lambda @ matrix for the block-diagonal Toeplitz Lambda."""
+    lags = (len(gamma) - 1) // 2
     out = np.empty_like(matrix)
-    kernel_full = np.concatenate([lam[:0:-1], lam])
     for i in range(len(bounds) - 1):
         s, e = int(bounds[i]), int(bounds[i + 1])
-        n = e - s
-        lags = min(len(lam) - 1, n - 1)
-        kernel = kernel_full[len(lam) - 1 - lags: len(lam) + lags]
-        if lags == 0:
-            out[s:e] = lam[0] * matrix[s:e]
-        else:
-            out[s:e] = fftconvolve(matrix[s:e], kernel[:, None], mode="same", axes=0)
+        use = min(lags, e - s - 1)
+        if use == 0:
+            out[s:e] = gamma[lags] * matrix[s:e]
+        else:  # convolution flips its kernel: hand it gamma reversed
+            out[s:e] = fftconvolve(matrix[s:e], gamma[lags - use:lags + use + 1][::-1, None], mode="same", axes=0)
     return out
+
+
+def toeplitz_product(matrix: np.ndarray, lam: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """Lambda @ matrix for the block-diagonal symmetric Toeplitz Lambda built from ``lam`` (lags 0..L)."""
+    return shifted_product(matrix, np.concatenate([lam[:0:-1], lam]), bounds)
 
 
 def _scaled_factor(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -192,17 +203,21 @@ def andrews_bandwidth(scores: np.ndarray, bounds: np.ndarray, kernel: str) -> fl
     return float(max(1.3221 * (num / den * n) ** (1 / 5), 1.0))
 
 
-def hac_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, kind: str = "hac",
-                   bandwidth: float | None = None) -> tuple[np.ndarray, float]:
-    """HAC sandwich A^-1 (sum_maneuvers G^T W G) A^-1 * m/(m-p); returns (covariance, bandwidth)."""
+def hac_meat(scores: np.ndarray, bounds: np.ndarray, kind: str = "hac",
+             bandwidth: float | None = None) -> tuple[np.ndarray, float]:
+    """sum over maneuvers of sum_t sum_s w(|t-s|/b) g_t g_s^T; returns (meat, bandwidth b)."""
     kernel = HAC_KERNELS[kind]
-    m, p = jac.shape
-    scores = jac * residual[:, None]
     b = float(bandwidth) if bandwidth is not None else andrews_bandwidth(scores, bounds, kernel)
     longest = int(np.max(np.diff(bounds))) - 1
     n_lags = min(int(np.ceil(b)), longest) if kernel == "bartlett" else longest
-    weights = kernel_weights(kernel, b, n_lags)
-    meat = scores.T @ toeplitz_product(scores, weights, bounds)
+    return scores.T @ toeplitz_product(scores, kernel_weights(kernel, b, n_lags), bounds), b
+
+
+def hac_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, kind: str = "hac",
+                   bandwidth: float | None = None) -> tuple[np.ndarray, float]:
+    """HAC sandwich A^-1 (sum_maneuvers G^T W G) A^-1 * m/(m-p); returns (covariance, bandwidth)."""
+    m, p = jac.shape
+    meat, b = hac_meat(jac * residual[:, None], bounds, kind, bandwidth)
     return _sandwich(jac, meat) * (m / max(m - p, 1)), b
 
 
@@ -213,13 +228,18 @@ def cluster_meat(scores: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     return sums.T @ sums * (g / (g - 1) if g > 1 else float("nan"))
 
 
+def cluster_estimable(bounds: np.ndarray, n_params: int) -> bool:
+    """The clustered meat has rank <= G - 1: with G - 1 < p some combinations would get variance 0."""
+    return len(bounds) - 2 >= n_params
+
+
 def cluster_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     """Maneuver-clustered sandwich (Liang-Zeger; CR1 small-sample factor): any correlation and any
     change of variance inside a maneuver, independence between maneuvers. Its meat has rank at most
     G - 1 for G maneuvers, so with fewer than p + 1 maneuvers it is not estimable (NaN, never a
     variance of 0); it needs many more maneuvers than parameters to be accurate."""
     m, p = jac.shape
-    if len(bounds) - 2 < p:  # rank of the meat <= G - 1: some combinations would get variance 0
+    if not cluster_estimable(bounds, p):
         return np.full((p, p), np.nan)
     return _sandwich(jac, cluster_meat(jac * residual[:, None], bounds)) * ((m - 1) / max(m - p, 1))
 

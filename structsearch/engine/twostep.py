@@ -18,7 +18,8 @@ estimates its one-step meat:
 - ``colored``: the stationary version, with the Bartlett-tapered auto- and
   cross-covariances of (e1, e2) (the lift and drag residuals of one maneuver are
   correlated: buffet moves both);
-- ``white``: the same with only lag 0 (homoscedastic, serially independent).
+- ``white``: the same with only lag 0 (homoscedastic, serially independent);
+- ``cluster``: the sums of u_t per maneuver.
 
 Everything is conditional on the measured inputs (alpha, q, V, de, ...) being
 exact; the lift model's own covariance is unaffected.
@@ -26,37 +27,10 @@ exact; the lift model's own covariance is unaffected.
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import fftconvolve
 
-from .statistics import (HAC_KERNELS, _inverse_factor, _sandwich, andrews_bandwidth, autocovariance,
-                         choose_max_lag, cluster_meat, kernel_weights, lag_weights, toeplitz_product)
-
-
-def cross_covariance(ra: np.ndarray, rb: np.ndarray, bounds: np.ndarray, max_lag: int) -> np.ndarray:
-    """gamma(k) = (1/m) sum_t ra(t) rb(t + k) for k = -max_lag..max_lag, within maneuvers only."""
-    out = np.zeros(2 * max_lag + 1)
-    for i in range(len(bounds) - 1):
-        a, b = ra[int(bounds[i]):int(bounds[i + 1])], rb[int(bounds[i]):int(bounds[i + 1])]
-        n = len(a)
-        nfft = 1 << int(np.ceil(np.log2(2 * n)))
-        full = np.fft.irfft(np.conj(np.fft.rfft(a, nfft)) * np.fft.rfft(b, nfft), nfft)
-        upto = min(max_lag, n - 1)
-        out[max_lag:max_lag + upto + 1] += full[:upto + 1]                 # k >= 0
-        if upto:
-            out[max_lag - upto:max_lag] += full[nfft - upto:]              # k < 0
-    return out / len(ra)
-
-
-def shifted_product(matrix: np.ndarray, gamma: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """out_t = sum_k gamma(k) matrix_{t+k} within each maneuver; ``gamma`` holds k = -L..L."""
-    lags = (len(gamma) - 1) // 2
-    out = np.empty_like(matrix)
-    for i in range(len(bounds) - 1):
-        s, e = int(bounds[i]), int(bounds[i + 1])
-        use = min(lags, e - s - 1)
-        kernel = gamma[lags - use:lags + use + 1][::-1]  # convolution flips the kernel back
-        out[s:e] = fftconvolve(matrix[s:e], kernel[:, None], mode="same", axes=0) if use else gamma[lags] * matrix[s:e]
-    return out
+from .statistics import (HAC_KERNELS, _inverse_factor, _sandwich, autocovariance, choose_max_lag,
+                         cluster_estimable, cluster_meat, cross_covariance, hac_meat, lag_weights,
+                         shifted_product, toeplitz_product)
 
 
 def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1: np.ndarray,
@@ -73,19 +47,13 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
     gain = (jac2.T @ sensitivity) @ (a1_inv @ a1_inv.T)        # K, p2 x p1
     carry = -(jac1 @ gain.T)                                    # multiplies e1 in u_t
     lags = bandwidth = None
+    scores = jac2 * residual2[:, None] + carry * residual1[:, None]   # u_t
     if kind in HAC_KERNELS:
-        kernel = HAC_KERNELS[kind]
-        scores = jac2 * residual2[:, None] + carry * residual1[:, None]
-        b = andrews_bandwidth(scores, bounds, kernel)
-        longest = int(np.max(np.diff(bounds))) - 1
-        n_lags = min(int(np.ceil(b)), longest) if kernel == "bartlett" else longest
-        meat = scores.T @ toeplitz_product(scores, kernel_weights(kernel, b, n_lags), bounds)
+        meat, bandwidth = hac_meat(scores, bounds, kind)
         meat *= m / max(m - p2, 1)
-        bandwidth = b
     elif kind == "cluster":
-        if len(bounds) - 2 < p2:  # not estimable with fewer than p + 1 maneuvers (see cluster_covariance)
+        if not cluster_estimable(bounds, p2):
             return np.full((p2, p2), np.nan), lags, bandwidth
-        scores = jac2 * residual2[:, None] + carry * residual1[:, None]
         meat = cluster_meat(scores, bounds) * ((m - 1) / max(m - p2, 1))
     elif kind == "white":
         s22 = float(residual2 @ residual2) / max(m - p2, 1)

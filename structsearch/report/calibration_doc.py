@@ -29,6 +29,9 @@ def calibration_dict(cal: Calibration) -> dict:
 
 
 def _summary_row(k: KindCalibration) -> list:
+    if k.gap_tests == 0 and not any(p.n for p in k.parameters):
+        why = f"not estimable in any of the {k.not_estimable} fits (NaN, never 0)"
+        return [k.kind, "n/a", "n/a", why, "n/a", "n/a", "no"]
     w = k.worst95
     return [k.kind, f"{k.pooled68:.3f}", f"{k.pooled95:.3f}", f"{w.coverage95:.2f} ({w.model} {w.parameter})",
             f"{k.pooled_centred95:.3f}",
@@ -62,6 +65,10 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
         f"With {n} campaigns a single parameter's coverage has a standard error of about "
         f"{(0.95 * 0.05 / n) ** 0.5:.3f} at 95 %.", ""]
     for k in cal.kinds:
+        if not any(p.n for p in k.parameters):
+            lines += [f"## {k.kind}", "", "Not estimable on these campaigns: every reported standard deviation is "
+                      "NaN (the estimate needs more training maneuvers than parameters).", ""]
+            continue
         rows = [[p.model, p.parameter, f"{p.truth:.5g}", f"{p.bias_in_sd:+.2f}", f"{p.mc_sd:.3g}",
                  f"{p.reported_sd:.3g}", f"{p.ratio:.2f}", f"{p.coverage68:.2f}", f"{p.coverage95:.2f}",
                  f"{p.centred95:.2f}"]

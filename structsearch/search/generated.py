@@ -26,7 +26,7 @@ from ..engine.statistics import Covariances
 from ..engine.twostep import generated_regressor_covariance
 from .candidate_result import CandidateResult
 from .candidates import Candidate
-from .models import model_with_lift, with_lift_prediction
+from .models import model_with_lift
 
 STEP = 1e-6
 
@@ -62,11 +62,11 @@ def lift_sensitivity(model: StallModel, params: dict, train: FlightData, lift_mo
     return np.column_stack(cols)
 
 
-def with_lift_uncertainty(result: FitResult, c: Candidate, train: FlightData, lift: CandidateResult,
-                          lift_candidate: Candidate) -> FitResult:
-    """``result`` (fitted on ``train`` with the lift prediction) with the two-step covariance.
-
-    ``train`` is the training data as measured (column CL is the measured lift coefficient).
+def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightData, predicted: FlightData,
+                          lift: CandidateResult, lift_candidate: Candidate) -> FitResult:
+    """``result`` of ``model`` (a drag or pitch candidate with the lift states fixed) with the two-step
+    covariance. ``train`` is the training data as measured (column CL is the measured lift coefficient),
+    ``predicted`` the same with CL replaced by the lift model's output, as the fit saw it.
     """
     lift_model = model_with_lift(lift_candidate, None)
     lift_names = lift_model.nonlinear_names + lift_model.linear_names
@@ -74,8 +74,7 @@ def with_lift_uncertainty(result: FitResult, c: Candidate, train: FlightData, li
     residual1 = train["CL"] - fitted1
     basis1 = covariance_basis(jac1, lift_names, lift.not_identifiable, len(lift_model.nonlinear_names))
 
-    model = model_with_lift(c, lift.params)
-    jac2, _ = _jacobian(model, with_lift_prediction(train, lift, lift_candidate), result.params)
+    jac2, _ = _jacobian(model, predicted, result.params)
     basis2 = covariance_basis(jac2, result.names, dict(result.unidentifiable), len(result.nonlinear_names))
     sensitivity = lift_sensitivity(model, result.params, train, lift_model, lift.params,
                                    [n for n, keep in zip(lift_names, basis1) if keep])

@@ -87,7 +87,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         result = model.fit(train, start=warm or None, n_starts=settings.n_starts if model.nonlinear_names else 1,
                            seed=settings.seed, covariance=settings.covariance)
         if c.lift and lift_candidate is not None:
-            result = with_lift_uncertainty(result, c, measured, lift, lift_candidate)
+            result = with_lift_uncertainty(result, model, measured, train, lift, lift_candidate)
         scores = {}
         for split, data in (("train", train), ("validation", validation)):
             y = data[c.coefficient]
