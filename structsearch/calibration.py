@@ -124,8 +124,19 @@ class KindCalibration:
         return _pooled(self.parameters, "centred95")
 
     @property
-    def worst95(self) -> ParameterCalibration:
-        return min(self.parameters, key=lambda p: p.coverage95)
+    def estimable(self) -> tuple[ParameterCalibration, ...]:
+        """Parameters with a finite standard deviation in at least one campaign."""
+        return tuple(p for p in self.parameters if p.n)
+
+    @property
+    def not_estimable_models(self) -> tuple[str, ...]:
+        """Models whose standard deviations were NaN in every campaign (e.g. cluster with p >= G)."""
+        models = dict.fromkeys(p.model for p in self.parameters)
+        return tuple(m for m in models if not any(p.n for p in self.parameters if p.model == m))
+
+    @property
+    def worst95(self) -> ParameterCalibration | None:
+        return min(self.estimable, key=lambda p: p.coverage95, default=None)
 
     @property
     def rejection_rate(self) -> float:
@@ -134,6 +145,8 @@ class KindCalibration:
     @property
     def meets_goals(self) -> bool:
         lo, hi = COVERAGE_RANGE
+        if self.worst95 is None or self.not_estimable_models:
+            return False
         return bool(lo <= self.pooled95 <= hi and self.worst95.coverage95 >= COVERAGE_FLOOR
                     and self.rejection_rate <= REJECTION_CEILING)
 
@@ -144,12 +157,16 @@ class KindCalibration:
         gap-test rejections over the goal."""
         score = (abs(self.pooled95 - 0.95) + abs(self.pooled_centred95 - 0.95)
                  + max(self.rejection_rate - REJECTION_CEILING, 0.0))
-        return score if np.isfinite(score) else float("inf")  # not estimable: never the default
+        if self.not_estimable_models:  # no standard deviations for a whole model: never the default
+            return float("inf")
+        return score if np.isfinite(score) else float("inf")
 
 
 def _pooled(parameters, attr: str) -> float:
-    n = sum(p.n for p in parameters)
-    return sum(getattr(p, attr) * p.n for p in parameters) / n if n else float("nan")
+    """Mean over every (campaign, parameter) with a finite standard deviation."""
+    counted = [p for p in parameters if p.n]
+    n = sum(p.n for p in counted)
+    return sum(getattr(p, attr) * p.n for p in counted) / n if n else float("nan")
 
 
 @dataclass(frozen=True)

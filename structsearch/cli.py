@@ -24,11 +24,13 @@ def _calibration(args) -> int:
     write_text(out / "calibration.md", calibration_markdown(cal, command))
     write_json(out / "calibration.json", calibration_dict(cal), indent=1)
     for k in cal.kinds:
-        if not any(p.n for p in k.parameters):
+        if k.worst95 is None:
             print(f"{k.kind}: not estimable on these campaigns (every standard deviation NaN)")
             continue
+        missing = (f"; not estimable for {', '.join(k.not_estimable_models)}"
+                   if k.not_estimable_models else "")
         print(f"{k.kind}: 95 % coverage {k.pooled95:.3f} (worst {k.worst95.coverage95:.2f} "
-              f"{k.worst95.model} {k.worst95.parameter}), 68 % {k.pooled68:.3f}; gap test rejects "
+              f"{k.worst95.model} {k.worst95.parameter}{missing}), 68 % {k.pooled68:.3f}; gap test rejects "
               f"{k.rejections}/{k.gap_tests}; goals {'met' if k.meets_goals else 'NOT met'}")
     print(f"best calibrated: {cal.best.kind}; wrote {out / 'calibration.md'}")
     return 0

@@ -9,7 +9,9 @@ KINDS = ("quasi-steady", "dynamic", "deep-dynamic")
 
 @pytest.fixture(scope="module")
 def campaign():
-    return build_campaign(seed=0, scale=0.5)
+    # information content without the slow reconstruction errors: with them the estimated correlation
+    # itself scatters (tau1-tau2 on the whole campaign -0.11 and -0.35 for seeds 0 and 1 at this scale)
+    return build_campaign(seed=0, scale=0.5, slow_errors=0.0)
 
 
 @pytest.fixture(scope="module")

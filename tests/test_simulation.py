@@ -91,8 +91,10 @@ def test_every_maneuver_reaches_its_range(flown):
 
 def test_reconstruction_matches_truth_within_noise(flown):
     d = flown.data
-    # limits: the noise the measurement chain puts in (buffet, sensors), below thesis Table 7 MSEs
-    for coef, limit, r2 in (("CL", 0.004, 0.95), ("CD", 4e-4, 0.95), ("Cm", 2e-4, 0.7)):
+    # limits: the errors the measurement chain puts in (buffet, sensors, slow reconstruction errors)
+    # stay below the thesis' training MSEs (Table 11.1: 3.55e-3, 1.68e-4, 1.43e-4 for C_L, C_D, C_m,
+    # which also hold the model's misfit); R^2 of the reconstruction above the thesis' mean R^2
+    for coef, limit, r2 in (("CL", 3.55e-3, 0.89), ("CD", 2.5e-4, 0.91), ("Cm", 1.6e-4, 0.55)):
         err = d[coef] - d[f"{coef}_true"]
         assert np.mean(err ** 2) < limit, coef
         assert abs(np.mean(err)) < 0.2 * np.std(err), coef  # no systematic offset
@@ -135,3 +137,32 @@ def test_replay_with_truth_tracks_and_withheld_lag_drifts(flown):
     # every window starts on the measured state
     g = good[0]
     assert np.allclose(g.simulated["alpha"][g.window_starts], g.measured["alpha"][g.window_starts])
+
+
+def test_default_campaign_standard_deviations_match_the_thesis():
+    """Issue 12 item 5: the simulator's error levels make the final models' standard deviations on the
+    default campaign those of thesis Tables 11, 13 and 15 within a factor of 2 (the thesis' real
+    flight data), and the laboratory-clean campaign does not (so the test can fail)."""
+    from structsearch.flight.reference import FINAL_MODEL_NAMES, THESIS_STDERR
+    from structsearch.report.tables import thesis_stderr_rows
+    from structsearch.search.runner import Settings, fit_candidate
+    from structsearch.search.specs import find_candidate
+    truth = {"CL": FINAL_LIFT, "CD": FINAL_DRAG, "Cm": FINAL_PITCH}
+
+    def ratios(campaign):
+        train, val = campaign.split("train"), campaign.split("validation")
+        lift_candidate, lift, fits = find_candidate(FINAL_MODEL_NAMES["CL"]), None, {}
+        for coef, name in FINAL_MODEL_NAMES.items():
+            cand = find_candidate(name)
+            fit = fit_candidate(cand, train, val, lift, lift_candidate if cand.lift else None,
+                                Settings(n_starts=1), start=dict(truth[coef]))
+            lift = fit if coef == "CL" else lift
+            fits[name] = [fit]
+        rows = thesis_stderr_rows(fits)
+        assert {r[1] for r in rows} == set(THESIS_STDERR)
+        return np.array([r[6] for r in rows])
+
+    realistic = ratios(build_campaign(seed=0))
+    assert np.all((realistic > 0.5) & (realistic < 2.0)), realistic
+    clean = ratios(build_campaign(seed=0, slow_errors=0.0))
+    assert np.median(clean) < 0.2, clean

@@ -37,18 +37,22 @@ def _sensor(rng, t, truth, rate, noise, bias=0.0):
     return _resample(t, t_s, sampled)
 
 
-def _band_noise(rng, n, fs, low, high):
+def band_noise(rng, n, fs, low, high):
+    """Unit-variance Gaussian noise band-passed to [low, high] Hz (2nd order, forward and backward)."""
     from scipy.signal import butter, sosfiltfilt
     sos = butter(2, [low, high], btype="band", fs=fs, output="sos")
     x = sosfiltfilt(sos, rng.standard_normal(n + 400))[200:-200]
     return x / (x.std() or 1.0)
 
 
-def measure(rng: np.random.Generator, t: np.ndarray, truth: dict) -> dict:
+def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np.ndarray | None = None,
+            slow_error_stall_gain: float = 1.0) -> dict:
     """One maneuver's measured, pre-filtered, reconstructed columns from its truth histories.
 
     ``truth`` holds 1-D arrays: V, alpha, q, theta, h, de, thrust, qbar, mass, x_cg,
-    CL, CD, Cm, X_ss, X_w (1 where a state is absent), q_dot.
+    CL, CD, Cm, X_ss, X_w (1 where a state is absent), q_dot. ``slow_error`` (n, 3) holds slow
+    C_L, C_D, C_m reconstruction errors at attached flow; they grow by ``slow_error_stall_gain`` per
+    unit of separation and enter through the body-axis forces (C_L, C_D) and the pitch moment.
     """
     fs = 1.0 / (t[1] - t[0])
     n = len(t)
@@ -63,13 +67,13 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict) -> dict:
     separation = np.clip((1 - truth["X_ss"]) + (1 - truth["X_w"]), 0, 2)
     # narrow-band random vibration around each buffet peak (not pure tones: real buffet decorrelates)
     def vibration():
-        return sum(w * _band_noise(rng, n, fs, f - BUFFET_HALF_WIDTH_HZ, f + BUFFET_HALF_WIDTH_HZ)
+        return sum(w * band_noise(rng, n, fs, f - BUFFET_HALF_WIDTH_HZ, f + BUFFET_HALF_WIDTH_HZ)
                    for f, w in zip(BUFFET_HZ, BUFFET_WEIGHTS)) * separation
 
     buffet = vibration()
     # the rate gyro sees the same frequencies through other mode shapes: its own realisation
     gyro_buffet = vibration()
-    boom = BOOM_VIBRATION * _band_noise(rng, n, fs, 8.0, 12.0)
+    boom = BOOM_VIBRATION * band_noise(rng, n, fs, 8.0, 12.0)
 
     raw = {
         "alpha": _sensor(rng, t, alpha + boom, RATES["boom"], NOISE["alpha"], rng.normal(0, BIAS["alpha"])),
@@ -92,11 +96,16 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict) -> dict:
     cx_m = (mass * f["ax"] - thrust_model) / qs_m
     cz_m = mass * f["az"] / qs_m
     a = f["alpha"]
+    cm_error = np.zeros(n)
+    if slow_error is not None:
+        d_cl, d_cd, cm_error = (slow_error * (1.0 + slow_error_stall_gain * separation)[:, None]).T
+        cx_m = cx_m - d_cd * np.cos(a) + d_cl * np.sin(a)
+        cz_m = cz_m - d_cl * np.cos(a) - d_cd * np.sin(a)
     return {
         "t": t - t[0], "alpha": a, "q": f["q"], "V": f["V"], "de": f["de"],
         "CL": cx_m * np.sin(a) - cz_m * np.cos(a),
         "CD": -cx_m * np.cos(a) - cz_m * np.sin(a),
-        "Cm": ac.inertia(mass) * q_dot / (qs_m * ac.CBAR),
+        "Cm": ac.inertia(mass) * q_dot / (qs_m * ac.CBAR) + cm_error,
         "alpha_dot": alpha_dot, "CT": thrust_model / qs_m, "x_cg": truth["x_cg"],
         "theta": f["theta"], "h": f["h"], "CX": cx_m, "CZ": cz_m,
         "mass": mass, "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],

@@ -34,6 +34,17 @@ FINAL_PITCH = {
     "Cm_Xde_ss": -0.2576,
 }
 
+# Standard deviations the thesis reports for its final models on the real flight data (Tables 11, 13,
+# 15 of the seed): the target of the simulator's error levels (README, `results/thesis_stderr.md`).
+THESIS_STDERR = {
+    "tau1_ss": 0.0722, "tau2_ss": 0.0346, "a1_ss": 11.2205, "a_star_ss": 0.0017, "a1_w": 1.4462,
+    "a_star_w": 0.0056, "CL0": 0.0116, "CL_KL_ss": 0.1061, "CL_KL_w": 0.0536, "CL_qstar": 1.3881,
+    "CL_de": 0.0681,
+    "CD0": 0.0020, "CD_CT": 0.0135, "CD_de": 0.0131, "CD_CL2": 0.0035, "CD_1mX_ss": 0.0017, "CD_1mX_w": 0.0064,
+    "Cm0": 0.0026, "Cm_CT": 0.0089, "Cm_qstar": 0.2675, "Cm_de": 0.0134, "Cm_xcgCL": 0.1305, "Cm_CL": 0.4594,
+    "Cm_1mX_ssCL": 0.0033, "Cm_1mX_wCL": 0.0053, "Cm_Xde_ss": 0.0224,
+}
+
 VAN_INGEN_LIFT = {
     "tau1": 0.2547, "tau2": 0.0176, "a1": 27.6711, "a_star": 0.2084,
     "CL0": 0.1758, "CL_KL": 4.6605, "CL_spline": 10.7753,

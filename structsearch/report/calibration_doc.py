@@ -15,8 +15,9 @@ def calibration_dict(cal: Calibration) -> dict:
         "kinds": {k.kind: {
             "pooled_coverage68": k.pooled68, "pooled_coverage95": k.pooled95,
             "pooled_coverage95_of_mc_mean": k.pooled_centred95,
-            "worst_coverage95": {"parameter": f"{k.worst95.model}:{k.worst95.parameter}",
-                                 "coverage": k.worst95.coverage95},
+            "worst_coverage95": None if k.worst95 is None else {
+                "parameter": f"{k.worst95.model}:{k.worst95.parameter}", "coverage": k.worst95.coverage95},
+            "not_estimable_models": list(k.not_estimable_models),
             "gap_test_rejection_rate": k.rejection_rate, "gap_tests": k.gap_tests,
             "gap_tests_not_estimable": k.not_estimable, "meets_goals": k.meets_goals,
             "parameters": [{"model": p.model, "parameter": p.parameter, "truth": p.truth, "mean": p.mean,
@@ -29,11 +30,14 @@ def calibration_dict(cal: Calibration) -> dict:
 
 
 def _summary_row(k: KindCalibration) -> list:
-    if k.gap_tests == 0 and not any(p.n for p in k.parameters):
+    if k.worst95 is None:
         why = f"not estimable in any of the {k.not_estimable} fits (NaN, never 0)"
         return [k.kind, "n/a", "n/a", why, "n/a", "n/a", "no"]
     w = k.worst95
-    return [k.kind, f"{k.pooled68:.3f}", f"{k.pooled95:.3f}", f"{w.coverage95:.2f} ({w.model} {w.parameter})",
+    missing = k.not_estimable_models
+    worst = f"{w.coverage95:.2f} ({w.model} {w.parameter})" + (
+        f"; {', '.join(missing)} not estimable (NaN, never 0)" if missing else "")
+    return [k.kind, f"{k.pooled68:.3f}", f"{k.pooled95:.3f}", worst,
             f"{k.pooled_centred95:.3f}",
             f"{k.rejections}/{k.gap_tests} = {k.rejection_rate:.3f}"
             + (f" ({k.not_estimable} not estimable)" if k.not_estimable else ""),

@@ -149,6 +149,29 @@ def ranking_csv(ranked_by_grid: dict[str, list[CandidateResult]]) -> str:
     return buf.getvalue()
 
 
+def thesis_stderr_rows(ranked_by_grid: dict[str, list[CandidateResult]]) -> list[list]:
+    """The thesis' final models as identified here next to thesis Tables 11, 13 and 15: estimate and
+    standard deviation, and the ratio of the standard deviations (the simulator's realism check)."""
+    from ..flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_MODEL_NAMES, FINAL_PITCH, THESIS_STDERR
+    truth = {**FINAL_LIFT, **FINAL_DRAG, **FINAL_PITCH}
+    rows = []
+    for name in FINAL_MODEL_NAMES.values():
+        fit = next((s for ranked in ranked_by_grid.values() for s in ranked
+                    if s.name == name and not s.failed), None)
+        if fit is None:
+            continue
+        for p in fit.names:
+            sd = fit.stderr.get(p, float("nan"))
+            ratio = sd / THESIS_STDERR[p] if p in THESIS_STDERR and sd > 0 else float("nan")
+            rows.append([name, p, truth.get(p, float("nan")), fit.params[p], THESIS_STDERR.get(p, float("nan")),
+                         sd, ratio, "yes" if 0.5 <= ratio <= 2.0 else "no"])
+    return rows
+
+
+THESIS_STDERR_HEADERS = ["model", "parameter", "thesis estimate", "estimate", "thesis std. dev.", "std. dev.",
+                         "std. dev. / thesis", "within a factor of 2"]
+
+
 def write_tables(ranked_by_grid: dict[str, list[CandidateResult]], out: Path) -> list[Path]:
     """``ranking.csv`` plus, per grid, the ranking (thesis Tables 8, 9, 10, 20) and the best candidate's
     parameters (Tables 11, 13, 15) and correlation matrix (Tables 12, 14, 16) in md/tex/csv."""
@@ -162,4 +185,9 @@ def write_tables(ranked_by_grid: dict[str, list[CandidateResult]], out: Path) ->
             if best is not None:
                 written.append(write_text(out / f"{safe}_best_parameters.{fmt}", parameter_table(best, fmt)))
                 written.append(write_text(out / f"{safe}_best_correlation.{fmt}", correlation_table(best, fmt)))
+    rows = thesis_stderr_rows(ranked_by_grid)
+    if rows:
+        for fmt in ("md", "csv"):
+            written.append(write_text(out / f"thesis_stderr.{fmt}",
+                                      render_table(rows, THESIS_STDERR_HEADERS, fmt, floatfmt=".4g")))
     return written
