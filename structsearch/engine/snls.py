@@ -218,9 +218,13 @@ def solve(problem: SeparableProblem, y: np.ndarray, start, lower, upper, *,
     x0 = np.clip(start, lower + 1e-10 * span, upper - 1e-10 * span)
     # the bound box is the natural scale of each parameter (a1 ~ 100 next to a_star ~ 0.2);
     # Jacobian-based rescaling was tried and lost MGH09 and MGH17 from NIST start 1
-    sol = least_squares(objective.residual, x0, jac=objective.jacobian, bounds=(lower, upper),
-                        method="trf", x_scale=span, ftol=tol, xtol=tol, gtol=tol,
-                        max_nfev=max_nfev if max_nfev is not None else DEFAULT_MAX_NFEV)
+    # the trust-region sub-solver can overflow on a trial step of a badly scaled candidate; it then
+    # rejects the step, and what matters reaches the user through status, message and the checks
+    # below, not as numpy warnings printed from inside scipy
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        sol = least_squares(objective.residual, x0, jac=objective.jacobian, bounds=(lower, upper),
+                            method="trf", x_scale=span, ftol=tol, xtol=tol, gtol=tol,
+                            max_nfev=max_nfev if max_nfev is not None else DEFAULT_MAX_NFEV)
     proj = objective._at(sol.x)[1]
     if proj is None:
         raise FitError("the solver stopped where the regression matrix is not finite: theta = "
