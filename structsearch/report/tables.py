@@ -163,8 +163,9 @@ def thesis_stderr_rows(ranked_by_grid: dict[str, list[CandidateResult]]) -> list
         for p in fit.names:
             sd = fit.stderr.get(p, float("nan"))
             ratio = sd / THESIS_STDERR[p] if p in THESIS_STDERR and sd > 0 else float("nan")
+            within = "n/a (not estimable)" if math.isnan(ratio) else "yes" if 0.5 <= ratio <= 2.0 else "no"
             rows.append([name, p, truth.get(p, float("nan")), fit.params[p], THESIS_STDERR.get(p, float("nan")),
-                         sd, ratio, "yes" if 0.5 <= ratio <= 2.0 else "no"])
+                         sd, ratio, within])
     return rows
 
 
