@@ -111,6 +111,7 @@ def _search(args) -> int:
     from .search.runner import Settings, stderr_progress
     from .search.pipeline import search
     from .report.tables import write_tables
+    from .calibration import thesis_estimator_fits
     campaign = read_campaign(args.data)
     client = _dask_client(args) if args.backend == "dask" else None
     try:
@@ -121,7 +122,7 @@ def _search(args) -> int:
     finally:
         if client is not None:
             client.close()
-    write_tables(result.grids, Path(args.out))
+    write_tables(result.grids, Path(args.out), thesis_estimator_fits(result.grids, campaign))
     _print_winners(result)
     print(f"wrote {Path(args.out) / 'ranking.csv'} and the tables of each grid")
     return 0
@@ -166,6 +167,7 @@ def _demo(args) -> int:
     from .search.runner import Settings, stderr_progress
     from .search.pipeline import search
     from .report.tables import write_tables
+    from .calibration import thesis_estimator_fits
     out = Path(args.out)
     t0 = time.perf_counter()
     camp_dir = out / "campaign"
@@ -180,7 +182,7 @@ def _demo(args) -> int:
     jobs = args.jobs or os.cpu_count() or 1
     result = search(campaign, "all", out, n_jobs=jobs, settings=Settings(n_starts=args.starts),
                     progress=None if args.quiet else stderr_progress)
-    write_tables(result.grids, out)
+    write_tables(result.grids, out, thesis_estimator_fits(result.grids, campaign))
     total = time.perf_counter() - t0
     _print_winners(result)
     print(f"campaign: {len(campaign.maneuvers)} maneuvers, {campaign.data.n_samples} samples "

@@ -6,18 +6,20 @@ import sys
 import numpy as np
 import pytest
 
-from structsearch.calibration import TRUTH, Z95, CampaignDraw, summarise
+from structsearch.calibration import TRUTH, CampaignDraw, summarise
 from structsearch.flight.reference import FINAL_MODEL_NAMES
 
 
-def _draws(offsets_in_sd, sd=0.01, p_values=(0.5, 0.005, 0.2)):
-    """Campaigns whose every estimate is truth + offset * sd, reported with standard deviation sd."""
+def _draws(offsets_in_sd, sd=0.01, p_values=(0.5, 0.005, 0.2), dof=None):
+    """Campaigns whose every estimate is truth + offset * sd, reported with standard deviation sd
+    (and t reference ``dof`` when given)."""
     out = []
     for i, off in enumerate(offsets_in_sd):
         est = {FINAL_MODEL_NAMES[c]: {p: v + off * sd for p, v in TRUTH[c].items()} for c in TRUTH}
         sds = {"white": {FINAL_MODEL_NAMES[c]: {p: sd for p in TRUTH[c]} for c in TRUTH}}
         gap = {"white": dict(zip(FINAL_MODEL_NAMES.values(), p_values))}
-        out.append(CampaignDraw(seed=i, samples=100, estimates=est, stderr=sds, gap_p=gap))
+        dofs = {} if dof is None else {"white": {FINAL_MODEL_NAMES[c]: {p: dof for p in TRUTH[c]} for c in TRUTH}}
+        out.append(CampaignDraw(seed=i, samples=100, estimates=est, stderr=sds, gap_p=gap, dof=dofs))
     return out
 
 
@@ -33,7 +35,15 @@ def test_coverage_ratio_and_rejections_from_known_draws():
         assert p.ratio == pytest.approx(1 / np.std(offsets, ddof=1))
         assert p.bias_in_sd == pytest.approx(np.mean(offsets) / np.std(offsets, ddof=1))
     assert kind.rejections == 5 and kind.gap_tests == 15 and kind.rejection_rate == pytest.approx(1 / 3)
-    assert not kind.meets_goals and Z95 == pytest.approx(1.959964, abs=1e-6)
+    assert not kind.meets_goals
+
+
+def test_intervals_use_the_student_t_of_the_reported_dof():
+    """t(4): 97.5 % quantile 2.776, 84.1 % quantile 1.134 -> offsets 2.5 and -1.5 move inside."""
+    offsets = [0.0, 0.5, -1.5, 2.5, -3.0]
+    kind = summarise(_draws(offsets, dof=4), scale=0.1).kinds[0]
+    assert all(p.coverage95 == pytest.approx(4 / 5) and p.coverage68 == pytest.approx(2 / 5)
+               for p in kind.parameters)
 
 
 def test_missing_standard_deviation_is_left_out_and_counted():
@@ -51,7 +61,7 @@ def test_calibration_command_end_to_end(tmp_path):
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
     doc = json.loads((tmp_path / "calibration.json").read_text(), parse_constant=lambda c: pytest.fail(c))
-    assert set(doc["kinds"]) == {"colored", "white", "hac", "hac-qs", "cluster"}
+    assert set(doc["kinds"]) == {"colored", "white", "hac", "hac-qs", "hac-maneuver", "cluster"}
     for name, kind in doc["kinds"].items():
         assert kind["gap_tests"] + kind["gap_tests_not_estimable"] == 6
         rows = kind["parameters"]

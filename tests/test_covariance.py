@@ -1,13 +1,14 @@
 """Covariance formulas: Monte Carlo checks (thesis Table 8.2 style) and an independent dense implementation."""
 import numpy as np
 import pytest
+from scipy import stats
 from scipy.linalg import block_diag, toeplitz
 
 from structsearch.data.flightdata import FlightData
 from structsearch.engine.separation import static_separation
 from structsearch.engine.statistics import (andrews_bandwidth, autocovariance, cluster_covariance, cluster_meat,
-                                            colored_covariance, hac_covariance,
-                                           kernel_weights, lag_weights, white_covariance)
+                                            colored_covariance, effective_maneuvers, hac_covariance,
+                                            kernel_weights, lag_weights, reference_dof, white_covariance)
 from structsearch.engine.stallmodel import StallModel
 from structsearch.flight.synthetic import ar1_noise, campaign
 
@@ -30,7 +31,8 @@ def monte_carlo():
     base = campaign({"dynamic": 2, "deep-dynamic": 1, "quasi-steady": 1}, duration=40.0, seed=21)
     clean = model.predict(base, TRUTH)
     start = {k: TRUTH[k] for k in model.nonlinear_names}
-    fits = [model.fit(_with_noise(base, clean, 1000 + i, 0.9, 0.03), start=start) for i in range(N_REFITS)]
+    fits = [model.fit(_with_noise(base, clean, 1000 + i, 0.9, 0.03), start=start, covariance="colored")
+            for i in range(N_REFITS)]
     return model, fits
 
 
@@ -59,7 +61,7 @@ def test_ols_colored_covariance_monte_carlo():
     model = StallModel.declare("lin", "CL", regressors={"c0": "1", "ca": "alpha", "cd": "de", "cq": "qstar"})
     base = campaign({"quasi-steady": 2, "dynamic": 2}, duration=30.0, seed=5)
     clean = model.predict(base, {"c0": 0.2, "ca": 5.0, "cd": -0.4, "cq": 8.0})
-    fits = [model.fit(_with_noise(base, clean, 50 + i, 0.95, 0.02)) for i in range(N_REFITS)]
+    fits = [model.fit(_with_noise(base, clean, 50 + i, 0.95, 0.02), covariance="colored") for i in range(N_REFITS)]
     spread = np.array([f.values for f in fits]).std(axis=0, ddof=1)
     colored = np.array([[f.stderr[n] for n in f.names] for f in fits]).mean(axis=0)
     white = np.array([[f.white_stderr[n] for n in f.names] for f in fits]).mean(axis=0)
@@ -127,7 +129,8 @@ def _qs(x):
     return 25 / (12 * np.pi ** 2 * x ** 2) * (np.sin(y) / y - np.cos(y))
 
 
-@pytest.mark.parametrize("kind,bandwidth", [("hac", 6.5), ("hac-qs", 4.0), ("hac", None), ("hac-qs", None)])
+@pytest.mark.parametrize("kind,bandwidth", [("hac", 6.5), ("hac-qs", 4.0), ("hac", None), ("hac-qs", None),
+                                            ("hac-maneuver", None)])
 def test_hac_equals_a_dense_double_sum(kind, bandwidth):
     rng = np.random.default_rng(31)
     bounds = np.array([0, 60, 140, 150])
@@ -137,7 +140,9 @@ def test_hac_equals_a_dense_double_sum(kind, bandwidth):
     cov, b = hac_covariance(jac, residual, bounds, kind, bandwidth)
     if bandwidth is not None:
         assert b == bandwidth
-    kernel = (lambda j: max(1 - j / b, 0.0)) if kind == "hac" else (lambda j: _qs(j / b))
+    if kind == "hac-maneuver":
+        assert b == 80  # the longest maneuver: every lag inside it carries weight
+    kernel = (lambda j: max(1 - j / b, 0.0)) if kind != "hac-qs" else (lambda j: _qs(j / b))
     assert np.allclose(cov, _dense_hac(jac, residual, bounds, kernel), rtol=1e-9, atol=1e-14)
 
 
@@ -166,7 +171,7 @@ def test_hac_is_positive_semidefinite_on_oscillating_residuals():
     t = np.arange(m) * 0.01
     jac = np.column_stack([np.ones(m), t, np.sin(0.7 * t), rng.standard_normal(m)])
     residual = np.sin(2 * np.pi * 12 * t + rng.uniform(0, 6)) * (0.1 + t / 30) + 0.01 * rng.standard_normal(m)
-    for kind in ("hac", "hac-qs"):
+    for kind in ("hac", "hac-qs", "hac-maneuver"):
         for bandwidth in (None, 3.0, 40.0, 500.0):
             cov, _ = hac_covariance(jac, residual, np.array([0, 1200, m]), kind, bandwidth)
             eig = np.linalg.eigvalsh(cov)
@@ -236,3 +241,51 @@ def test_cluster_covariance_sees_a_maneuver_level_error():
     cluster = np.mean(sd["cluster"], axis=0) / spread
     assert np.all(np.abs(cluster - 1) < 0.15), cluster
     assert np.mean(sd["hac"], axis=0)[1] / spread[1] < 0.8
+
+
+def test_hac_maneuver_intervals_cover_slow_heteroscedastic_errors():
+    """Slow errors (a random walk inside each maneuver, the simulator's drift) whose level differs
+    between maneuvers, 8 maneuvers: estimate +- t_{G-1} x the hac-maneuver standard deviation covers
+    the truth about 95 % of the time, while Andrews' data-driven bandwidth cuts the slow part off."""
+    rng_design = np.random.default_rng(22)
+    g, n = 8, 200
+    bounds = np.arange(0, g * n + 1, n)
+    x = rng_design.standard_normal((g * n, 1)) + np.repeat(rng_design.standard_normal((g, 1)), n, axis=0)
+    jac = np.column_stack([np.ones(g * n), x])
+    level = np.repeat(rng_design.uniform(0.5, 2.0, g), n)
+    truth = np.array([0.1, 1.0])
+    hits = {"hac-maneuver": [], "hac": []}
+    for i in range(400):
+        rng = np.random.default_rng(900 + i)
+        walk = np.cumsum(rng.standard_normal((g, n)), axis=1).ravel() / np.sqrt(n)
+        y = jac @ truth + level * (walk + 0.5 * rng.standard_normal(g * n))
+        coef, *_ = np.linalg.lstsq(jac, y, rcond=None)
+        residual = y - jac @ coef
+        for kind in hits:
+            effective = effective_maneuvers(jac, jac * residual[:, None], bounds, kind)
+            dof = [reference_dof(kind, g * n, 2, e) for e in effective]
+            sd = np.sqrt(np.diag(hac_covariance(jac, residual, bounds, kind)[0]))
+            hits[kind].append(np.abs(coef - truth) <= stats.t.ppf(0.975, dof) * sd)
+    coverage = {k: np.mean(v, axis=0) for k, v in hits.items()}
+    assert np.all((coverage["hac-maneuver"] > 0.91) & (coverage["hac-maneuver"] < 0.99)), coverage
+    assert np.all(coverage["hac"] < 0.85), coverage
+
+
+def test_effective_maneuvers_count_the_maneuvers_that_inform_a_parameter():
+    """Equal maneuvers: G; a column that only one maneuver excites: 1 (Satterthwaite's formula)."""
+    rng = np.random.default_rng(5)
+    g, n = 6, 50
+    bounds = np.arange(0, g * n + 1, n)
+    ones = np.ones(g * n)
+    local = np.zeros(g * n)
+    local[2 * n:3 * n] = rng.standard_normal(n)
+    local[2 * n:3 * n] -= local[2 * n:3 * n].mean()   # orthogonal to the constant: A is diagonal
+    jac = np.column_stack([ones, local])
+    scores = jac * np.tile(rng.standard_normal(n), g)[:, None]   # every maneuver the same residual
+    for kind in ("cluster", "hac-maneuver"):
+        effective = effective_maneuvers(jac, scores, bounds, kind)
+        assert effective[1] == pytest.approx(1.0, rel=1e-9)
+    shares = np.add.reduceat(scores[:, 0], bounds[:-1]) ** 2     # column 0 alone: equal cluster shares
+    assert effective_maneuvers(jac[:, :1], scores[:, :1], bounds, "cluster")[0] == pytest.approx(
+        shares.sum() ** 2 / (shares ** 2).sum())
+    assert effective_maneuvers(jac[:, :1], scores[:, :1], bounds, "cluster")[0] == pytest.approx(g)

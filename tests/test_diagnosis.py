@@ -84,7 +84,9 @@ def withheld_elevator(campaign):
 def test_withheld_effect_ranked_first_and_gap_closed(withheld_elevator):
     d = withheld_elevator
     assert d["effects"][0]["name"] == "elevator"
-    assert d["effects"][0]["shrink"] > 0.8 and d["effects"][0]["p_value"] < 1e-6
+    # the p-value's F reference has the effective maneuvers' dof (a handful on this small campaign),
+    # so "significant" means below the diagnosis' adoption level, not astronomically small
+    assert d["effects"][0]["shrink"] > 0.8 and d["effects"][0]["p_value"] < 0.01
     assert not d["gap_explained_by_baseline"] and d["explained"]
 
 

@@ -44,13 +44,14 @@ def two_step(seed, kind, phi):
     jac2 = np.column_stack([f_hat, X])
     # the second model's output b*f_hat + g*x depends on beta1 through f_hat only: G21 = b * F1
     sensitivity = fit2.params["b"] * jac1
-    cov, _, _ = generated_regressor_covariance(jac2, fit2.residuals, jac1, fit1.residuals, sensitivity,
+    cov, *_ = generated_regressor_covariance(jac2, fit2.residuals, jac1, fit1.residuals, sensitivity,
                                                BOUNDS, kind)
     return np.array([fit2.params["b"], fit2.params["g"]]), np.sqrt(np.diag(cov)), \
         np.array([fit2.stderr["b"], fit2.stderr["g"]])
 
 
-@pytest.mark.parametrize("kind,phi", [("white", 0.0), ("hac", 0.6), ("colored", 0.6), ("cluster", 0.6)])
+@pytest.mark.parametrize("kind,phi", [("white", 0.0), ("hac", 0.6), ("colored", 0.6), ("cluster", 0.6),
+                                      ("hac-maneuver", 0.6)])
 def test_correction_matches_monte_carlo_of_the_two_step_fit(kind, phi):
     runs = [two_step(seed, kind, phi) for seed in range(400)]
     estimates = np.array([r[0] for r in runs])
@@ -69,7 +70,7 @@ def test_colored_meat_equals_dense_double_sum():
     r1 = np.convolve(rng.standard_normal(m + 4), np.ones(5) / 5, "valid")
     r2 = 0.5 * r1 + 0.1 * rng.standard_normal(m)
     lags = 6
-    cov, used, _ = generated_regressor_covariance(jac2, r2, jac1, r1, sens, bounds, "colored", max_lag=lags)
+    cov, used, *_ = generated_regressor_covariance(jac2, r2, jac1, r1, sens, bounds, "colored", max_lag=lags)
     assert used == lags
     # independent: stacked residual (e1, e2), dense cross-covariance matrices by direct sums
     taper = lag_weights(lags, lags)

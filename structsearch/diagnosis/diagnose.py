@@ -181,7 +181,12 @@ def wald_p_value(summary: CandidateResult, names) -> float:
         w = float(b @ np.linalg.solve(cov, b))
     except np.linalg.LinAlgError:
         return float("nan")
-    return float(stats.chi2.sf(w, len(names)))
+    # F(q, dof): the small-sample version of chi2(q)/q (equal to it for m - p dof), the usual reference
+    # for a clustered sandwich (Cameron & Miller 2015); dof: the fewest among the tested parameters
+    dof = min((summary.reference_dof or {}).get(n, np.nan) for n in names)
+    if not np.isfinite(dof):
+        return float(stats.chi2.sf(w, len(names)))
+    return float(stats.f.sf(w / len(names), len(names), dof))
 
 
 def _overlap(gap_rows, r_base, r_new, data, x):

@@ -9,6 +9,7 @@ import numpy as np
 from scipy import stats
 
 from .scores import ManeuverScores
+from .statistics import reference_dof
 
 HIGH_CORRELATION = 0.9
 # A parameter closer than this fraction of its bound interval to a bound is "at the bound". The
@@ -49,7 +50,9 @@ class FitResult:
     n_reached_best: int = 1
     start: np.ndarray | None = None
     significance: float = 0.05
-    bandwidth: float | None = None   # HAC kernel bandwidth in samples (covariance "hac"/"hac-qs")
+    bandwidth: float | None = None   # HAC kernel bandwidth in samples (covariance "hac"/"hac-qs"/"hac-maneuver")
+    # per parameter, for the per-maneuver covariances: how many maneuvers its variance rests on
+    effective_maneuvers: np.ndarray | None = None
     condition_number: float = float("nan")  # of the column-scaled Jacobian at the solution
     # parameters the data cannot identify at the solution -> why (their covariance rows are NaN)
     unidentifiable: Mapping[str, str] = field(default_factory=dict)
@@ -72,6 +75,15 @@ class FitResult:
     @property
     def dof(self) -> int:
         return self.n_samples - self.n_params
+
+    @cached_property
+    def reference_dof(self) -> dict[str, float]:
+        """Degrees of freedom of each parameter's t-test and interval: its effective number of maneuvers
+        minus 1 for the per-maneuver covariances (``hac-maneuver``, ``cluster``), m - p otherwise."""
+        effective = (self.effective_maneuvers if self.effective_maneuvers is not None
+                     else np.full(self.n_params, float(len(self.segment_names))))
+        return {n: reference_dof(self.covariance_kind, self.n_samples, self.n_params, float(g))
+                for n, g in zip(self.names, effective)}
 
     # ----- estimates ---------------------------------------------------------
     @cached_property
@@ -142,9 +154,15 @@ class FitResult:
 
     @cached_property
     def p_values(self) -> dict[str, float]:
-        """Two-sided t-test of H0: parameter = 0 with m - p degrees of freedom."""
+        """Two-sided t-test of H0: parameter = 0 with the parameter's ``reference_dof``."""
         t = np.array(list(self.t_values.values()))
-        return dict(zip(self.names, map(float, 2.0 * stats.t.sf(np.abs(t), max(self.dof, 1)))))
+        dof = np.array(list(self.reference_dof.values()))
+        return dict(zip(self.names, map(float, 2.0 * stats.t.sf(np.abs(t), dof))))
+
+    def confidence_intervals(self, level: float = 0.95) -> dict[str, tuple[float, float]]:
+        """estimate -+ t_{dof} quantile x standard deviation (NaN where no standard deviation exists)."""
+        half = stats.t.ppf(0.5 + level / 2, np.array(list(self.reference_dof.values()))) * self._stderr
+        return {n: (float(v - h), float(v + h)) for n, v, h in zip(self.names, self.values, half)}
 
     @cached_property
     def significant(self) -> dict[str, bool]:
@@ -230,6 +248,7 @@ class FitResult:
             "high_correlations": [list(p) for p in self.high_correlations],
             "correlation": {"names": list(self.names), "matrix": self.correlation.tolist()},
             "covariance": self.covariance_kind,
+            "reference_dof": self.reference_dof,
             "generated_regressors": self.generated_regressors,
             "max_lag": self.max_lag,
             "bandwidth": self.bandwidth,

@@ -27,6 +27,7 @@ from .regressors import X_FLOOR, Regressor, declare
 from .results import FitResult
 from .separation import DEFAULT_BOUNDS, DEFAULT_START, SeparationState, common_step, evaluate_state
 from .snls import BoundProblem, Evaluation
+from .statistics import DEFAULT_COVARIANCE
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,9 +127,10 @@ class StallModel:
         return StallProblem(self, data)
 
     def fit(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
-            seed: int = 0, n_jobs: int = 1, covariance: str = "colored", max_lag=None,
+            seed: int = 0, n_jobs: int = 1, covariance: str = DEFAULT_COVARIANCE, max_lag=None,
             tol: float = 1e-10, max_nfev: int | None = None) -> FitResult:
-        """Fit the coefficient column of ``data``: SNLS when there are separation states, else OLS."""
+        """Fit the coefficient column of ``data``: SNLS when there are separation states, else OLS.
+        The covariance defaults to the project's best-calibrated one (per-maneuver HAC)."""
         problem = self.bind(data)
         y = data[self.coefficient]
         theta0 = self.start_vector()

@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .statistics import (HAC_KERNELS, _inverse_factor, _sandwich, autocovariance, choose_max_lag,
-                         cluster_estimable, cluster_meat, cross_covariance, hac_meat, lag_weights,
+from .statistics import (HAC_KERNELS, PER_MANEUVER_KINDS, _inverse_factor, _sandwich, autocovariance, choose_max_lag,
+                         cluster_estimable, cluster_meat, cross_covariance, effective_maneuvers, hac_meat,
+                         lag_weights,
                          shifted_product, toeplitz_product)
 
 
@@ -40,7 +41,8 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
 
     ``jac1`` (m x p1) and ``jac2`` (m x p2) are the model Jacobians on the identifiable parameters of
     each step, ``sensitivity`` (m x p1) is d f2 / d beta1 on the same first-step parameters. Returns
-    (covariance, lags, bandwidth) like the one-step estimators.
+    (covariance, lags, bandwidth, effective maneuvers per parameter) like the one-step estimators; the
+    effective maneuvers (of the corrected scores) are NaN except for the per-maneuver kinds.
     """
     m, p2 = jac2.shape
     a1_inv = _inverse_factor(jac1)
@@ -53,7 +55,7 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
         meat *= m / max(m - p2, 1)
     elif kind == "cluster":
         if not cluster_estimable(bounds, p2):
-            return np.full((p2, p2), np.nan), lags, bandwidth
+            return np.full((p2, p2), np.nan), lags, bandwidth, np.full(p2, np.nan)
         meat = cluster_meat(scores, bounds) * ((m - 1) / max(m - p2, 1))
     elif kind == "white":
         s22 = float(residual2 @ residual2) / max(m - p2, 1)
@@ -75,4 +77,6 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
                 + jac2.T @ shifted_product(carry, gamma12[::-1], bounds))
     else:
         raise ValueError(f"unknown covariance kind {kind!r}")
-    return _sandwich(jac2, meat), lags, bandwidth
+    effective = (effective_maneuvers(jac2, scores, bounds, kind, bandwidth) if kind in PER_MANEUVER_KINDS
+                 else np.full(p2, np.nan))
+    return _sandwich(jac2, meat), lags, bandwidth, effective

@@ -51,8 +51,9 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
         "# Calibration of the reported uncertainty on the flight simulator", "",
         f"Produced by `{command}` in {cal.seconds:.0f} s: {n} simulated campaigns (seeds {cal.seeds[0]}-"
         f"{cal.seeds[-1]}, scale {cal.scale}: {cal.samples} training samples each, full measurement chain), "
-        "the three final models fitted on each; intervals are estimate +- z * reported standard deviation "
-        "around the simulator's truth. Drag and pitch standard deviations include the lift model's "
+        "the three final models fitted on each; intervals are estimate +- t quantile * reported standard "
+        "deviation around the simulator's truth, with each fit's reference degrees of freedom (G - 1 for "
+        "hac-maneuver and cluster, G the training maneuvers; m - p, i.e. the normal, for the others). Drag and pitch standard deviations include the lift model's "
         "estimation error (two-step correction).", "",
         f"Goals (issue 11): pooled 95 % coverage in [{lo:.2f}, {hi:.2f}], no parameter below "
         f"{COVERAGE_FLOOR:.2f}; gap test (Wald, {GAP_LEVEL:.0%} level) rejecting at most "
@@ -61,8 +62,9 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
                  headers=["covariance", "pooled 68 % coverage", "pooled 95 % coverage", "worst 95 % coverage",
                           "pooled 95 % coverage of the MC mean", "gap test rejections at 1 %", "meets goals"],
                  tablefmt="github"), "",
-        f"Best calibrated: **{cal.best.kind}** (pooled 95 % coverage of the truth and of the Monte Carlo mean "
-        "closest to 95 %, gap-test rejections over the goal as a penalty).", "",
+        f"Best calibrated: **{cal.best.kind}** (among the kinds that meet the goals, the one whose pooled 95 % "
+        "coverage of the truth and of the Monte Carlo mean are closest to 95 %; when none meets them, that "
+        "distance plus the gap-test rejections over the goal).", "",
         "Coverage of the Monte Carlo mean measures the standard deviations alone; coverage of the truth "
         "also suffers from any bias of the estimates (column 'bias / MC sd': a bias of the estimator "
         "itself, from errors in the measured regressors, that no covariance estimate can repair).", "",

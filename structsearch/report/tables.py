@@ -173,9 +173,11 @@ THESIS_STDERR_HEADERS = ["model", "parameter", "thesis estimate", "estimate", "t
                          "std. dev. / thesis", "within a factor of 2"]
 
 
-def write_tables(ranked_by_grid: dict[str, list[CandidateResult]], out: Path) -> list[Path]:
+def write_tables(ranked_by_grid: dict[str, list[CandidateResult]], out: Path,
+                 thesis_fits: dict[str, list[CandidateResult]] | None = None) -> list[Path]:
     """``ranking.csv`` plus, per grid, the ranking (thesis Tables 8, 9, 10, 20) and the best candidate's
-    parameters (Tables 11, 13, 15) and correlation matrix (Tables 12, 14, 16) in md/tex/csv."""
+    parameters (Tables 11, 13, 15) and correlation matrix (Tables 12, 14, 16) in md/tex/csv; and, given
+    the final models fitted with the thesis' covariance estimator, ``thesis_stderr``."""
     out = Path(out)
     written = [write_text(out / "ranking.csv", ranking_csv(ranked_by_grid))]
     for grid, ranked in ranked_by_grid.items():
@@ -186,7 +188,7 @@ def write_tables(ranked_by_grid: dict[str, list[CandidateResult]], out: Path) ->
             if best is not None:
                 written.append(write_text(out / f"{safe}_best_parameters.{fmt}", parameter_table(best, fmt)))
                 written.append(write_text(out / f"{safe}_best_correlation.{fmt}", correlation_table(best, fmt)))
-    rows = thesis_stderr_rows(ranked_by_grid)
+    rows = thesis_stderr_rows(thesis_fits) if thesis_fits else []
     if rows:
         for fmt in ("md", "csv"):
             written.append(write_text(out / f"thesis_stderr.{fmt}",

@@ -17,7 +17,7 @@ from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores, R2Summary
 
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
-JSON_LAYOUT = 2
+JSON_LAYOUT = 3
 
 
 def _finite_or_none(v: float | None) -> float | None:
@@ -83,6 +83,7 @@ class CandidateResult:
     high_correlations: tuple[tuple[str, str, float], ...] = ()
     correlation: tuple[tuple[float, ...], ...] = ()
     significance: float = 0.05
+    reference_dof: dict[str, float] | None = None  # dof of each p-value's t reference
     n_starts: int = 0
     n_reached_best: int = 0
     aic: float | None = None
@@ -111,7 +112,7 @@ class CandidateResult:
                    at_bound=dict(result.at_bound),
                    high_correlations=tuple((a, b, float(c)) for a, b, c in result.high_correlations),
                    correlation=tuple(tuple(map(float, row)) for row in np.asarray(result.correlation)),
-                   significance=result.significance, n_starts=result.n_starts,
+                   significance=result.significance, reference_dof=dict(result.reference_dof), n_starts=result.n_starts,
                    n_reached_best=result.n_reached_best, aic=result.aic, bic=result.bic, max_lag=result.max_lag,
                    converged=bool(result.success), message=result.message, nfev=int(result.nfev),
                    not_identifiable=dict(result.not_identifiable),
@@ -190,7 +191,7 @@ class CandidateResult:
         values["nonlinear_names"] = tuple(values.get("nonlinear_names", ()))
         values["high_correlations"] = tuple((a, b, float(c)) for a, b, c in values.get("high_correlations", ()))
         values["correlation"] = tuple(tuple(map(_nan_if_none, row)) for row in values.get("correlation", ()))
-        for key in ("params", "stderr", "p_values"):
+        for key in ("params", "stderr", "p_values", "reference_dof"):
             if values.get(key) is not None:
                 values[key] = {k: _nan_if_none(v) for k, v in values[key].items()}
         return cls(**values)

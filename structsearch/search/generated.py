@@ -79,13 +79,16 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
     sensitivity = lift_sensitivity(model, result.params, train, lift_model, lift.params,
                                    [n for n, keep in zip(lift_names, basis1) if keep])
     cov = np.full((result.n_params, result.n_params), np.nan)
-    block, lags, bandwidth = generated_regressor_covariance(
+    block, lags, bandwidth, effective_block = generated_regressor_covariance(
         jac2[:, basis2], result.residuals, jac1[:, basis1], residual1, sensitivity, train.bounds,
         result.covariance_kind)
     cov[np.ix_(basis2, basis2)] = block
-    estimate = Covariances(cov, result.white_covariance, lags, bandwidth).without(
+    effective = np.full(result.n_params, np.nan)
+    effective[basis2] = effective_block
+    estimate = Covariances(cov, result.white_covariance, lags, bandwidth, effective).without(
         [i for i, n in enumerate(result.names) if n in result.unidentifiable])
     return dataclasses.replace(
         result, covariance=estimate.covariance, max_lag=estimate.max_lag, bandwidth=estimate.bandwidth,
+        effective_maneuvers=estimate.effective_maneuvers,
         generated_regressors=f"includes the estimation error of the lift model {lift.name} "
                              "(two-step, Murphy-Topel)")
