@@ -117,7 +117,7 @@ def _search(args) -> int:
     try:
         result = search(campaign, args.grid, Path(args.out), n_jobs=args.jobs,
                         settings=Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance),
-                        backend=args.backend,
+                        backend=args.backend, max_correlation=_max_correlation(args),
                         progress=None if args.quiet else stderr_progress)
     finally:
         if client is not None:
@@ -126,6 +126,12 @@ def _search(args) -> int:
     _print_winners(result)
     print(f"wrote {Path(args.out) / 'ranking.csv'} and the tables of each grid")
     return 0
+
+
+def _max_correlation(args) -> float:
+    if not 0.0 < args.max_correlation <= 1.0:
+        raise_error(f"--max-correlation must lie in (0, 1], not {args.max_correlation}")
+    return args.max_correlation
 
 
 def _dask_client(args):
@@ -142,6 +148,7 @@ def _dask_client(args):
 
 
 def _print_winners(result) -> None:
+    from .search.ranking import passed_over
     for grid, ranked in result.grids.items():
         ok = [s for s in ranked if not s.failed]
         failed = len(ranked) - len(ok)
@@ -155,8 +162,14 @@ def _print_winners(result) -> None:
                       f"{runner_up.mse_validation / best.mse_validation - 1:+.1%})")
         not_converged = [s.name for s in ok if not s.converged]
         warning = (f"; optimizer did not converge for {', '.join(not_converged)}" if not_converged else "")
-        print(f"{grid}: {best.name} ({best.n_params} parameters, validation MSE {best.mse_validation:.4g})"
-              f"{margin}; {len(ok)} fitted, {failed} failed{warning}, {result.seconds[grid]:.1f} s")
+        n_admissible = sum(bool(s.admissible) for s in ok)
+        status = "" if best.admissible else " (NOT admissible: no candidate is)"
+        print(f"{grid}: {best.name}{status} ({best.n_params} parameters, validation MSE "
+              f"{best.mse_validation:.4g}){margin}; {len(ok)} fitted ({n_admissible} admissible), {failed} failed"
+              f"{warning}, {result.seconds[grid]:.1f} s")
+        for s in passed_over(ranked)[:3]:
+            print(f"  passed over {s.name} (validation MSE {s.mse_validation / best.mse_validation - 1:+.1%}): "
+                  f"{'; '.join(s.reasons)}")
 
 
 def _demo(args) -> int:
@@ -181,7 +194,7 @@ def _demo(args) -> int:
     t_sim = time.perf_counter() - t0
     jobs = args.jobs or os.cpu_count() or 1
     result = search(campaign, "all", out, n_jobs=jobs, settings=Settings(n_starts=args.starts),
-                    progress=None if args.quiet else stderr_progress)
+                    max_correlation=_max_correlation(args), progress=None if args.quiet else stderr_progress)
     write_tables(result.grids, out, thesis_estimator_fits(result.grids, campaign))
     total = time.perf_counter() - t0
     _print_winners(result)
@@ -256,6 +269,13 @@ def _diagnose(args) -> int:
     return 0
 
 
+def _admissibility_options(p) -> None:
+    from .search.admissibility import MAX_CORRELATION
+    p.add_argument("--max-correlation", type=float, default=MAX_CORRELATION,
+                   help=f"admissibility: largest |correlation| of two parameters (default {MAX_CORRELATION}; "
+                        "judged with the data columns centred)")
+
+
 def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
     """--data, --out, --starts, --seed: the options every command that fits a campaign shares."""
     p.add_argument("--data", required=data_required, help="campaign directory")
@@ -312,6 +332,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--scheduler", default=None,
                    help="dask scheduler address (default: start a local cluster of --jobs workers)")
     r.add_argument("--quiet", action="store_true", help="no progress lines")
+    _admissibility_options(r)
     r.set_defaults(func=_search)
 
     g = sub.add_parser("diagnose", help="where the model misses the data, which effect causes it, how far it shrinks")
@@ -341,6 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--starts", type=int, default=4)
     d.add_argument("--scale", type=float, default=1.0, help="fraction of the campaign to fly (quick looks)")
     d.add_argument("--quiet", action="store_true")
+    _admissibility_options(d)
     d.set_defaults(func=_demo)
     return parser
 

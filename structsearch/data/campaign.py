@@ -30,6 +30,10 @@ MAX_ANGLE_RAD = 1.2
 MIN_DURATION_S = 2.0
 MIN_SAMPLES = 20
 AIRCRAFT_KEYS = ("S", "cbar", "b")
+# optional aircraft data (interfaces.md 5.1): positive scalars, signed scalars, and vectors of a length
+OPTIONAL_POSITIVE = ("mass", "Ixx", "Iyy", "Izz")
+OPTIONAL_SIGNED = ("Ixz", "thrust_line_z")
+OPTIONAL_VECTORS = {"x_cg_range": 2, "accelerometer": 3}
 
 
 @dataclass(frozen=True)
@@ -45,7 +49,7 @@ class Campaign:
     """A campaign: its manifest and all samples (maneuvers in manifest order)."""
 
     name: str
-    aircraft: Mapping[str, float]
+    aircraft: Mapping[str, object]     # S, cbar, b and the optional data of interfaces.md 5.1
     maneuvers: tuple[Maneuver, ...]
     data: FlightData
     directory: Path | None = None
@@ -85,9 +89,7 @@ def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
     aircraft = doc.get("aircraft")
     if not isinstance(aircraft, dict):
         raise DataError("missing [aircraft] table", source=toml)
-    for key in AIRCRAFT_KEYS:
-        if not isinstance(aircraft.get(key), (int, float)) or aircraft[key] <= 0:
-            raise DataError(f"[aircraft] needs a positive number {key}", source=toml, column=key)
+    parsed = _parse_aircraft(aircraft, toml)
     entries = doc.get("maneuver")
     if not isinstance(entries, list) or not entries:
         raise DataError("no [[maneuver]] entries", source=toml)
@@ -107,7 +109,47 @@ def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
             raise DataError(f"unknown split {e['split']!r}; expected one of {', '.join(SPLITS)}",
                             source=where, column="split")
         maneuvers.append(Maneuver(e["id"], e["file"], e["kind"], e["split"]))
-    return str(doc.get("name", "")), {k: float(aircraft[k]) for k in AIRCRAFT_KEYS}, maneuvers
+    return str(doc.get("name", "")), parsed, maneuvers
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+
+def _parse_aircraft(aircraft: dict, toml: str) -> dict:
+    """The [aircraft] table: S, cbar, b required; the optional data of interfaces.md 5.1 checked."""
+    out: dict = {}
+    for key in AIRCRAFT_KEYS:
+        if not _number(aircraft.get(key)) or aircraft[key] <= 0:
+            raise DataError(f"[aircraft] needs a positive finite number {key}", source=toml, column=key)
+        out[key] = float(aircraft[key])
+    known = AIRCRAFT_KEYS + OPTIONAL_POSITIVE + OPTIONAL_SIGNED + tuple(OPTIONAL_VECTORS)
+    for key, value in aircraft.items():
+        if key not in known:
+            raise DataError(f"[aircraft] has an unknown key {key!r}; known keys: {', '.join(known)}",
+                            source=toml, column=key)
+        if key in OPTIONAL_POSITIVE and not (_number(value) and value > 0):
+            raise DataError(f"[aircraft] {key} must be a positive finite number, not {value!r}", source=toml,
+                            column=key)
+        if key in OPTIONAL_SIGNED and not _number(value):
+            raise DataError(f"[aircraft] {key} must be a finite number, not {value!r}", source=toml, column=key)
+        if key in OPTIONAL_VECTORS:
+            n = OPTIONAL_VECTORS[key]
+            if not (isinstance(value, list) and len(value) == n and all(_number(v) for v in value)):
+                raise DataError(f"[aircraft] {key} must be a list of {n} finite numbers, not {value!r}",
+                                source=toml, column=key)
+            if key == "x_cg_range" and not value[0] < value[1]:
+                raise DataError(f"[aircraft] x_cg_range must be [forward, aft] with forward < aft, not {value!r}",
+                                source=toml, column=key)
+            out[key] = tuple(float(v) for v in value)
+        elif key not in AIRCRAFT_KEYS:
+            out[key] = float(value)
+    return out
+
+
+def scalar_constants(aircraft: Mapping[str, object]) -> dict[str, float]:
+    """The aircraft data a regressor may name (numbers, not the envelope or positions)."""
+    return {k: float(v) for k, v in aircraft.items() if not isinstance(v, (tuple, list))}
 
 
 def _read_table(path: Path) -> dict[str, np.ndarray]:
@@ -225,12 +267,15 @@ def read_campaign(directory: Path | str) -> Campaign:
             raise DataError("column present in other maneuvers but missing here", source=str(directory / m.file),
                             column=sorted(missing)[0])
     data = from_segments([{k: s[k] for k in sorted(common)} for s in segments],
-                         names=[m.id for m in maneuvers], source=str(directory), constants=aircraft)
+                         names=[m.id for m in maneuvers], source=str(directory),
+                         constants=scalar_constants(aircraft))
     return Campaign(name, aircraft, tuple(maneuvers), data, directory)
 
 
 # ----- writing -----------------------------------------------------------------------------
 def _toml_value(v) -> str:
+    if isinstance(v, (tuple, list)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, str):
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
@@ -249,6 +294,7 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
     try:
         lines = [f"name = {_toml_value(campaign.name)}", "", "[aircraft]"]
         lines += [f"{k} = {_toml_value(campaign.aircraft[k])}" for k in AIRCRAFT_KEYS]
+        lines += [f"{k} = {_toml_value(v)}" for k, v in campaign.aircraft.items() if k not in AIRCRAFT_KEYS]
         for key, value in campaign.extra.items():
             lines.insert(1, f"{key} = {_toml_value(value)}")
         slices = campaign.data.segment_slices()
@@ -287,5 +333,5 @@ def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[
                   segments: Sequence[Mapping[str, np.ndarray]], extra: Mapping[str, object] | None = None
                   ) -> Campaign:
     data = from_segments(list(segments), names=[m.id for m in maneuvers], source=name,
-                         constants=dict(aircraft))
+                         constants=scalar_constants(aircraft))
     return Campaign(name, dict(aircraft), tuple(maneuvers), data, None, dict(extra or {}))

@@ -251,7 +251,7 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     ``slow_errors`` scales the slow reconstruction errors (see :func:`simulate_campaign`)."""
     from .aero import truth_model
     from ..data.campaign import Maneuver, make_campaign
-    from .reference import AIRCRAFT
+    from .reference import AIRCRAFT, IYY
     model = truth_model(withhold)
     plan = scaled_plan(thesis_plan(extras), scale)
     segments = simulate_campaign(plan, model, seed, slow_errors)
@@ -259,4 +259,6 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     extra = {"seed": int(seed), "truth": model.name, "withheld": ",".join(withhold) or "none",
              "slow_errors": float(slow_errors)}
     name = f"simulated Citation II stall campaign (seed {seed})"
-    return make_campaign(name, AIRCRAFT, maneuvers, segments, extra)
+    # the aircraft data of interfaces.md 5.1 the simulator knows: pitch inertia and the cg envelope
+    aircraft = {**AIRCRAFT, "Iyy": IYY, "x_cg_range": ac.X_CG_RANGE}
+    return make_campaign(name, aircraft, maneuvers, segments, extra)

@@ -88,7 +88,8 @@ def correlation_table(fit, fmt: str = "text") -> str:
 
 # ----- the ranking of a grid ----------------------------------------------------------------
 # (ranking.csv field, table header); ranking.csv also carries "grid", "message" and "error".
-COLUMNS = [("rank", "rank"), ("model", "model"), ("lift", "lift model"), ("n_params", "parameters"),
+COLUMNS = [("rank", "rank"), ("model", "model"), ("admissible", "admissible"), ("lift", "lift model"),
+           ("n_params", "parameters"),
            ("mse_train", "MSE train"), ("mse_validation", "MSE validation"),
            ("mse_cx_validation", "MSE C_X val."), ("mse_cz_validation", "MSE C_Z val."),
            ("r2_validation_mean", "R2 val. mean"), ("r2_validation_min", "R2 val. min"),
@@ -99,12 +100,13 @@ COLUMNS = [("rank", "rank"), ("model", "model"), ("lift", "lift model"), ("n_par
 RANKING_FIELDS = ["grid", "model", "rank", "mse_train", "mse_validation", "n_params", "lift", "mse_cx_validation",
                   "mse_cz_validation", "r2_validation_mean", "r2_validation_min", "r2_validation_max", "aic",
                   "n_insignificant", "n_high_corr", "within_noise", "converged", "nfev", "message", "identifiable",
-                  "condition_number", "not_identifiable", "error"]
+                  "condition_number", "not_identifiable", "error", "admissible", "reasons"]
 
 
 def table_row(s: CandidateResult) -> dict:
     """One candidate as the fields of ``ranking.csv`` (None where there is no value)."""
-    row = {"grid": s.grid, "model": s.name, "rank": s.rank, "lift": s.lift or "-", "error": s.error}
+    row = {"grid": s.grid, "model": s.name, "rank": s.rank, "lift": s.lift or "-", "error": s.error,
+           "admissible": s.admissible, "reasons": "; ".join(s.reasons)}
     if not s.failed:
         v = s.validation
         row.update({"n_params": s.n_params, "mse_train": s.mse_train, "mse_validation": s.mse_validation,
@@ -129,12 +131,13 @@ def _cell(v):
 
 
 def grid_table(ranked: list[CandidateResult], fmt: str) -> str:
-    """A grid's ranking (thesis Tables 8, 9, 10, 20): one row per candidate, best first."""
-    headers = [h for _, h in COLUMNS] + ["error"]
+    """A grid's ranking (thesis Tables 8, 9, 10, 20): one row per candidate, best first; why a candidate
+    is not admissible in the last column."""
+    headers = [h for _, h in COLUMNS] + ["not admissible because"]
     body = []
     for s in ranked:
         row = table_row(s)
-        body.append([_cell(row.get(k)) for k, _ in COLUMNS] + [row["error"] or ""])
+        body.append([_cell(row.get(k)) for k, _ in COLUMNS] + [row["reasons"]])
     return _with_newline(render_table(body, headers, fmt), fmt)
 
 

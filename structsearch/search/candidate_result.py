@@ -17,7 +17,7 @@ from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores, R2Summary
 
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
-JSON_LAYOUT = 3
+JSON_LAYOUT = 4
 
 
 def _finite_or_none(v: float | None) -> float | None:
@@ -82,6 +82,8 @@ class CandidateResult:
     at_bound: dict[str, str] | None = None
     high_correlations: tuple[tuple[str, str, float], ...] = ()
     correlation: tuple[tuple[float, ...], ...] = ()
+    # the same with the data columns centred that can be (what admissibility judges; () when none can)
+    centred_correlation: tuple[tuple[float, ...], ...] = ()
     significance: float = 0.05
     reference_dof: dict[str, float] | None = None  # dof of each p-value's t reference
     n_starts: int = 0
@@ -97,6 +99,8 @@ class CandidateResult:
     train: SplitScores | None = None
     validation: SplitScores | None = None
     # --- set by the ranking ---
+    admissible: bool | None = None
+    reasons: tuple[str, ...] = ()       # why it is not admissible
     rank: int | None = None
     within_noise: bool | None = None
     gap: float | None = None            # mean per-maneuver relative validation MSE excess over the best
@@ -105,13 +109,16 @@ class CandidateResult:
     # ----- construction ---------------------------------------------------------------
     @classmethod
     def from_fit(cls, *, name: str, grid: str, coefficient: str, lift: str | None, result: FitResult,
-                 train: SplitScores, validation: SplitScores, seconds: float) -> "CandidateResult":
+                 train: SplitScores, validation: SplitScores, seconds: float,
+                 centred_correlation: np.ndarray | None = None) -> "CandidateResult":
         return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds,
                    names=tuple(result.names), nonlinear_names=tuple(result.nonlinear_names),
                    params=dict(result.params), stderr=dict(result.stderr), p_values=dict(result.p_values),
                    at_bound=dict(result.at_bound),
                    high_correlations=tuple((a, b, float(c)) for a, b, c in result.high_correlations),
                    correlation=tuple(tuple(map(float, row)) for row in np.asarray(result.correlation)),
+                   centred_correlation=(() if centred_correlation is None else
+                                        tuple(tuple(map(float, row)) for row in centred_correlation)),
                    significance=result.significance, reference_dof=dict(result.reference_dof), n_starts=result.n_starts,
                    n_reached_best=result.n_reached_best, aic=result.aic, bic=result.bic, max_lag=result.max_lag,
                    converged=bool(result.success), message=result.message, nfev=int(result.nfev),
@@ -125,7 +132,8 @@ class CandidateResult:
         return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds, error=error)
 
     def ranked(self, **placing: Any) -> "CandidateResult":
-        """A copy with the ranking's fields (``rank``, ``within_noise``, ``gap``, ``gap_se``) set."""
+        """A copy with the ranking's fields (``admissible``, ``reasons``, ``rank``, ``within_noise``, ``gap``,
+        ``gap_se``) set."""
         return replace(self, **placing)
 
     # ----- derived ----------------------------------------------------------------------
@@ -175,6 +183,8 @@ class CandidateResult:
             doc[split] = s.to_json() if s is not None else None
         doc["high_correlations"] = [list(p) for p in self.high_correlations]
         doc["correlation"] = [list(row) for row in self.correlation]
+        doc["centred_correlation"] = [list(row) for row in self.centred_correlation]
+        doc["reasons"] = list(self.reasons)
         doc["names"], doc["nonlinear_names"] = list(self.names), list(self.nonlinear_names)
         return json_ready(doc)
 
@@ -191,6 +201,9 @@ class CandidateResult:
         values["nonlinear_names"] = tuple(values.get("nonlinear_names", ()))
         values["high_correlations"] = tuple((a, b, float(c)) for a, b, c in values.get("high_correlations", ()))
         values["correlation"] = tuple(tuple(map(_nan_if_none, row)) for row in values.get("correlation", ()))
+        values["centred_correlation"] = tuple(tuple(map(_nan_if_none, row))
+                                              for row in values.get("centred_correlation", ()))
+        values["reasons"] = tuple(values.get("reasons", ()))
         for key in ("params", "stderr", "p_values", "reference_dof"):
             if values.get(key) is not None:
                 values[key] = {k: _nan_if_none(v) for k, v in values[key].items()}

@@ -8,6 +8,7 @@ from typing import Callable
 
 from ..data.campaign import Campaign
 from .candidate_result import CandidateResult
+from .admissibility import AdmissibilityRules, MAX_CORRELATION, reasons
 from .ranking import rank
 from .refinement import refine
 from .runner import Settings, run
@@ -30,11 +31,21 @@ def grids_for(spec: str) -> list[Grid]:
     return [load_grid(spec)]
 
 
+def rules_for(campaign: Campaign, max_correlation: float = MAX_CORRELATION) -> AdmissibilityRules:
+    """What admissibility needs from a campaign: the alpha range flown in training, the cg envelope."""
+    alpha = campaign.split("train")["alpha"]
+    envelope = campaign.aircraft.get("x_cg_range")
+    return AdmissibilityRules(max_correlation=max_correlation, alpha_range=(float(alpha.min()), float(alpha.max())),
+                              cg_range=tuple(envelope) if envelope is not None else None,
+                              cbar=float(campaign.aircraft["cbar"]))
+
+
 def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, settings: Settings = Settings(),
            backend: str = "loky", progress: Callable[[str], None] | None = None,
-           do_refine: bool = True) -> SearchResult:
+           do_refine: bool = True, max_correlation: float = MAX_CORRELATION) -> SearchResult:
     """Fit and rank the grids of ``grid_spec``, refining each grid's best; ``out`` holds the cache."""
     say = progress or (lambda m: None)
+    rules = rules_for(campaign, max_correlation)
     grids = grids_for(grid_spec)
     ranked_by_grid, seconds = {}, {}
     lift_results: dict[str, CandidateResult] = {}
@@ -60,7 +71,12 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, se
         if grid.name == "lift":
             for c, s in zip(grid.candidates, results):
                 lift_results[c.name], lift_candidates[c.name] = s, c
-        ranked = rank(results)
+        by_name = {c.name: c for c in grid.candidates}
+
+        def judge(result, by_name=by_name):
+            return reasons(result, by_name.get(result.name), rules)
+
+        ranked = rank(results, judge)
         if do_refine and ranked and not ranked[0].failed:
             best = grid[ranked[0].name]
 
@@ -71,7 +87,8 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, se
             extra = refine(best, ranked[0], fit_one)
             if extra:
                 say(f"grid {grid.name}: refined {best.name} -> {', '.join(c.name for c, _ in extra)}")
-                ranked = rank(results + [s for _, s in extra])
+                by_name.update({c.name: c for c, _ in extra})
+                ranked = rank(results + [s for _, s in extra], judge)
         ranked_by_grid[grid.name] = ranked
         seconds[grid.name] = time.perf_counter() - t0
     return SearchResult(ranked_by_grid, seconds)

@@ -23,6 +23,7 @@ from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.errors import StructSearchError
 from ..data.atomic import write_json
+from .admissibility import centred_correlation
 from .candidates import Candidate
 from .specs import load_grid
 from ..engine.scores import ManeuverScores
@@ -97,7 +98,8 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
                                            _derived(c.coefficient, pred, data, other))
         return CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                         result=result, train=scores["train"], validation=scores["validation"],
-                                        seconds=time.perf_counter() - t0)
+                                        seconds=time.perf_counter() - t0,
+                                        centred_correlation=centred_correlation(c, model, train, result))
     except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                        error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)

@@ -1,0 +1,187 @@
+"""Admissibility: the conditions under which a flight-test engineer would accept a candidate's estimates.
+
+A candidate is admissible when its fit converged, the data identify every parameter, no
+nonlinear parameter sits on a bound, every t-test rejects zero, no two parameters correlate
+beyond ``max_correlation``, every alpha* lies inside the angle-of-attack range flown, and the
+physics is plausible: positive Kirchhoff (K_L) and lift-slope (alpha) terms in a lift model, and,
+for a pitch model on a campaign that gives a cg envelope, the centre of pressure of the attached
+flow aft of the cg wherever the cg sits in that envelope (a statically stable aircraft). The ranking puts admissible
+candidates first and keeps the others with these reasons.
+
+Correlations are judged with every data column centred that can be centred without changing
+the model (its span): x_cg in ``C_L`` and ``x_cg/cbar*C_L``, for one. A correlation that moving
+a column's datum removes (Marquardt 1980: "non-essential ill-conditioning") says nothing about
+what the data can separate; the thesis' C_m,K0 / C_m,cg pair (-1.00 in its Table 16) is one.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sympy
+
+from ..engine.separation import SeparationState
+from .candidate_result import CandidateResult
+from .candidates import Candidate
+
+MAX_CORRELATION = 0.95
+
+
+@dataclass(frozen=True)
+class AdmissibilityRules:
+    """The thresholds and what the campaign says about the aircraft."""
+
+    max_correlation: float = MAX_CORRELATION
+    alpha_range: tuple[float, float] | None = None   # flown in the training maneuvers [rad]
+    cg_range: tuple[float, float] | None = None      # cg envelope [m], the datum of the x_cg column
+    cbar: float | None = None                        # [m]
+
+
+def _fmt(names) -> str:
+    return ", ".join(names)
+
+
+def reasons(result: CandidateResult, candidate: Candidate | None, rules: AdmissibilityRules) -> tuple[str, ...]:
+    """Why ``result`` is not admissible (empty when it is)."""
+    if result.failed:
+        return (f"fit failed: {result.error}",)
+    out = []
+    if result.converged is False:
+        out.append(f"optimizer did not converge ({result.message})")
+    if result.not_identifiable:
+        out.append(f"not identifiable: {_fmt(result.not_identifiable)}")
+    for name, side in (result.at_bound or {}).items():
+        out.append(f"{name} at its {side} bound")
+    unidentified = set(result.not_identifiable or {})
+    accepts = [n for n, p in (result.p_values or {}).items()
+               if n not in unidentified and not (p < result.significance)]
+    if accepts:
+        out.append(f"t-test accepts 0 at {result.significance:.0%}: {_fmt(accepts)}")
+    out += _correlation_reasons(result, rules.max_correlation)
+    if candidate is not None:
+        out += _alpha_star_reasons(result, candidate, rules.alpha_range)
+        out += _physics_reasons(result, candidate, rules)
+    return tuple(out)
+
+
+def _correlation_reasons(result: CandidateResult, limit: float) -> list[str]:
+    corr = np.asarray(result.centred_correlation or result.correlation, float)
+    out = []
+    for i in range(len(result.names)):
+        for j in range(i + 1, len(result.names)):
+            if np.isfinite(corr[i, j]) and abs(corr[i, j]) > limit:
+                out.append(f"|rho({result.names[i]}, {result.names[j]})| = {abs(corr[i, j]):.3f} > {limit:g}")
+    return out
+
+
+def _alpha_star_reasons(result: CandidateResult, candidate: Candidate, alpha_range) -> list[str]:
+    if alpha_range is None:
+        return []
+    lo, hi = alpha_range
+    out = []
+    for name, kind in candidate.states:
+        p = SeparationState(name, kind).parameter_name("a_star")
+        v = (result.params or {}).get(p)
+        if v is not None and not lo <= v <= hi:
+            out.append(f"{p} = {np.degrees(v):.1f} deg outside the alpha range flown "
+                       f"({np.degrees(lo):.1f} to {np.degrees(hi):.1f} deg)")
+    return out
+
+
+def _expr(text: str) -> sympy.Expr:
+    from ..engine.regressors import parse
+    return parse(text, known=())
+
+
+def _physics_reasons(result: CandidateResult, candidate: Candidate, rules: AdmissibilityRules) -> list[str]:
+    params = result.params or {}
+    out = []
+    if candidate.coefficient == "CL":
+        for name, text in candidate.regressors:
+            if ("K_L(" in text.replace(" ", "") or text.strip() == "alpha") and params.get(name, 1.0) <= 0:
+                what = "Kirchhoff" if "K_L" in text else "lift-slope"
+                out.append(f"{what} term {name} = {params[name]:.3g} is not positive")
+    if candidate.coefficient == "Cm" and rules.cg_range is not None and rules.cbar:
+        slope = _pitch_slopes(candidate, params, rules)
+        if slope is not None:
+            # lift acting at x_cp gives C_m = -(x_cp - x_cg)/cbar * C_L (x aft-positive): the centre of
+            # pressure lies aft of a cg at x when dC_m/dC_L < 0 there; the slope is linear in x_cg
+            for x, slope_at in zip(rules.cg_range, slope):
+                if not slope_at < 0:
+                    out.append(f"centre of pressure at {x - rules.cbar * slope_at:.3f} m is not aft of the cg at "
+                               f"{x:.3f} m (dCm/dCL = {slope_at:.3g} at attached flow)")
+    return out
+
+
+def _pitch_slopes(candidate: Candidate, params: dict, rules: AdmissibilityRules) -> list[float] | None:
+    """dC_m/dC_L at attached flow (every X = 1) with the cg at either end of the envelope, or None when
+    the slope depends on more than x_cg and cbar (it cannot be judged from the envelope alone)."""
+    attached = {SeparationState(n, k).symbol for n, k in candidate.states} | {"X", "X_ss", "X_w"}
+    total = sympy.Integer(0)
+    for name, text in candidate.regressors:
+        expr = _expr(text)
+        cl = next((sym for sym in expr.free_symbols if sym.name == "CL"), None)
+        if name in params and cl is not None:
+            total += params[name] * sympy.diff(expr, cl)
+    fixed = {sym: 1 for sym in total.free_symbols if sym.name in attached}
+    fixed.update({sym: rules.cbar for sym in total.free_symbols if sym.name == "cbar"})
+    total = total.subs(fixed)
+    if {sym.name for sym in total.free_symbols} - {"x_cg"}:
+        return None
+    x_cg = next(iter(total.free_symbols), None)
+    return [float(total.subs(x_cg, x)) if x_cg is not None else float(total) for x in rules.cg_range]
+
+
+# ----- correlations free of the data columns' datums -----------------------------------------------
+# Centring a column keeps the model when the centred regressors span the same space (to this
+# relative residual); only such centrings are applied.
+SAME_SPAN_RTOL = 1e-8
+
+
+def _centred(data, names):
+    from ..data.flightdata import FlightData
+    columns = dict(data.columns)
+    for n in names:
+        columns[n] = columns[n] - float(np.mean(columns[n]))
+    return FlightData(columns, data.starts, data.names, data.source, data.constants)
+
+
+def _basis_change(phi: np.ndarray, phi_c: np.ndarray) -> np.ndarray | None:
+    """M with phi_c = phi M when the two span the same space, else None."""
+    m_, *_ = np.linalg.lstsq(phi, phi_c, rcond=None)
+    miss = np.linalg.norm(phi_c - phi @ m_)
+    if not miss <= SAME_SPAN_RTOL * max(np.linalg.norm(phi_c), np.finfo(float).tiny):
+        return None
+    return m_
+
+
+def centred_correlation(candidate: Candidate, model, data, fit) -> np.ndarray | None:
+    """Correlation matrix of ``fit``'s estimates with every data column of the regressors centred whose
+    centring keeps the model (None when no column can be centred or the covariance is incomplete).
+
+    The linear coefficients of the centred model are M^-1 beta for phi_centred = phi M, so their
+    covariance is T Cov T^T with T = diag(I, M^-1); nonlinear parameters are unchanged."""
+    if not np.all(np.isfinite(fit.covariance)):
+        return None
+    k = len(fit.nonlinear_names)
+    theta = np.asarray(fit.values[:k], float)
+    phi = model.bind(data).evaluate(theta).phi
+    used = {s.name for _, text in candidate.regressors for s in _expr(text).free_symbols} & set(data.columns)
+    movable = [n for n in sorted(used)
+               if np.ptp(data[n]) > 0 and _basis_change(phi, model.bind(_centred(data, [n])).evaluate(theta).phi)
+               is not None]
+    if not movable:
+        return None
+    change = _basis_change(phi, model.bind(_centred(data, movable)).evaluate(theta).phi)
+    if change is None:
+        return None
+    try:
+        inverse = np.linalg.inv(change)
+    except np.linalg.LinAlgError:
+        return None
+    t = np.eye(len(fit.values))
+    t[k:, k:] = inverse
+    cov = t @ fit.covariance @ t.T
+    sd = np.sqrt(np.diag(cov))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return cov / np.outer(sd, sd)

@@ -1,0 +1,118 @@
+"""Admissibility (issue 12 item 1): each rule on a constructed result, the datum-free correlation on a
+fit, and the ranking that puts admissible candidates first."""
+import numpy as np
+import pytest
+
+from structsearch.data.flightdata import FlightData
+from structsearch.flight.synthetic import campaign
+from structsearch.engine.stallmodel import StallModel
+from structsearch.search.admissibility import AdmissibilityRules, centred_correlation, reasons
+from structsearch.search.candidate_result import CandidateResult, R2Summary, SplitScores
+from structsearch.search.candidates import Candidate
+from structsearch.search.ranking import passed_over, rank
+
+LIFT = Candidate("L", "g", "CL", (("CL0", "1"), ("CL_KL", "K_L(X)"), ("CL_a", "alpha")), states=(("", "U"),))
+PITCH = Candidate("P", "g", "Cm", (("Cm0", "1"), ("Cm_CL", "CL"), ("Cm_xcgCL", "x_cg/cbar*CL")))
+RULES = AdmissibilityRules(alpha_range=(0.0, 0.30), cg_range=(7.01, 7.26), cbar=2.0)
+
+
+def result(candidate=LIFT, mse=(1.0, 2.0, 3.0), **changes):
+    names = ("tau1", "tau2", "a1", "a_star") + tuple(n for n, _ in candidate.regressors) \
+        if candidate.states else tuple(n for n, _ in candidate.regressors)
+    scores = SplitScores(float(np.mean(mse)), tuple(mse), (100,) * len(mse), R2Summary(0.9, 0.8, 1.0))
+    params = {n: 0.2 for n in names}
+    fields = dict(names=names, nonlinear_names=names[:4] if candidate.states else (), params=params,
+                  stderr={n: 0.01 for n in names}, p_values={n: 1e-6 for n in names}, at_bound={},
+                  correlation=tuple(tuple(float(i == j) for j in range(len(names))) for i in range(len(names))),
+                  converged=True, not_identifiable={}, message="ok", train=scores, validation=scores)
+    fields.update(changes)
+    return CandidateResult(candidate.name, "g", candidate.coefficient, None, 0.0, **fields)
+
+
+def test_a_clean_result_is_admissible():
+    assert reasons(result(), LIFT, RULES) == ()
+
+
+@pytest.mark.parametrize("changes,expected", [
+    (dict(converged=False, message="max_nfev reached"), "did not converge (max_nfev reached)"),
+    (dict(not_identifiable={"a1": "X stays at 1"}), "not identifiable: a1"),
+    (dict(at_bound={"a_star": "lower"}), "a_star at its lower bound"),
+    (dict(p_values={"tau1": 0.2, "tau2": float("nan")}), "t-test accepts 0 at 5%: tau1, tau2"),
+])
+def test_each_fit_rule_gives_its_reason(changes, expected):
+    why = reasons(result(**changes), LIFT, RULES)
+    assert len(why) == 1 and expected in why[0], why
+
+
+def test_correlation_rule_and_its_threshold():
+    corr = np.eye(7)
+    corr[4, 5] = corr[5, 4] = -0.97
+    r = result(correlation=tuple(map(tuple, corr)))
+    assert reasons(r, LIFT, RULES) == ("|rho(CL0, CL_KL)| = 0.970 > 0.95",)
+    assert reasons(r, LIFT, AdmissibilityRules(max_correlation=0.98)) == ()
+    # judged on the datum-free matrix when there is one
+    assert reasons(result(correlation=tuple(map(tuple, corr)), centred_correlation=tuple(map(tuple, np.eye(7)))),
+                   LIFT, RULES) == ()
+
+
+def test_alpha_star_outside_the_flown_range():
+    why = reasons(result(params={**result().params, "a_star": 0.35}), LIFT, RULES)
+    assert why == ("a_star = 20.1 deg outside the alpha range flown (0.0 to 17.2 deg)",)
+    assert reasons(result(params={**result().params, "a_star": 0.35}), LIFT, AdmissibilityRules()) == ()
+
+
+def test_negative_kirchhoff_and_lift_slope_terms():
+    why = reasons(result(params={**result().params, "CL_KL": -1.0, "CL_a": -0.1}), LIFT, RULES)
+    assert why == ("Kirchhoff term CL_KL = -1 is not positive", "lift-slope term CL_a = -0.1 is not positive")
+
+
+def test_centre_of_pressure_aft_of_the_cg_envelope():
+    # dCm/dCL = Cm_CL + Cm_xcgCL x_cg/cbar: -0.05 and -0.175 over the envelope (stable)
+    stable = {"Cm0": 0.05, "Cm_CL": 3.455, "Cm_xcgCL": -1.0}
+    assert reasons(result(PITCH, params=stable), PITCH, RULES) == ()
+    # forward limit stable, aft limit not: one reason, naming the aft cg
+    # (dCm/dCL = -0.5 + 0.14 x_cg/cbar: -0.0093 forward, +0.0082 aft)
+    unstable = {"Cm0": 0.05, "Cm_CL": -0.5, "Cm_xcgCL": 0.14}
+    why = reasons(result(PITCH, params=unstable), PITCH, RULES)
+    assert len(why) == 1 and "not aft of the cg at 7.260 m" in why[0] and "dCm/dCL = 0.0082" in why[0], why
+    # no envelope in the campaign: the rule is not applied
+    assert reasons(result(PITCH, params=unstable), PITCH, AdmissibilityRules()) == ()
+
+
+def test_centred_correlation_removes_the_datum_of_x_cg():
+    """C_m,K0 and C_m,cg correlate at -1.00 in the thesis because x_cg/cbar ~ 3.5 varies by 1 %; with x_cg
+    centred the same model shows what the data can separate, and the fit itself is unchanged."""
+    rng = np.random.default_rng(2)
+    base = campaign({"quasi-steady": 4}, duration=20.0, seed=3)
+    n = base.n_samples
+    cl = 0.3 + 0.6 * rng.random(n)
+    x_cg = np.repeat(rng.uniform(7.05, 7.12, len(base.starts)), np.diff(np.append(base.starts, n)))
+    cm = 0.05 + 3.0 * cl - 0.9 * x_cg / base.constants["cbar"] * cl + 0.002 * rng.standard_normal(n)
+    data = FlightData({**base.columns, "CL": cl, "x_cg": x_cg, "Cm": cm}, base.starts, base.names, base.source,
+                      base.constants)
+    model = StallModel.declare("P", "Cm", dict(PITCH.regressors))
+    fit = model.fit(data, covariance="white")
+    raw = fit.correlation[1, 2]
+    centred = centred_correlation(PITCH, model, data, fit)
+    assert abs(raw) > 0.99 and abs(centred[1, 2]) < 0.5, (raw, centred[1, 2])
+    assert np.allclose(np.diag(centred), 1.0)
+    # a column whose centring would change the model (CL alone is not a regressor of this one) stays
+    lone = Candidate("Q", "g", "Cm", (("Cm_xcgCL", "x_cg/cbar*CL"),))
+    lone_model = StallModel.declare("Q", "Cm", dict(lone.regressors))
+    assert centred_correlation(lone, lone_model, data, lone_model.fit(data, covariance="white")) is None
+
+
+def test_ranking_puts_admissible_candidates_first_and_names_the_passed_over():
+    better = result(mse=(0.9, 1.8, 2.7), p_values={"tau1": 0.3})
+    better = CandidateResult(**{**better.__dict__, "name": "better"})
+    ok = CandidateResult(**{**result().__dict__, "name": "ok"})
+    broken = CandidateResult.failure(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
+    ranked = rank([better, ok, broken], lambda s: reasons(s, LIFT, RULES))
+    assert [r.name for r in ranked] == ["ok", "better", "broken"]
+    assert ranked[0].admissible and not ranked[1].admissible and ranked[1].rank == 2
+    assert ranked[1].reasons == ("t-test accepts 0 at 5%: tau1",)
+    assert ranked[2].reasons == ("fit failed: boom",) and ranked[2].rank is None
+    assert [r.name for r in passed_over(ranked)] == ["better"]
+    # JSON round trip keeps the verdict
+    again = CandidateResult.from_json(ranked[1].to_json())
+    assert again.admissible is False and again.reasons == ranked[1].reasons
