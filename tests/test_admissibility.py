@@ -116,3 +116,48 @@ def test_ranking_puts_admissible_candidates_first_and_names_the_passed_over():
     # JSON round trip keeps the verdict
     again = CandidateResult.from_json(ranked[1].to_json())
     assert again.admissible is False and again.reasons == ranked[1].reasons
+
+
+# ----- refinement (issue 12 item 3) ---------------------------------------------------------------
+from structsearch.search.refinement import REFINE_CORRELATION, refine, structure_key  # noqa: E402
+
+
+def _fitted(candidate, p_values, corr=None, mse=(1.0, 2.0, 3.0)):
+    base = result(candidate, mse=mse)
+    names = base.names
+    corr = np.eye(len(names)) if corr is None else corr
+    return CandidateResult(**{**base.__dict__, "name": candidate.name,
+                              "p_values": {n: p_values.get(n, 1e-6) for n in names},
+                              "correlation": tuple(map(tuple, corr))})
+
+
+DRAG = Candidate("D-IX", "g", "CD", (("CD0", "1"), ("CD_q", "qstar"), ("CD_CL", "CL"), ("CD_CL2", "CL**2"),
+                                     ("CD_1mX", "1 - X")), states=(("", "U"),))
+
+
+def test_refinement_drops_the_insignificant_then_one_of_a_pair_above_0_8():
+    """The thesis' CD-IX -> CD-IXr: an insignificant q*, then the less significant of a pair correlated
+    between 0.8 and 0.9 (a pair the 0.9 flag never shows), and the structure reached is the declared one."""
+    corr = np.eye(9)
+    i, j = 4 + 2, 4 + 3                      # CD_CL, CD_CL2 after the four nonlinear parameters
+    corr[i, j] = corr[j, i] = 0.85
+    start = _fitted(DRAG, {"CD_q": 0.4}, corr)
+    declared = Candidate("D-IXr", "g", "CD", (("CD0", "1"), ("CD_CL2", "CL**2"), ("CD_1mX", "1 - X")),
+                         states=(("", "U"),))
+    declared_result = _fitted(declared, {})
+    fitted = []
+    after_q = np.eye(8)
+    after_q[5, 6] = after_q[6, 5] = 0.85     # CD_CL, CD_CL2 once q* is gone
+
+    def fit(c):
+        fitted.append(c.name)
+        return _fitted(c, {"CD_CL": 0.01, "CD_CL2": 1e-9}, after_q)
+    done = refine(DRAG, start, fit, {structure_key(declared): (declared, declared_result)})
+    assert [c.name for c, _ in done.steps] == ["D-IXr-auto", "D-IXr"] and fitted == ["D-IXr-auto"]
+    assert done.reached == ("D-IXr",) and 0.8 == REFINE_CORRELATION
+
+
+def test_refinement_that_would_orphan_a_state_says_so():
+    start = _fitted(DRAG, {"CD_1mX": 0.5})
+    done = refine(DRAG, start, lambda c: pytest.fail("nothing may be fitted"))
+    assert done.steps == () and "would leave X without a regressor" in done.stopped

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -10,7 +10,8 @@ from ..data.campaign import Campaign
 from .candidate_result import CandidateResult
 from .admissibility import AdmissibilityRules, MAX_CORRELATION, reasons
 from .ranking import rank
-from .refinement import refine
+from .ranking import near_best
+from .refinement import Refinement, refine, structure_key
 from .runner import Settings, run
 from .candidates import Candidate, Grid
 from .specs import load_grid
@@ -22,6 +23,7 @@ class SearchResult:
 
     grids: dict[str, list[CandidateResult]]
     seconds: dict[str, float]
+    refinements: dict[str, list[Refinement]] = field(default_factory=dict)
 
 
 def grids_for(spec: str) -> list[Grid]:
@@ -29,6 +31,23 @@ def grids_for(spec: str) -> list[Grid]:
         lift = load_grid("lift")
         return [load_grid("separation"), lift, load_grid("drag", lift), load_grid("pitch", lift)]
     return [load_grid(spec)]
+
+
+# At most this many well-fitting candidates are refined per grid (each refinement costs a few fits).
+REFINE_STARTS = 3
+
+
+def refinement_starts(ranked: list[CandidateResult]) -> list[CandidateResult]:
+    """The candidates worth refining: within noise of the best fit (admissible or not) and not admissible
+    only for reasons a refinement can remove (insignificant or correlated terms), best fit first; the
+    admissible winner when there is none."""
+    fixable = ("t-test accepts 0", "|rho(")
+    starts = [s for s in near_best(ranked) if not s.admissible and s.reasons
+              and all(r.startswith(fixable) for r in s.reasons)]
+    starts = sorted(starts, key=lambda s: s.mse_validation)[:REFINE_STARTS]
+    if not starts and ranked and not ranked[0].failed:
+        starts = [ranked[0]]
+    return starts
 
 
 def rules_for(campaign: Campaign, max_correlation: float = MAX_CORRELATION) -> AdmissibilityRules:
@@ -48,6 +67,7 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, se
     rules = rules_for(campaign, max_correlation)
     grids = grids_for(grid_spec)
     ranked_by_grid, seconds = {}, {}
+    refinements: dict[str, list[Refinement]] = {}
     lift_results: dict[str, CandidateResult] = {}
     lift_candidates: dict[str, Candidate] = {}
 
@@ -77,18 +97,26 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, se
             return reasons(result, by_name.get(result.name), rules)
 
         ranked = rank(results, judge)
-        if do_refine and ranked and not ranked[0].failed:
-            best = grid[ranked[0].name]
+        if do_refine:
+            known = {structure_key(c): (c, r) for c, r in zip(grid.candidates, results) if not r.failed}
 
             def fit_one(c):
                 return run([c], campaign, out, lift_results=lift_results, lift_candidates=lift_candidates,
                            settings=settings, n_jobs=1, backend=backend)[0]
 
-            extra = refine(best, ranked[0], fit_one)
+            extra = []
+            for start in refinement_starts(ranked):
+                done = refine(grid[start.name], start, fit_one, known)
+                new = [(c, r) for c, r in done.steps if c.name not in done.reached]
+                known.update({structure_key(c): (c, r) for c, r in new})
+                extra += new
+                steps = " -> ".join([start.name] + [c.name for c, _ in done.steps]) or start.name
+                say(f"grid {grid.name}: refined {steps}"
+                    + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {done.stopped}")
+                refinements.setdefault(grid.name, []).append(done)
             if extra:
-                say(f"grid {grid.name}: refined {best.name} -> {', '.join(c.name for c, _ in extra)}")
                 by_name.update({c.name: c for c, _ in extra})
                 ranked = rank(results + [s for _, s in extra], judge)
         ranked_by_grid[grid.name] = ranked
         seconds[grid.name] = time.perf_counter() - t0
-    return SearchResult(ranked_by_grid, seconds)
+    return SearchResult(ranked_by_grid, seconds, refinements)

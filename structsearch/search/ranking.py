@@ -66,6 +66,21 @@ def rank(results: list[CandidateResult],
     return [s.ranked(rank=i + 1) for i, s in enumerate(admissible + others)] + failed
 
 
+def near_best(results: list[CandidateResult]) -> list[CandidateResult]:
+    """Candidates within noise of the best-fitting one, admissible or not (fitted ones only)."""
+    ok = [s for s in results if not s.failed]
+    if not ok:
+        return []
+    best = min(ok, key=lambda s: s.mse_validation)
+    out = []
+    for s in ok:
+        gap, se = _paired_gap(s, best)
+        bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
+        if s is best or gap <= bar:
+            out.append(s)
+    return out
+
+
 def passed_over(ranked: list[CandidateResult]) -> list[CandidateResult]:
     """Candidates that fit the validation data better than the winner but are not admissible."""
     ok = [s for s in ranked if not s.failed]

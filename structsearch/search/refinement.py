@@ -1,8 +1,21 @@
-"""Refinement of a grid's best candidate: drop what the data cannot support while the fit barely changes."""
+"""Refinement (thesis chapter 10): drop what the data cannot support while the fit barely changes.
+
+A well-fitting candidate that is not admissible because some of its terms are insignificant or
+strongly correlated is refined step by step: first every linear term whose t-test accepts zero,
+then, one at a time, the less significant of the most correlated pair above |rho| = 0.8 (the
+thesis' threshold, read from the full correlation matrix), as long as the validation MSE rises by
+less than 1 %. A step that would leave a separation state without a regressor is not taken; the
+refinement says so. A refined structure that equals a candidate already fitted (the thesis'
+declared CD-IXr, for one) reuses that result and is reported as reached.
+"""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
+
+from ..engine.separation import SeparationState
 from .candidate_result import CandidateResult
 from .candidates import Candidate
 
@@ -12,6 +25,16 @@ REFINE_CORRELATION = 0.8
 REFINE_TOLERANCE = 0.01
 
 
+@dataclass(frozen=True)
+class Refinement:
+    """The steps taken from ``start`` and why the refinement ended."""
+
+    start: str
+    steps: tuple[tuple[Candidate, CandidateResult], ...]
+    stopped: str
+    reached: tuple[str, ...] = ()      # existing candidates a step turned out to be
+
+
 def _refined(c: Candidate, drop: list[str], suffix: str) -> Candidate:
     """``c`` without the regressors in ``drop`` (all drops so far, relative to ``c``)."""
     regs = tuple(r for r in c.regressors if r[0] not in drop)
@@ -19,29 +42,67 @@ def _refined(c: Candidate, drop: list[str], suffix: str) -> Candidate:
                      f"refined from {c.name}: dropped {', '.join(drop)}", c.bounds)
 
 
-def refine(c: Candidate, summary: CandidateResult,
-           fit: Callable[[Candidate], CandidateResult]) -> list[tuple[Candidate, CandidateResult]]:
-    """Drop terms whose t-test accepts zero, then one of a strongly correlated pair while the fit barely changes."""
-    out = []
+def structure_key(c: Candidate) -> tuple:
+    """What makes two candidates the same model: regressor expressions, states, lift model."""
+    return (c.coefficient, tuple(sorted(t.replace(" ", "") for _, t in c.regressors)), tuple(sorted(c.states)),
+            c.lift)
+
+
+def _orphans(c: Candidate, drop: list[str]) -> list[str]:
+    """Separation states of ``c`` that no regressor would use once ``drop`` is dropped."""
+    from ..engine.regressors import parse
+    used = {s.name for n, t in c.regressors if n not in drop for s in parse(t, known=()).free_symbols}
+    symbols = [SeparationState(n, k).symbol for n, k in c.states]
+    return [s for s in symbols if s not in used]
+
+
+def _correlated_pairs(summary: CandidateResult, linear: list[str]) -> list[tuple[str, str, float]]:
+    corr = summary.correlation_matrix
+    names = list(summary.names)
+    pairs = [(a, b, float(corr[names.index(a), names.index(b)])) for i, a in enumerate(linear)
+             for b in linear[i + 1:]]
+    return sorted((p for p in pairs if np.isfinite(p[2]) and abs(p[2]) > REFINE_CORRELATION), key=lambda p: -abs(p[2]))
+
+
+def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], CandidateResult],
+           known: dict[tuple, tuple[Candidate, CandidateResult]] | None = None) -> Refinement:
+    """Refine ``c`` (fitted as ``summary``); ``fit`` fits a new structure, ``known`` maps the structures
+    fitted already to their candidate and result (reused instead of refitting)."""
+    known = known or {}
+    steps, reached = [], []
     current, current_summary, dropped = c, summary, []
+    stopped = "nothing left to drop"
     for step in range(1, 10):
         linear = [r[0] for r in current.regressors]
         constant = linear[0] if current.regressors[0][1].strip() == "1" else None
         drop = [n for n in current_summary.insignificant if n in linear and n != constant]
+        why = "t-test accepts 0"
         if not drop:
-            pairs = [p for p in current_summary.high_correlations
-                     if p[0] in linear and p[1] in linear and abs(p[2]) > REFINE_CORRELATION]
+            pairs = [p for p in _correlated_pairs(current_summary, linear) if constant not in p[:2]]
             if not pairs:
                 break
-            a, b, _ = pairs[0]
-            worse = max((a, b), key=lambda n: current_summary.p_values[n])
-            drop = [worse] if worse != constant else []
-            if not drop:
-                break
-        candidate = _refined(c, dropped + drop, "r" + ("" if step == 1 else str(step)) + "-auto")
-        result = fit(candidate)
-        if result.failed or result.mse_validation > current_summary.mse_validation * (1 + REFINE_TOLERANCE):
+            a, b, rho = pairs[0]
+            drop = [max((a, b), key=lambda n: current_summary.p_values[n])]
+            why = f"|rho({a}, {b})| = {abs(rho):.2f} > {REFINE_CORRELATION}"
+        orphans = _orphans(c, dropped + drop)
+        if orphans:
+            stopped = (f"dropping {', '.join(drop)} ({why}) would leave {', '.join(orphans)} without a regressor; "
+                       "not taken")
             break
-        out.append((candidate, result))
+        candidate = _refined(c, dropped + drop, "r" + ("" if step == 1 else str(step)) + "-auto")
+        same = known.get(structure_key(candidate))
+        if same is not None:
+            candidate, result = same
+            reached.append(candidate.name)
+        else:
+            result = fit(candidate)
+        if result.failed:
+            stopped = f"the refined {candidate.name} failed: {result.error}"
+            break
+        if result.mse_validation > current_summary.mse_validation * (1 + REFINE_TOLERANCE):
+            stopped = (f"dropping {', '.join(drop)} ({why}) raises the validation MSE by "
+                       f"{result.mse_validation / current_summary.mse_validation - 1:.1%}; not taken")
+            break
+        steps.append((candidate, result))
         current, current_summary, dropped = candidate, result, dropped + drop
-    return out
+    return Refinement(c.name, tuple(steps), stopped, tuple(reached))
