@@ -63,7 +63,7 @@ def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
     estimates, stderr, gap, dof = {}, {}, {}, {}
     starts = {coef: dict(TRUTH[coef]) for coef in finals}
     for kind in kinds:
-        settings = Settings(n_starts=1, covariance=kind)
+        settings = Settings(n_starts=1, covariance=kind, cv_folds=0)
         stderr[kind], gap[kind], dof[kind] = {}, {}, {}
         lift = None
         for coef, cand in finals.items():
@@ -247,7 +247,7 @@ def thesis_estimator_fits(grids: Mapping[str, Sequence], campaign) -> dict[str, 
     if not all(name in found for name in FINAL_MODEL_NAMES.values()):
         return {}
     train, val = campaign.split("train"), campaign.split("validation")
-    settings = Settings(n_starts=1, covariance=THESIS_COVARIANCE)
+    settings = Settings(n_starts=1, covariance=THESIS_COVARIANCE, cv_folds=0)
     lift_candidate, lift, out = find_candidate(FINAL_MODEL_NAMES["CL"]), None, {}
     for coef, name in FINAL_MODEL_NAMES.items():
         cand = find_candidate(name)

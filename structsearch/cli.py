@@ -147,6 +147,10 @@ def _dask_client(args):
                                dashboard_address=None))
 
 
+def _held_out(s) -> str:
+    return f"{s.cv_folds}-fold CV" if s.cv is not None else "validation"
+
+
 def _print_winners(result) -> None:
     from .search.ranking import passed_over
     for grid, ranked in result.grids.items():
@@ -158,17 +162,18 @@ def _print_winners(result) -> None:
         best, runner_up = ok[0], (ok[1] if len(ok) > 1 else None)
         margin = ""
         if runner_up is not None:
-            margin = (f"; next {runner_up.name} ({runner_up.n_params} parameters, validation MSE "
-                      f"{runner_up.mse_validation / best.mse_validation - 1:+.1%})")
+            margin = (f"; next {runner_up.name} ({runner_up.n_params} parameters, {_held_out(best)} MSE "
+                      f"{runner_up.comparison.mse / best.comparison.mse - 1:+.1%})")
         not_converged = [s.name for s in ok if not s.converged]
         warning = (f"; optimizer did not converge for {', '.join(not_converged)}" if not_converged else "")
         n_admissible = sum(bool(s.admissible) for s in ok)
         status = "" if best.admissible else " (NOT admissible: no candidate is)"
-        print(f"{grid}: {best.name}{status} ({best.n_params} parameters, validation MSE "
-              f"{best.mse_validation:.4g}){margin}; {len(ok)} fitted ({n_admissible} admissible), {failed} failed"
+        print(f"{grid}: {best.name}{status} ({best.n_params} parameters, {_held_out(best)} MSE "
+              f"{best.comparison.mse:.4g}, validation MSE {best.mse_validation:.4g}){margin}; {len(ok)} fitted "
+              f"({n_admissible} admissible), {failed} failed"
               f"{warning}, {result.seconds[grid]:.1f} s")
         for s in passed_over(ranked)[:3]:
-            print(f"  passed over {s.name} (validation MSE {s.mse_validation / best.mse_validation - 1:+.1%}): "
+            print(f"  passed over {s.name} ({_held_out(s)} MSE {s.comparison.mse / best.comparison.mse - 1:+.1%}): "
                   f"{'; '.join(s.reasons)}")
 
 

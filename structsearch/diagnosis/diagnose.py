@@ -20,6 +20,8 @@ bootstrap over validation maneuvers for uncertainty.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -203,12 +205,14 @@ def _overlap(gap_rows, r_base, r_new, data, x):
     return float(np.mean(scores)), acts
 
 
-def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Settings(n_starts=2),
+def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Settings(n_starts=2, cv_folds=0),
              max_rounds: int = 3, progress: Callable[[str], None] | None = None, seed: int = 0,
              states: bool = True) -> dict:
     """Diagnose one coefficient; returns the JSON document of interfaces.md section 3 (plus details)."""
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
+    # the diagnosis compares fits on the validation maneuvers itself: no cross-validation folds
+    settings = dataclasses.replace(settings, cv_folds=0)
     train, val = campaign.split("train"), campaign.split("validation")
     if baseline.coefficient not in val:
         raise DataError("the campaign has no column for the diagnosed coefficient", source=str(campaign.directory),

@@ -48,7 +48,7 @@ def baseline_without(effect: str) -> Candidate:
 
 
 def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None,
-        progress: Callable[[str], None] | None = None, settings: Settings = Settings(n_starts=2)) -> dict:
+        progress: Callable[[str], None] | None = None, settings: Settings = Settings(n_starts=2, cv_folds=0)) -> dict:
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     campaign = build_campaign(seed=seed, scale=scale)

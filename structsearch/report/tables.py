@@ -90,17 +90,19 @@ def correlation_table(fit, fmt: str = "text") -> str:
 # (ranking.csv field, table header); ranking.csv also carries "grid", "message" and "error".
 COLUMNS = [("rank", "rank"), ("model", "model"), ("admissible", "admissible"), ("lift", "lift model"),
            ("n_params", "parameters"),
-           ("mse_train", "MSE train"), ("mse_validation", "MSE validation"),
+           ("mse_train", "MSE train"), ("mse_cv", "MSE CV"), ("mse_validation", "MSE validation"),
            ("mse_cx_validation", "MSE C_X val."), ("mse_cz_validation", "MSE C_Z val."),
            ("r2_validation_mean", "R2 val. mean"), ("r2_validation_min", "R2 val. min"),
            ("r2_validation_max", "R2 val. max"), ("aic", "AIC"), ("n_insignificant", "t-test accepts 0"),
            ("n_high_corr", f"|rho| > {HIGH_CORRELATION}"), ("within_noise", "within noise of best"),
+           ("gap", "gap to best"), ("gap_se", "gap s.e."),
            ("converged", "converged"), ("nfev", "evaluations"), ("identifiable", "identifiable"),
            ("condition_number", "cond. (scaled J)")]
 RANKING_FIELDS = ["grid", "model", "rank", "mse_train", "mse_validation", "n_params", "lift", "mse_cx_validation",
                   "mse_cz_validation", "r2_validation_mean", "r2_validation_min", "r2_validation_max", "aic",
                   "n_insignificant", "n_high_corr", "within_noise", "converged", "nfev", "message", "identifiable",
-                  "condition_number", "not_identifiable", "error", "admissible", "reasons"]
+                  "condition_number", "not_identifiable", "error", "admissible", "reasons", "mse_cv", "cv_folds",
+                  "gap", "gap_se"]
 
 
 def table_row(s: CandidateResult) -> dict:
@@ -115,6 +117,8 @@ def table_row(s: CandidateResult) -> dict:
                     **{f"r2_validation_{k}": (x if math.isfinite(x) else None) for k, x in v.r2.as_dict().items()},
                     "aic": s.aic, "n_insignificant": len(s.insignificant), "n_high_corr": len(s.high_correlations),
                     "within_noise": s.within_noise, "converged": s.converged, "nfev": s.nfev,
+                    "mse_cv": s.cv.mse if s.cv is not None else None, "cv_folds": s.cv_folds,
+                    "gap": s.gap, "gap_se": s.gap_se if s.gap_se is not None and math.isfinite(s.gap_se) else "n/a",
                     "message": s.message, "identifiable": s.identifiable, "condition_number": s.condition_number,
                     "not_identifiable": "; ".join(f"{k}: {v}" for k, v in s.not_identifiable.items())})
     return row

@@ -17,7 +17,7 @@ from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores, R2Summary
 
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
-JSON_LAYOUT = 4
+JSON_LAYOUT = 5
 
 
 def _finite_or_none(v: float | None) -> float | None:
@@ -98,6 +98,8 @@ class CandidateResult:
     nfev: int = 0                      # residual evaluations of the best start
     train: SplitScores | None = None
     validation: SplitScores | None = None
+    cv: SplitScores | None = None       # held-out scores of the training maneuvers (cross-validation)
+    cv_folds: int = 0
     # --- set by the ranking ---
     admissible: bool | None = None
     reasons: tuple[str, ...] = ()       # why it is not admissible
@@ -110,7 +112,8 @@ class CandidateResult:
     @classmethod
     def from_fit(cls, *, name: str, grid: str, coefficient: str, lift: str | None, result: FitResult,
                  train: SplitScores, validation: SplitScores, seconds: float,
-                 centred_correlation: np.ndarray | None = None) -> "CandidateResult":
+                 centred_correlation: np.ndarray | None = None, cv: SplitScores | None = None,
+                 cv_folds: int = 0) -> "CandidateResult":
         return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds,
                    names=tuple(result.names), nonlinear_names=tuple(result.nonlinear_names),
                    params=dict(result.params), stderr=dict(result.stderr), p_values=dict(result.p_values),
@@ -124,7 +127,7 @@ class CandidateResult:
                    converged=bool(result.success), message=result.message, nfev=int(result.nfev),
                    not_identifiable=dict(result.not_identifiable),
                    condition_number=float(result.condition_number),
-                   train=train, validation=validation)
+                   train=train, validation=validation, cv=cv, cv_folds=cv_folds)
 
     @classmethod
     def failure(cls, *, name: str, grid: str, coefficient: str, lift: str | None, error: str,
@@ -162,6 +165,15 @@ class CandidateResult:
         return self.validation.mse
 
     @property
+    def mse_cv(self) -> float:
+        return self.cv.mse if self.cv is not None else float("nan")
+
+    @property
+    def comparison(self) -> SplitScores:
+        """The scores candidates are compared on: cross-validation when there is one, else validation."""
+        return self.cv if self.cv is not None else self.validation
+
+    @property
     def significant(self) -> dict[str, bool]:
         return {n: p < self.significance for n, p in self.p_values.items()}
 
@@ -178,7 +190,7 @@ class CandidateResult:
     def to_json(self) -> dict:
         doc = asdict(self)
         doc["layout"] = JSON_LAYOUT
-        for split in ("train", "validation"):
+        for split in ("train", "validation", "cv"):
             s = getattr(self, split)
             doc[split] = s.to_json() if s is not None else None
         doc["high_correlations"] = [list(p) for p in self.high_correlations]
@@ -194,7 +206,7 @@ class CandidateResult:
             raise ValueError(f"candidate result of layout {doc.get('layout')!r}, expected {JSON_LAYOUT}")
         known = {f.name for f in fields(cls)}
         values = {k: v for k, v in doc.items() if k in known}
-        for split in ("train", "validation"):
+        for split in ("train", "validation", "cv"):
             if values.get(split) is not None:
                 values[split] = SplitScores.from_json(values[split])
         values["names"] = tuple(values.get("names", ()))

@@ -44,7 +44,7 @@ def refinement_starts(ranked: list[CandidateResult]) -> list[CandidateResult]:
     fixable = ("t-test accepts 0", "|rho(")
     starts = [s for s in near_best(ranked) if not s.admissible and s.reasons
               and all(r.startswith(fixable) for r in s.reasons)]
-    starts = sorted(starts, key=lambda s: s.mse_validation)[:REFINE_STARTS]
+    starts = sorted(starts, key=lambda s: s.comparison.mse)[:REFINE_STARTS]
     if not starts and ranked and not ranked[0].failed:
         starts = [ranked[0]]
     return starts

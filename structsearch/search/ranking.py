@@ -4,10 +4,14 @@ Admissible candidates (:mod:`structsearch.search.admissibility`) come first, ran
 themselves; the others follow, ranked the same way among themselves, each with its reasons; failed
 candidates come last. Within each group the ranking rule is:
 
-Ranking rule (one-standard-error rule on validation data): the candidate with
-the lowest validation MSE of the modelled coefficient sets the bar; every
-candidate whose per-maneuver relative excess in validation MSE is, on average,
-less than one standard error of that excess (or below 1 %) is "within noise" of it. Those come first, fewest
+Ranking rule (one-standard-error rule on held-out data): candidates are compared by
+maneuver-grouped cross-validation over the training maneuvers (each maneuver predicted by a fit
+that did not see it), or by the validation maneuvers when the training set is too small for
+folds; the validation maneuvers stay the final, independent check. The candidate with
+the lowest held-out MSE of the modelled coefficient sets the bar; every
+candidate whose per-maneuver relative excess in held-out MSE is, on average,
+less than one standard error of that excess (or below 1 %) is "within noise" of it
+(with fewer than three maneuvers there is no standard error: "n/a", 1 % only). Those come first, fewest
 parameters first (then lowest validation MSE); the rest follow by validation MSE.
 A candidate the data cannot identify (a parameter without a standard deviation)
 is ranked after every identifiable one, whatever its error: its estimates mean
@@ -26,29 +30,46 @@ from .candidate_result import CandidateResult
 PRACTICAL_TOLERANCE = 0.01
 
 
-def _paired_gap(a: CandidateResult, best: CandidateResult) -> tuple[float, float]:
-    """Mean and standard error of the per-maneuver relative validation MSE excess over the best.
+# Fewer maneuvers than this give no standard error of a gap ("n/a"): only the practical tolerance.
+MIN_MANEUVERS_FOR_SPREAD = 3
+
+
+def _scores(s: CandidateResult, use_cv: bool):
+    return s.cv if use_cv else s.validation
+
+
+def _paired_gap(a: CandidateResult, best: CandidateResult, use_cv: bool) -> tuple[float, float]:
+    """Mean and standard error of the per-maneuver relative MSE excess over the best, on the held-out
+    training maneuvers (cross-validation) or on the validation maneuvers.
 
     Relative, because maneuvers differ in difficulty by orders of magnitude (a deep
     stall against a pullup); a missing effect shows as a consistent relative excess.
     """
-    excess = np.array(a.validation.mse_maneuvers) / np.array(best.validation.mse_maneuvers) - 1.0
-    return weighted_mean_se(excess, np.array(a.validation.n_maneuvers, float))
+    sa, sb = _scores(a, use_cv), _scores(best, use_cv)
+    excess = np.array(sa.mse_maneuvers) / np.array(sb.mse_maneuvers) - 1.0
+    mean, se = weighted_mean_se(excess, np.array(sa.n_maneuvers, float))
+    return mean, (se if len(excess) >= MIN_MANEUVERS_FOR_SPREAD else float("nan"))
+
+
+def _use_cv(group: list[CandidateResult]) -> bool:
+    """Compare by cross-validation when every candidate of the group has it (same folds)."""
+    return bool(group) and all(s.cv is not None for s in group) and len({s.cv_folds for s in group}) == 1
 
 
 def _ordered(group: list[CandidateResult]) -> list[CandidateResult]:
     """One group best first by the one-standard-error rule, with ``within_noise``, ``gap``, ``gap_se``."""
     if not group:
         return []
-    best = min(group, key=lambda s: s.mse_validation)
+    use_cv = _use_cv(group)
+    best = min(group, key=lambda s: _scores(s, use_cv).mse)
     placed = []
     for s in group:
-        gap, se = _paired_gap(s, best)
+        gap, se = _paired_gap(s, best, use_cv)
         # one validation maneuver gives no standard error: only the practical tolerance applies
         bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
         placed.append(s.ranked(gap=gap, gap_se=se, within_noise=bool(s is best or gap <= bar)))
-    top = sorted((s for s in placed if s.within_noise), key=lambda s: (s.n_params, s.mse_validation))
-    rest = sorted((s for s in placed if not s.within_noise), key=lambda s: s.mse_validation)
+    top = sorted((s for s in placed if s.within_noise), key=lambda s: (s.n_params, _scores(s, use_cv).mse))
+    rest = sorted((s for s in placed if not s.within_noise), key=lambda s: _scores(s, use_cv).mse)
     return [s for s in top + rest if s.identifiable] + [s for s in top + rest if not s.identifiable]
 
 
@@ -71,10 +92,11 @@ def near_best(results: list[CandidateResult]) -> list[CandidateResult]:
     ok = [s for s in results if not s.failed]
     if not ok:
         return []
-    best = min(ok, key=lambda s: s.mse_validation)
+    use_cv = _use_cv(ok)
+    best = min(ok, key=lambda s: _scores(s, use_cv).mse)
     out = []
     for s in ok:
-        gap, se = _paired_gap(s, best)
+        gap, se = _paired_gap(s, best, use_cv)
         bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
         if s is best or gap <= bar:
             out.append(s)
@@ -82,8 +104,9 @@ def near_best(results: list[CandidateResult]) -> list[CandidateResult]:
 
 
 def passed_over(ranked: list[CandidateResult]) -> list[CandidateResult]:
-    """Candidates that fit the validation data better than the winner but are not admissible."""
+    """Candidates that fit better than the winner (by the comparison's scores) but are not admissible."""
     ok = [s for s in ranked if not s.failed]
     if not ok or not ok[0].admissible:
         return []
-    return [s for s in ok if not s.admissible and s.mse_validation < ok[0].mse_validation]
+    use_cv = _use_cv(ok)
+    return [s for s in ok if not s.admissible and _scores(s, use_cv).mse < _scores(ok[0], use_cv).mse]

@@ -3,8 +3,8 @@
 A well-fitting candidate that is not admissible because some of its terms are insignificant or
 strongly correlated is refined step by step: first every linear term whose t-test accepts zero,
 then, one at a time, the less significant of the most correlated pair above |rho| = 0.8 (the
-thesis' threshold, read from the full correlation matrix), as long as the validation MSE rises by
-less than 1 %. A step that would leave a separation state without a regressor is not taken; the
+thesis' threshold, read from the full correlation matrix), as long as the held-out MSE (cross-
+validation, else validation) rises by less than 1 %. A step that would leave a separation state without a regressor is not taken; the
 refinement says so. A refined structure that equals a candidate already fitted (the thesis'
 declared CD-IXr, for one) reuses that result and is reported as reached.
 """
@@ -99,9 +99,9 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
         if result.failed:
             stopped = f"the refined {candidate.name} failed: {result.error}"
             break
-        if result.mse_validation > current_summary.mse_validation * (1 + REFINE_TOLERANCE):
-            stopped = (f"dropping {', '.join(drop)} ({why}) raises the validation MSE by "
-                       f"{result.mse_validation / current_summary.mse_validation - 1:.1%}; not taken")
+        rise = result.comparison.mse / current_summary.comparison.mse - 1
+        if rise > REFINE_TOLERANCE:
+            stopped = f"dropping {', '.join(drop)} ({why}) raises the held-out MSE by {rise:.1%}; not taken"
             break
         steps.append((candidate, result))
         current, current_summary, dropped = candidate, result, dropped + drop

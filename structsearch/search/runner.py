@@ -32,15 +32,52 @@ from .candidate_result import JSON_LAYOUT, CandidateResult, SplitScores
 from .generated import with_lift_uncertainty
 from .models import build_model, with_lift_prediction
 
+# Cross-validation folds over the training maneuvers (fewer when a fold would hold fewer than
+# CV_MIN_MANEUVERS maneuvers; none below two folds).
+CV_FOLDS = 5
+CV_MIN_MANEUVERS = 3
+
+
 @dataclass(frozen=True)
 class Settings:
     n_starts: int = 4
     seed: int = 0
     significance: float = 0.05
     covariance: str = DEFAULT_COVARIANCE
+    cv_folds: int = CV_FOLDS          # 0: no cross-validation (diagnosis, calibration: they do not rank)
 
     def key(self) -> dict:
-        return {"n_starts": self.n_starts, "seed": self.seed, "covariance": self.covariance}
+        return {"n_starts": self.n_starts, "seed": self.seed, "covariance": self.covariance,
+                "cv_folds": self.cv_folds}
+
+
+def maneuver_folds(n_maneuvers: int, folds: int) -> list[list[int]]:
+    """Maneuver-grouped folds, round robin over the maneuvers in campaign order (which groups the
+    kinds, so every fold sees every kind); [] when fewer than two folds of CV_MIN_MANEUVERS fit."""
+    k = min(folds, n_maneuvers // CV_MIN_MANEUVERS)
+    if k < 2:
+        return []
+    return [list(range(i, n_maneuvers, k)) for i in range(k)]
+
+
+def cross_validate(model, train: FlightData, result, folds: list[list[int]]) -> np.ndarray:
+    """Held-out residuals of every training maneuver: each fold refitted on the other maneuvers, warm
+    started from the full training fit (one start), and predicted on its own maneuvers."""
+    y = train[model.coefficient]
+    residual = np.empty_like(y)
+    slices = train.segment_slices()
+    warm = {k: result.params[k] for k in model.nonlinear_names}
+    everything = range(len(slices))
+    for held in folds:
+        rest = [i for i in everything if i not in held]
+        part = model.fit(train.select(rest), start=warm or None, n_starts=1, covariance="white")
+        predicted = model.predict(train.select(held), part.params)
+        at = 0
+        for i in held:
+            n = slices[i].stop - slices[i].start
+            residual[slices[i]] = y[slices[i]] - predicted[at:at + n]
+            at += n
+    return residual
 
 
 def fingerprint(data: FlightData) -> str:
@@ -90,6 +127,11 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         if c.lift and lift_candidate is not None:
             result = with_lift_uncertainty(result, model, measured, train, lift, lift_candidate)
         scores = {}
+        folds = maneuver_folds(len(train.starts), settings.cv_folds)
+        if folds:
+            y = train[c.coefficient]
+            scores["cv"] = SplitScores.of(ManeuverScores.of(y, cross_validate(model, train, result, folds),
+                                                            train.segment_slices()), None)
         for split, data in (("train", train), ("validation", validation)):
             y = data[c.coefficient]
             pred = model.predict(data, result.params)
@@ -98,6 +140,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
                                            _derived(c.coefficient, pred, data, other))
         return CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                         result=result, train=scores["train"], validation=scores["validation"],
+                                        cv=scores.get("cv"), cv_folds=len(folds),
                                         seconds=time.perf_counter() - t0,
                                         centred_correlation=centred_correlation(c, model, train, result))
     except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
