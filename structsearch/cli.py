@@ -84,13 +84,14 @@ def raise_error(message: str):
 def _fit(args) -> int:
     from .data.campaign import read_campaign
     from .data.atomic import write_json, write_text
-    from .search.runner import Settings, fit_candidate, fit_lift_model
+    from .search.runner import Settings, check_bounds, fit_candidate, fit_lift_model
     from .search.specs import resolve_candidate
     from .report.documents import fit_document
     from .report.tables import parameter_table
     campaign = read_campaign(args.data)
     candidate = resolve_candidate(args.model)
-    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance)
+    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
+    check_bounds(settings.bounds, [candidate])
     train, validation = campaign.split("train"), campaign.split("validation")
     lift, lift_candidate = fit_lift_model(candidate, train, validation, settings)
     summary = fit_candidate(candidate, train, validation, lift, lift_candidate, settings)
@@ -108,15 +109,16 @@ def _fit(args) -> int:
 
 def _search(args) -> int:
     from .data.campaign import read_campaign
-    from .search.runner import Settings, stderr_progress
-    from .search.pipeline import search
+    from .search.runner import Settings, check_bounds, stderr_progress
+    from .search.pipeline import grids_for, search
     from .report.tables import write_tables
     from .calibration import thesis_estimator_fits
     campaign = read_campaign(args.data)
+    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
+    check_bounds(settings.bounds, [c for g in grids_for(args.grid) for c in g.candidates])
     client = _dask_client(args) if args.backend == "dask" else None
     try:
-        result = search(campaign, args.grid, Path(args.out), n_jobs=args.jobs,
-                        settings=Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance),
+        result = search(campaign, args.grid, Path(args.out), n_jobs=args.jobs, settings=settings,
                         backend=args.backend, max_correlation=_max_correlation(args),
                         progress=None if args.quiet else stderr_progress)
     finally:
@@ -126,6 +128,25 @@ def _search(args) -> int:
     _print_winners(result)
     print(f"wrote {Path(args.out) / 'ranking.csv'} and the tables of each grid")
     return 0
+
+
+def _bounds(args) -> tuple:
+    """--bound NAME=LO:HI options as ((name, (lo, hi)), ...); a malformed one is an error naming it."""
+    import math
+    out = {}
+    for text in getattr(args, "bound", None) or []:
+        name, eq, box = text.partition("=")
+        lo, colon, hi = box.partition(":")
+        try:
+            lo_v, hi_v = float(lo), float(hi)
+        except ValueError:
+            lo_v = hi_v = math.nan
+        if not (eq and colon and name.strip().isidentifier() and math.isfinite(lo_v) and math.isfinite(hi_v)):
+            raise_error(f"--bound {text!r}: expected NAME=LO:HI with finite numbers, e.g. tau2_ss=0:5")
+        if not lo_v < hi_v:
+            raise_error(f"--bound {text!r}: LO must be below HI")
+        out[name.strip()] = (lo_v, hi_v)
+    return tuple(sorted(out.items()))
 
 
 def _max_correlation(args) -> float:
@@ -222,7 +243,7 @@ def _report(args) -> int:
     from .report.page import build
     from .search.runner import Settings
     campaign = read_campaign(args.data)
-    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance)
+    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
     res = build(campaign, Path(args.out), settings=settings, n_jobs=args.jobs,
                 diagnose_coefficient=None if args.diagnose == "none" else args.diagnose, models=tuple(args.model or ()),
                 progress=None if args.quiet else lambda m: print(m, file=sys.stderr, flush=True))
@@ -259,10 +280,11 @@ def _diagnose(args) -> int:
     from .diagnosis.diagnose import diagnose
     from .search.specs import resolve_candidate
     from .report.diagnosis_doc import write
-    from .search.runner import Settings
+    from .search.runner import Settings, check_bounds
     campaign = read_campaign(args.data)
     baseline = resolve_candidate(args.model, args.coefficient)
-    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance)
+    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
+    check_bounds(settings.bounds, [baseline])
     doc = diagnose(campaign, baseline, settings=settings,
                    progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr, flush=True))
     js, md = write(doc, out)
@@ -287,6 +309,9 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
     p.add_argument("--out", default="results", help="output directory (default: results)")
     p.add_argument("--starts", type=int, default=starts, help="starts per nonlinear fit (1: the default start)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
+                   help="search box of a nonlinear parameter, over the declared one (repeatable), "
+                        "e.g. --bound tau2_ss=0:5")
     from .engine.statistics import COVARIANCE_KINDS, DEFAULT_COVARIANCE
     p.add_argument("--covariance", choices=COVARIANCE_KINDS, default=DEFAULT_COVARIANCE,
                    help=f"covariance estimate of every fit (default {DEFAULT_COVARIANCE}, the best calibrated "

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from structsearch.data.flightdata import single_segment
+from structsearch.data.flightdata import FlightData, single_segment
 from structsearch.data.errors import DataError, DeclarationError
 from structsearch.engine.regressors import BUILDING_BLOCKS, block, declare
 from structsearch.engine.stallmodel import StallModel
@@ -93,3 +93,24 @@ def test_block_errors():
         block("K_L")
     with pytest.raises(DeclarationError, match="does not depend"):
         block("qstar", "X_ss")
+
+
+def test_any_campaign_column_may_appear_in_a_stall_model():
+    """A free column (Mach) is a data column of the model; a missing one is named when the model meets
+    the data, and X_... names stay reserved for separation states."""
+    from structsearch.engine.stallmodel import StallModel
+    from structsearch.flight.synthetic import campaign
+    base = campaign({"quasi-steady": 2}, duration=10.0, seed=1)
+    mach = base["V"] / 300.0
+    rng = np.random.default_rng(0)
+    y = 0.1 + 2.0 * mach * base["alpha"] + 0.001 * rng.standard_normal(base.n_samples)
+    data = FlightData({**base.columns, "Mach": mach, "CL": y}, base.starts, base.names, base.source,
+                      base.constants)
+    model = StallModel.declare("m", "CL", {"c0": "1", "cm": "Mach*alpha"})
+    assert "Mach" in model.required_columns
+    fit = model.fit(data, covariance="white")
+    assert abs(fit.params["cm"] - 2.0) < 0.01
+    with pytest.raises(DataError, match="needs this column"):
+        model.fit(base)
+    with pytest.raises(DeclarationError, match="unknown symbol 'X_foo'"):
+        StallModel.declare("m", "CL", {"c": "K_L(X_foo)"})

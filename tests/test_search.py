@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from structsearch.data.campaign import read_campaign, write_campaign
+from structsearch.data.flightdata import FlightData
 from structsearch.engine.scores import R2Summary
 from structsearch.report.tables import write_tables
 from structsearch.search.candidate_result import CandidateResult, SplitScores
@@ -247,3 +248,36 @@ def test_readme_grid_example_runs(tiny, tmp_path):
     write_tables(result.grids, tmp_path / "out")
     assert all(not r.failed for r in result.grids["my-pitch"])
     assert (tmp_path / "out" / "my-pitch_best_correlation.md").exists()
+
+
+def test_cli_bound_sets_the_box_and_rejects_unknown_names(tiny, tmp_path):
+    data = str(tiny.directory)
+    proc = run_cli("fit", "--data", data, "--model", "CL-VI", "--out", str(tmp_path / "f"), "--starts", "1",
+                   "--bound", "tau2_ss=0:0.01")
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads((tmp_path / "f" / "fit.json").read_text())
+    # the truth (0.34 s) lies outside the box: the estimate ends on its upper face
+    assert doc["params"]["tau2_ss"] <= 0.01 and doc["at_bound"].get("tau2_ss") == "upper"
+    proc = run_cli("fit", "--data", data, "--model", "CL-VI", "--bound", "tau9_ss=0:1")
+    assert proc.returncode == 2 and "tau9_ss" in proc.stderr and "tau2_ss" in proc.stderr
+    assert proc.stderr.count("\n") == 1
+    for bad in ("tau2_ss=1:0", "tau2_ss=0", "tau2_ss=a:b"):
+        proc = run_cli("search", "--data", data, "--grid", "lift", "--bound", bad)
+        assert proc.returncode == 2 and bad in proc.stderr, proc.stderr
+
+
+def test_default_boxes_follow_the_data():
+    """alpha* within the alpha range flown (2 deg margin); time constants scaled by cbar/V when the
+    aircraft is larger or slower than the Citation (here 2.5 x cbar at the Citation's airspeed)."""
+    from structsearch.engine.separation import DEFAULT_BOUNDS, data_bounds
+    from structsearch.flight.synthetic import campaign
+    base = campaign({"quasi-steady": 1}, duration=10.0, seed=2)
+    alpha = np.linspace(0.0, 0.3, base.n_samples)
+    v = np.full(base.n_samples, 73.0)
+    citation = FlightData({**base.columns, "alpha": alpha, "V": v}, base.starts, base.names, base.source,
+                          {**base.constants, "cbar": 2.013})
+    box = data_bounds(citation)
+    assert box["a_star"] == pytest.approx((0.0, 0.3 + np.deg2rad(2.0)))
+    assert box["tau1"] == DEFAULT_BOUNDS["tau1"] and box["tau2"] == DEFAULT_BOUNDS["tau2"]
+    big = FlightData(citation.columns, base.starts, base.names, base.source, {**base.constants, "cbar": 5.0325})
+    assert data_bounds(big)["tau1"][1] == pytest.approx(2.5 * DEFAULT_BOUNDS["tau1"][1])

@@ -169,6 +169,9 @@ class Regressor:
     def _arguments(self, data, state_values: Mapping[str, np.ndarray]):
         args = []
         for c in self.columns:
+            if c not in data and c in getattr(data, "constants", {}):  # an aircraft number (mass, Iyy)
+                args.append(data.constants[c])
+                continue
             args.append(data[c])
         for c in self.constants:
             if c not in data.constants:
@@ -188,15 +191,26 @@ class Regressor:
         return np.broadcast_to(np.asarray(out, dtype=float), (n,))
 
 
+def _is_state_name(name: str) -> bool:
+    return name == "X" or name.startswith("X_")
+
+
 def declare(name: str, text: str | sp.Expr, *, states: Iterable[str],
             columns: Iterable[str] = DATA_COLUMNS, constants: Iterable[str] = AIRCRAFT_CONSTANTS,
-            context: str = "") -> Regressor:
-    """Declare a regressor; an unknown symbol is a :class:`DeclarationError` naming it."""
+            context: str = "", free_columns: bool = False) -> Regressor:
+    """Declare a regressor; an unknown symbol is a :class:`DeclarationError` naming it.
+
+    With ``free_columns`` any other name is a data column of the campaign (``Mach``, say), checked
+    when the model meets its data; names of the form X or X_... stay reserved for separation states.
+    """
     states, columns, constants = tuple(states), tuple(columns), tuple(constants)
     where = context or f"regressor {name!r}"
     expr = text if isinstance(text, sp.Expr) else parse(str(text), known=columns + constants + states,
                                                          context=where)
     names = sorted(s.name for s in expr.free_symbols)
+    if free_columns:
+        columns = columns + tuple(n for n in names if n not in columns and n not in constants
+                                  and n not in states and not _is_state_name(n))
     unknown = [s for s in names if s not in columns and s not in constants and s not in states]
     if unknown:
         raise DeclarationError(

@@ -25,7 +25,8 @@ from .fit import fit_problem
 from .identifiability import SATURATION, collinear_with, join_names
 from .regressors import X_FLOOR, Regressor, declare
 from .results import FitResult
-from .separation import DEFAULT_BOUNDS, DEFAULT_START, SeparationState, common_step, evaluate_state
+from .separation import (DEFAULT_BOUNDS, DEFAULT_START, SeparationState, common_step, data_bounds,
+                         evaluate_state)
 from .snls import BoundProblem, Evaluation
 from .statistics import DEFAULT_COVARIANCE
 
@@ -57,7 +58,8 @@ class StallModel:
             raise DeclarationError(f"model {name!r}: separation state declared twice")
         if not regressors:
             raise DeclarationError(f"model {name!r}: no regressors declared")
-        regs = tuple(declare(rname, text, states=symbols, context=f"model {name!r}, regressor {rname!r}")
+        regs = tuple(declare(rname, text, states=symbols, context=f"model {name!r}, regressor {rname!r}",
+                             free_columns=True)
                      for rname, text in regressors.items())
         used = {s for r in regs for s in r.states}
         for s in symbols:
@@ -116,14 +118,17 @@ class StallModel:
                 out.append(DEFAULT_START[p])
         return np.array(out, float)
 
-    def bound_vectors(self) -> tuple[np.ndarray, np.ndarray]:
-        pairs = [self.bounds.get(s.parameter_name(p), DEFAULT_BOUNDS[p]) for s, p in self._free()]
+    def bound_vectors(self, data: FlightData | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Declared bounds, else the default box of the parameter kind (derived from ``data`` when given)."""
+        defaults = data_bounds(data) if data is not None else DEFAULT_BOUNDS
+        pairs = [self.bounds.get(s.parameter_name(p), defaults[p]) for s, p in self._free()]
         return np.array([p[0] for p in pairs], float), np.array([p[1] for p in pairs], float)
 
     def bind(self, data: FlightData) -> "StallProblem":
         for col in self.required_columns:
-            if col not in data:
-                raise DataError(f"model {self.name!r} needs this column", source=data.source, column=col)
+            if col not in data and col not in data.constants:
+                raise DataError(f"model {self.name!r} needs this column (the campaign has "
+                                f"{', '.join(sorted(data.columns))})", source=data.source, column=col)
         return StallProblem(self, data)
 
     def fit(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
@@ -138,7 +143,10 @@ class StallModel:
             if key not in self.nonlinear_names:
                 raise DeclarationError(f"model {self.name!r}: {key!r} is not one of its nonlinear parameters")
             theta0[self.nonlinear_names.index(key)] = value
-        lower, upper = self.bound_vectors()
+        lower, upper = self.bound_vectors(data)
+        # a start outside the box (a default start, or a warm start from data with a wider alpha range)
+        # begins on the nearest face of the box
+        theta0 = np.clip(theta0, lower, upper)
         return fit_problem(problem, y, bounds=data.bounds, segment_names=data.names, start=theta0,
                            lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
                            covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev,

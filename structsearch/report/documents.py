@@ -10,7 +10,9 @@ def fit_document(fit: CandidateResult, lift: CandidateResult | None) -> dict:
     :func:`structsearch.data.atomic.write_json`, which turns what could not be estimated into null."""
     return {
         "model": fit.name, "coefficient": fit.coefficient, "params": fit.params, "stderr": fit.stderr,
-        "mse": {"train": fit.mse_train, "validation": fit.mse_validation},
+        "mse": {"train": fit.mse_train, "validation": fit.mse_validation,
+                **({"cv": fit.cv.mse, "cv_folds": fit.cv_folds} if fit.cv is not None else {})},
+        "reference_dof": fit.reference_dof,
         "p_values": fit.p_values, "at_bound": fit.at_bound,
         "high_correlations": [list(p) for p in fit.high_correlations], "insignificant": list(fit.insignificant),
         "r2": {"train": fit.train.r2.as_dict(), "validation": fit.validation.r2.as_dict()},

@@ -23,6 +23,22 @@ class Candidate:
     def n_linear(self) -> int:
         return len(self.regressors)
 
+    @property
+    def state_parameters(self) -> tuple[str, ...]:
+        """The separation parameters of its own states (a drag or pitch candidate's come from its lift)."""
+        from ..engine.separation import SeparationState
+        return tuple(p for n, k in self.states for p in SeparationState(n, k).parameters)
+
+    def with_bounds(self, overrides) -> "Candidate":
+        """The same candidate with the search boxes in ``overrides`` ((name, (lo, hi)) pairs) that concern
+        its own separation parameters replacing the declared ones (the command line wins)."""
+        mine = {k: tuple(v) for k, v in overrides if k in self.state_parameters}
+        if not mine:
+            return self
+        merged = {**dict(self.bounds), **mine}
+        return Candidate(self.name, self.grid, self.coefficient, self.regressors, self.states, self.lift,
+                         self.note, tuple(sorted(merged.items())))
+
     def to_dict(self) -> dict:
         return {"name": self.name, "grid": self.grid, "coefficient": self.coefficient,
                 "regressors": dict(self.regressors), "states": dict(self.states), "lift": self.lift,

@@ -45,10 +45,25 @@ class Settings:
     significance: float = 0.05
     covariance: str = DEFAULT_COVARIANCE
     cv_folds: int = CV_FOLDS          # 0: no cross-validation (diagnosis, calibration: they do not rank)
+    bounds: tuple[tuple[str, tuple[float, float]], ...] = ()   # --bound NAME=LO:HI, over declared boxes
 
     def key(self) -> dict:
         return {"n_starts": self.n_starts, "seed": self.seed, "covariance": self.covariance,
-                "cv_folds": self.cv_folds}
+                "cv_folds": self.cv_folds, "bounds": [[k, list(v)] for k, v in self.bounds]}
+
+
+def check_bounds(bounds, candidates) -> None:
+    """An unknown NAME in --bound is an error naming the parameters it could have meant."""
+    from .specs import load_grid
+    known = set()
+    for c in candidates:
+        known.update(c.state_parameters)
+        if c.lift:
+            known.update(load_grid("lift")[c.lift].state_parameters)
+    unknown = [k for k, _ in bounds if k not in known]
+    if unknown:
+        raise StructSearchError(f"--bound {unknown[0]}: no candidate has this nonlinear parameter; known: "
+                                f"{', '.join(sorted(known)) or '(none: the candidates are linear)'}")
 
 
 def maneuver_folds(n_maneuvers: int, folds: int) -> list[list[int]]:
@@ -111,6 +126,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
                   start: dict | None = None) -> CandidateResult:
     """Fit one candidate on the training maneuvers and score it on both splits."""
     t0 = time.perf_counter()
+    c = c.with_bounds(settings.bounds)
     try:
         model = build_model(c, lift)
         measured = train
@@ -119,7 +135,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
             validation = with_lift_prediction(validation, lift, lift_candidate)
         warm = {k: v for k, v in (start or {}).items() if k in model.nonlinear_names}
         if warm:  # a warm start inside the bounds (a baseline's estimates for an extended model)
-            lo, hi = model.bound_vectors()
+            lo, hi = model.bound_vectors(train)
             bounds = dict(zip(model.nonlinear_names, zip(lo, hi)))
             warm = {k: float(np.clip(v, *bounds[k])) for k, v in warm.items()}
         result = model.fit(train, start=warm or None, n_starts=settings.n_starts if model.nonlinear_names else 1,
