@@ -141,7 +141,9 @@ def test_refinement_drops_the_insignificant_then_one_of_a_pair_above_0_8():
     corr = np.eye(9)
     i, j = 4 + 2, 4 + 3                      # CD_CL, CD_CL2 after the four nonlinear parameters
     corr[i, j] = corr[j, i] = 0.85
-    start = _fitted(DRAG, {"CD_q": 0.4}, corr)
+    # on the simulated campaign q*, C_L and C_L^2 all accept zero (C_L and C_L^2 correlate at -0.98): q*,
+    # which has no correlated partner, goes first although C_L's p-value is larger
+    start = _fitted(DRAG, {"CD_q": 0.13, "CD_CL": 0.43, "CD_CL2": 0.49}, corr)
     declared = Candidate("D-IXr", "g", "CD", (("CD0", "1"), ("CD_CL2", "CL**2"), ("CD_1mX", "1 - X")),
                          states=(("", "U"),))
     declared_result = _fitted(declared, {})
@@ -151,7 +153,7 @@ def test_refinement_drops_the_insignificant_then_one_of_a_pair_above_0_8():
 
     def fit(c):
         fitted.append(c.name)
-        return _fitted(c, {"CD_CL": 0.01, "CD_CL2": 1e-9}, after_q)
+        return _fitted(c, {"CD_CL": 0.56, "CD_CL2": 0.30}, after_q)
     done = refine(DRAG, start, fit, {structure_key(declared): (declared, declared_result)})
     assert [c.name for c, _ in done.steps] == ["D-IXr-auto", "D-IXr"] and fitted == ["D-IXr-auto"]
     assert done.reached == ("D-IXr",) and 0.8 == REFINE_CORRELATION

@@ -85,12 +85,12 @@ class Reference:
     """The flight condition of the static curves."""
 
     V: float
-    x_cg: float
+    x_cg: float | None                # None: the campaign has no x_cg column
     constants: Mapping[str, float]
 
 
 def reference(data: FlightData) -> Reference:
-    return Reference(float(np.mean(data["V"])), float(np.mean(data["x_cg"])) if "x_cg" in data else 0.0,
+    return Reference(float(np.mean(data["V"])), float(np.mean(data["x_cg"])) if "x_cg" in data else None,
                      dict(data.constants))
 
 
@@ -99,7 +99,9 @@ def static_values(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, 
     alpha = np.asarray(alpha, float)
     zero = np.zeros_like(alpha)
     values = {"alpha": alpha, "alpha_dot": zero, "q": zero, "de": zero, "CT": zero,
-              "V": np.full_like(alpha, ref.V), "x_cg": np.full_like(alpha, ref.x_cg)}
+              "V": np.full_like(alpha, ref.V)}
+    if ref.x_cg is not None:
+        values["x_cg"] = np.full_like(alpha, ref.x_cg)
     values.update({k: np.full_like(alpha, v) for k, v in ref.constants.items()})
     values.update(ms.aero.separation_targets(alpha, zero))
     return values
@@ -146,7 +148,7 @@ def derived_pitch(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, 
     values["CL"] = static_coefficients(ms, alpha, ref)["CL"]
     l_cp = -ms.aero.partial("Cm", "CL", values)
     cbar = ref.constants.get("cbar", 1.0)
-    return {"l_cp": l_cp, "x_cp": ref.x_cg + l_cp * cbar, "Cm_de": ms.aero.partial("Cm", "de", values),
+    return {"l_cp": l_cp, "x_cp": (ref.x_cg + l_cp * cbar) if ref.x_cg is not None else None, "Cm_de": ms.aero.partial("Cm", "de", values),
             "depends_on_CL": bool(np.any(l_cp != 0))}
 
 

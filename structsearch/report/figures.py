@@ -99,11 +99,12 @@ def drag_polar(model, van_ingen, points, names):
 def centre_of_pressure(alpha, derived, curves, x_cg_range, x_cg_ref):
     fig, ax = plt.subplots(figsize=(7, 4.2))
     ax.plot(alpha, derived["x_cp"], color=COLOURS["model"], lw=2.2, label="centre of pressure x_cp")
-    ax.axhspan(*x_cg_range, color="C2", alpha=0.15, label="centre-of-gravity envelope")
+    if x_cg_range is not None:  # only when the campaign gives one (campaign.toml x_cg_range)
+        ax.axhspan(*x_cg_range, color="C2", alpha=0.15, label="centre-of-gravity envelope")
     ax.axhline(x_cg_ref, color="C2", lw=1, label=f"mean centre of gravity ({x_cg_ref:.3f} m)")
     for i, (symbol, c) in enumerate(curves.items()):
         ax.axvline(c["a_star"], color=f"C{3 + i}", ls="--", lw=1, label=f"alpha* of {symbol} ({c['a_star']:.3f} rad)")
-    _finish(ax, "alpha [rad]", "x from the datum 15 in ahead of the nose [m]")
+    _finish(ax, "alpha [rad]", "x from the datum of the campaign's x_cg column [m]")
     return fig
 
 

@@ -20,7 +20,6 @@ import numpy as np
 
 from . import figures as fg
 from . import figure_data as rd
-from ..flight.aircraft import X_CG_RANGE
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..data.atomic import write_text
@@ -101,8 +100,9 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
     points = rd.partial_points(ms, campaign.data, ref)
     curves = rd.separation_curves(ms, alpha)
     pair = (names["CL"], VAN_INGEN_MODEL_NAMES["CL"])
-    cond = (f"static condition: separation states at equilibrium, q = 0, delta_e = 0, C_T = 0, V = {ref.V:.1f} m/s, "
-            f"x_cg = {ref.x_cg:.3f} m")
+    cond = (f"static condition: separation states at equilibrium, q = 0, delta_e = 0, C_T = 0, V = {ref.V:.1f} m/s"
+            + (f", x_cg = {ref.x_cg:.3f} m" if ref.x_cg is not None else ""))
+    envelope = campaign.aircraft.get("x_cg_range")
     corrected = ("Grey points: every maneuver's measurements (a seeded subsample of 5000) corrected to the static "
                  "condition, i.e. the static model at the sample's alpha plus the sample's residual.")
     written: list[Figure] = []
@@ -128,11 +128,19 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
          "alpha in trimmed flight (the elevator follows alpha) carries part of the alpha slope in that term. "
          "(thesis Fig. 11)")
     derived = rd.derived_pitch(ms, alpha, ref)
-    if derived["depends_on_CL"]:
-        emit(fg.centre_of_pressure(alpha, derived, curves, X_CG_RANGE, ref.x_cg), "centre_of_pressure.png",
+    if derived["depends_on_CL"] and ref.x_cg is None:
+        notes.append("The campaign has no x_cg column, so the centre of pressure cannot be placed; that figure is "
+                     "left out.")
+    elif derived["depends_on_CL"]:
+        if envelope is None:
+            notes.append("campaign.toml gives no cg envelope (x_cg_range): the centre-of-pressure figure shows "
+                         "the mean centre of gravity only.")
+        span = (f"against the centre-of-gravity envelope ({envelope[0]:.3f}-{envelope[1]:.3f} m, campaign.toml)"
+                if envelope is not None else "(no cg envelope in the campaign)")
+        emit(fg.centre_of_pressure(alpha, derived, curves, envelope, ref.x_cg), "centre_of_pressure.png",
              "Centre of pressure",
              f"x_cp = x_cg + l_cp * cbar with l_cp = -dC_m/dC_L of {names['Cm']} (Eq. 32) at the mean centre of "
-             "gravity, against the centre-of-gravity envelope (276-286 in); dashed: alpha* of each separation "
+             f"gravity, {span}; dashed: alpha* of each separation "
              "state (thesis Fig. 9). The aircraft is statically stable where x_cp lies aft of x_cg.")
     else:
         notes.append(f"{names['Cm']} has no C_L term, so it implies no centre of pressure; that figure is left out.")

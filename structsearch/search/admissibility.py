@@ -66,11 +66,12 @@ def reasons(result: CandidateResult, candidate: Candidate | None, rules: Admissi
 
 def _correlation_reasons(result: CandidateResult, limit: float) -> list[str]:
     corr = np.asarray(result.centred_correlation or result.correlation, float)
+    note = " (data columns centred)" if result.centred_correlation else ""
     out = []
     for i in range(len(result.names)):
         for j in range(i + 1, len(result.names)):
             if np.isfinite(corr[i, j]) and abs(corr[i, j]) > limit:
-                out.append(f"|rho({result.names[i]}, {result.names[j]})| = {abs(corr[i, j]):.3f} > {limit:g}")
+                out.append(f"|rho({result.names[i]}, {result.names[j]})| = {abs(corr[i, j]):.3f} > {limit:g}{note}")
     return out
 
 

@@ -1,11 +1,13 @@
 """Refinement (thesis chapter 10): drop what the data cannot support while the fit barely changes.
 
 A well-fitting candidate that is not admissible because some of its terms are insignificant or
-strongly correlated is refined step by step: first every linear term whose t-test accepts zero,
-then, one at a time, the less significant of the most correlated pair above |rho| = 0.8 (the
-thesis' threshold, read from the full correlation matrix), as long as the held-out MSE (cross-
-validation, else validation) rises by less than 1 %. A step that would leave a separation state without a regressor is not taken; the
-refinement says so. A refined structure that equals a candidate already fitted (the thesis'
+strongly correlated is refined step by step, one term at a time: first the least significant
+linear term whose t-test accepts zero and that has no partner correlated above |rho| = 0.8 (a
+partner inflates its variance, so such terms are judged as a pair), then the less significant of
+the most correlated pair above 0.8 (the thesis' threshold, read from the full correlation
+matrix), as long as the held-out MSE (cross-validation, else validation) rises by less than 1 %.
+A step that would leave a separation state without a regressor is not taken; the refinement
+says so. A refined structure that equals a candidate already fitted (the thesis'
 declared CD-IXr, for one) reuses that result and is reported as reached.
 """
 from __future__ import annotations
@@ -56,6 +58,12 @@ def _orphans(c: Candidate, drop: list[str]) -> list[str]:
     return [s for s in symbols if s not in used]
 
 
+def _p(summary: CandidateResult, name: str) -> float:
+    """A p-value for ordering; NaN (no standard deviation) counts as the least significant."""
+    p = summary.p_values.get(name, float("nan"))
+    return p if np.isfinite(p) else 2.0
+
+
 def _correlated_pairs(summary: CandidateResult, linear: list[str]) -> list[tuple[str, str, float]]:
     corr = summary.correlation_matrix
     names = list(summary.names)
@@ -75,15 +83,21 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
     for step in range(1, 10):
         linear = [r[0] for r in current.regressors]
         constant = linear[0] if current.regressors[0][1].strip() == "1" else None
-        drop = [n for n in current_summary.insignificant if n in linear and n != constant]
-        why = "t-test accepts 0"
-        if not drop:
-            pairs = [p for p in _correlated_pairs(current_summary, linear) if constant not in p[:2]]
-            if not pairs:
-                break
+        # backward elimination, one term per step: first the least significant term that has no strongly
+        # correlated partner (a partner inflates a t-test's variance, so the pair is judged together),
+        # then the less significant member of the most correlated pair
+        pairs = [p for p in _correlated_pairs(current_summary, linear) if constant not in p[:2]]
+        paired = {n for a, b, _ in pairs for n in (a, b)}
+        weak = [n for n in current_summary.insignificant if n in linear and n != constant and n not in paired]
+        if weak:
+            drop = [max(weak, key=lambda n: _p(current_summary, n))]
+            why = f"t-test accepts 0, p = {_p(current_summary, drop[0]):.2g}"
+        elif pairs:
             a, b, rho = pairs[0]
-            drop = [max((a, b), key=lambda n: current_summary.p_values[n])]
+            drop = [max((a, b), key=lambda n: _p(current_summary, n))]
             why = f"|rho({a}, {b})| = {abs(rho):.2f} > {REFINE_CORRELATION}"
+        else:
+            break
         orphans = _orphans(c, dropped + drop)
         if orphans:
             stopped = (f"dropping {', '.join(drop)} ({why}) would leave {', '.join(orphans)} without a regressor; "
@@ -91,11 +105,7 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
             break
         candidate = _refined(c, dropped + drop, "r" + ("" if step == 1 else str(step)) + "-auto")
         same = known.get(structure_key(candidate))
-        if same is not None:
-            candidate, result = same
-            reached.append(candidate.name)
-        else:
-            result = fit(candidate)
+        candidate, result = same if same is not None else (candidate, fit(candidate))
         if result.failed:
             stopped = f"the refined {candidate.name} failed: {result.error}"
             break
@@ -104,5 +114,7 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
             stopped = f"dropping {', '.join(drop)} ({why}) raises the held-out MSE by {rise:.1%}; not taken"
             break
         steps.append((candidate, result))
+        if same is not None:
+            reached.append(candidate.name)
         current, current_summary, dropped = candidate, result, dropped + drop
     return Refinement(c.name, tuple(steps), stopped, tuple(reached))
