@@ -281,3 +281,21 @@ def test_default_boxes_follow_the_data():
     assert box["tau1"] == DEFAULT_BOUNDS["tau1"] and box["tau2"] == DEFAULT_BOUNDS["tau2"]
     big = FlightData(citation.columns, base.starts, base.names, base.source, {**base.constants, "cbar": 5.0325})
     assert data_bounds(big)["tau1"][1] == pytest.approx(2.5 * DEFAULT_BOUNDS["tau1"][1])
+
+
+def test_a_candidate_needing_a_missing_column_is_not_applicable(tiny):
+    """A campaign without x_cg: the pitch candidates with x_cg terms are listed as not applicable (with the
+    column named), the others fit."""
+    from structsearch.search.runner import Settings, fit_candidate, fit_lift_model
+    from structsearch.search.specs import find_candidate
+
+    def without_xcg(d):
+        return FlightData({k: v for k, v in d.columns.items() if k != "x_cg"}, d.starts, d.names, d.source,
+                          d.constants)
+    train, val = without_xcg(tiny.split("train")), without_xcg(tiny.split("validation"))
+    settings = Settings(n_starts=1, cv_folds=0)
+    needs, free = find_candidate("Cm-II"), find_candidate("Cm-III")
+    lift, lift_candidate = fit_lift_model(needs, train, val, settings)
+    out = fit_candidate(needs, train, val, lift, lift_candidate, settings)
+    assert out.failed and out.error == "not applicable: the campaign has no column x_cg"
+    assert not fit_candidate(free, train, val, lift, lift_candidate, settings).failed

@@ -129,6 +129,11 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
     c = c.with_bounds(settings.bounds)
     try:
         model = build_model(c, lift)
+        missing = [col for col in model.required_columns if col not in train and col not in train.constants]
+        if missing:  # e.g. a pitch candidate with x_cg terms on a campaign without x_cg
+            return CandidateResult.failure(
+                name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift, seconds=time.perf_counter() - t0,
+                error=f"not applicable: the campaign has no column {', '.join(missing)}")
         measured = train
         if c.lift and lift_candidate is not None:
             train = with_lift_prediction(train, lift, lift_candidate)
