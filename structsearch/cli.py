@@ -198,6 +198,19 @@ def _print_winners(result) -> None:
                   f"{'; '.join(s.reasons)}")
 
 
+def _simulated_as(directory: Path) -> dict | None:
+    """How the campaign in ``directory`` was simulated (seed, scale, ...), or None if there is none."""
+    import tomllib
+    toml = directory / "campaign.toml"
+    if not toml.exists():
+        return None
+    try:
+        doc = tomllib.loads(toml.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError):
+        return {"manifest": "unreadable"}
+    return {k: doc.get(k) for k in ("seed", "scale", "withheld", "slow_errors", "extras")}
+
+
 def _demo(args) -> int:
     import os
     import time
@@ -210,10 +223,15 @@ def _demo(args) -> int:
     out = Path(args.out)
     t0 = time.perf_counter()
     camp_dir = out / "campaign"
-    if (camp_dir / "campaign.toml").exists():
+    wanted = {"seed": 0, "scale": float(args.scale), "withheld": "none", "slow_errors": 1.0, "extras": False}
+    found = _simulated_as(camp_dir)
+    if found == wanted:
         campaign = read_campaign(camp_dir)
         print(f"reusing the simulated campaign in {camp_dir}")
     else:
+        if found is not None:
+            print(f"{camp_dir} holds another campaign ({', '.join(f'{k} = {v}' for k, v in found.items())}); "
+                  "simulating it again")
         print(f"simulating the default flight-test campaign (seed 0, scale {args.scale}) ...", flush=True)
         write_campaign(build_campaign(seed=0, scale=args.scale), camp_dir)
         campaign = read_campaign(camp_dir)

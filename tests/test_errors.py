@@ -74,3 +74,36 @@ def test_unknown_covariance_kind():
     model = SeparableModel({"b1": "exp(-b2*x)"}, variables=["x"])
     with pytest.raises(FitError, match="covariance must be one of"):
         model.fit({"x": np.arange(3.0)}, np.ones(3), start={"b2": 1.0}, covariance="pink")
+
+
+def test_atomic_files_get_the_normal_mode(tmp_path):
+    """Issue 13: written through the atomic writer, a file has 0666 less the umask, not mkstemp's 0600."""
+    import os
+    import stat
+    from structsearch.data.atomic import write_text
+    old = os.umask(0o022)
+    try:
+        path = write_text(tmp_path / "a.txt", "x")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644 and path.read_text() == "x"
+    assert [p.name for p in tmp_path.iterdir()] == ["a.txt"]   # no temporary left behind
+
+
+def test_demo_knows_how_its_campaign_was_simulated(tmp_path):
+    """Issue 13: the demo reuses results/campaign only when it was simulated as the demo would (seed 0,
+    the requested scale, nothing withheld, realistic errors)."""
+    from structsearch.cli import _simulated_as
+    from structsearch.data.campaign import write_campaign
+    from structsearch.flight.flighttest import build_campaign
+    assert _simulated_as(tmp_path / "none") is None
+    write_campaign(build_campaign(seed=0, scale=0.05), tmp_path / "c")
+    assert _simulated_as(tmp_path / "c") == {"seed": 0, "scale": 0.05, "withheld": "none", "slow_errors": 1.0,
+                                             "extras": False}
+
+
+def test_csv_numbers_carry_ten_significant_digits():
+    """Issue 13 (churn): 0.1 + 0.2 and its neighbour in the 16th digit are written alike."""
+    from structsearch.report.tables import csv_value, render_table
+    assert csv_value(0.1 + 0.2) == csv_value(0.3) == "0.3" and csv_value(float("nan")) == ""
+    assert render_table([[1 / 3, "x", 2]], ["a", "b", "c"], "csv") == "a,b,c\n0.3333333333,x,2\n"

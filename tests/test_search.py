@@ -299,3 +299,30 @@ def test_a_candidate_needing_a_missing_column_is_not_applicable(tiny):
     out = fit_candidate(needs, train, val, lift, lift_candidate, settings)
     assert out.failed and out.error == "not applicable: the campaign has no column x_cg"
     assert not fit_candidate(free, train, val, lift, lift_candidate, settings).failed
+
+
+def test_cache_never_serves_a_changed_input_and_survives_a_truncated_file(tiny, tmp_path):
+    """Issue 13: cbar and the train/validation assignment are part of the key; a truncated cache file is
+    refitted with a message, not a traceback."""
+    import dataclasses
+    from structsearch.data.campaign import Campaign
+    from structsearch.search.runner import cache_path, campaign_fingerprint, Settings
+    grid = load_grid("drag")
+    cand = [grid["CD-IXr"]]
+    lift = run([load_grid("lift")["CL-VI"]], tiny, tmp_path, settings=Settings(n_starts=1, cv_folds=0))[0]
+    settings = Settings(n_starts=1, cv_folds=0)
+    key = campaign_fingerprint(tiny)
+    wider = Campaign(tiny.name, {**tiny.aircraft, "cbar": 2.5}, tiny.maneuvers, tiny.data, tiny.directory)
+    flipped = dataclasses.replace(tiny.maneuvers[0], split="validation" if tiny.maneuvers[0].split == "train"
+                                  else "train")
+    swapped = Campaign(tiny.name, tiny.aircraft, (flipped,) + tiny.maneuvers[1:], tiny.data, tiny.directory)
+    assert len({key, campaign_fingerprint(wider), campaign_fingerprint(swapped)}) == 3
+    kwargs = dict(lift_results={"CL-VI": lift}, lift_candidates={"CL-VI": load_grid("lift")["CL-VI"]},
+                  settings=settings)
+    first = run(cand, tiny, tmp_path, **kwargs)[0]
+    path = cache_path(tmp_path, cand[0], key, lift.params, settings)
+    assert path.exists()
+    path.write_text(path.read_text()[:100])          # a crash in the middle of a write elsewhere
+    said = []
+    again = run(cand, tiny, tmp_path, progress=said.append, **kwargs)[0]
+    assert any("unreadable" in m for m in said) and again.params == first.params

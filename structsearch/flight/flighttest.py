@@ -256,7 +256,7 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     plan = scaled_plan(thesis_plan(extras), scale)
     segments = simulate_campaign(plan, model, seed, slow_errors)
     maneuvers = [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split) for p in plan]
-    extra = {"seed": int(seed), "truth": model.name, "withheld": ",".join(withhold) or "none",
+    extra = {"seed": int(seed), "scale": float(scale), "extras": bool(extras), "truth": model.name, "withheld": ",".join(withhold) or "none",
              "slow_errors": float(slow_errors)}
     name = f"simulated Citation II stall campaign (seed {seed})"
     # the aircraft data of interfaces.md 5.1 the simulator knows: pitch inertia and the cg envelope

@@ -25,13 +25,25 @@ TABLEFMT = {"text": "simple", "markdown": "github", "md": "github", "latex": "la
              "tex": "latex_booktabs", "html": "html"}
 
 
+# CSV numbers carry 10 significant digits: what the estimates support, and no churn in the 15th digit
+# between machines.
+CSV_DIGITS = 10
+
+
+def csv_value(v):
+    """A CSV cell: floats with CSV_DIGITS significant digits, NaN as empty, the rest as is."""
+    if isinstance(v, (float, np.floating)):
+        return "" if not math.isfinite(v) else f"{float(v):.{CSV_DIGITS}g}"
+    return v
+
+
 def render_table(rows, headers, fmt: str, floatfmt: str = ".6g", numparse: bool = True) -> str:
     """One table as text, Markdown ("markdown"/"md"), LaTeX ("latex"/"tex"), HTML or CSV."""
     if fmt == "csv":
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
         writer.writerow(headers)
-        writer.writerows(rows)
+        writer.writerows([[csv_value(v) for v in row] for row in rows])
         return buf.getvalue()
     if fmt not in TABLEFMT:
         raise ValueError(f"format must be one of {FORMATS}, not {fmt!r}")
@@ -152,7 +164,7 @@ def ranking_csv(ranked_by_grid: dict[str, list[CandidateResult]]) -> str:
     for ranked in ranked_by_grid.values():
         for s in ranked:
             row = table_row(s)
-            w.writerow(["" if row.get(f) is None else row[f] for f in RANKING_FIELDS])
+            w.writerow(["" if row.get(f) is None else csv_value(row[f]) for f in RANKING_FIELDS])
     return buf.getvalue()
 
 

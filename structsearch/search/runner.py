@@ -14,6 +14,7 @@ import json
 import sys
 import time
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -96,12 +97,41 @@ def cross_validate(model, train: FlightData, result, folds: list[list[int]]) -> 
 
 
 def fingerprint(data: FlightData) -> str:
+    """Hash of everything a fit reads from the data: columns, maneuver boundaries and names, constants."""
     h = hashlib.sha256()
     for name in sorted(data.columns):
         h.update(name.encode())
         h.update(np.ascontiguousarray(data.columns[name]).tobytes())
-    h.update(np.asarray(data.starts).tobytes())
+    h.update(np.asarray(data.starts, np.int64).tobytes())
+    h.update(json.dumps([list(data.names), sorted((k, float(v)) for k, v in data.constants.items())]).encode())
     return h.hexdigest()[:16]
+
+
+def campaign_fingerprint(campaign: Campaign) -> str:
+    """The data plus the train/validation assignment and the aircraft data of the manifest."""
+    h = hashlib.sha256(fingerprint(campaign.data).encode())
+    h.update(json.dumps([[m.id, m.kind, m.split] for m in campaign.maneuvers]).encode())
+    h.update(json.dumps(sorted((k, v if isinstance(v, (int, float)) else list(v))
+                               for k, v in campaign.aircraft.items())).encode())
+    return h.hexdigest()[:16]
+
+
+@lru_cache(maxsize=None)
+def code_fingerprint() -> str:
+    """Hash of the package's source and shipped grids: any change to the code that fits, scores or
+    serialises a candidate makes a new cache key (no hand-bumped version to forget)."""
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for path in sorted(p for p in root.rglob("*") if p.suffix in (".py", ".toml") and "__pycache__" not in p.parts):
+        h.update(str(path.relative_to(root)).encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+# Failures that follow from the data or the declaration (cached); any other exception may be a
+# programming error and is retried on the next run.
+CACHED_FAILURES = ("not applicable", "DataError", "DeclarationError", "FitError", "StructSearchError",
+                   "LinAlgError", "FloatingPointError")
 
 
 def _derived(coef: str, predicted: np.ndarray, data: FlightData, other: np.ndarray | None):
@@ -169,10 +199,6 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
                                        error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
 
 
-# Part of every cache key: bump it when a change to the fitting code changes results.
-CACHE_VERSION = 5
-
-
 def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, settings: Settings):
     """The fitted lift model a drag or pitch candidate names: (summary, lift candidate), or (None, None)."""
     if not c.lift:
@@ -187,7 +213,7 @@ def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, sett
 def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings) -> Path:
     from .. import __version__
     blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params,
-                       "settings": settings.key(), "version": [__version__, CACHE_VERSION, JSON_LAYOUT]},
+                       "settings": settings.key(), "version": [__version__, code_fingerprint(), JSON_LAYOUT]},
                       sort_keys=True, default=float)
     key = hashlib.sha256(blob.encode()).hexdigest()[:16]
     safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in c.name)
@@ -200,7 +226,7 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_
     """Fit candidates (cached, in parallel); results in the order of ``candidates``."""
     say = progress or (lambda msg: None)
     train, validation = campaign.split("train"), campaign.split("validation")
-    data_key = fingerprint(campaign.data)
+    data_key = campaign_fingerprint(campaign)
     lift_results = lift_results or {}
     lift_candidates = lift_candidates or {}
     todo, results, paths = [], [None] * len(candidates), []
@@ -208,8 +234,9 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_
         lift = lift_results.get(c.lift) if c.lift else None
         path = cache_path(out, c, data_key, lift.params if lift else None, settings)
         paths.append(path)
-        if path.exists():
-            results[i] = CandidateResult.from_json(json.loads(path.read_text()))
+        cached = _read_cached(path, say)
+        if cached is not None:
+            results[i] = cached
         else:
             todo.append(i)
     if len(todo) < len(candidates):
@@ -217,22 +244,35 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_
 
     def task(i):
         c = candidates[i]
-        return fit_candidate(c, train, validation, lift_results.get(c.lift) if c.lift else None,
-                             lift_candidates.get(c.lift), settings)
+        return i, fit_candidate(c, train, validation, lift_results.get(c.lift) if c.lift else None,
+                                lift_candidates.get(c.lift), settings)
 
     if todo:
         from joblib import Parallel, delayed, parallel_config
         done = 0
         t0 = time.perf_counter()
         with parallel_config(backend=backend, n_jobs=n_jobs):
-            for i, summary in zip(todo, Parallel(return_as="generator")(delayed(task)(i) for i in todo)):
-                write_json(paths[i], summary.to_json(), indent=1)
+            # unordered: each result is cached as soon as it exists (a crash loses only running fits)
+            for i, summary in Parallel(return_as="generator_unordered")(delayed(task)(i) for i in todo):
+                if not summary.failed or summary.error.startswith(CACHED_FAILURES):
+                    write_json(paths[i], summary.to_json(), indent=1)
                 results[i] = summary
                 done += 1
                 status = "failed: " + summary.error if summary.failed else f"{summary.seconds:.1f} s"
                 say(f"[{done}/{len(todo)}] {candidates[i].grid} {candidates[i].name}: {status} "
                     f"({time.perf_counter() - t0:.0f} s elapsed)")
     return results
+
+
+def _read_cached(path: Path, say) -> CandidateResult | None:
+    """A cached result, or None when there is none or the file is unreadable (refitted, said)."""
+    if not path.exists():
+        return None
+    try:
+        return CandidateResult.from_json(json.loads(path.read_text()))
+    except (ValueError, KeyError, TypeError) as exc:
+        say(f"cache file {path} is unreadable ({type(exc).__name__}); refitting")
+        return None
 
 
 def stderr_progress(msg: str) -> None:
