@@ -259,9 +259,11 @@ def _demo(args) -> int:
 def _report(args) -> int:
     from .data.campaign import read_campaign
     from .report.page import build
-    from .search.runner import Settings
+    from .search.pipeline import grids_for
+    from .search.runner import Settings, check_bounds
     campaign = read_campaign(args.data)
     settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
+    check_bounds(settings.bounds, [c for g in grids_for("all") for c in g.candidates])
     res = build(campaign, Path(args.out), settings=settings, n_jobs=args.jobs,
                 diagnose_coefficient=None if args.diagnose == "none" else args.diagnose, models=tuple(args.model or ()),
                 progress=None if args.quiet else lambda m: print(m, file=sys.stderr, flush=True))

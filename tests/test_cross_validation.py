@@ -67,3 +67,11 @@ def test_too_few_maneuvers_give_no_standard_error():
     ranked = rank([a, b])
     assert all(np.isnan(r.gap_se) for r in ranked)
     assert ranked[1].within_noise  # 0.5 % < the 1 % practical tolerance
+
+
+def test_scores_that_could_not_be_computed_survive_the_cache_as_nan():
+    """A NaN held-out MSE and an n/a gap standard error are written as null and read back as NaN."""
+    c = _candidate("a", 3, [1.0, float("nan")], [1.0, 2.0])
+    ranked = rank([c])[0]
+    back = CandidateResult.from_json(ranked.to_json())
+    assert np.isnan(back.cv.mse_maneuvers[1]) and np.isnan(back.gap_se) and back.cv_folds == 3

@@ -185,7 +185,8 @@ def wald_p_value(summary: CandidateResult, names) -> float:
         return float("nan")
     # F(q, dof): the small-sample version of chi2(q)/q (equal to it for m - p dof), the usual reference
     # for a clustered sandwich (Cameron & Miller 2015); dof: the fewest among the tested parameters
-    dof = min((summary.reference_dof or {}).get(n, np.nan) for n in names)
+    finite = [d for d in ((summary.reference_dof or {}).get(n, np.nan) for n in names) if np.isfinite(d)]
+    dof = min(finite) if finite else np.nan
     if not np.isfinite(dof):
         return float(stats.chi2.sf(w, len(names)))
     return float(stats.f.sf(w / len(names), len(names), dof))

@@ -138,15 +138,14 @@ class StallModel:
         The covariance defaults to the project's best-calibrated one (per-maneuver HAC)."""
         problem = self.bind(data)
         y = data[self.coefficient]
-        theta0 = self.start_vector()
+        lower, upper = self.bound_vectors(data)
+        # a default start outside the data's box (alpha* of a low-alpha campaign) begins on its nearest
+        # face; a start the user gives outside the box stays an error (fit_problem names it)
+        theta0 = np.clip(self.start_vector(), lower, upper)
         for key, value in (start or {}).items():
             if key not in self.nonlinear_names:
                 raise DeclarationError(f"model {self.name!r}: {key!r} is not one of its nonlinear parameters")
             theta0[self.nonlinear_names.index(key)] = value
-        lower, upper = self.bound_vectors(data)
-        # a start outside the box (a default start, or a warm start from data with a wider alpha range)
-        # begins on the nearest face of the box
-        theta0 = np.clip(theta0, lower, upper)
         return fit_problem(problem, y, bounds=data.bounds, segment_names=data.names, start=theta0,
                            lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
                            covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev,

@@ -66,6 +66,8 @@ def reasons(result: CandidateResult, candidate: Candidate | None, rules: Admissi
 
 def _correlation_reasons(result: CandidateResult, limit: float) -> list[str]:
     corr = np.asarray(result.centred_correlation or result.correlation, float)
+    if corr.size == 0:
+        return []
     note = " (data columns centred)" if result.centred_correlation else ""
     out = []
     for i in range(len(result.names)):
@@ -99,7 +101,7 @@ def _physics_reasons(result: CandidateResult, candidate: Candidate, rules: Admis
     out = []
     if candidate.coefficient == "CL":
         for name, text in candidate.regressors:
-            if ("K_L(" in text.replace(" ", "") or text.strip() == "alpha") and params.get(name, 1.0) <= 0:
+            if ("K_L(" in text.replace(" ", "") or text.strip() == "alpha") and not params.get(name, 1.0) > 0:
                 what = "Kirchhoff" if "K_L" in text else "lift-slope"
                 out.append(f"{what} term {name} = {params[name]:.3g} is not positive")
     if candidate.coefficient == "Cm" and rules.cg_range is not None and rules.cbar:

@@ -53,7 +53,7 @@ class SplitScores:
     @classmethod
     def from_json(cls, doc: dict) -> "SplitScores":
         r2 = doc["r2"]
-        return cls(float(doc["mse"]), tuple(map(float, doc["mse_maneuvers"])), tuple(map(int, doc["n_maneuvers"])),
+        return cls(_nan_if_none(doc["mse"]), tuple(map(_nan_if_none, doc["mse_maneuvers"])), tuple(map(int, doc["n_maneuvers"])),
                    R2Summary(_nan_if_none(r2["mean"]), _nan_if_none(r2["min"]), _nan_if_none(r2["max"])),
                    doc.get("mse_cx"), doc.get("mse_cz"))
 
@@ -105,7 +105,7 @@ class CandidateResult:
     reasons: tuple[str, ...] = ()       # why it is not admissible
     rank: int | None = None
     within_noise: bool | None = None
-    gap: float | None = None            # mean per-maneuver relative validation MSE excess over the best
+    gap: float | None = None            # mean per-maneuver relative held-out MSE excess over the best
     gap_se: float | None = None         # its standard error
 
     # ----- construction ---------------------------------------------------------------
@@ -216,6 +216,9 @@ class CandidateResult:
         values["centred_correlation"] = tuple(tuple(map(_nan_if_none, row))
                                               for row in values.get("centred_correlation", ()))
         values["reasons"] = tuple(values.get("reasons", ()))
+        for key in ("gap", "gap_se"):  # NaN was written as null
+            if key in values and values[key] is None:
+                values[key] = float("nan")
         for key in ("params", "stderr", "p_values", "reference_dof"):
             if values.get(key) is not None:
                 values[key] = {k: _nan_if_none(v) for k, v in values[key].items()}

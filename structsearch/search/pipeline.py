@@ -40,7 +40,7 @@ REFINE_STARTS = 3
 def refinement_starts(ranked: list[CandidateResult]) -> list[CandidateResult]:
     """The candidates worth refining: within noise of the best fit (admissible or not) and not admissible
     only for reasons a refinement can remove (insignificant or correlated terms), best fit first; the
-    admissible winner when there is none."""
+    rank-1 candidate when there is none."""
     fixable = ("t-test accepts 0", "|rho(")
     starts = [s for s in near_best(ranked) if not s.admissible and s.reasons
               and all(r.startswith(fixable) for r in s.reasons)]

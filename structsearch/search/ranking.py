@@ -12,7 +12,7 @@ the lowest held-out MSE of the modelled coefficient sets the bar; every
 candidate whose per-maneuver relative excess in held-out MSE is, on average,
 less than one standard error of that excess (or below 1 %) is "within noise" of it
 (with fewer than three maneuvers there is no standard error: "n/a", 1 % only). Those come first, fewest
-parameters first (then lowest validation MSE); the rest follow by validation MSE.
+parameters first (then lowest held-out MSE); the rest follow by held-out MSE.
 A candidate the data cannot identify (a parameter without a standard deviation)
 is ranked after every identifiable one, whatever its error: its estimates mean
 nothing. Failed candidates come last with their reason.
@@ -56,18 +56,23 @@ def _use_cv(group: list[CandidateResult]) -> bool:
     return bool(group) and all(s.cv is not None for s in group) and len({s.cv_folds for s in group}) == 1
 
 
-def _ordered(group: list[CandidateResult]) -> list[CandidateResult]:
-    """One group best first by the one-standard-error rule, with ``within_noise``, ``gap``, ``gap_se``."""
-    if not group:
-        return []
-    use_cv = _use_cv(group)
+def _placed(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult]:
+    """Each fitted candidate with ``gap``, ``gap_se`` and ``within_noise`` against the group's best fit."""
     best = min(group, key=lambda s: _scores(s, use_cv).mse)
     placed = []
     for s in group:
         gap, se = _paired_gap(s, best, use_cv)
-        # one validation maneuver gives no standard error: only the practical tolerance applies
+        # fewer than three maneuvers give no standard error: only the practical tolerance applies
         bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
         placed.append(s.ranked(gap=gap, gap_se=se, within_noise=bool(s is best or gap <= bar)))
+    return placed
+
+
+def _ordered(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult]:
+    """One group best first by the one-standard-error rule."""
+    if not group:
+        return []
+    placed = _placed(group, use_cv)
     top = sorted((s for s in placed if s.within_noise), key=lambda s: (s.n_params, _scores(s, use_cv).mse))
     rest = sorted((s for s in placed if not s.within_noise), key=lambda s: _scores(s, use_cv).mse)
     return [s for s in top + rest if s.identifiable] + [s for s in top + rest if not s.identifiable]
@@ -81,8 +86,10 @@ def rank(results: list[CandidateResult],
     for s in results:
         why = (f"fit failed: {s.error}",) if s.failed else tuple(judge(s)) if judge else ()
         judged.append(s.ranked(admissible=not why, reasons=why))
-    admissible = _ordered([s for s in judged if not s.failed and s.admissible])
-    others = _ordered([s for s in judged if not s.failed and not s.admissible])
+    # one basis of comparison for the whole grid, so both groups' gaps mean the same thing
+    use_cv = _use_cv([s for s in judged if not s.failed])
+    admissible = _ordered([s for s in judged if not s.failed and s.admissible], use_cv)
+    others = _ordered([s for s in judged if not s.failed and not s.admissible], use_cv)
     failed = [s for s in judged if s.failed]
     return [s.ranked(rank=i + 1) for i, s in enumerate(admissible + others)] + failed
 
@@ -90,17 +97,7 @@ def rank(results: list[CandidateResult],
 def near_best(results: list[CandidateResult]) -> list[CandidateResult]:
     """Candidates within noise of the best-fitting one, admissible or not (fitted ones only)."""
     ok = [s for s in results if not s.failed]
-    if not ok:
-        return []
-    use_cv = _use_cv(ok)
-    best = min(ok, key=lambda s: _scores(s, use_cv).mse)
-    out = []
-    for s in ok:
-        gap, se = _paired_gap(s, best, use_cv)
-        bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
-        if s is best or gap <= bar:
-            out.append(s)
-    return out
+    return [s for s in _placed(ok, _use_cv(ok)) if s.within_noise] if ok else []
 
 
 def passed_over(ranked: list[CandidateResult]) -> list[CandidateResult]:

@@ -7,7 +7,8 @@ partner inflates its variance, so such terms are judged as a pair), then the les
 the most correlated pair above 0.8 (the thesis' threshold, read from the full correlation
 matrix), as long as the held-out MSE (cross-validation, else validation) rises by less than 1 %.
 A step that would leave a separation state without a regressor is not taken; the refinement
-says so. A refined structure that equals a candidate already fitted (the thesis'
+says so. Pairs are read from the correlations as estimated (the thesis' rule: C_L and C_L^2 are a
+pair), not from the datum-free ones admissibility judges, where centring C_L dissolves that pair. A refined structure that equals a candidate already fitted (the thesis'
 declared CD-IXr, for one) reuses that result and is reported as reached.
 """
 from __future__ import annotations
@@ -23,8 +24,9 @@ from .candidates import Candidate
 
 # Correlated pairs above this are candidates for removal during refinement (thesis: 0.8).
 REFINE_CORRELATION = 0.8
-# A refinement step is kept when validation MSE rises by less than this fraction.
+# A refinement step is kept when the held-out MSE rises by less than this fraction.
 REFINE_TOLERANCE = 0.01
+MAX_STEPS = 9
 
 
 @dataclass(frozen=True)
@@ -80,7 +82,7 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
     steps, reached = [], []
     current, current_summary, dropped = c, summary, []
     stopped = "nothing left to drop"
-    for step in range(1, 10):
+    for step in range(1, MAX_STEPS + 1):
         linear = [r[0] for r in current.regressors]
         constant = linear[0] if current.regressors[0][1].strip() == "1" else None
         # backward elimination, one term per step: first the least significant term that has no strongly
@@ -110,6 +112,9 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
             stopped = f"the refined {candidate.name} failed: {result.error}"
             break
         rise = result.comparison.mse / current_summary.comparison.mse - 1
+        if not np.isfinite(rise):
+            stopped = f"the held-out MSE of {candidate.name} cannot be compared (not finite); not taken"
+            break
         if rise > REFINE_TOLERANCE:
             stopped = f"dropping {', '.join(drop)} ({why}) raises the held-out MSE by {rise:.1%}; not taken"
             break
@@ -117,4 +122,6 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
         if same is not None:
             reached.append(candidate.name)
         current, current_summary, dropped = candidate, result, dropped + drop
+    else:
+        stopped = f"stopped after {MAX_STEPS} steps"
     return Refinement(c.name, tuple(steps), stopped, tuple(reached))

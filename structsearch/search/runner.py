@@ -78,7 +78,11 @@ def maneuver_folds(n_maneuvers: int, folds: int) -> list[list[int]]:
 
 def cross_validate(model, train: FlightData, result, folds: list[list[int]]) -> np.ndarray:
     """Held-out residuals of every training maneuver: each fold refitted on the other maneuvers, warm
-    started from the full training fit (one start), and predicted on its own maneuvers."""
+    started from the full training fit (one start), and predicted on its own maneuvers.
+
+    Drag and pitch candidates keep the separation states and C_L of the lift model fitted on all
+    training maneuvers (held-out ones included): their comparison is conditional on that lift model,
+    as their fits are; it is the same for every candidate of a grid, so it does not favour one."""
     y = train[model.coefficient]
     residual = np.empty_like(y)
     slices = train.segment_slices()
@@ -86,7 +90,12 @@ def cross_validate(model, train: FlightData, result, folds: list[list[int]]) -> 
     everything = range(len(slices))
     for held in folds:
         rest = [i for i in everything if i not in held]
-        part = model.fit(train.select(rest), start=warm or None, n_starts=1, covariance="white")
+        subset = train.select(rest)
+        start = None
+        if warm:  # the subset's default box may be narrower (alpha range flown): start inside it
+            lo, hi = model.bound_vectors(subset)
+            start = {k: float(np.clip(v, a, b)) for (k, v), a, b in zip(warm.items(), lo, hi)}
+        part = model.fit(subset, start=start, n_starts=1, covariance="white")
         predicted = model.predict(train.select(held), part.params)
         at = 0
         for i in held:
@@ -122,8 +131,11 @@ def code_fingerprint() -> str:
     serialises a candidate makes a new cache key (no hand-bumped version to forget)."""
     root = Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
-    for path in sorted(p for p in root.rglob("*") if p.suffix in (".py", ".toml") and "__pycache__" not in p.parts):
-        h.update(str(path.relative_to(root)).encode())
+    # model_specs may be a symbolic link (rglob does not follow it): its grids are listed explicitly
+    files = [p for p in root.rglob("*.py") if "__pycache__" not in p.parts]
+    files += list((root / "model_specs").resolve().glob("*.toml"))
+    for path in sorted(files, key=lambda p: (p.suffix, p.name, str(p))):
+        h.update(path.name.encode())
         h.update(path.read_bytes())
     return h.hexdigest()[:16]
 
