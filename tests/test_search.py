@@ -267,17 +267,20 @@ def test_cli_bound_sets_the_box_and_rejects_unknown_names(tiny, tmp_path):
 
 
 def test_default_boxes_follow_the_data():
-    """alpha* within the alpha range flown (2 deg margin); time constants scaled by cbar/V when the
-    aircraft is larger or slower than the Citation (here 2.5 x cbar at the Citation's airspeed)."""
+    """alpha* widened to the alpha range flown (2 deg margin), never narrowed; time constants scaled by
+    cbar/V when the aircraft is larger or slower than the Citation (2.5 x cbar at the Citation's speed)."""
     from structsearch.engine.separation import DEFAULT_BOUNDS, data_bounds
     from structsearch.flight.synthetic import campaign
     base = campaign({"quasi-steady": 1}, duration=10.0, seed=2)
-    alpha = np.linspace(0.0, 0.3, base.n_samples)
+    alpha = np.linspace(0.0, 0.5, base.n_samples)
     v = np.full(base.n_samples, 73.0)
     citation = FlightData({**base.columns, "alpha": alpha, "V": v}, base.starts, base.names, base.source,
                           {**base.constants, "cbar": 2.013})
     box = data_bounds(citation)
-    assert box["a_star"] == pytest.approx((0.0, 0.3 + np.deg2rad(2.0)))
+    assert box["a_star"] == pytest.approx((0.0, 0.5 + np.deg2rad(2.0)))
+    low = FlightData({**citation.columns, "alpha": 0.1 + 0.4 * alpha}, base.starts, base.names, base.source,
+                     citation.constants)
+    assert data_bounds(low)["a_star"] == DEFAULT_BOUNDS["a_star"]
     assert box["tau1"] == DEFAULT_BOUNDS["tau1"] and box["tau2"] == DEFAULT_BOUNDS["tau2"]
     big = FlightData(citation.columns, base.starts, base.names, base.source, {**base.constants, "cbar": 5.0325})
     assert data_bounds(big)["tau1"][1] == pytest.approx(2.5 * DEFAULT_BOUNDS["tau1"][1])

@@ -46,13 +46,16 @@ ALPHA_STAR_MARGIN = np.deg2rad(2.0)
 
 
 def data_bounds(data) -> dict[str, tuple[float, float]]:
-    """The default search box of each parameter kind for this data: alpha* within the alpha range flown
-    (plus a margin), the time constants' upper limits scaled by cbar/V when it exceeds the Citation's."""
+    """The default search box of each parameter kind for this data, never narrower than the Citation's:
+    alpha* widened to the alpha range flown plus a margin (an aircraft that stalls beyond 0.45 rad), the
+    time constants' upper limits scaled by cbar/V when it exceeds the Citation's. Not narrowed: a state
+    that the data barely reach still fits, and admissibility names an alpha* outside the range flown."""
     out = dict(DEFAULT_BOUNDS)
     if "alpha" in data and data.n_samples:
         alpha = data["alpha"]
-        out["a_star"] = (max(float(np.min(alpha)) - ALPHA_STAR_MARGIN, 0.0),
-                         float(np.max(alpha)) + ALPHA_STAR_MARGIN)
+        lo, hi = DEFAULT_BOUNDS["a_star"]
+        out["a_star"] = (min(lo, max(float(np.min(alpha)) - ALPHA_STAR_MARGIN, 0.0)),
+                         max(hi, float(np.max(alpha)) + ALPHA_STAR_MARGIN))
     if "V" in data and "cbar" in data.constants and data.n_samples:
         scale = max(float(data.constants["cbar"] / np.median(data["V"])) / REFERENCE_TIME, 1.0)
         for kind in ("tau1", "tau2"):

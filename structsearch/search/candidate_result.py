@@ -216,9 +216,10 @@ class CandidateResult:
         values["centred_correlation"] = tuple(tuple(map(_nan_if_none, row))
                                               for row in values.get("centred_correlation", ()))
         values["reasons"] = tuple(values.get("reasons", ()))
-        for key in ("gap", "gap_se"):  # NaN was written as null
-            if key in values and values[key] is None:
-                values[key] = float("nan")
+        if values.get("rank") is not None:  # a ranked result has a gap; a NaN one was written as null
+            for key in ("gap", "gap_se"):
+                if values.get(key) is None:
+                    values[key] = float("nan")
         for key in ("params", "stderr", "p_values", "reference_dof"):
             if values.get(key) is not None:
                 values[key] = {k: _nan_if_none(v) for k, v in values[key].items()}
