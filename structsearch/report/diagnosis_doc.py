@@ -22,7 +22,7 @@ def markdown(doc: dict) -> str:
               f"(saturated model; spectral estimate {doc['noise_floor_spectral']:.4g}).", ""]
     if doc["gap_explained_by_baseline"]:
         lines += ["**The baseline is already at the noise floor**: nothing the effect library adds is significant "
-                  "(Wald test with the coloured covariance, 1 %).", ""]
+                  "(Wald test with the fits' covariance, 1 %).", ""]
     else:
         lines += [f"**Gap**: {m['validation'] - doc['noise_floor']:.4g} "
                   f"({(m['validation'] / doc['noise_floor'] - 1):.1%} above the floor).", ""]

@@ -158,7 +158,7 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
          f"C_L against alpha during maneuver {hyst['maneuver']} ({hyst['kind']}, {hyst['split']}): the separation "
          "lag makes lift overshoot the static curve while alpha rises and fall below it while alpha falls.")
     emit(fg.correlations(ms.summaries), "correlations.png", "Parameter correlations",
-         "Correlation matrices of the estimates (coloured-residual covariance); '!' marks |rho| > 0.9.")
+         f"Correlation matrices of the estimates ({settings.covariance} covariance); '!' marks |rho| > 0.9.")
     diagnosis = None
     if diagnose_coefficient:
         from ..diagnosis.diagnose import diagnose
