@@ -147,3 +147,34 @@ def test_no_validation_maneuvers(tmp_path):
     _write(tmp_path, _maneuver())
     with pytest.raises(DataError, match="no validation maneuvers"):
         read_campaign(tmp_path).split("validation")
+
+
+@pytest.mark.parametrize("aircraft,message", [
+    ("S = nan\ncbar = 2.0\nb = 15.0\n", "positive finite number S"),
+    ("S = 30.0\ncbar = inf\nb = 15.0\n", "positive finite number cbar"),
+    ("S = 30.0\ncbar = 2.0\nb = 15.0\nIyy = -1.0\n", "Iyy must be a positive finite number"),
+    ("S = 30.0\ncbar = 2.0\nb = 15.0\nx_cg_range = [7.3, 7.0]\n", "forward < aft"),
+    ("S = 30.0\ncbar = 2.0\nb = 15.0\naccelerometer = [0.1, 0.0]\n", "list of 3 finite numbers"),
+    ("S = 30.0\ncbar = 2.0\nb = 15.0\nIyyy = 3.0\n", "unknown key 'Iyyy'"),
+])
+def test_aircraft_data_is_checked(tmp_path, aircraft, message):
+    """Issues 12 and 13: the optional aircraft data of interfaces.md 5.1 and the required S, cbar, b are
+    validated with one clear error naming the key (a NaN or infinite value is never accepted)."""
+    t = np.arange(0, 4, 0.01)
+    _write(tmp_path, {"t": t, "alpha": 0.1 + 0 * t, "q": 0 * t, "V": 80 + 0 * t, "de": 0 * t, "CL": 0 * t,
+                      "CD": 0 * t, "Cm": 0 * t})
+    text = (tmp_path / "campaign.toml").read_text()
+    text = text.replace("S = 30.0\ncbar = 2.013\nb = 15.75\n", aircraft)
+    (tmp_path / "campaign.toml").write_text(text)
+    with pytest.raises(DataError, match=message):
+        read_campaign(tmp_path)
+
+
+def test_aircraft_data_round_trips(tmp_path):
+    """The simulator's inertia and cg envelope are written to campaign.toml and read back; only numbers
+    become constants a regressor may name."""
+    from structsearch.flight.flighttest import build_campaign
+    written = write_campaign(build_campaign(seed=2, scale=0.05), tmp_path / "c")
+    back = read_campaign(written)
+    assert back.aircraft["x_cg_range"] == pytest.approx((7.0104, 7.2644)) and back.aircraft["Iyy"] == 31501.0
+    assert "x_cg_range" not in back.data.constants and back.data.constants["Iyy"] == 31501.0
