@@ -178,3 +178,50 @@ def test_aircraft_data_round_trips(tmp_path):
     back = read_campaign(written)
     assert back.aircraft["x_cg_range"] == pytest.approx((7.0104, 7.2644)) and back.aircraft["Iyy"] == 31501.0
     assert "x_cg_range" not in back.data.constants and back.data.constants["Iyy"] == 31501.0
+
+
+# ----- issue 13: every bad input one clear error ------------------------------------------------------
+def _rewrite(path, edit):
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(edit(lines)))
+
+
+def test_blank_lines_do_not_shift_the_reported_line(tmp_path):
+    cols = _maneuver()
+    cols["V"][123] = np.nan
+    _write(tmp_path, cols)
+    _rewrite(tmp_path / "m.csv", lambda lines: lines[:10] + ["\n", "\n"] + lines[10:])
+    with pytest.raises(DataError, match=r"row 123: value is NaN or infinite \(line 127\)"):
+        read_campaign(tmp_path)
+
+
+def test_header_only_file_and_empty_file(tmp_path):
+    _write(tmp_path, _maneuver())
+    _rewrite(tmp_path / "m.csv", lambda lines: lines[:1])
+    with pytest.raises(DataError, match=r"m.csv, column 't': maneuver has 0 samples"):
+        read_campaign(tmp_path)
+    (tmp_path / "m.csv").write_text("")
+    with pytest.raises(DataError, match=r"m.csv: cannot read CSV"):
+        read_campaign(tmp_path)
+
+
+def test_header_with_spaces_is_named(tmp_path):
+    _write(tmp_path, _maneuver())
+    _rewrite(tmp_path / "m.csv", lambda lines: [lines[0].replace("alpha", " alpha")] + lines[1:])
+    with pytest.raises(DataError, match=r"column 'alpha': required column is missing \(found ' alpha'"):
+        read_campaign(tmp_path)
+
+
+def test_non_positive_airspeed(tmp_path):
+    cols = _maneuver()
+    cols["V"][40] = 0.0
+    _write(tmp_path, cols)
+    with pytest.raises(DataError, match=r"column 'V', row 40: airspeed 0 m/s is not positive \(line 42\)"):
+        read_campaign(tmp_path)
+
+
+def test_corrupt_parquet(tmp_path):
+    _write(tmp_path, _maneuver(), name="m.parquet")
+    (tmp_path / "m.parquet").write_bytes(b"PAR1 not really")
+    with pytest.raises(DataError, match=r"m.parquet: cannot read Parquet"):
+        read_campaign(tmp_path)

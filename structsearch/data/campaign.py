@@ -165,6 +165,8 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
     elif suffix == ".parquet":
         try:
             frame = pd.read_parquet(path)
+        except (ValueError, OSError) as exc:  # pyarrow's ArrowInvalid is a ValueError
+            raise DataError(f"cannot read Parquet: {exc}", source=str(path)) from None
         except ImportError:
             raise DataError("reading Parquet needs the optional dependency pyarrow "
                             "(pip install 'structsearch[parquet]')", source=str(path)) from None
@@ -183,7 +185,23 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
                                 column=str(col), row=int(bad[0]))
             values = numeric
         out[str(col)] = values.to_numpy(dtype=float)
+    if suffix == ".csv":
+        out[LINE_KEY] = _csv_lines(path, len(frame))
     return out
+
+
+# Not a column: the CSV line of each row (pandas skips blank lines, so row + 2 is not always the line).
+LINE_KEY = "__line__"
+
+
+def _csv_lines(path: Path, n_rows: int) -> np.ndarray:
+    """1-based file line of each data row: the non-blank lines after the header."""
+    with path.open("rb") as fh:
+        filled = [i + 1 for i, raw in enumerate(fh) if raw.strip()]
+    lines = np.asarray(filled[1:1 + n_rows], float)
+    if len(lines) < n_rows:  # quoted newlines: fall back to the simple count
+        lines = np.arange(n_rows, dtype=float) + 2
+    return lines
 
 
 def read_mat(path: Path | str) -> dict[str, np.ndarray]:
@@ -211,40 +229,52 @@ def read_mat(path: Path | str) -> dict[str, np.ndarray]:
     return {k: v for k, v in out.items() if len(v) > 1}
 
 
-def _row_message(path: Path, row: int) -> str:
-    return f" (line {row + 2})" if path.suffix.lower() == ".csv" else ""
+def _row_message(columns: Mapping[str, np.ndarray], row: int) -> str:
+    lines = columns.get(LINE_KEY)
+    return f" (line {int(lines[row])})" if lines is not None and row < len(lines) else ""
 
 
 def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path) -> None:
     """One clear error for the first problem found in a maneuver's columns."""
     source = str(path)
+    names = [c for c in columns if c != LINE_KEY]
     for col in REQUIRED:
         if col not in columns:
-            close = [c for c in columns if c.lower() == col.lower()]
-            hint = f" (found {close[0]!r}: column names are case-sensitive)" if close else ""
+            close = [c for c in names if c.lower() == col.lower()]
+            spaced = [c for c in names if c.strip() == col]
+            hint = (f" (found {close[0]!r}: column names are case-sensitive)" if close else
+                    f" (found {spaced[0]!r}: remove the spaces around the column name)" if spaced else "")
             raise DataError(f"required column is missing{hint}", source=source, column=col)
     n = len(columns["t"])
-    for col, values in columns.items():
+    if n < MIN_SAMPLES:
+        raise DataError(f"maneuver has {n} samples; it needs at least {MIN_SAMPLES} to fit separation dynamics",
+                        source=source, column="t")
+    for col in names:
+        values = columns[col]
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
-            raise DataError("value is NaN or infinite" + _row_message(path, int(bad[0])), source=source,
+            raise DataError("value is NaN or infinite" + _row_message(columns, int(bad[0])), source=source,
                             column=col, row=int(bad[0]))
     t = columns["t"]
     step = np.diff(t)
     bad = np.flatnonzero(step <= 0)
     if bad.size:
-        raise DataError("time is not strictly increasing" + _row_message(path, int(bad[0]) + 1),
+        raise DataError("time is not strictly increasing" + _row_message(columns, int(bad[0]) + 1),
                         source=source, column="t", row=int(bad[0]) + 1)
-    if n < MIN_SAMPLES or t[-1] - t[0] < MIN_DURATION_S:
+    if t[-1] - t[0] < MIN_DURATION_S:
         raise DataError(f"maneuver is too short to fit separation dynamics ({n} samples over "
                         f"{t[-1] - t[0]:.2f} s; need at least {MIN_SAMPLES} samples and "
                         f"{MIN_DURATION_S} s)", source=source, column="t")
+    slow = np.flatnonzero(columns["V"] <= 0)
+    if slow.size:
+        raise DataError(f"airspeed {columns['V'][slow[0]]:g} m/s is not positive"
+                        + _row_message(columns, int(slow[0])), source=source, column="V", row=int(slow[0]))
     for col in ANGLES:
         if col in columns:
             big = np.flatnonzero(np.abs(columns[col]) > MAX_ANGLE_RAD)
             if big.size:
                 raise DataError(f"value {columns[col][big[0]]:g} looks like degrees; angles must be in "
-                                f"radians" + _row_message(path, int(big[0])), source=source, column=col,
+                                f"radians" + _row_message(columns, int(big[0])), source=source, column=col,
                                 row=int(big[0]))
 
 
@@ -258,6 +288,7 @@ def read_campaign(directory: Path | str) -> Campaign:
         path = directory / m.file
         columns = _read_table(path)
         validate_maneuver(columns, path)
+        columns.pop(LINE_KEY, None)
         segments.append(columns)
     # keep only the columns every maneuver has: optional columns must be all-or-nothing
     common = set.intersection(*(set(s) for s in segments))
