@@ -18,7 +18,7 @@ def _calibration(args) -> int:
     from .data.atomic import write_json, write_text
     from .report.calibration_doc import calibration_dict, calibration_markdown
     say = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
-    cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=args.jobs, progress=say)
+    cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=_jobs(args), progress=say)
     out = Path(args.out)
     command = f"structsearch bench --calibration --campaigns {args.campaigns} --scale {args.scale}"
     write_text(out / "calibration.md", calibration_markdown(cal, command))
@@ -41,12 +41,12 @@ def _bench(args) -> int:
         return _calibration(args)
     from .bench import BenchConfig, run, write
     config = BenchConfig(samples=args.samples, repeats=args.repeats, random_starts=args.starts,
-                         seed=args.seed, n_jobs=args.jobs)
+                         seed=args.seed, n_jobs=_jobs(args))
     say = lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True)  # noqa: E731
     fig = run(config, progress=say)
     if not args.no_search:
         from .bench import run_search
-        fig["search"] = run_search(n_jobs=args.jobs, progress=say)
+        fig["search"] = run_search(n_jobs=_jobs(args), progress=say)
     md, js = write(fig, Path(args.out))
     o, r = fig["one_start"], fig["random_starts"]
     print(f"one start: SNLS {o['snls_median_s']:.3f} s ({o['snls_nfev']} evaluations), full NLS "
@@ -118,7 +118,7 @@ def _search(args) -> int:
     check_bounds(settings.bounds, [c for g in grids_for(args.grid) for c in g.candidates])
     client = _dask_client(args) if args.backend == "dask" else None
     try:
-        result = search(campaign, args.grid, Path(args.out), n_jobs=args.jobs, settings=settings,
+        result = search(campaign, args.grid, Path(args.out), n_jobs=_jobs(args), settings=settings,
                         backend=args.backend, max_correlation=_max_correlation(args),
                         progress=None if args.quiet else stderr_progress)
     finally:
@@ -130,28 +130,28 @@ def _search(args) -> int:
     return 0
 
 
-def _bounds(args) -> tuple:
-    """--bound NAME=LO:HI options as ((name, (lo, hi)), ...); a malformed one is an error naming it."""
+def _bound(text: str) -> tuple[str, tuple[float, float]]:
+    """One --bound NAME=LO:HI."""
     import math
-    out = {}
-    for text in getattr(args, "bound", None) or []:
-        name, eq, box = text.partition("=")
-        lo, colon, hi = box.partition(":")
-        try:
-            lo_v, hi_v = float(lo), float(hi)
-        except ValueError:
-            lo_v = hi_v = math.nan
-        if not (eq and colon and name.strip().isidentifier() and math.isfinite(lo_v) and math.isfinite(hi_v)):
-            raise_error(f"--bound {text!r}: expected NAME=LO:HI with finite numbers, e.g. tau2_ss=0:5")
-        if not lo_v < hi_v:
-            raise_error(f"--bound {text!r}: LO must be below HI")
-        out[name.strip()] = (lo_v, hi_v)
-    return tuple(sorted(out.items()))
+    name, eq, box = text.partition("=")
+    lo, colon, hi = box.partition(":")
+    try:
+        lo_v, hi_v = float(lo), float(hi)
+    except ValueError:
+        lo_v = hi_v = math.nan
+    if not (eq and colon and name.strip().isidentifier() and math.isfinite(lo_v) and math.isfinite(hi_v)):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=LO:HI with finite numbers, e.g. tau2_ss=0:5")
+    if not lo_v < hi_v:
+        raise argparse.ArgumentTypeError(f"{text!r}: LO must be below HI")
+    return name.strip(), (lo_v, hi_v)
+
+
+def _bounds(args) -> tuple:
+    """The --bound options as ((name, (lo, hi)), ...), the last one of a name winning."""
+    return tuple(sorted(dict(getattr(args, "bound", None) or []).items()))
 
 
 def _max_correlation(args) -> float:
-    if not 0.0 < args.max_correlation <= 1.0:
-        raise_error(f"--max-correlation must lie in (0, 1], not {args.max_correlation}")
     return args.max_correlation
 
 
@@ -164,7 +164,7 @@ def _dask_client(args):
                     "(pip install 'structsearch[dask]')")
     if args.scheduler:
         return Client(args.scheduler)
-    return Client(LocalCluster(n_workers=max(args.jobs, 1), threads_per_worker=1, processes=True,
+    return Client(LocalCluster(n_workers=_jobs(args), threads_per_worker=1, processes=True,
                                dashboard_address=None))
 
 
@@ -236,7 +236,7 @@ def _demo(args) -> int:
         write_campaign(build_campaign(seed=0, scale=args.scale), camp_dir)
         campaign = read_campaign(camp_dir)
     t_sim = time.perf_counter() - t0
-    jobs = args.jobs or os.cpu_count() or 1
+    jobs = _jobs(args)
     result = search(campaign, "all", out, n_jobs=jobs, settings=Settings(n_starts=args.starts),
                     max_correlation=_max_correlation(args), progress=None if args.quiet else stderr_progress)
     write_tables(result.grids, out, thesis_estimator_fits(result.grids, campaign))
@@ -264,7 +264,7 @@ def _report(args) -> int:
     campaign = read_campaign(args.data)
     settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
     check_bounds(settings.bounds, [c for g in grids_for("all") for c in g.candidates])
-    res = build(campaign, Path(args.out), settings=settings, n_jobs=args.jobs,
+    res = build(campaign, Path(args.out), settings=settings, n_jobs=_jobs(args),
                 diagnose_coefficient=None if args.diagnose == "none" else args.diagnose, models=tuple(args.model or ()),
                 progress=None if args.quiet else lambda m: print(m, file=sys.stderr, flush=True))
     _print_report(res)
@@ -318,7 +318,7 @@ def _diagnose(args) -> int:
 
 def _admissibility_options(p) -> None:
     from .search.admissibility import MAX_CORRELATION
-    p.add_argument("--max-correlation", type=float, default=MAX_CORRELATION,
+    p.add_argument("--max-correlation", type=_fraction, default=MAX_CORRELATION,
                    help=f"admissibility: largest |correlation| of two parameters (default {MAX_CORRELATION}; "
                         "judged with the data columns centred)")
 
@@ -327,9 +327,9 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
     """--data, --out, --starts, --seed: the options every command that fits a campaign shares."""
     p.add_argument("--data", required=data_required, help="campaign directory")
     p.add_argument("--out", default="results", help="output directory (default: results)")
-    p.add_argument("--starts", type=int, default=starts, help="starts per nonlinear fit (1: the default start)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
+    p.add_argument("--starts", type=_count, default=starts, help="starts per nonlinear fit (1: the default start)")
+    p.add_argument("--seed", type=_non_negative, default=0)
+    p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI", type=_bound,
                    help="search box of a nonlinear parameter, over the declared one (repeatable), "
                         "e.g. --bound tau2_ss=0:5")
     from .engine.statistics import COVARIANCE_KINDS, DEFAULT_COVARIANCE
@@ -338,31 +338,77 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
                         "by `bench --calibration`)")
 
 
+class _Parser(argparse.ArgumentParser):
+    """Bad options are one line naming the option (no usage block), exit status 2."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _count(text: str) -> int:
+    """An integer >= 1 (starts, repeats, campaigns, samples)."""
+    value = _integer(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, not {value}")
+    return value
+
+
+def _non_negative(text: str) -> int:
+    """An integer >= 0 (seeds; --jobs, where 0 means all cores)."""
+    value = _integer(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, not {value}")
+    return value
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+
+
+def _fraction(text: str) -> float:
+    """A number in (0, 1] (scales, correlation limits)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 < value <= 1.0:
+        raise argparse.ArgumentTypeError(f"must lie in (0, 1], not {text}")
+    return value
+
+
+def _jobs(args) -> int:
+    """--jobs as a process count: 0 means every core."""
+    return args.jobs or os.cpu_count() or 1
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="structsearch", description=__doc__)
+    parser = _Parser(prog="structsearch", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     b = sub.add_parser("bench", help="measure speed, robustness and memory of the SNLS engine")
     b.add_argument("--out", default="results", help="output directory (default: results)")
-    b.add_argument("--samples", type=int, default=250_000, help="samples in the benchmark campaign")
-    b.add_argument("--repeats", type=int, default=5, help="repeats of the single-start timing")
-    b.add_argument("--starts", type=int, default=20, help="random starts for the success rate")
-    b.add_argument("--seed", type=int, default=2025)
-    b.add_argument("--jobs", type=int, default=2, help="processes for the random starts and the search")
+    b.add_argument("--samples", type=_count, default=250_000, help="samples in the benchmark campaign")
+    b.add_argument("--repeats", type=_count, default=5, help="repeats of the single-start timing")
+    b.add_argument("--starts", type=_count, default=20, help="random starts for the success rate")
+    b.add_argument("--seed", type=_non_negative, default=2025)
+    b.add_argument("--jobs", type=_non_negative, default=2, help="processes for the random starts and the search")
     b.add_argument("--no-search", action="store_true", help="skip the search --grid all benchmark")
     b.add_argument("--calibration", action="store_true",
                    help="instead: Monte Carlo calibration of the covariances on simulated campaigns "
                         "(writes calibration.md and calibration.json)")
-    b.add_argument("--campaigns", type=int, default=50, help="--calibration: number of seeded campaigns")
-    b.add_argument("--scale", type=float, default=0.1, help="--calibration: fraction of the maneuvers flown")
+    b.add_argument("--campaigns", type=_count, default=50, help="--calibration: number of seeded campaigns")
+    b.add_argument("--scale", type=_fraction, default=0.1, help="--calibration: fraction of the maneuvers flown")
     b.set_defaults(func=_bench)
 
     from .flight.aero import WITHHOLDABLE
     s = sub.add_parser("simulate", help="simulate the Citation II flight-test campaign (thesis Table 4)")
     s.add_argument("--out", required=True, help="campaign directory to write")
-    s.add_argument("--seed", type=int, default=0, help="random seed (same seed, same campaign bit for bit)")
+    s.add_argument("--seed", type=_non_negative, default=0, help="random seed (same seed, same campaign bit for bit)")
     s.add_argument("--withhold", action="append", choices=sorted(WITHHOLDABLE), metavar="EFFECT",
                    help="remove an effect from the truth model (repeatable): " + ", ".join(WITHHOLDABLE))
-    s.add_argument("--scale", type=float, default=1.0,
+    s.add_argument("--scale", type=_fraction, default=1.0,
                    help="fraction of the maneuvers of each kind to fly (small test campaigns)")
     s.add_argument("--extras", action="store_true", help="add pullups, pushovers and phugoids")
     s.add_argument("--format", choices=("csv", "parquet"), default="csv")
@@ -376,7 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("search", help="fit and rank every candidate of a grid")
     _campaign_options(r)
     r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all, or a grid spec file")
-    r.add_argument("--jobs", type=int, default=1, help="parallel processes")
+    r.add_argument("--jobs", type=_non_negative, default=1, help="parallel processes")
     r.add_argument("--backend", default="loky", choices=("loky", "dask"),
                    help="loky: local processes; dask: a dask.distributed cluster")
     r.add_argument("--scheduler", default=None,
@@ -391,14 +437,14 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--coefficient", choices=("CL", "CD", "Cm"), help="check that the baseline models this")
     g.add_argument("--benchmark", action="store_true",
                    help="run the withheld-effect benchmark on simulated campaigns instead")
-    g.add_argument("--scale", type=float, default=1.0, help="benchmark campaign scale")
-    g.add_argument("--null-seeds", type=int, default=3, help="benchmark: seeds of the null case")
+    g.add_argument("--scale", type=_fraction, default=1.0, help="benchmark campaign scale")
+    g.add_argument("--null-seeds", type=_non_negative, default=3, help="benchmark: seeds of the null case")
     g.add_argument("--quiet", action="store_true")
     g.set_defaults(func=_diagnose)
 
     p = sub.add_parser("report", help="figures and one self-contained HTML page for a campaign")
     _campaign_options(p)  # the search's defaults, so that its cached fits are reused
-    p.add_argument("--jobs", type=int, default=1, help="parallel processes for the fits")
+    p.add_argument("--jobs", type=_non_negative, default=1, help="parallel processes for the fits")
     p.add_argument("--diagnose", choices=("CL", "CD", "Cm", "none"), default="Cm",
                    help="coefficient whose gap breakdown is shown (default Cm; none: skip the diagnosis)")
     p.add_argument("--model", action="append", metavar="NAME",
@@ -408,9 +454,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     d = sub.add_parser("demo", help="simulate the default campaign, search every grid, write all tables and the report")
     d.add_argument("--out", default="results", help="output directory (default: results)")
-    d.add_argument("--jobs", type=int, default=0, help="parallel processes (default: all cores)")
-    d.add_argument("--starts", type=int, default=4)
-    d.add_argument("--scale", type=float, default=1.0, help="fraction of the campaign to fly (quick looks)")
+    d.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default: all cores)")
+    d.add_argument("--starts", type=_count, default=4)
+    d.add_argument("--scale", type=_fraction, default=1.0, help="fraction of the campaign to fly (quick looks)")
     d.add_argument("--quiet", action="store_true")
     _admissibility_options(d)
     d.set_defaults(func=_demo)

@@ -1,0 +1,87 @@
+"""CLI fuzzing (issue 13): every subcommand, each option given an empty, negative, zero, huge, non-finite or
+misspelled value, ends in one line on stderr and exit status 0 or 2, never a traceback.
+
+Run it alone with ``python -m pytest -q tests/test_cli_fuzz.py -s`` (prints the number of cases). A valid
+value is executed only where the command then stops on the missing campaign (so the fuzz never starts a
+simulation or a search); otherwise parsing it is the case.
+"""
+import argparse
+import contextlib
+import io
+
+import pytest
+
+from structsearch.cli import build_parser, main
+
+MISSING = "/nonexistent/structsearch-fuzz-campaign"
+VALUES = ("", "-1", "0", "1e400", "nan", "-inf", "abc", "tau2_ss=1:0", "CL-XXX")
+# what each subcommand needs so that only the fuzzed option is wrong
+REQUIRED = {"fit": ["--data", MISSING, "--model", "CL-VI"], "search": ["--data", MISSING, "--grid", "lift"],
+            "diagnose": ["--data", MISSING, "--model", "CL-VI"], "report": ["--data", MISSING]}
+# subcommands whose valid options lead straight to reading the (missing) campaign
+STOPS_ON_DATA = {"fit", "search", "diagnose", "report"}
+
+
+def _cases():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for command, subparser in sub.choices.items():
+        for action in subparser._actions:
+            if not action.option_strings or action.nargs == 0 or action.dest == "help":
+                continue
+            option = action.option_strings[0]
+            for value in VALUES:
+                base = list(REQUIRED.get(command, []))
+                if option in base:   # fuzz a required option itself
+                    i = base.index(option)
+                    base = base[:i] + base[i + 2:]
+                yield [command, *base, option, value]
+
+
+CASES = list(_cases())
+
+
+def _run(argv, tmp_path):
+    err, out = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+        try:
+            args = build_parser().parse_args(argv)
+        except SystemExit as exc:
+            return int(exc.code or 0), err.getvalue(), False
+        if args.command not in STOPS_ON_DATA or (args.command == "diagnose" and args.benchmark):
+            return 0, "", False            # a valid value of a command that would start real work
+        if hasattr(args, "out") and argv.count("--out") == 0:
+            argv = argv + ["--out", str(tmp_path / "out")]
+        try:
+            code = main(argv)
+        except SystemExit as exc:
+            code = int(exc.code or 0)
+    return code, err.getvalue(), True
+
+
+def test_fuzzing_the_cli_gives_one_line_errors(tmp_path):
+    executed = 0
+    for argv in CASES:
+        code, err, ran = _run(argv, tmp_path)
+        executed += ran
+        assert code in (0, 2), (argv, code, err)
+        if code == 2:
+            assert err.count("\n") == 1 and err.startswith("structsearch"), (argv, err)
+            assert "Traceback" not in err
+    print(f"\nCLI fuzz: {len(CASES)} cases, {executed} executed up to the campaign reader")
+    assert len(CASES) > 300 and executed > 50
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["fit", "--data", "x", "--model", "CL-VI", "--starts", "0"], "--starts: must be at least 1"),
+    (["search", "--data", "x", "--grid", "lift", "--jobs", "-2"], "--jobs: must be 0 or more"),
+    (["simulate", "--out", "x", "--scale", "2"], "--scale: must lie in (0, 1]"),
+    (["bench", "--calibration", "--campaigns", "0"], "--campaigns: must be at least 1"),
+    (["demo", "--max-correlation", "1.5"], "--max-correlation: must lie in (0, 1]"),
+])
+def test_bad_counts_and_ranges_are_named(argv, message, capsys):
+    with pytest.raises(SystemExit) as info:
+        build_parser().parse_args(argv)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
