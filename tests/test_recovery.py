@@ -17,7 +17,9 @@ def test_final_lift_model_recovered_from_random_start(noise_free_lift, seed):
     for name, truth in FINAL_LIFT.items():
         assert result.params[name] == pytest.approx(truth, rel=1e-6), name
     assert result.rss < 1e-18
-    assert 1 <= result.n_reached_best <= 8
+    # several of the 8 Sobol starts reach the optimum (about 58 % each, README): a multistart that keeps
+    # only one lucky start would fail here
+    assert result.n_reached_best >= 2, result.n_reached_best
 
 
 def test_default_start_converges_without_multistart(noise_free_lift):
