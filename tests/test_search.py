@@ -329,3 +329,23 @@ def test_cache_never_serves_a_changed_input_and_survives_a_truncated_file(tiny, 
     said = []
     again = run(cand, tiny, tmp_path, progress=said.append, **kwargs)[0]
     assert any("unreadable" in m for m in said) and again.params == first.params
+
+
+@pytest.mark.parametrize("bounds,message", [
+    ('[bounds]\ntau2_s = [0.0, 1.0]\n', "bounds for 'tau2_s', which no candidate of the grid has"),
+    ('[bounds]\ntau2_ss = [1.0, 0.0]\n', "'tau2_ss' must be [lo, hi] with finite numbers lo < hi"),
+    ('[bounds]\ntau2_ss = [0.0, nan]\n', "'tau2_ss' must be [lo, hi]"),
+])
+def test_grid_bounds_for_a_parameter_no_candidate_has_are_errors(tmp_path, bounds, message):
+    """Issue 13: a misspelled parameter in a grid file's bounds is an error, never dropped."""
+    from structsearch.data.errors import DeclarationError
+    spec = tmp_path / "g.toml"
+    spec.write_text('name = "g"\ncoefficient = "CL"\nprefix = "G-"\n' + bounds
+                    + '[[entry]]\nregressors = { c0 = "1", k = "K_L(X_ss)" }\nstates = { ss = "U" }\n')
+    with pytest.raises(DeclarationError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        load_grid(str(spec))
+    # per entry, too
+    spec.write_text('name = "g"\ncoefficient = "CL"\nprefix = "G-"\n[[entry]]\nregressors = { c0 = "1", '
+                    'k = "K_L(X_ss)" }\nstates = { ss = "S" }\nbounds = { tau1_ss = [0.0, 1.0] }\n')
+    with pytest.raises(DeclarationError, match="tau1_ss"):
+        load_grid(str(spec))

@@ -4,6 +4,8 @@ from __future__ import annotations
 from itertools import product
 from typing import Sequence
 
+import numpy as np
+
 from ..data.errors import DeclarationError
 from ..engine.separation import SeparationState
 from .candidates import Candidate, Grid, from_roman, roman
@@ -33,6 +35,7 @@ def expand(doc: dict, source: str) -> Grid:
     sets = doc.get("sets", {})
     counter = 0
     candidates: list[Candidate] = []
+    used_bounds: set[str] = set()
 
     def add(cand_name: str | None, regs, states, lift, note, where, bounds=()):
         nonlocal counter
@@ -48,6 +51,7 @@ def expand(doc: dict, source: str) -> Grid:
         if not regs:
             raise DeclarationError(f"{where}: candidate {cand_name!r} has no regressors")
         own = {p for k, kind in states for p in _state_params(k, kind)}
+        used_bounds.update(b[0] for b in bounds if b[0] in own)
         candidates.append(Candidate(cand_name, name, coefficient, tuple(regs), tuple(states), lift, note,
                                     tuple(b for b in bounds if b[0] in own)))
 
@@ -56,8 +60,11 @@ def expand(doc: dict, source: str) -> Grid:
         lift = entry.get("lift", default_lift)
         states = tuple((k, v) for k, v in entry.get("states", {}).items())
         note = entry.get("note", "")
-        bounds = tuple((k, (float(v[0]), float(v[1]))) for k, v in doc.get("bounds", {}).items())
-        bounds += tuple((k, (float(v[0]), float(v[1]))) for k, v in entry.get("bounds", {}).items())
+        bounds = _bounds(doc.get("bounds", {}), f"{source} [bounds]")
+        own_bounds = _bounds(entry.get("bounds", {}), f"{where} bounds")
+        bounds += own_bounds
+        before = set(used_bounds)
+        used_bounds.clear()
         if "from" in entry:
             base = next((c for c in candidates if c.name == entry["from"]), None)
             if base is None:
@@ -87,7 +94,29 @@ def expand(doc: dict, source: str) -> Grid:
             regs = _blocks(doc, entry.get("blocks", []), where)
             regs += [(k, str(v)) for k, v in entry.get("regressors", {}).items()]
             add(entry.get("name"), regs, states, lift, note, where, bounds)
+        unused = [k for k, _ in own_bounds if k not in used_bounds]
+        if unused:
+            raise DeclarationError(f"{where}: bounds for {unused[0]!r}, which no candidate of this entry has as a "
+                                   "separation parameter")
+        used_bounds.update(before)
+    unused = [k for k in doc.get("bounds", {}) if k not in used_bounds]
+    if unused:
+        raise DeclarationError(f"{source} [bounds]: bounds for {unused[0]!r}, which no candidate of the grid has as "
+                               "a separation parameter")
     return Grid(name, coefficient, tuple(candidates), source)
+
+
+def _bounds(table, where: str) -> tuple[tuple[str, tuple[float, float]], ...]:
+    """A bounds table {parameter: [lo, hi]}, each a pair of finite numbers with lo < hi."""
+    out = []
+    for key, value in table.items():
+        ok = (isinstance(value, list) and len(value) == 2
+              and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+              and all(np.isfinite(v) for v in value) and value[0] < value[1])
+        if not ok:
+            raise DeclarationError(f"{where}: {key!r} must be [lo, hi] with finite numbers lo < hi, not {value!r}")
+        out.append((key, (float(value[0]), float(value[1]))))
+    return tuple(out)
 
 
 def _state_params(state: str, kind: str) -> list[str]:
