@@ -42,10 +42,33 @@ def test_parquet_round_trip(campaign, tmp_path):
         assert np.array_equal(back.data[k], v), k
 
 
-def test_rewrite_replaces_atomically(campaign, tmp_path):
+def test_rewrite_replaces_atomically(campaign, tmp_path, monkeypatch):
+    """Issue 13: rewriting swaps the old and the new directory in one step (Linux renameat2), so the
+    campaign exists at every moment; the two-rename fallback is never needed here."""
+    import sys
+    import structsearch.data.campaign as cmod
     write_campaign(campaign, tmp_path / "c")
+    if sys.platform.startswith("linux"):
+        def no_window(*args):
+            raise AssertionError(f"os.replace{args}: a window without the campaign")
+        monkeypatch.setattr(cmod.os, "replace", no_window)
     write_campaign(campaign, tmp_path / "c")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c"]
+    assert read_campaign(tmp_path / "c").data.n_samples == campaign.data.n_samples
+
+
+def test_exchange_directories_swaps_contents(tmp_path):
+    import sys
+    from structsearch.data.atomic import exchange_directories
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    (tmp_path / "a" / "x").write_text("new")
+    (tmp_path / "b" / "y").write_text("old")
+    done = exchange_directories(tmp_path / "a", tmp_path / "b")
+    assert done == sys.platform.startswith("linux")
+    if done:
+        assert [p.name for p in (tmp_path / "b").iterdir()] == ["x"]
+        assert [p.name for p in (tmp_path / "a").iterdir()] == ["y"]
 
 
 @pytest.mark.parametrize("as_struct", [False, True])

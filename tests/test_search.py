@@ -173,6 +173,7 @@ def test_collinear_candidate_ranked_after_identifiable_and_failure_recorded(tiny
     # a failing candidate is recorded with a reason naming the regressor and the row; the search goes on
     assert ranked[-1].failed and ranked[-1].rank is None
     assert "regressor 'bad' is NaN or infinite" in ranked[-1].error and "row 0" in ranked[-1].error
+    assert "inputs alpha = " in ranked[-1].error  # the data values it read there
     ranked = ranked[:-1]
     # collinear a and b: a result without standard deviations for them, ranked after the identifiable ones
     assert ranked[-1].error is None and not ranked[-1].identifiable and ranked[-1].rank == 3

@@ -77,3 +77,23 @@ def json_ready(value):
 
 def write_json(path: Path | str, doc, indent: int = 2) -> Path:
     return write_text(path, json.dumps(json_ready(doc), indent=indent, allow_nan=False))
+
+
+def exchange_directories(new: Path, target: Path) -> bool:
+    """Swap two existing directories in one atomic step (Linux renameat2 RENAME_EXCHANGE); False where
+    the system cannot, and the caller falls back to two renames."""
+    import ctypes
+    import sys
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        renameat2 = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    at_fdcwd, rename_exchange = -100, 2
+    renameat2.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    done = renameat2(at_fdcwd, os.fsencode(new), at_fdcwd, os.fsencode(target), rename_exchange) == 0
+    if done:
+        sync_directory(Path(target).parent)
+    return done

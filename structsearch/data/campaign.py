@@ -17,6 +17,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from .atomic import exchange_directories, sync_directory
 from .flightdata import FlightData, from_segments
 from .errors import DataError
 
@@ -345,7 +346,12 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
                 except ImportError:
                     raise DataError("writing Parquet needs the optional dependency pyarrow") from None
         (tmp / "campaign.toml").write_text("\n".join(lines) + "\n", encoding="utf-8")
-        if directory.exists():
+        for written in tmp.iterdir():   # flush the files before they become the campaign
+            with written.open("rb") as fh:
+                os.fsync(fh.fileno())
+        if directory.exists() and exchange_directories(tmp, directory):
+            shutil.rmtree(tmp)          # the old campaign, now under the temporary name
+        elif directory.exists():        # no atomic exchange here: a short window between two renames
             old = directory.with_name(f".{directory.name}.old")
             if old.exists():
                 shutil.rmtree(old)
@@ -354,6 +360,7 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
             shutil.rmtree(old)
         else:
             os.replace(tmp, directory)
+        sync_directory(directory.parent)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

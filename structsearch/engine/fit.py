@@ -45,8 +45,11 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
     bad = np.argwhere(~np.isfinite(ev0.phi))
     if bad.size:
         seg = int(np.searchsorted(bounds, bad[0][0], side="right") - 1)
+        inputs = (problem.regressor_inputs(int(bad[0][1]), int(bad[0][0]))
+                  if hasattr(problem, "regressor_inputs") else "")
         raise DataError(f"regressor {problem.linear_names[bad[0][1]]!r} is NaN or infinite"
-                        f"{' at the start' if k else ''} (maneuver {segment_names[seg]!r})", source=source,
+                        f"{' at the start' if k else ''} (maneuver {segment_names[seg]!r}"
+                        f"{'; inputs ' + inputs if inputs else ''})", source=source,
                         row=int(bad[0][0] - bounds[seg]))
     if k == 0:
         outcome = ols(problem, y)

@@ -172,6 +172,11 @@ class StallProblem(BoundProblem):
     def _step(self) -> float | None:
         return common_step(self.data["t"], self.data.bounds) if self.model.states else None
 
+    def regressor_inputs(self, index: int, row: int) -> str:
+        """The data values regressor ``index`` reads at stacked sample ``row`` (for error messages)."""
+        reg = self.model.regressors[index]
+        return ", ".join(f"{c} = {self.data[c][row]:.6g}" for c in reg.columns if c in self.data)
+
     def state_values(self, theta: np.ndarray):
         """Each separation state: (index of each parameter's column in theta or -1 if fixed, X, dX/dparams)."""
         out = {}
