@@ -350,3 +350,31 @@ def test_grid_bounds_for_a_parameter_no_candidate_has_are_errors(tmp_path, bound
                     'k = "K_L(X_ss)" }\nstates = { ss = "S" }\nbounds = { tau1_ss = [0.0, 1.0] }\n')
     with pytest.raises(DeclarationError, match="tau1_ss"):
         load_grid(str(spec))
+
+
+def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
+    """Issue 13: a failure that may be a programming error (a bare ValueError) is retried next run; a
+    failure that is a property of the data (not applicable, DataError, ...) is cached."""
+    import structsearch.search.runner as runner
+    from structsearch.search.runner import Settings, cache_path, campaign_fingerprint
+    cand = load_grid("lift")["CL-I"]
+    settings = Settings(n_starts=1, cv_folds=0)
+    path = cache_path(tmp_path, cand, campaign_fingerprint(tiny), None, settings)
+    for error, cached in (("ValueError: boom", False), ("DataError: m01.csv, column 'V': bad", True)):
+        def failing(c, *args, error=error, **kwargs):
+            return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
+                                           error=error, seconds=0.0)
+        monkeypatch.setattr(runner, "fit_candidate", failing)
+        out = run([cand], tiny, tmp_path, settings=settings, backend="threading")[0]
+        assert out.failed and path.exists() == cached, error
+
+
+def test_fit_prints_no_numpy_warnings(tiny, tmp_path):
+    """Issue 13: no RuntimeWarning (overflow, divide by zero) reaches the terminal of a fit or a diagnosis."""
+    import subprocess
+    import sys
+    for args in (["fit", "--model", "CL-VI", "--starts", "2"], ["diagnose", "--model", "CL-III", "--quiet"]):
+        proc = subprocess.run([sys.executable, "-W", "error::RuntimeWarning", "-m", "structsearch", *args,
+                               "--data", str(tiny.directory), "--out", str(tmp_path / args[0])],
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0 and "Warning" not in proc.stderr, proc.stderr
