@@ -248,3 +248,24 @@ def test_corrupt_parquet(tmp_path):
     (tmp_path / "m.parquet").write_bytes(b"PAR1 not really")
     with pytest.raises(DataError, match=r"m.parquet: cannot read Parquet"):
         read_campaign(tmp_path)
+
+
+def test_writing_a_campaign_never_replaces_another_directory(campaign, tmp_path):
+    """`simulate --out .` must not swap away a directory that is not a campaign."""
+    (tmp_path / "notes.txt").write_text("keep me")
+    with pytest.raises(DataError, match="refusing to replace it: it exists and is not a campaign directory"):
+        write_campaign(campaign, tmp_path)
+    assert (tmp_path / "notes.txt").read_text() == "keep me"
+
+
+def test_a_quoted_field_gives_no_wrong_line_number(tmp_path):
+    """Line numbers are given only when the file's lines match the rows one to one."""
+    cols = _maneuver()
+    cols["V"][200] = np.nan
+    _write(tmp_path, cols)
+    _rewrite(tmp_path / "m.csv", lambda lines: lines[:5] + [lines[5].replace(lines[5].split(",")[0],
+                                                                              '"' + lines[5].split(",")[0] + '"', 1)]
+             + lines[6:])
+    with pytest.raises(DataError) as info:
+        read_campaign(tmp_path)
+    assert "row 200" in str(info.value) and "line" not in str(info.value)

@@ -116,8 +116,15 @@ def test_where_bins_partition_the_validation_samples(withheld_elevator, campaign
 def test_final_model_is_explained(campaign):
     d = diagnose(campaign, find_candidate("Cm-XXXIIIr"), settings=SETTINGS, max_rounds=1)
     assert d["gap_explained_by_baseline"] and d["explained"]
-    # two different fits: the final model's validation MSE sits at the saturated model's floor
-    assert d["mse"]["validation"] <= 1.01 * d["noise_floor"], (d["mse"], d["noise_floor"])
+    # checked outside the diagnosis: the saturated model, fitted here, predicts the validation maneuvers
+    # no better than 1 % below the final model
+    from structsearch.diagnosis import effects as fx
+    from structsearch.diagnosis.diagnose import saturated
+    final = find_candidate("Cm-XXXIIIr")
+    train, val = campaign.split("train"), campaign.split("validation")
+    lift, lift_c = fit_lift_model(final, train, val, SETTINGS)
+    sat = fit_candidate(saturated(final, fx.applicable(final))[0], train, val, lift, lift_c, SETTINGS)
+    assert sat.mse_validation >= 0.99 * d["mse"]["validation"], (sat.mse_validation, d["mse"])
 
 
 def test_deterministic(campaign):

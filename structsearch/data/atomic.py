@@ -22,8 +22,23 @@ def _read_umask() -> int:
 _UMASK = _read_umask()
 
 
-def _umask() -> int:
+def umask() -> int:
+    """The process umask (as read at import)."""
     return _UMASK
+
+
+def sync_file(path: Path) -> None:
+    """fsync a written file (best effort: some systems cannot fsync a file opened for reading)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def sync_directory(directory: Path) -> None:
@@ -49,7 +64,7 @@ def write_bytes(path: Path | str, content: bytes) -> Path:
             fh.write(content)
             fh.flush()
             os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())
+        os.chmod(tmp, 0o666 & ~umask())
         os.replace(tmp, path)
         sync_directory(path.parent)
     except BaseException:

@@ -17,7 +17,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .atomic import exchange_directories, sync_directory
+from .atomic import exchange_directories, sync_directory, sync_file, umask
 from .flightdata import FlightData, from_segments
 from .errors import DataError
 
@@ -176,18 +176,20 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
     else:
         raise DataError(f"unsupported maneuver file type {suffix!r} (csv, parquet, mat)", source=str(path))
     out = {}
+    lines = _csv_lines(path, len(frame)) if suffix == ".csv" else None
     for col in frame.columns:
         values = frame[col]
         if not pd.api.types.is_numeric_dtype(values):
             numeric = pd.to_numeric(values.astype(object), errors="coerce")
             bad = np.flatnonzero(numeric.isna() & values.notna())
             if bad.size:
-                raise DataError(f"value {values.iloc[bad[0]]!r} is not a number", source=str(path),
+                where = f" (line {int(lines[bad[0]])})" if lines is not None else ""
+                raise DataError(f"value {values.iloc[bad[0]]!r} is not a number{where}", source=str(path),
                                 column=str(col), row=int(bad[0]))
             values = numeric
         out[str(col)] = values.to_numpy(dtype=float)
-    if suffix == ".csv":
-        out[LINE_KEY] = _csv_lines(path, len(frame))
+    if lines is not None:
+        out[LINE_KEY] = lines
     return out
 
 
@@ -195,14 +197,17 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
 LINE_KEY = "__line__"
 
 
-def _csv_lines(path: Path, n_rows: int) -> np.ndarray:
-    """1-based file line of each data row: the non-blank lines after the header."""
-    with path.open("rb") as fh:
-        filled = [i + 1 for i, raw in enumerate(fh) if raw.strip()]
-    lines = np.asarray(filled[1:1 + n_rows], float)
-    if len(lines) < n_rows:  # quoted newlines: fall back to the simple count
-        lines = np.arange(n_rows, dtype=float) + 2
-    return lines
+def _csv_lines(path: Path, n_rows: int) -> np.ndarray | None:
+    """1-based file line of each data row: the non-blank lines after the header; None (no line numbers
+    rather than wrong ones) when they do not match the rows pandas read one to one (quoted newlines,
+    form feeds, lone carriage returns)."""
+    raw_lines = path.read_bytes().split(b"\n")
+    if any(b"\r" in raw.rstrip(b"\r") or b'"' in raw for raw in raw_lines):
+        return None
+    filled = [i + 1 for i, raw in enumerate(raw_lines) if raw.strip(b" \t\r")]
+    if len(filled) != n_rows + 1:
+        return None
+    return np.asarray(filled[1:], float)
 
 
 def read_mat(path: Path | str) -> dict[str, np.ndarray]:
@@ -320,9 +325,16 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
     if fmt not in ("csv", "parquet"):
         raise DataError(f"unknown campaign file format {fmt!r} (csv or parquet)")
     import pandas as pd
-    directory = Path(directory)
+    directory = Path(directory).resolve()   # a symbolic link: replace what it points to
+    if directory.parent == directory:
+        raise DataError("cannot write a campaign as the file-system root", source=str(directory))
+    if directory.exists() and (not directory.is_dir() or (any(directory.iterdir())
+                                                          and not (directory / "campaign.toml").exists())):
+        raise DataError("refusing to replace it: it exists and is not a campaign directory (no campaign.toml)",
+                        source=str(directory))
     directory.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=directory.parent))
+    os.chmod(tmp, 0o777 & ~umask())
     try:
         lines = [f"name = {_toml_value(campaign.name)}", "", "[aircraft]"]
         lines += [f"{k} = {_toml_value(campaign.aircraft[k])}" for k in AIRCRAFT_KEYS]
@@ -347,8 +359,8 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
                     raise DataError("writing Parquet needs the optional dependency pyarrow") from None
         (tmp / "campaign.toml").write_text("\n".join(lines) + "\n", encoding="utf-8")
         for written in tmp.iterdir():   # flush the files before they become the campaign
-            with written.open("rb") as fh:
-                os.fsync(fh.fileno())
+            sync_file(written)
+        sync_directory(tmp)
         if directory.exists() and exchange_directories(tmp, directory):
             shutil.rmtree(tmp)          # the old campaign, now under the temporary name
         elif directory.exists():        # no atomic exchange here: a short window between two renames

@@ -74,7 +74,7 @@ def expand(doc: dict, source: str) -> Grid:
             if missing:
                 raise DeclarationError(f"{where}: cannot drop {missing[0]!r}: not a regressor of {base.name}")
             regs = [r for r in base.regressors if r[0] not in drop]
-            add(entry.get("name"), regs, base.states, base.lift, note, where, base.bounds)
+            add(entry.get("name"), regs, base.states, base.lift, note, where, base.bounds + own_bounds)
         elif "kinds" in entry:
             kinds = entry["kinds"]
             regs = _blocks(doc, entry.get("blocks", []), where)
