@@ -71,6 +71,38 @@ def chosen_models(out: Path, overrides: tuple[str, ...] = ()) -> tuple[dict[str,
     return names, notes
 
 
+def missing_columns(candidate, campaign: Campaign) -> list[str]:
+    """Data columns a candidate's regressors read that the campaign lacks (x_cg, for one)."""
+    from ..engine.regressors import parse
+    have = set(campaign.data.columns) | set(campaign.data.constants)
+    used = {s.name for _, text in candidate.regressors for s in parse(text, known=()).free_symbols}
+    states = {n for n in used if n == "X" or n.startswith("X_")}
+    return sorted(used - states - have)
+
+
+def applicable_models(names: dict[str, str], campaign: Campaign) -> tuple[dict[str, str], list[str]]:
+    """``names`` with every model that needs a column the campaign lacks replaced by the first structure of
+    its grid that needs none (and takes its states from the same lift model), with a note each."""
+    from ..search.specs import load_grid
+    out, notes = dict(names), []
+    for coef, name in names.items():
+        missing = missing_columns(rd.find_candidate(name), campaign)
+        if not missing:
+            continue
+        grid = load_grid(GRIDS[coef], load_grid("lift")) if coef != "CL" else load_grid("lift")
+        lift = rd.find_candidate(names["CL"]).name if coef != "CL" else None
+        substitute = next((c.name for c in grid.candidates
+                           if not missing_columns(c, campaign) and (lift is None or c.lift == lift)), None)
+        if substitute is None:
+            raise DataError(f"no {GRIDS[coef]} structure can be shown: {name} needs column {missing[0]} and every "
+                            "other one needs a column the campaign lacks too", source=str(campaign.directory),
+                            column=missing[0])
+        out[coef] = substitute
+        notes.append(f"{name} needs {', '.join(missing)}, which the campaign does not have; the report shows "
+                     f"{substitute}, the first {GRIDS[coef]} structure that does not.")
+    return out, notes
+
+
 def _best_effect(doc: dict) -> str | None:
     ok = [e for e in doc["effects"] if "error" not in e]
     return ok[0]["name"] if ok else None
@@ -85,11 +117,13 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
     t0 = time.perf_counter()
     fig_dir = out / "figures"
     names, notes = chosen_models(out, models)
+    names, more = applicable_models(names, campaign)
+    notes += more
     say(f"report: fitting {', '.join(names.values())} and the Van Ingen structures")
     ms = rd.fit_model_set("identified", names, campaign, out, settings, n_jobs=n_jobs)
     try:
         vi = rd.fit_model_set("Van Ingen", VAN_INGEN_MODEL_NAMES, campaign, out, settings, n_jobs=n_jobs)
-    except DeclarationError as exc:
+    except (DeclarationError, DataError) as exc:  # e.g. a column the campaign lacks
         vi = None
         notes.append(f"The Van Ingen comparison is left out: {exc}")
     train, val = campaign.split("train"), campaign.split("validation")
