@@ -27,24 +27,11 @@ def umask() -> int:
     return _UMASK
 
 
-def sync_file(path: Path) -> None:
-    """fsync a written file (best effort: some systems cannot fsync a file opened for reading)."""
+def sync_path(path: Path) -> None:
+    """fsync a written file, or a directory so that a rename inside it survives a crash (best effort:
+    some systems cannot fsync what is opened for reading, or a directory at all)."""
     try:
         fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def sync_directory(directory: Path) -> None:
-    """fsync a directory so that a rename inside it survives a crash (no-op where unsupported)."""
-    try:
-        fd = os.open(directory, os.O_RDONLY)
     except OSError:
         return
     try:
@@ -66,7 +53,7 @@ def write_bytes(path: Path | str, content: bytes) -> Path:
             os.fsync(fh.fileno())
         os.chmod(tmp, 0o666 & ~umask())
         os.replace(tmp, path)
-        sync_directory(path.parent)
+        sync_path(path.parent)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
@@ -110,5 +97,5 @@ def exchange_directories(new: Path, target: Path) -> bool:
     renameat2.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
     done = renameat2(at_fdcwd, os.fsencode(new), at_fdcwd, os.fsencode(target), rename_exchange) == 0
     if done:
-        sync_directory(Path(target).parent)
+        sync_path(Path(target).parent)
     return done

@@ -17,7 +17,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .atomic import exchange_directories, sync_directory, sync_file, umask
+from .atomic import exchange_directories, sync_path, umask
 from .flightdata import FlightData, from_segments
 from .errors import DataError
 
@@ -359,8 +359,8 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
                     raise DataError("writing Parquet needs the optional dependency pyarrow") from None
         (tmp / "campaign.toml").write_text("\n".join(lines) + "\n", encoding="utf-8")
         for written in tmp.iterdir():   # flush the files before they become the campaign
-            sync_file(written)
-        sync_directory(tmp)
+            sync_path(written)
+        sync_path(tmp)
         if directory.exists() and exchange_directories(tmp, directory):
             shutil.rmtree(tmp)          # the old campaign, now under the temporary name
         elif directory.exists():        # no atomic exchange here: a short window between two renames
@@ -372,7 +372,7 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
             shutil.rmtree(old)
         else:
             os.replace(tmp, directory)
-        sync_directory(directory.parent)
+        sync_path(directory.parent)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
