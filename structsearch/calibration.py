@@ -54,26 +54,35 @@ class CampaignDraw:
     dof: Mapping[str, Mapping[str, Mapping[str, float]]] = field(default_factory=dict)  # kind -> model -> param -> t dof
 
 
+def fit_final_models(train, val, settings: Settings, starts: Mapping[str, Mapping[str, float]]) -> dict:
+    """The thesis' three final models fitted from ``starts`` (coefficient -> parameters), drag and pitch on
+    the fitted lift model's states: {coefficient: (candidate, result)}."""
+    lift_candidate, lift, out = find_candidate(FINAL_MODEL_NAMES["CL"]), None, {}
+    for coef, name in FINAL_MODEL_NAMES.items():
+        cand = find_candidate(name)
+        fit = fit_candidate(cand, train, val, lift, lift_candidate if cand.lift else None, settings,
+                            start=dict(starts[coef]))
+        lift = fit if coef == "CL" else lift
+        out[coef] = (cand, fit)
+    return out
+
+
 def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
     """Simulate one campaign and fit the final models with every covariance kind."""
     campaign = build_campaign(seed=seed, scale=scale)
     train, val = campaign.split("train"), campaign.split("validation")
-    finals = {coef: find_candidate(name) for coef, name in FINAL_MODEL_NAMES.items()}
-    lift_candidate = finals["CL"]
+    lift_candidate = find_candidate(FINAL_MODEL_NAMES["CL"])
     estimates, stderr, gap, dof = {}, {}, {}, {}
-    starts = {coef: dict(TRUTH[coef]) for coef in finals}
+    starts = {coef: dict(TRUTH[coef]) for coef in TRUTH}
     for kind in kinds:
         settings = Settings(n_starts=1, covariance=kind, cv_folds=0)
         stderr[kind], gap[kind], dof[kind] = {}, {}, {}
-        lift = None
-        for coef, cand in finals.items():
-            fit = fit_candidate(cand, train, val, lift, lift_candidate if cand.lift else None, settings,
-                                start=starts[coef])
+        finals = fit_final_models(train, val, settings, starts)
+        lift = finals["CL"][1]
+        for coef, (cand, fit) in finals.items():
             if fit.failed:
                 raise RuntimeError(f"seed {seed}: {cand.name} failed: {fit.error}")
-            if coef == "CL":
-                lift = fit
-            starts[coef] = dict(fit.params)
+            starts[coef] = dict(fit.params)   # the next kind refits from this optimum
             estimates.setdefault(cand.name, dict(fit.params))
             stderr[kind][cand.name] = dict(fit.stderr)
             dof[kind][cand.name] = dict(fit.reference_dof)
@@ -246,13 +255,7 @@ def thesis_estimator_fits(grids: Mapping[str, Sequence], campaign) -> dict[str, 
     found = {s.name: s for ranked in grids.values() for s in ranked if not s.failed}
     if not all(name in found for name in FINAL_MODEL_NAMES.values()):
         return {}
-    train, val = campaign.split("train"), campaign.split("validation")
     settings = Settings(n_starts=1, covariance=THESIS_COVARIANCE, cv_folds=0)
-    lift_candidate, lift, out = find_candidate(FINAL_MODEL_NAMES["CL"]), None, {}
-    for coef, name in FINAL_MODEL_NAMES.items():
-        cand = find_candidate(name)
-        fit = fit_candidate(cand, train, val, lift, lift_candidate if cand.lift else None, settings,
-                            start=dict(found[name].params))
-        lift = fit if coef == "CL" else lift
-        out[name] = [fit]
-    return out
+    starts = {coef: found[name].params for coef, name in FINAL_MODEL_NAMES.items()}
+    finals = fit_final_models(campaign.split("train"), campaign.split("validation"), settings, starts)
+    return {cand.name: [fit] for cand, fit in finals.values()}

@@ -145,6 +145,11 @@ def _parse(text: str, known: tuple[str, ...], context: str) -> sp.Expr:
     return expr
 
 
+def symbol_names(text: str) -> set[str]:
+    """Names of the free symbols of a regressor expression (data columns, constants, states)."""
+    return {s.name for s in parse(text, known=()).free_symbols}
+
+
 @lru_cache(maxsize=4096)
 def compile_expression(expr: sp.Expr, argnames: tuple[str, ...]):
     """A numpy function of ``argnames`` for ``expr``; cached per process (sympy expressions hash)."""

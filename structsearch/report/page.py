@@ -73,9 +73,9 @@ def chosen_models(out: Path, overrides: tuple[str, ...] = ()) -> tuple[dict[str,
 
 def missing_columns(candidate, campaign: Campaign) -> list[str]:
     """Data columns a candidate's regressors read that the campaign lacks (x_cg, for one)."""
-    from ..engine.regressors import parse
+    from ..engine.regressors import symbol_names
     have = set(campaign.data.columns) | set(campaign.data.constants)
-    used = {s.name for _, text in candidate.regressors for s in parse(text, known=()).free_symbols}
+    used = {n for _, text in candidate.regressors for n in symbol_names(text)}
     states = {n for n in used if n == "X" or n.startswith("X_")}
     return sorted(used - states - have)
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
+from ..engine.regressors import parse, symbol_names
 from ..engine.separation import SeparationState
 from .candidate_result import CandidateResult
 from .candidates import Candidate
@@ -92,7 +93,6 @@ def _alpha_star_reasons(result: CandidateResult, candidate: Candidate, alpha_ran
 
 
 def _expr(text: str) -> sympy.Expr:
-    from ..engine.regressors import parse
     return parse(text, known=())
 
 
@@ -169,7 +169,7 @@ def centred_correlation(candidate: Candidate, model, data, fit) -> np.ndarray | 
     k = len(fit.nonlinear_names)
     theta = np.asarray(fit.values[:k], float)
     phi = model.bind(data).evaluate(theta).phi
-    used = {s.name for _, text in candidate.regressors for s in _expr(text).free_symbols} & set(data.columns)
+    used = {n for _, text in candidate.regressors for n in symbol_names(text)} & set(data.columns)
     movable = [n for n in sorted(used)
                if np.ptp(data[n]) > 0 and _basis_change(phi, model.bind(_centred(data, [n])).evaluate(theta).phi)
                is not None]

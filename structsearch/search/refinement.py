@@ -18,6 +18,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..engine.regressors import symbol_names
 from ..engine.separation import SeparationState
 from .candidate_result import CandidateResult
 from .candidates import Candidate
@@ -54,8 +55,7 @@ def structure_key(c: Candidate) -> tuple:
 
 def _orphans(c: Candidate, drop: list[str]) -> list[str]:
     """Separation states of ``c`` that no regressor would use once ``drop`` is dropped."""
-    from ..engine.regressors import parse
-    used = {s.name for n, t in c.regressors if n not in drop for s in parse(t, known=()).free_symbols}
+    used = {name for n, t in c.regressors if n not in drop for name in symbol_names(t)}
     symbols = [SeparationState(n, k).symbol for n, k in c.states]
     return [s for s in symbols if s not in used]
 
