@@ -67,7 +67,7 @@ def _simulate(args) -> int:
     from .data.campaign import write_campaign
     from .flight.flighttest import build_campaign
     campaign = build_campaign(seed=args.seed, withhold=args.withhold or (), scale=args.scale,
-                              extras=args.extras)
+                              extras=args.extras, aircraft=args.aircraft)
     out = write_campaign(campaign, Path(args.out), fmt=args.format)
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
@@ -402,8 +402,12 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--scale", type=_fraction, default=0.1, help="--calibration: fraction of the maneuvers flown")
     b.set_defaults(func=_bench)
 
-    from .flight.aero import WITHHOLDABLE
-    s = sub.add_parser("simulate", help="simulate the Citation II flight-test campaign (thesis Table 4)")
+    from .flight.aero import TRUTHS, WITHHOLDABLE
+    s = sub.add_parser("simulate", help="simulate a flight-test campaign (thesis Table 4) of the Citation II or the "
+                                        "twin-jet transport")
+    s.add_argument("--aircraft", choices=tuple(TRUTHS), default="citation",
+                   help="citation (the thesis' Citation II, default) or transport (a twin-jet transport with one "
+                        "separation state, no stall strips and no recorded cg: README)")
     s.add_argument("--out", required=True, help="campaign directory to write")
     s.add_argument("--seed", type=_non_negative, default=0, help="random seed (same seed, same campaign bit for bit)")
     s.add_argument("--withhold", action="append", choices=sorted(WITHHOLDABLE), metavar="EFFECT",

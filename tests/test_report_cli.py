@@ -140,22 +140,17 @@ def test_condition_number_of_the_scaled_jacobian():
 
 
 def test_report_renders_for_a_campaign_without_x_cg(tmp_path):
-    """Issue 12 item 4: no x_cg column -> the pitch model that needs it is replaced by one that does not, the
-    centre of pressure is left out with a note, and the static condition does not print an x_cg."""
-    import pandas as pd
-    from structsearch.data.campaign import write_campaign
-    from structsearch.flight.flighttest import build_campaign
+    """Issue 12 items 4 and 6: the transport's campaign has no x_cg column and no cg envelope -> the pitch
+    model that needs x_cg is replaced by one that does not, the centre of pressure is left out with a note,
+    and neither an x_cg nor an envelope is printed."""
     data = tmp_path / "c"
-    write_campaign(build_campaign(seed=3, scale=0.05), data)
-    for csv_file in data.glob("*.csv"):
-        frame = pd.read_csv(csv_file)
-        frame.drop(columns=["x_cg"]).to_csv(csv_file, index=False)
-    toml = data / "campaign.toml"
-    toml.write_text("\n".join(line for line in toml.read_text().splitlines() if not line.startswith("x_cg_range")))
+    proc = run_cli("simulate", "--aircraft", "transport", "--scale", "0.05", "--seed", "3", "--out", str(data))
+    assert proc.returncode == 0, proc.stderr
+    assert "x_cg" not in (data / "campaign.toml").read_text() and "x_cg" not in (data / "m01.csv").open().readline()
     proc = run_cli("report", "--data", str(data), "--out", str(tmp_path / "r"), "--diagnose", "none",
                    "--starts", "1")
     assert proc.returncode == 0, proc.stderr
     page = (tmp_path / "r" / "report.html").read_text()
     assert "Cm-XXXIIIr needs x_cg, which the campaign does not have" in page
     assert "cannot be placed" in page and "centre_of_pressure.png" not in page
-    assert "x_cg = " not in page
+    assert "x_cg = " not in page and "envelope" not in page

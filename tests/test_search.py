@@ -45,7 +45,7 @@ def expected_pitch():
 
 
 def test_grid_sizes_and_unique_names():
-    sizes = {"separation": 9, "lift": 6, "drag": 15, "pitch": 60}
+    sizes = {"separation": 12, "lift": 6, "drag": 15, "pitch": 60}
     for name, size in sizes.items():
         grid = load_grid(name)
         assert len(grid.candidates) == size, name
@@ -86,7 +86,9 @@ def test_drag_rules_equal_the_catalogue():
 def test_separation_and_lift_grids():
     sep = load_grid("separation")
     kinds = [dict(c.states) for c in sep.candidates]
-    assert kinds == [{"ss": a, "w": b} for a in "SQU" for b in "SQU"]
+    assert kinds == [{"ss": a, "w": b} for a in "SQU" for b in "SQU"] + [{"": a} for a in "SQU"]
+    assert sep.names[9:] == ("X S", "X Q", "X U")  # one state for a wing without stall strips
+    assert set(dict(sep["X U"].regressors)) == {"CL0", "CL_KL", "CL_qstar", "CL_de"}
     lift = load_grid("lift")
     assert set(dict(lift["CL-VI"].regressors)) == {"CL0", "CL_KL_ss", "CL_KL_w", "CL_qstar", "CL_de"}
     assert set(dict(lift["CL-IV"].regressors)) == {"CL0", "CL_KL_ss", "CL_KL_w", "CL_qstar"}

@@ -7,6 +7,7 @@ from structsearch.flight.aero import WITHHOLDABLE, truth_model
 from structsearch.data.errors import DeclarationError
 from structsearch.flight.flighttest import build_campaign
 from structsearch.flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH
+from structsearch.flight.aircraft import CITATION
 from structsearch.flight.replay import replay
 from structsearch.flight.simulation import Condition, Pilot, _alpha_dot_with_states, simulate, trim
 
@@ -41,7 +42,7 @@ def _linear_modes(model, cond, tr):
     def f(x):
         V, a, q, th, xs = x
         _, vd, ad, qd, _ = _alpha_dot_with_states(
-            model, np.array([V]), np.array([a]), np.array([q]), np.array([th]), np.array([cond.h]),
+            model, CITATION, np.array([V]), np.array([a]), np.array([q]), np.array([th]), np.array([cond.h]),
             np.array([tr.de]), np.array([tr.throttle]), cond.mass, cond.x_cg, {"X_ss": np.array([xs])})
         return np.array([vd[0], ad[0], qd[0], q])
     x0 = np.array([cond.V, tr.alpha, 0.0, tr.alpha,

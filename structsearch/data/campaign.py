@@ -379,9 +379,16 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
     return directory
 
 
+# Top-level names of campaign.toml that free-text keys of a campaign may not take.
+RESERVED_KEYS = ("name", "format", "aircraft", "maneuver")
+
+
 def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[Maneuver],
                   segments: Sequence[Mapping[str, np.ndarray]], extra: Mapping[str, object] | None = None
                   ) -> Campaign:
+    clash = [k for k in (extra or {}) if k in RESERVED_KEYS]
+    if clash:
+        raise DataError(f"campaign key {clash[0]!r} is reserved in campaign.toml ({', '.join(RESERVED_KEYS)})")
     data = from_segments(list(segments), names=[m.id for m in maneuvers], source=name,
                          constants=scalar_constants(aircraft))
     return Campaign(name, dict(aircraft), tuple(maneuvers), data, None, dict(extra or {}))

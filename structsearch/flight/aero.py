@@ -9,7 +9,7 @@ unsteady states and evaluates the steady and quasi-steady ones algebraically.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 import sympy as sp
@@ -19,6 +19,8 @@ from .reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH, final_drag_model, fi
 from ..engine.regressors import compile_expression
 from ..engine.separation import SeparationState, static_separation
 from ..engine.stallmodel import StallModel
+from .transport import (TRANSPORT_DRAG, TRANSPORT_LIFT, TRANSPORT_PITCH, TRANSPORT_ZEROED, transport_drag_model,
+                        transport_lift_model, transport_pitch_model)
 
 # Effects of interfaces.md section 3 that the final model contains, and what withholding does.
 WITHHOLDABLE = {
@@ -91,6 +93,11 @@ class AeroModel:
             self._compiled[coef] = (expr, args)
 
     @property
+    def columns(self) -> frozenset[str]:
+        """Every name the three coefficients read (data columns, constants, states, C_L)."""
+        return frozenset(a for _, args in self._compiled.values() for a in args)
+
+    @property
     def unsteady(self) -> tuple[StateSpec, ...]:
         return tuple(s for s in self.states if s.kind == "U")
 
@@ -123,36 +130,68 @@ class AeroModel:
         return cl, self.coefficient("CD", with_cl), self.coefficient("Cm", with_cl)
 
 
-def truth_model(withhold=()) -> AeroModel:
-    """The final model of the thesis (CL-VI, CD-IXr, Cm-XXXIIIr) with named effects removed."""
+@dataclass(frozen=True)
+class Truth:
+    """An aircraft's truth aerodynamics: structures, values, and what withholding an effect zeroes."""
+
+    lift: Callable[[], StallModel]
+    drag: Callable[[Mapping[str, float]], StallModel]
+    pitch: Callable[[Mapping[str, float]], StallModel]
+    lift_params: Mapping[str, float]
+    other_params: Mapping[str, float]
+    zeroed: Mapping[str, tuple[str, ...]]
+    lagged_state: str             # name of the unsteady state ("ss": X_ss, "": X)
+    second_state: str | None      # name of the steady second state, if any
+
+
+TRUTHS = {
+    "citation": Truth(final_lift_model, final_drag_model, final_pitch_model, FINAL_LIFT,
+                      {**FINAL_DRAG, **FINAL_PITCH}, _ZEROED, "ss", "w"),
+    "transport": Truth(transport_lift_model, transport_drag_model, transport_pitch_model, TRANSPORT_LIFT,
+                       {**TRANSPORT_DRAG, **TRANSPORT_PITCH}, TRANSPORT_ZEROED, "", None),
+}
+
+
+def truth_model(withhold=(), aircraft: str = "citation") -> AeroModel:
+    """The truth of ``aircraft``: for the Citation II the final model of the thesis (CL-VI, CD-IXr,
+    Cm-XXXIIIr), for the transport its one-state model (:mod:`.transport`); named effects removed."""
+    if aircraft not in TRUTHS:
+        raise DeclarationError(f"no aircraft {aircraft!r}: the simulator flies {', '.join(TRUTHS)}")
+    truth = TRUTHS[aircraft]
     withhold = tuple(dict.fromkeys(withhold))
     unknown = [w for w in withhold if w not in WITHHOLDABLE]
     if unknown:
         raise DeclarationError(f"cannot withhold {unknown[0]!r}: effects of the final model are "
                                f"{', '.join(WITHHOLDABLE)}")
-    lift_params = dict(FINAL_LIFT)
-    params = dict(FINAL_LIFT, **FINAL_DRAG, **FINAL_PITCH)
-    kind_ss = "U"
+    if "second_separation_state" in withhold and truth.second_state is None:
+        raise DeclarationError(f"cannot withhold 'second_separation_state': the {aircraft} has one separation "
+                               "state")
+    suffix = f"_{truth.lagged_state}" if truth.lagged_state else ""
+    lift_params = dict(truth.lift_params)
+    params = dict(truth.lift_params, **truth.other_params)
+    kind = "U"
     if "unsteady_lag" in withhold:
-        kind_ss = "Q"
-        lift_params.pop("tau1_ss")
-        params.pop("tau1_ss")
+        kind = "Q"
+        lift_params.pop("tau1" + suffix)
+        params.pop("tau1" + suffix)
     if "separation_delay" in withhold:
-        lift_params["tau2_ss"] = params["tau2_ss"] = 0.0
+        lift_params["tau2" + suffix] = params["tau2" + suffix] = 0.0
     for effect in withhold:
-        for name in _ZEROED.get(effect, ()):
+        for name in truth.zeroed.get(effect, ()):
             params[name] = 0.0
-    constant = {"X_w": 1.0} if "second_separation_state" in withhold else {}
-    lift = _with_kind(final_lift_model(), kind_ss)
-    drag = _with_kind(final_drag_model(lift_params), kind_ss)
-    pitch = _with_kind(final_pitch_model(lift_params), kind_ss)
-    label = "truth" + ("" if not withhold else " without " + ", ".join(withhold))
-    return AeroModel(lift, drag, pitch, params, constant, name=label)
+    constant = {f"X_{truth.second_state}": 1.0} if "second_separation_state" in withhold else {}
+    models = [_with_kind(m, truth.lagged_state, kind)
+              for m in (truth.lift(), truth.drag(lift_params), truth.pitch(lift_params))]
+    label = ("truth" if aircraft == "citation" else f"{aircraft} truth") \
+        + ("" if not withhold else " without " + ", ".join(withhold))
+    return AeroModel(*models, params, constant, name=label)
 
 
-def _with_kind(model: StallModel, kind_ss: str) -> StallModel:
-    if kind_ss == "U":
+def _with_kind(model: StallModel, state: str, kind: str) -> StallModel:
+    """``model`` with its state ``state`` of ``kind`` (U -> Q drops the lag and its fixed value)."""
+    if kind == "U":
         return model
-    states = tuple(SeparationState(s.name, kind_ss) if s.name == "ss" else s for s in model.states)
-    fixed = {k: v for k, v in model.fixed.items() if k != "tau1_ss"}
+    suffix = f"_{state}" if state else ""
+    states = tuple(SeparationState(s.name, kind) if s.name == state else s for s in model.states)
+    fixed = {k: v for k, v in model.fixed.items() if k != "tau1" + suffix}
     return StallModel(model.name, model.coefficient, states, model.regressors, model.start, model.bounds, fixed)

@@ -1,8 +1,18 @@
-"""Citation II (PH-LAB) mass, engine and atmosphere models for the simulator (SI units)."""
+"""Aircraft the simulator can fly: geometry, mass, pitch inertia, engines; the ISA atmosphere (SI units).
+
+An :class:`Aircraft` is plain data. The Citation II (PH-LAB) numbers come from the thesis and the
+catalogue (section 6); the twin-jet transport of :mod:`structsearch.flight.transport` is ours. A
+campaign of another aircraft carries its own data in campaign.toml (interfaces.md 5.1), from which
+:func:`aircraft_of_campaign` builds what the forward simulation needs.
+"""
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
 
 import numpy as np
 
+from ..data.errors import DataError
 from .reference import AIRCRAFT, EMPTY_MASS, IYY
 
 G = 9.80665
@@ -12,14 +22,6 @@ LAPSE = 0.0065
 GAS_EXPONENT = G / (287.053 * LAPSE) - 1.0
 FT = 0.3048
 INCH = 0.0254
-
-# Two Pratt & Whitney JT15D-4: about 11.1 kN static sea-level thrust each.
-MAX_THRUST_SL = 2 * 11_100.0
-# Fuel flow at full throttle, both engines [kg/s]; scales with throttle.
-MAX_FUEL_FLOW = 0.16
-CREW_MASS = 3 * 85.0
-# Centre of gravity envelope [m from the datum 15 in ahead of the nose] (catalogue section 6).
-X_CG_RANGE = (276 * INCH, 286 * INCH)
 
 
 def density(h):
@@ -31,14 +33,63 @@ def flight_level_altitude(fl: float) -> float:
     return fl * 100 * FT
 
 
-def max_thrust(h):
-    """Available thrust [N] of both engines at altitude (density lapse^0.75)."""
-    return MAX_THRUST_SL * (density(h) / RHO0) ** 0.75
+@dataclass(frozen=True)
+class Aircraft:
+    """What the simulator needs to know about an aircraft besides its aerodynamics."""
+
+    name: str
+    label: str
+    S: float                      # wing area [m^2]
+    cbar: float                   # mean aerodynamic chord [m]
+    b: float                      # span [m]
+    empty_mass: float             # [kg], with the test equipment
+    crew_mass: float              # [kg]
+    iyy_empty: float              # pitch inertia at the empty mass [kg m^2]
+    iyy_per_kg: float             # [m^2]: what a kilogram of fuel or crew adds (carried near the cg)
+    max_thrust_sl: float          # all engines, static, sea level [N]
+    max_fuel_flow: float          # all engines at full throttle [kg/s]; scales with throttle
+    x_cg_range: tuple[float, float] | None = None  # cg envelope [m], the datum of the x_cg column
+    records_cg: bool = True       # the campaign files carry an x_cg column
+    # Pitch-rate gyro: white noise [rad/s] left after flight-path reconstruction, and the rate vibration
+    # [rad/s per unit of buffet] it sees in separated flow. C_m comes from q_dot * Iyy / (qbar S cbar), so
+    # what matters is their size in moment-coefficient terms; a heavy aircraft needs quieter rates.
+    gyro_noise: float = 0.0015
+    gyro_buffet: float = 0.004
+
+    def inertia(self, mass):
+        """Pitch inertia [kg m^2] at ``mass``."""
+        return self.iyy_empty + self.iyy_per_kg * (np.asarray(mass) - self.empty_mass)
+
+    def max_thrust(self, h):
+        """Available thrust [N] of all engines at altitude (density lapse^0.75)."""
+        return self.max_thrust_sl * (density(h) / RHO0) ** 0.75
+
+    def manifest(self, mass: float) -> dict:
+        """The [aircraft] table of campaign.toml (interfaces.md 5.1) for a campaign flown at about ``mass``:
+        one pitch inertia, as a flight-test engineer states it for the test weight."""
+        out = {"S": self.S, "cbar": self.cbar, "b": self.b, "Iyy": round(float(self.inertia(mass)), 1)}
+        if self.x_cg_range is not None:
+            out["x_cg_range"] = tuple(self.x_cg_range)
+        return out
 
 
-def inertia(mass):
-    """Pitch inertia [kg m^2]: the empty-mass value plus fuel and crew near the cg."""
-    return IYY + 0.9 * (np.asarray(mass) - EMPTY_MASS)
+# Two Pratt & Whitney JT15D-4, about 11.1 kN static sea-level thrust each; 0.16 kg/s of fuel at full
+# throttle; cg envelope 276-286 in from the datum 15 in ahead of the nose (catalogue section 6).
+CITATION = Aircraft(
+    name="citation", label="Citation II", S=AIRCRAFT["S"], cbar=AIRCRAFT["cbar"], b=AIRCRAFT["b"],
+    empty_mass=EMPTY_MASS, crew_mass=3 * 85.0, iyy_empty=IYY, iyy_per_kg=0.9,
+    max_thrust_sl=2 * 11_100.0, max_fuel_flow=0.16, x_cg_range=(276 * INCH, 286 * INCH))
 
 
-S, CBAR, SPAN = AIRCRAFT["S"], AIRCRAFT["cbar"], AIRCRAFT["b"]
+def aircraft_of_campaign(constants: Mapping[str, float], source: str = "") -> Aircraft:
+    """The aircraft of a campaign for the forward simulation: S and cbar from [aircraft], the pitch
+    inertia ``Iyy`` (interfaces.md 5.1) constant over the campaign. Engines and mass come from the data
+    (CT and the mass column), so they are not needed here."""
+    missing = [k for k in ("S", "cbar", "Iyy") if k not in constants]
+    if missing:
+        raise DataError(f"forward simulation needs [aircraft] {missing[0]} in campaign.toml "
+                        "(the pitch inertia turns C_m into pitch acceleration)", source=source or None)
+    return Aircraft(name="campaign", label="campaign aircraft", S=float(constants["S"]),
+                    cbar=float(constants["cbar"]), b=float(constants.get("b", np.nan)), empty_mass=0.0,
+                    crew_mass=0.0, iyy_empty=float(constants["Iyy"]), iyy_per_kg=0.0,
+                    max_thrust_sl=np.nan, max_fuel_flow=0.0)

@@ -1,4 +1,5 @@
-"""The flight-test campaign: the thesis' maneuver list (Table 4) and how the pilot flies each maneuver."""
+"""The flight-test campaign: the thesis' maneuver list (Table 4) and how the pilot flies each maneuver,
+for the Citation II and for the twin-jet transport (same maneuver kinds, its own speeds and angles)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -6,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import aircraft as ac
+from .aircraft import CITATION, Aircraft
+from .transport import TRANSPORT
 from .aero import AeroModel
 from .simulation import Condition, Pilot, simulate, trim
 from .synthetic import smooth_noise
@@ -36,6 +39,41 @@ SLOW_ERROR_STALL_GAIN = 1.0              # per unit of separation (1 - X summed 
 # correlate at -1.00); it sets how well C_m,cg can be told from C_m,K0.
 FLOWN_CG_RANGE = (280.5 * ac.INCH, 282.0 * ac.INCH)
 GAINS = (2.0, 1.5, 0.8)  # pilot PID on alpha: kp [-], ki [1/s], kd [s]
+
+
+@dataclass(frozen=True)
+class Procedures:
+    """How one aircraft flies the maneuver kinds: airspeed ranges [m/s], angles of attack [rad], gains.
+
+    The defaults are the Citation II's (thesis chapter 6); each range is drawn from uniformly.
+    """
+
+    aircraft: Aircraft = CITATION
+    qs_speed: tuple[float, float] = (85.0, 95.0)
+    qs_peak: tuple[float, float] = (0.24, 0.32)
+    dyn_speed: tuple[float, float] = (82.0, 90.0)
+    dyn_centre: tuple[float, float] = DYN_CENTRE
+    dyn_amplitude: tuple[float, float] = DYN_AMPLITUDE
+    dyn_freq_hz: tuple[float, float] = DYN_FREQ_HZ
+    deep_centre: tuple[float, float] = (0.32, 0.35)
+    deep_amplitude: tuple[float, float] = (0.025, 0.04)
+    pullup_speed: tuple[float, float] = (95.0, 110.0)
+    pushover_speed: tuple[float, float] = (80.0, 90.0)
+    phugoid_speed: tuple[float, float] = (85.0, 95.0)
+    gains: tuple[float, float, float] = GAINS
+    fuel: tuple[float, float] = (1500.0, 450.0)   # [kg] at the first and last maneuver of the campaign
+    flown_cg_range: tuple[float, float] | None = FLOWN_CG_RANGE  # None: one fixed cg, not recorded
+
+
+# The transport stalls at about 95 m/s: entries at about 1.4 times that, the quasi-steady stalls taken
+# only to 16-18 deg (alpha* = 15 deg), the dynamic stalls around alpha* at the frequencies where its
+# lag (0.65 s) matters, a pilot with the higher gains a less agile aircraft needs.
+TRANSPORT_PROCEDURES = Procedures(
+    aircraft=TRANSPORT, qs_speed=(122.0, 135.0), qs_peak=(0.28, 0.31), dyn_speed=(118.0, 128.0),
+    dyn_centre=(0.25, 0.27), dyn_amplitude=(0.03, 0.04), dyn_freq_hz=(0.2, 0.7), deep_centre=(0.29, 0.31),
+    deep_amplitude=(0.025, 0.035), pullup_speed=(140.0, 160.0), pushover_speed=(118.0, 128.0),
+    phugoid_speed=(122.0, 135.0), gains=(5.0, 3.5, 2.5), fuel=(9000.0, 5000.0), flown_cg_range=None)
+PROCEDURES = {"citation": Procedures(), "transport": TRANSPORT_PROCEDURES}
 DURATION = {"quasi-steady": 55.0, "dynamic": 50.0, "deep-dynamic": 50.0, "pullup": 25.0,
             "pushover": 25.0, "phugoid": 125.0}
 
@@ -109,18 +147,24 @@ class Flown:
     alpha0: float
 
 
-def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: float, x_cg: float) -> Flown:
-    """Reference profiles for one maneuver (pilot-like, seeded)."""
+def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: float, x_cg: float,
+        proc: Procedures = Procedures()) -> Flown:
+    """Reference profiles for one maneuver (pilot-like, seeded), flown as ``proc`` says."""
     duration = DURATION[p.kind] + (DYN_OSCILLATION_S - 23.0 if p.kind == "dynamic" else 0.0)
     n = int(round(duration / DT))
     t = np.arange(n) * DT
     h = ac.flight_level_altitude(rng.uniform(*p.fl_band))
     wiggle = smooth_noise(rng, n, DT, 1.5)
-    gains = GAINS
+    gains = proc.gains
+    craft = proc.aircraft
+
+    def trimmed(V):
+        return trim(model, Condition(mass, x_cg, h, V), aircraft=craft)
+
     if p.kind == "quasi-steady":
-        V = rng.uniform(85.0, 95.0)
-        tr = trim(model, Condition(mass, x_cg, h, V))
-        peak = rng.uniform(0.24, 0.32)
+        V = rng.uniform(*proc.qs_speed)
+        tr = trimmed(V)
+        peak = rng.uniform(*proc.qs_peak)
         t_up = rng.uniform(36.0, 42.0)
         alpha_ref = tr.alpha + (peak - tr.alpha) * _smoothstep(t / t_up)
         recover = t_up + rng.uniform(2.0, 4.0)
@@ -130,12 +174,12 @@ def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: fl
         de_extra = QS_WIGGLE_RAD * smooth_noise(rng, n, DT, QS_WIGGLE_HZ)
     elif p.kind in ("dynamic", "deep-dynamic"):
         # entered like a stall approach: power reduced, alpha raised as the speed bleeds off
-        V = rng.uniform(82.0, 90.0)
-        tr = trim(model, Condition(mass, x_cg, h, V))
+        V = rng.uniform(*proc.dyn_speed)
+        tr = trimmed(V)
         deep = p.kind == "deep-dynamic"
-        centre = rng.uniform(0.32, 0.35) if deep else rng.uniform(*DYN_CENTRE)
-        amplitude = rng.uniform(0.025, 0.04) if deep else rng.uniform(*DYN_AMPLITUDE)
-        f_lo, f_hi = DYN_FREQ_HZ
+        centre = rng.uniform(*proc.deep_centre) if deep else rng.uniform(*proc.dyn_centre)
+        amplitude = rng.uniform(*proc.deep_amplitude) if deep else rng.uniform(*proc.dyn_amplitude)
+        f_lo, f_hi = proc.dyn_freq_hz
         f0, f1 = rng.uniform(f_lo, f_lo + 0.2), rng.uniform(f_hi - 0.2, f_hi)
         t_up, t_osc = 18.0, 21.0
         t_end = t_osc + (DYN_OSCILLATION_S if not deep else 23.0)
@@ -153,8 +197,8 @@ def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: fl
         de_extra = 0.004 * wiggle + np.where((t > 4.0) & (t < 5.5), 0.015, 0.0) \
             - np.where((t > 6.0) & (t < 7.5), 0.015, 0.0)
     elif p.kind in ("pullup", "pushover"):
-        V = rng.uniform(95.0, 110.0) if p.kind == "pullup" else rng.uniform(80.0, 90.0)
-        tr = trim(model, Condition(mass, x_cg, h, V))
+        V = rng.uniform(*proc.pullup_speed) if p.kind == "pullup" else rng.uniform(*proc.pushover_speed)
+        tr = trimmed(V)
         target = tr.alpha + (0.04 if p.kind == "pullup" else -0.07)
         alpha_ref = tr.alpha + (target - tr.alpha) * _smoothstep(t / 2.0)
         throttle = np.full(n, tr.throttle if p.kind == "pullup" else 0.2 * tr.throttle)
@@ -163,8 +207,8 @@ def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: fl
         return Flown(Condition(mass, x_cg, h, V), theta0, V, alpha_ref, de_extra, throttle, gains,
                      tr.de, tr.alpha)
     elif p.kind == "phugoid":
-        V = rng.uniform(85.0, 95.0)
-        tr = trim(model, Condition(mass, x_cg, h, V))
+        V = rng.uniform(*proc.phugoid_speed)
+        tr = trimmed(V)
         alpha_ref = np.full(n, tr.alpha)
         throttle = np.full(n, tr.throttle)
         de_extra = np.zeros(n)
@@ -183,7 +227,7 @@ def reconstruction_error(rng: np.random.Generator, n: int, size: float = 1.0) ->
                             for sigma in SLOW_ERROR_SIGMA])
 
 
-def fly_batch(model: AeroModel, flown: list[Flown]):
+def fly_batch(model: AeroModel, flown: list[Flown], aircraft: Aircraft = CITATION):
     """Integrate maneuvers of one duration together; returns the truth Trajectory."""
     stack = lambda attr: np.column_stack([getattr(f, attr) for f in flown])  # noqa: E731
     pilot = Pilot(stack("alpha_ref"), stack("de_extra"), stack("throttle"),
@@ -195,12 +239,13 @@ def fly_batch(model: AeroModel, flown: list[Flown]):
     y0.update({s.symbol: x0[s.symbol] for s in model.unsteady})
     masses = np.array([f.condition.mass for f in flown])
     # fuel burnt along the maneuver
-    burn = np.cumsum(stack("throttle"), axis=0) * DT * ac.MAX_FUEL_FLOW
+    burn = np.cumsum(stack("throttle"), axis=0) * DT * aircraft.max_fuel_flow
     mass = masses[None, :] - burn
-    return simulate(model, y0, pilot, mass, np.array([f.condition.x_cg for f in flown]), DT)
+    return simulate(model, y0, pilot, mass, np.array([f.condition.x_cg for f in flown]), DT, aircraft)
 
 
-def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int = 0, slow_errors: float = 1.0):
+def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int = 0, slow_errors: float = 1.0,
+                      proc: Procedures = Procedures()):
     """Fly every planned maneuver and measure it; returns (plan, list of column dicts) in plan order.
 
     ``slow_errors`` scales the slow reconstruction errors (1: realistic, 0: a laboratory-clean
@@ -209,27 +254,29 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
     from .measurement import measure
     rng = np.random.default_rng(seed)
     # fuel burns down over the test sequence; each flight has its own centre of gravity
-    fuel = np.linspace(1500.0, 450.0, len(plan))
-    cg_by_flight = {k: rng.uniform(*FLOWN_CG_RANGE) for k in range(4)}
+    craft = proc.aircraft
+    fuel = np.linspace(*proc.fuel, len(plan))
+    cg_by_flight = {k: (rng.uniform(*proc.flown_cg_range) if proc.flown_cg_range else np.nan) for k in range(4)}
     flown = []
     for i, p in enumerate(plan):
         flight = 0 if p.number <= 17 else 1 if p.number <= 34 else 2 if p.number <= 46 else 3
-        mass = ac.EMPTY_MASS + ac.CREW_MASS + fuel[i]
-        flown.append(fly(model, p, rng, mass, cg_by_flight[flight]))
+        mass = craft.empty_mass + craft.crew_mass + fuel[i]
+        flown.append(fly(model, p, rng, mass, cg_by_flight[flight], proc))
     # a stream of its own, so that the flown profiles and sensor errors do not depend on it
     error_rng = np.random.default_rng([seed, 1])
     errors = [reconstruction_error(error_rng, len(f.alpha_ref), slow_errors) for f in flown]
     results: list[dict | None] = [None] * len(plan)
     for duration in sorted({len(f.alpha_ref) for f in flown}):
         idx = [i for i, f in enumerate(flown) if len(f.alpha_ref) == duration]
-        traj = fly_batch(model, [flown[i] for i in idx])
+        traj = fly_batch(model, [flown[i] for i in idx], craft)
         for j, i in enumerate(idx):
             truth = {name: getattr(traj, name)[:, j] for name in
                      ("V", "alpha", "q", "theta", "h", "de", "thrust", "qbar", "mass", "x_cg", "CL", "CD", "Cm",
                       "q_dot")}
-            for sym in ("X_ss", "X_w"):
-                truth[sym] = traj.X[sym][:, j] if sym in traj.X else np.ones(duration)
-            columns = measure(rng, traj.t, truth, errors[i], SLOW_ERROR_STALL_GAIN)
+            # a withheld second state is recorded as attached flow
+            symbols = ("X_ss", "X_w") if craft is CITATION else tuple(traj.X)
+            truth["states"] = {sym: traj.X[sym][:, j] if sym in traj.X else np.ones(duration) for sym in symbols}
+            columns = measure(rng, traj.t, truth, errors[i], SLOW_ERROR_STALL_GAIN, craft)
             results[i] = _cut(plan[i], columns)
     return results
 
@@ -245,20 +292,23 @@ def _cut(p: PlannedManeuver, columns: dict) -> dict:
 
 
 def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False,
-                   slow_errors: float = 1.0):
-    """The simulated flight-test campaign (thesis Table 4), ready for :func:`write_campaign`.
+                   slow_errors: float = 1.0, aircraft: str = "citation"):
+    """The simulated flight-test campaign (thesis Table 4) of ``aircraft`` (``citation`` or ``transport``),
+    ready for :func:`write_campaign`.
 
     ``slow_errors`` scales the slow reconstruction errors (see :func:`simulate_campaign`)."""
     from .aero import truth_model
     from ..data.campaign import Maneuver, make_campaign
-    from .reference import AIRCRAFT, IYY
-    model = truth_model(withhold)
+    model = truth_model(withhold, aircraft)
+    proc = PROCEDURES[aircraft]
     plan = scaled_plan(thesis_plan(extras), scale)
-    segments = simulate_campaign(plan, model, seed, slow_errors)
+    segments = simulate_campaign(plan, model, seed, slow_errors, proc)
     maneuvers = [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split) for p in plan]
-    extra = {"seed": int(seed), "scale": float(scale), "extras": bool(extras), "truth": model.name, "withheld": ",".join(withhold) or "none",
-             "slow_errors": float(slow_errors)}
-    name = f"simulated Citation II stall campaign (seed {seed})"
-    # the aircraft data of interfaces.md 5.1 the simulator knows: pitch inertia and the cg envelope
-    aircraft = {**AIRCRAFT, "Iyy": IYY, "x_cg_range": ac.X_CG_RANGE}
-    return make_campaign(name, aircraft, maneuvers, segments, extra)
+    extra = {"seed": int(seed), "scale": float(scale), "extras": bool(extras), "truth": model.name,
+             "withheld": ",".join(withhold) or "none", "slow_errors": float(slow_errors)}
+    if aircraft != "citation":  # campaigns written before the second aircraft carry no such key
+        extra["simulated_aircraft"] = aircraft
+    name = f"simulated {proc.aircraft.label} stall campaign (seed {seed})"
+    # the aircraft data of interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope
+    mass = proc.aircraft.empty_mass + proc.aircraft.crew_mass + float(np.mean(proc.fuel))
+    return make_campaign(name, proc.aircraft.manifest(mass), maneuvers, segments, extra)

@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import aircraft as ac
+from .aircraft import CITATION, Aircraft
 from ..data.prefilter import derivative, prefilter
 
 # Sensor rates [Hz] (thesis Table 2) and noise standard deviations (SI units) as left after
-# flight-path reconstruction (alpha: vane noise would turn into alpha_dot noise of ~0.02 rad/s).
+# flight-path reconstruction (alpha: vane noise would turn into alpha_dot noise of ~0.02 rad/s); the
+# pitch-rate gyro's are the aircraft's (:class:`.Aircraft`).
 RATES = {"ahrs": 52.0, "boom": 100.0, "tas": 16.0, "qbar": 8.0, "synchro": 100.0, "gps": 1.0}
-NOISE = {"alpha": 0.0002, "q": 0.0015, "theta": 0.001, "ax": 0.04, "az": 0.06, "V": 0.25,
+NOISE = {"alpha": 0.0002, "theta": 0.001, "ax": 0.04, "az": 0.06, "V": 0.25,
          "qbar": 12.0, "de": 0.0005, "h": 2.0}
 # Residual sensor biases after flight-path reconstruction (the Kalman filter estimates the raw biases)
 BIAS = {"alpha": 0.0005, "q": 0.0002, "ax": 0.005, "az": 0.01}
@@ -46,25 +47,26 @@ def band_noise(rng, n, fs, low, high):
 
 
 def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np.ndarray | None = None,
-            slow_error_stall_gain: float = 1.0) -> dict:
+            slow_error_stall_gain: float = 1.0, aircraft: Aircraft = CITATION) -> dict:
     """One maneuver's measured, pre-filtered, reconstructed columns from its truth histories.
 
     ``truth`` holds 1-D arrays: V, alpha, q, theta, h, de, thrust, qbar, mass, x_cg,
-    CL, CD, Cm, X_ss, X_w (1 where a state is absent), q_dot. ``slow_error`` (n, 3) holds slow
-    C_L, C_D, C_m reconstruction errors at attached flow; they grow by ``slow_error_stall_gain`` per
-    unit of separation and enter through the body-axis forces (C_L, C_D) and the pitch moment.
+    CL, CD, Cm, q_dot and ``states``: the separation states by symbol (X_ss, X_w or X).
+    ``slow_error`` (n, 3) holds slow C_L, C_D, C_m reconstruction errors at attached flow; they grow by
+    ``slow_error_stall_gain`` per unit of separation and enter through the body-axis forces (C_L, C_D)
+    and the pitch moment. ``aircraft`` gives S, cbar and the pitch inertia.
     """
     fs = 1.0 / (t[1] - t[0])
     n = len(t)
     alpha, V = truth["alpha"], truth["V"]
     # body-axis specific forces measured by the AHRS (aerodynamic and thrust forces over mass)
-    qs = truth["qbar"] * ac.S
+    qs = truth["qbar"] * aircraft.S
     cx = -truth["CD"] * np.cos(alpha) + truth["CL"] * np.sin(alpha)
     cz = -truth["CL"] * np.cos(alpha) - truth["CD"] * np.sin(alpha)
     ax_true = (qs * cx + truth["thrust"]) / truth["mass"]
     az_true = qs * cz / truth["mass"]
     # buffet while the flow is separated, boom vibration always
-    separation = np.clip((1 - truth["X_ss"]) + (1 - truth["X_w"]), 0, 2)
+    separation = np.clip(sum(1 - x for x in truth["states"].values()) + np.zeros(n), 0, 2)
     # narrow-band random vibration around each buffet peak (not pure tones: real buffet decorrelates)
     def vibration():
         return sum(w * band_noise(rng, n, fs, f - BUFFET_HALF_WIDTH_HZ, f + BUFFET_HALF_WIDTH_HZ)
@@ -77,7 +79,8 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
 
     raw = {
         "alpha": _sensor(rng, t, alpha + boom, RATES["boom"], NOISE["alpha"], rng.normal(0, BIAS["alpha"])),
-        "q": _sensor(rng, t, truth["q"] + 0.004 * gyro_buffet, RATES["ahrs"], NOISE["q"], rng.normal(0, BIAS["q"])),
+        "q": _sensor(rng, t, truth["q"] + aircraft.gyro_buffet * gyro_buffet, RATES["ahrs"], aircraft.gyro_noise,
+                     rng.normal(0, BIAS["q"])),
         "theta": _sensor(rng, t, truth["theta"], RATES["ahrs"], NOISE["theta"]),
         "ax": _sensor(rng, t, ax_true + 0.25 * BUFFET_AZ * buffet, RATES["ahrs"], NOISE["ax"],
                       rng.normal(0, BIAS["ax"])),
@@ -92,7 +95,7 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     alpha_dot = derivative(f["alpha"], t)
     thrust_model = truth["thrust"] * (1 + rng.normal(0, ENGINE_MODEL_ERROR))
     mass = truth["mass"]
-    qs_m = f["qbar"] * ac.S
+    qs_m = f["qbar"] * aircraft.S
     cx_m = (mass * f["ax"] - thrust_model) / qs_m
     cz_m = mass * f["az"] / qs_m
     a = f["alpha"]
@@ -101,13 +104,16 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
         d_cl, d_cd, cm_error = (slow_error * (1.0 + slow_error_stall_gain * separation)[:, None]).T
         cx_m = cx_m - d_cd * np.cos(a) + d_cl * np.sin(a)
         cz_m = cz_m - d_cl * np.cos(a) - d_cd * np.sin(a)
-    return {
+    columns = {
         "t": t - t[0], "alpha": a, "q": f["q"], "V": f["V"], "de": f["de"],
         "CL": cx_m * np.sin(a) - cz_m * np.cos(a),
         "CD": -cx_m * np.cos(a) - cz_m * np.sin(a),
-        "Cm": ac.inertia(mass) * q_dot / (qs_m * ac.CBAR) + cm_error,
+        "Cm": aircraft.inertia(mass) * q_dot / (qs_m * aircraft.cbar) + cm_error,
         "alpha_dot": alpha_dot, "CT": thrust_model / qs_m, "x_cg": truth["x_cg"],
         "theta": f["theta"], "h": f["h"], "CX": cx_m, "CZ": cz_m,
         "mass": mass, "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
-        "X_ss_true": truth["X_ss"], "X_w_true": truth["X_w"],
+        **{f"{symbol}_true": x for symbol, x in truth["states"].items()},
     }
+    if not aircraft.records_cg:  # flown at a fixed cg nobody recorded
+        del columns["x_cg"]
+    return columns

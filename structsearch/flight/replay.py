@@ -13,13 +13,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import aircraft as ac
+from .aircraft import aircraft_of_campaign
 from .aero import AeroModel
 from ..data.flightdata import FlightData
 from ..data.errors import DataError
 from .simulation import Pilot, simulate
 
 STATES = ("V", "alpha", "q", "theta", "h")
-REQUIRED = STATES + ("t", "de", "CT", "x_cg", "mass", "alpha_dot")
+REQUIRED = STATES + ("t", "de", "CT", "mass", "alpha_dot")
 
 
 @dataclass(frozen=True)
@@ -38,8 +39,10 @@ class Replay:
 
 
 def replay(data: FlightData, model: AeroModel, window_s: float = 10.0) -> list[Replay]:
-    """Replay every maneuver of ``data`` in windows of ``window_s`` seconds."""
-    for col in REQUIRED:
+    """Replay every maneuver of ``data`` in windows of ``window_s`` seconds; the aircraft's S, cbar and
+    pitch inertia Iyy come from the campaign (``data.constants``), x_cg only when the model uses it."""
+    craft = aircraft_of_campaign(data.constants, data.source)
+    for col in REQUIRED + (("x_cg",) if "x_cg" in model.columns else ()):
         if col not in data:
             hint = " (simulated campaigns carry it; add a mass column to real ones)" if col == "mass" else ""
             raise DataError(f"forward simulation needs this column{hint}", source=data.source, column=col)
@@ -60,14 +63,15 @@ def replay(data: FlightData, model: AeroModel, window_s: float = 10.0) -> list[R
         index = np.minimum(starts[None, :] + np.arange(per)[:, None], n - 1)
         col = lambda c: data[c][sl][index]  # noqa: E731
         qbar = 0.5 * ac.density(col("h")) * col("V") ** 2
-        thrust = col("CT") * qbar * ac.S
+        thrust = col("CT") * qbar * craft.S
         pilot = Pilot(np.zeros((per, n_win)), col("de"), np.zeros((per, n_win)), np.zeros(n_win),
                       np.zeros((n_win, 3)), thrust=thrust)
         first = lambda c: data[c][sl][starts]  # noqa: E731
         x0 = model.separation_targets(first("alpha"), first("alpha_dot"))
         y0 = {s: first(s) for s in STATES}
         y0.update({s.symbol: x0[s.symbol] for s in model.unsteady})
-        traj = simulate(model, y0, pilot, col("mass"), first("x_cg"), step)
+        x_cg = first("x_cg") if "x_cg" in data else np.full(n_win, np.nan)
+        traj = simulate(model, y0, pilot, col("mass"), x_cg, step, craft)
         simulated = {}
         for s in STATES:
             flat = getattr(traj, s).T.reshape(-1)[:n]  # window after window

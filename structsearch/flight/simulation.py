@@ -1,4 +1,4 @@
-"""Longitudinal flight simulation of the Citation II with separation states.
+"""Longitudinal flight simulation of an aircraft (:class:`.Aircraft`) with separation states.
 
 States per maneuver: V, alpha, q, theta, h, the pilot's integrator and every
 unsteady separation state. All maneuvers of a batch are integrated together
@@ -16,6 +16,7 @@ from scipy.optimize import least_squares
 
 from . import aircraft as ac
 from .aero import AeroModel
+from .aircraft import CITATION, Aircraft
 
 ELEVATOR_LIMITS = (-0.40, 0.30)  # rad, trailing edge up / down
 
@@ -38,27 +39,28 @@ class Trim:
     residual: float
 
 
-def _forces(model: AeroModel, V, alpha, q, h, de, throttle, mass, x_cg, X: dict, thrust=None):
+def _forces(model: AeroModel, aircraft: Aircraft, V, alpha, q, h, de, throttle, mass, x_cg, X: dict, thrust=None):
     """Coefficients and forces (vectorised over maneuvers); ``thrust`` [N] overrides the throttle."""
     rho = ac.density(h)
     qbar = 0.5 * rho * V * V
     if thrust is None:
-        thrust = throttle * ac.max_thrust(h)
-    ct = thrust / (qbar * ac.S)
-    values = {"alpha": alpha, "q": q, "V": V, "de": de, "CT": ct, "x_cg": x_cg, "cbar": ac.CBAR,
-              "S": ac.S, "b": ac.SPAN}
+        thrust = throttle * aircraft.max_thrust(h)
+    ct = thrust / (qbar * aircraft.S)
+    values = {"alpha": alpha, "q": q, "V": V, "de": de, "CT": ct, "x_cg": x_cg, "cbar": aircraft.cbar,
+              "S": aircraft.S, "b": aircraft.b}
     values.update(X)
     cl, cd, cm = model.coefficients(values)
     return qbar, thrust, ct, cl, cd, cm
 
 
-def _rates(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, X, thrust=None):
-    qbar, thrust, ct, cl, cd, cm = _forces(model, V, alpha, q, h, de, throttle, mass, x_cg, X, thrust)
+def _rates(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg, X, thrust=None):
+    qbar, thrust, ct, cl, cd, cm = _forces(model, aircraft, V, alpha, q, h, de, throttle, mass, x_cg, X, thrust)
     gamma = theta - alpha
-    lift, drag, moment = qbar * ac.S * cl, qbar * ac.S * cd, qbar * ac.S * ac.CBAR * cm
+    qs = qbar * aircraft.S
+    lift, drag, moment = qs * cl, qs * cd, qs * aircraft.cbar * cm
     v_dot = (thrust * np.cos(alpha) - drag - mass * ac.G * np.sin(gamma)) / mass
     alpha_dot = q - (lift + thrust * np.sin(alpha) - mass * ac.G * np.cos(gamma)) / (mass * V)
-    q_dot = moment / ac.inertia(mass)
+    q_dot = moment / aircraft.inertia(mass)
     return v_dot, alpha_dot, q_dot, (qbar, thrust, ct, cl, cd, cm)
 
 
@@ -68,12 +70,12 @@ def algebraic_states(model: AeroModel, alpha, alpha_dot, lagged: dict) -> dict:
     return {s.symbol: (lagged[s.symbol] if s.kind == "U" else targets[s.symbol]) for s in model.states}
 
 
-def trim(model: AeroModel, cond: Condition, gamma: float = 0.0) -> Trim:
+def trim(model: AeroModel, cond: Condition, gamma: float = 0.0, aircraft: Aircraft = CITATION) -> Trim:
     """Steady straight flight (level when gamma = 0): alpha, elevator and throttle."""
     def residual(x):
         alpha, de, throttle = x
         X = model.separation_targets(np.array([alpha]), np.zeros(1))
-        v_dot, alpha_dot, q_dot, _ = _rates(model, np.array([cond.V]), np.array([alpha]), np.zeros(1),
+        v_dot, alpha_dot, q_dot, _ = _rates(model, aircraft, np.array([cond.V]), np.array([alpha]), np.zeros(1),
                                             np.array([alpha + gamma]), np.array([cond.h]), np.array([de]),
                                             np.array([throttle]), cond.mass, cond.x_cg, X)
         return np.array([v_dot[0] / ac.G, alpha_dot[0], q_dot[0]])
@@ -122,19 +124,19 @@ class Trajectory:
     x_cg: np.ndarray
 
 
-def _alpha_dot_with_states(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, lagged, thrust=None):
+def _alpha_dot_with_states(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg, lagged, thrust=None):
     """alpha_dot and the separation states consistently (quasi-steady states depend on alpha_dot)."""
     alpha_dot = np.zeros_like(alpha)
     iterations = 4 if any(s.kind == "Q" for s in model.states) else 1
     for _ in range(iterations):
         X = algebraic_states(model, alpha, alpha_dot, lagged)
-        v_dot, alpha_dot, q_dot, extra = _rates(model, V, alpha, q, theta, h, de, throttle, mass, x_cg, X,
-                                                thrust)
+        v_dot, alpha_dot, q_dot, extra = _rates(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg,
+                                                X, thrust)
     return X, v_dot, alpha_dot, q_dot, extra
 
 
 def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: np.ndarray,
-             dt: float = 0.01) -> Trajectory:
+             dt: float = 0.01, aircraft: Aircraft = CITATION) -> Trajectory:
     """Integrate all maneuvers of a batch for ``len(pilot.alpha_ref)`` steps.
 
     ``y0`` holds V, alpha, q, theta, h (arrays over maneuvers) and the unsteady
@@ -157,7 +159,7 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
         lagged = dict(zip(lagged_names, y[6:]))
         de = elevator(k, y)
         X, v_dot, alpha_dot, q_dot, extra = _alpha_dot_with_states(
-            model, V, alpha, q, theta, h, de, pilot.throttle[k], mass[k], x_cg, lagged,
+            model, aircraft, V, alpha, q, theta, h, de, pilot.throttle[k], mass[k], x_cg, lagged,
             None if pilot.thrust is None else pilot.thrust[k])
         targets = model.separation_targets(alpha, alpha_dot)
         dx = [(targets[s] - lagged[s]) / taus[s] for s in lagged_names]
@@ -179,7 +181,7 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
     lagged = {s: out[:, 6 + i] for i, s in enumerate(lagged_names)}
     de = np.stack([elevator(k, out[k]) for k in range(n_steps)])
     X, v_dot, alpha_dot, q_dot, (qbar, thrust, ct, cl, cd, cm) = _alpha_dot_with_states(
-        model, V, alpha, q, theta, h, de, pilot.throttle, mass, x_cg[None, :], lagged, pilot.thrust)
+        model, aircraft, V, alpha, q, theta, h, de, pilot.throttle, mass, x_cg[None, :], lagged, pilot.thrust)
     t = np.arange(n_steps) * dt
     return Trajectory(t, V, alpha, q, theta, h, de, pilot.throttle, thrust, ct, qbar, alpha_dot, q_dot,
                       v_dot, cl, cd, cm, X, mass, np.broadcast_to(x_cg, V.shape))

@@ -80,7 +80,7 @@ def expand(doc: dict, source: str) -> Grid:
             regs = _blocks(doc, entry.get("blocks", []), where)
             for combo in product(*kinds.values()):
                 st = tuple(zip(kinds.keys(), combo))
-                add(prefix + "/".join(combo), regs, st, lift, note, where, bounds)
+                add(entry.get("prefix", prefix) + "/".join(combo), regs, st, lift, note, where, bounds)
         elif "combinations" in entry:
             combos = entry["combinations"]
             if isinstance(combos, str):

@@ -9,7 +9,8 @@ tables, each one of:
 * an explicit candidate: ``name`` plus ``blocks`` and/or ``regressors``;
 * a series: ``always`` blocks plus each of ``combinations`` (a list, or the name
   of a set), one candidate per combination, numbered on in Roman numerals;
-* a product over separation-state kinds: ``kinds = {ss = ["S", "Q", "U"], ...}``;
+* a product over separation-state kinds: ``kinds = {ss = ["S", "Q", "U"], ...}``, named by the
+  entry's own ``prefix`` (else the grid's) and the kinds joined by "/";
 * a derived candidate: ``from`` another candidate, ``drop`` some regressors.
 
 Any entry may set ``states`` (name -> kind) and ``bounds`` (parameter -> [lo, hi]).
