@@ -309,10 +309,14 @@ def _diagnose(args) -> int:
                    progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr, flush=True))
     js, md = write(doc, out)
     best = next((e for e in doc["effects"] if "error" not in e), None)
+    from .report.diagnosis_doc import unexplained_sentence
     verdict = ("the baseline is at the noise floor" if doc["gap_explained_by_baseline"] else
-               f"best effect {best['name']} closes {best['shrink']:.0%} of the gap" if best else "no effect fitted")
-    print(f"{doc['coefficient']} {doc['baseline']}: {verdict}; explained: {'yes' if doc['explained'] else 'no'}; "
-          f"wrote {js} and {md}")
+               f"best effect {best['name']} closes {best['shrink']:.0%} of the gap" if best and best["shrink"] is not None
+               else "no effect fitted")
+    print(f"{doc['coefficient']} {doc['baseline']}: {verdict}; final model {doc['final_model']}; explained: "
+          f"{'yes' if doc['explained'] else 'no'}; wrote {js} and {md}")
+    for line in filter(None, [unexplained_sentence(doc)] + [f"warning: {w}" for w in doc.get("warnings", [])]):
+        print(line)
     return 0
 
 

@@ -91,6 +91,23 @@ def test_withheld_effect_ranked_first_and_gap_closed(withheld_elevator):
     assert not d["gap_explained_by_baseline"] and d["explained"]
 
 
+def test_final_model_is_the_model_after_the_adopted_effects_and_shrinks_stay_in_0_1(withheld_elevator):
+    d = withheld_elevator
+    adopted = d["rounds"][0]["effects"][0]
+    assert d["final_model"] == adopted["model"] != d["baseline"]
+    mses = [d["mse"]["validation"]] + [r["mse"]["validation"] for r in d["rounds"]]
+    for r in d["rounds"]:
+        for e in r["effects"]:
+            if "error" not in e:
+                mses.append(e["mse_validation_after"])
+                assert e["shrink"] is None or 0.0 <= e["shrink"] <= 1.0, e
+    # the floor is never above a model the diagnosis fitted (interfaces.md 5.4)
+    assert d["noise_floor"] <= min(mses) and d["noise_floor"] <= d["noise_floor_library"]
+    assert d["unexplained"]["noise_floor"] >= d["noise_floor"]
+    # explained: nothing left for the library-free floor either
+    assert d["explained"] and d["unexplained"]["signals"] == []
+
+
 def test_state_level_error_shrinks_with_the_effect(withheld_elevator, campaign):
     sl = withheld_elevator["state_level"]
     assert set(sl["before"]) == {"alpha", "q", "V", "theta"}

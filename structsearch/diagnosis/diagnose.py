@@ -1,22 +1,26 @@
 """Sim-to-real gap diagnosis: where the model misses the data, which unmodelled effect causes it,
-how far the gap shrinks once the effect is added.
+how far the gap shrinks once the effect is added, and what the effect library cannot explain.
 
-Noise floor. The floor is the validation MSE of the *saturated* model: the
-baseline with every applicable effect of the library added at once. It is the
-lowest error the library can reach, so it contains what no model of the states
-can remove, including low-frequency measurement errors (residual sensor bias,
-engine-model error, errors in the regressors) that a spectral estimate would
-count as model error. The high-frequency estimate (residual power above 3 Hz,
-with the same density assumed below) is reported beside it for comparison.
+Noise floor. Two estimates, and the floor is the lower of them (and of every model fitted here, so
+that every reported shrink lies in [0, 1]):
 
-Whether a gap is real: a Wald test (the settings' covariance) of the parameters the
-saturated model adds beyond the baseline; "explained" means that after the best
-effect nothing the library adds is significant at 1 % (or the validation excess
-over the floor is below 1 %).
+* the *saturated* model: the baseline with every applicable effect of the library added at once, the
+  lowest error the library can reach;
+* a *library-free* floor (:mod:`.floor`): a flexible model of the residual as a function of the
+  measured signals, fitted on the training maneuvers and judged on the validation maneuvers. A gap
+  caused by something the library lacks shows here and not in the saturated model.
 
-Per sample, the excess is r_baseline^2 - r_saturated^2; ``where`` gives each
-bin's share of the summed excess (shares of one dimension sum to 1), with a
-bootstrap over validation maneuvers for uncertainty.
+The high-frequency estimate (residual power above 3 Hz, with the same density assumed below) is
+reported beside them for comparison.
+
+"At the floor": the per-maneuver relative MSE excess over the floor model is on average within one
+standard error (or below 1 %). The diagnosis adopts the best effect while it is significant (Wald test,
+the settings' covariance, 1 %) and closes part of the gap; ``explained`` is true only when the model
+after the adopted effects is at the floor. What it leaves is the ``unexplained`` block: its share of
+the gap and the signals it follows.
+
+Per sample, the excess is r_baseline^2 - r_floor^2; ``where`` gives each bin's share of the summed
+excess (shares of one dimension sum to 1), with a bootstrap over validation maneuvers for uncertainty.
 """
 from __future__ import annotations
 
@@ -30,6 +34,7 @@ import numpy as np
 from scipy import stats
 
 from . import effects as fx
+from . import floor as fl
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
@@ -47,13 +52,18 @@ ALPHA_BAND = 0.04          # rad
 FREQ_BANDS = (0.0, 0.5, 1.0, 2.0, 5.0, np.inf)  # Hz
 SPECTRAL_SPLIT_HZ = 3.0
 N_BOOTSTRAP = 200
+# A model is at the floor when its per-maneuver relative excess over the floor model is within one standard
+# error or below this (the ranking's practical tolerance); the error needs this many maneuvers.
+PRACTICAL_TOLERANCE = 0.01
+MIN_MANEUVERS = 3
 
 
 @dataclass
 class Fitted:
     candidate: Candidate
     summary: CandidateResult
-    residual: np.ndarray  # validation residual
+    residual: np.ndarray        # validation residual
+    train_residual: np.ndarray  # training residual
 
 
 def _fit(c: Candidate, train: FlightData, val: FlightData, lift, lift_c, settings, start=None) -> Fitted:
@@ -61,7 +71,8 @@ def _fit(c: Candidate, train: FlightData, val: FlightData, lift, lift_c, setting
     if summary.failed:
         raise DeclarationError(f"fitting {c.name} failed: {summary.error}")
     pred = predict_candidate(c, summary.params, val, lift, lift_c)
-    return Fitted(c, summary, val[c.coefficient] - pred)
+    pred_train = predict_candidate(c, summary.params, train, lift, lift_c)
+    return Fitted(c, summary, val[c.coefficient] - pred, train[c.coefficient] - pred_train)
 
 
 def spectral_floor(residual: np.ndarray, data: FlightData) -> float:
@@ -206,10 +217,27 @@ def _overlap(gap_rows, r_base, r_new, data, x):
     return float(np.mean(scores)), acts
 
 
+def within_noise(residual: np.ndarray, floor_residual: np.ndarray, data: FlightData) -> tuple[bool, float, float]:
+    """Whether a model's validation residual is at the floor within its uncertainty: the per-maneuver relative
+    MSE excess over the floor model is on average within one standard error of zero or below 1 %. Returns
+    (at floor, mean excess, its standard error); the error is NaN with fewer than three maneuvers."""
+    mean, se = _relative_excess(residual, floor_residual, data)
+    bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
+    return bool(mean <= bar), float(mean), float(se)
+
+
+def _shrink(mse_base: float, mse_after: float, floor: float) -> float | None:
+    """Fraction of the gap an effect closes, in [0, 1]; None when there is no gap to close."""
+    gap = mse_base - floor
+    if not gap > 0:
+        return None
+    return float(min(max((mse_base - mse_after) / gap, 0.0), 1.0))
+
+
 def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Settings(n_starts=2, cv_folds=0),
              max_rounds: int = 3, progress: Callable[[str], None] | None = None, seed: int = 0,
              states: bool = True) -> dict:
-    """Diagnose one coefficient; returns the JSON document of interfaces.md section 3 (plus details)."""
+    """Diagnose one coefficient; returns the JSON document of interfaces.md sections 3 and 5.4."""
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     # the diagnosis compares fits on the validation maneuvers itself: no cross-validation folds
@@ -224,10 +252,20 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
     library = fx.applicable(baseline)
     if not library:
         raise DeclarationError(f"no effect of the library applies to {baseline.name} that it does not contain")
+    warnings = []
+    if len(val.names) < MIN_MANEUVERS:
+        warnings.append(f"only {len(val.names)} validation maneuvers: no spread of the per-maneuver excess, so "
+                        "'at the floor' uses the 1 % tolerance alone and standard errors are n/a")
     rounds, current = [], baseline
     base_fit = _fit(current, train, val, lift, lift_c, settings)
     baseline_fit, first_best = base_fit, None
-    first = None
+    say("library-free floor: gradient boosting of the baseline's residual on the measured signals")
+    x_train = _state_for_phases(current, base_fit.summary, lift, train)
+    x_val = _state_for_phases(current, base_fit.summary, lift, val)
+    sig_train, sig_val = fl.signals(train, x_train), fl.signals(val, x_val)
+    flexible = fl.flexible_fit(base_fit.train_residual, train, sig_train, base_fit.residual, sig_val, seed)
+    fitted_mses = [float(np.mean(base_fit.residual ** 2))]
+    floor_models = [(flexible.mse, flexible.residual)]   # (validation MSE, residual) of every floor candidate
     for rnd in range(max_rounds):
         library = fx.applicable(current)
         if not library:
@@ -240,62 +278,90 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
             """Wald p-value of what the saturated model adds beyond the baseline (and effect ``skip``)."""
             names = [p for name, ps in added.items() if name != skip for p in ps]
             return wald_p_value(sat_fit.summary, names)
-        floor = min(float(np.mean(sat_fit.residual ** 2)), float(np.mean(base_fit.residual ** 2)))
         mse_base, se_base = _mse_se(base_fit.residual, val)
-        gap = mse_base - floor
-        p_gap = remaining_p(None)
-        explained_now = bool(not (p_gap < 0.01) or _relative_excess(base_fit.residual, sat_fit.residual, val)[0]
-                             <= 0.01)
-        x = _state_for_phases(current, base_fit.summary, lift, val)
-        where_rows = where(base_fit.residual, sat_fit.residual, val, x, seed=seed)
-        ranked = []
+        candidates = []
         for e in library:
             changed = e.apply(current)
             try:
-                f = _fit(changed, train, val, lift, lift_c, settings, start=base_fit.summary.params)
+                candidates.append((e, changed, _fit(changed, train, val, lift, lift_c, settings,
+                                                     start=base_fit.summary.params)))
             except DeclarationError as exc:
-                ranked.append({"name": e.name, "error": str(exc)})
+                candidates.append((e, changed, str(exc)))
+        # the floor: the lowest validation MSE of the saturated model, the library-free flexible model and
+        # every model fitted here, so that no shrink leaves [0, 1]
+        floors = [(float(np.mean(sat_fit.residual ** 2)), sat_fit.residual, "saturated library model"),
+                  (flexible.mse, flexible.residual, "library-free flexible model of the residual")]
+        floors += [(float(np.mean(f.residual ** 2)), f.residual, f"{c.name}") for _, c, f in candidates
+                   if not isinstance(f, str)]
+        floors.append((mse_base, base_fit.residual, current.name))
+        floor, floor_residual, floor_source = min(floors, key=lambda t: t[0])
+        floor_models.append((floor, floor_residual))
+        fitted_mses += [t[0] for t in floors if t[2] != "library-free flexible model of the residual"]
+        gap = mse_base - floor
+        p_gap = remaining_p(None)
+        explained_now, excess, excess_se = within_noise(base_fit.residual, floor_residual, val)
+        where_rows = where(base_fit.residual, floor_residual, val, x_val, seed=seed)
+        ranked = []
+        for e, changed, f in candidates:
+            if isinstance(f, str):
+                ranked.append({"name": e.name, "error": f})
                 continue
             mse_after, se_after = _mse_se(f.residual, val)
-            # a gap within noise has no meaningful fraction to close
-            shrink = float((mse_base - mse_after) / gap) if gap > 0 and not explained_now else 0.0
             ranked.append({
-                "name": e.name, "shrink": shrink,
+                "name": e.name, "shrink": None if explained_now else _shrink(mse_base, mse_after, floor),
                 "mse_validation_after": mse_after, "mse_train_after": f.summary.mse_train,
                 "p_value": wald_p_value(f.summary, e.new_parameters(current, changed)),
-                **dict(zip(("overlap", "acts_in"), _overlap(where_rows, base_fit.residual, f.residual, val, x))),
-                "at_floor": bool(not (remaining_p(e.name) < 0.01)
-                                 or _relative_excess(f.residual, sat_fit.residual, val)[0] <= 0.01),
+                **dict(zip(("overlap", "acts_in"), _overlap(where_rows, base_fit.residual, f.residual, val, x_val))),
+                "at_floor": within_noise(f.residual, floor_residual, val)[0],
+                "p_value_remaining": remaining_p(e.name),
                 "model": changed.name, "_fit": f, "_se": se_after})
         # significant effects first (Wald test with the settings' covariance), then by shrink
         ok = sorted((r for r in ranked if "error" not in r),
-                    key=lambda r: (not (r["p_value"] < 0.01), -r["shrink"], r["p_value"]))
+                    key=lambda r: (not (r["p_value"] < 0.01), -(r["shrink"] or 0.0), r["p_value"]))
         ranked = ok + [r for r in ranked if "error" in r]
         best = ok[0] if ok else None
-        explained = bool(explained_now or (best is not None and best["at_floor"] and best["shrink"] > 0))
         rows = [{k: v for k, v in r.items() if not k.startswith("_")} for r in ranked]
         rounds.append({"baseline": current.name, "mse": {"train": base_fit.summary.mse_train,
                                                          "validation": mse_base},
-                       "noise_floor": floor, "noise_floor_spectral": spectral_floor(base_fit.residual, val),
-                       "gap": gap, "gap_se": se_base, "where": where_rows, "effects": rows,
-                       "explained": explained, "explained_before": bool(explained_now),
+                       "noise_floor": floor, "floor_source": floor_source,
+                       "noise_floor_spectral": spectral_floor(base_fit.residual, val),
+                       "gap": gap, "gap_se": se_base, "excess_over_floor": excess, "excess_se": excess_se,
+                       "where": where_rows, "effects": rows, "explained_before": explained_now,
                        "gap_p_value": p_gap})
-        if first is None:
-            first = rounds[-1]
         significant = best is not None and np.isfinite(best["p_value"]) and best["p_value"] < 0.01
-        if explained_now or not significant or best["shrink"] <= 0:
+        if explained_now or not significant or not (best["shrink"] or 0.0) > 0:
             break
         if first_best is None:
             first_best = best["_fit"]
         current, base_fit = best["_fit"].candidate, best["_fit"]
-        if explained:
-            break
+    final_fit = base_fit
+    say("library-free floor of the final model's residual")
+    x_train_f = _state_for_phases(current, final_fit.summary, lift, train)
+    x_val_f = _state_for_phases(current, final_fit.summary, lift, val)
+    sig_train_f, sig_val_f = fl.signals(train, x_train_f), fl.signals(val, x_val_f)
+    flexible_final = fl.flexible_fit(final_fit.train_residual, train, sig_train_f, final_fit.residual, sig_val_f,
+                                     seed)
+    library_free = min(flexible.mse, flexible_final.mse)
+    floor_all = min(fitted_mses + [library_free])
+    floor_models.append((flexible_final.mse, flexible_final.residual))
+    floor_residual = min(floor_models, key=lambda t: t[0])[1]
+    explained, final_excess, final_excess_se = within_noise(final_fit.residual, floor_residual, val)
+    first = rounds[0]
+    mse_first = first["mse"]["validation"]
+    for r in rounds:  # one floor for every reported shrink: the lowest of everything fitted
+        r["noise_floor_round"] = r["noise_floor"]
+        for e in r["effects"]:
+            if "error" not in e and e["shrink"] is not None:
+                e["shrink"] = _shrink(r["mse"]["validation"], e["mse_validation_after"], floor_all)
+    unexplained = _unexplained(mse_first, final_fit, flexible_final, library_free, train, val, sig_train_f,
+                               sig_val_f, x_val_f, explained, seed)
     doc = {"coefficient": baseline.coefficient, "baseline": baseline.name,
-           "mse": first["mse"], "noise_floor": first["noise_floor"],
+           "mse": first["mse"], "noise_floor": floor_all, "noise_floor_library": min(fitted_mses),
            "noise_floor_spectral": first["noise_floor_spectral"], "where": first["where"],
-           "effects": first["effects"], "explained": first["explained"],
+           "effects": first["effects"], "explained": explained,
            "gap_explained_by_baseline": first["explained_before"],
-           "rounds": rounds, "final_model": rounds[-1]["baseline"] if rounds else baseline.name}
+           "final_excess_over_floor": final_excess, "final_excess_se": final_excess_se,
+           "rounds": rounds, "final_model": current.name, "unexplained": unexplained, "warnings": warnings}
     if states and first_best is not None:
         say("state level: replaying the validation maneuvers before and after")
         try:
@@ -304,6 +370,39 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
             doc["state_level"] = {"error": str(exc)}
     doc["seconds"] = time.perf_counter() - t0
     return doc
+
+
+def _unexplained(mse_base: float, final: Fitted, flexible: fl.FlexibleFit, library_free: float, train: FlightData,
+                 val: FlightData, sig_train: dict, sig_val: dict, x_val: np.ndarray, explained: bool,
+                 seed: int) -> dict:
+    """The interfaces.md 5.4 ``unexplained`` block: the share of the gap (baseline validation MSE minus the
+    library-free floor) left after the adopted library effects, the signals the rest follows, where it sits."""
+    mse_final = float(np.mean(final.residual ** 2))
+    gap, remaining = mse_base - library_free, mse_final - library_free
+    out = {"noise_floor": library_free, "flexible_iterations": flexible.n_iter,
+           "share": float(min(max(remaining / gap, 0.0), 1.0)) if gap > 0 else None,
+           "signals": [], "where": None, "partial_dependence": []}
+    if gap <= 0:
+        out["note"] = "no gap above the library-free floor"
+    if explained or not remaining > 0:
+        return out
+    fits = fl.ranked_signals(final.train_residual, sig_train, final.residual, sig_val)
+    out["signals"] = [{"name": f.name, "share": float(min(max((mse_final - f.mse) / remaining, 0.0), 1.0))}
+                      for f in fits]
+    rows = where(final.residual, flexible.residual, val, x_val, seed=seed)
+    out["where"] = {dim: max((r for r in rows if r["dimension"] == dim), key=lambda r: r["share"])["bin"]
+                    for dim in ("phase", "alpha_band")}
+    for f in fits[:3]:
+        v = sig_val[f.name]
+        edges = np.unique(np.quantile(v, np.linspace(0, 1, fl.SIGNAL_BINS + 1)))
+        idx = np.clip(np.searchsorted(edges, v, side="right") - 1, 0, max(len(edges) - 2, 0))
+        counts = np.bincount(idx, minlength=max(len(edges) - 1, 1))
+        keep = counts > 0
+        out["partial_dependence"].append({
+            "name": f.name, "x": f.centres.tolist(), "fitted": f.values.tolist(),
+            "validation_x": (np.bincount(idx, weights=v)[keep] / counts[keep]).tolist(),
+            "validation_mean": (np.bincount(idx, weights=final.residual)[keep] / counts[keep]).tolist()})
+    return out
 
 
 def _state_for_phases(c: Candidate, summary: CandidateResult, lift: CandidateResult | None,
@@ -369,6 +468,6 @@ def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, lift_c,
         out[label] = {s: float(np.sqrt(sum(r.rms[s] ** 2 * len(r.t) for r in runs) / n))
                       for s in ("alpha", "q", "V", "theta")}
     out["window_s"] = window_s
-    out["reduction"] = {s: 1 - out["after"][s] / out["before"][s] if out["before"][s] > 0 else 0.0
+    out["reduction"] = {s: 1 - out["after"][s] / out["before"][s] if out["before"][s] > 0 else float("nan")
                         for s in ("alpha", "q", "V", "theta")}
     return out

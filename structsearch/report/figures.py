@@ -175,6 +175,23 @@ def gap(before: np.ndarray, after: np.ndarray, maneuvers, bands, labels):
     return fig
 
 
+def partial_dependence(curves: list[dict], coefficient: str):
+    """The residual the library leaves against each of its top signals: validation means per bin (points) and
+    the smooth function fitted on the training maneuvers (line)."""
+    fig, axes = plt.subplots(1, len(curves), figsize=(4.2 * len(curves), 3.4), squeeze=False)
+    for ax, c in zip(axes[0], curves):
+        ax.plot(c["validation_x"], c["validation_mean"], "o", color=COLOURS["measured"], ms=4,
+                label="validation: mean residual per bin")
+        ax.plot(c["x"], c["fitted"], color=COLOURS["model"], lw=1.5, label="function fitted on training")
+        ax.axhline(0.0, color="0.6", lw=0.8)
+        ax.set_xlabel(c["name"])
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel(f"{coefficient} residual [-]")
+    axes[0][0].legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
 def replay_traces(r, states=("alpha", "q", "V", "theta")):
     units = {"alpha": "[rad]", "q": "[rad/s]", "V": "[m/s]", "theta": "[rad]"}
     fig, axes = plt.subplots(len(states), 1, figsize=(10, 2.1 * len(states)), sharex=True)

@@ -24,6 +24,7 @@ from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..data.atomic import write_text
 from .tables import parameter_table, render_table
+from .diagnosis_doc import unexplained_sentence
 from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_MODEL_NAMES
 from ..search.runner import Settings
 
@@ -202,9 +203,10 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
         best = _best_effect(diagnosis)
         if best is not None:
             g = rd.with_effect(ms, diagnose_coefficient, best, campaign, out, settings)
+            shrink = next(e["shrink"] for e in diagnosis["effects"] if e["name"] == best)
             verdict = ("the baseline is at the noise floor, so little changes"
-                       if diagnosis["gap_explained_by_baseline"] else f"the gap shrinks by "
-                       f"{next(e['shrink'] for e in diagnosis['effects'] if e['name'] == best):.0%}")
+                       if diagnosis["gap_explained_by_baseline"] or shrink is None
+                       else f"the gap shrinks by {shrink:.0%}")
             emit(fg.gap(g["before"], g["after"], g["maneuvers"], g["bands"],
                         (f"before: {g['baseline']} (MSE {g['mse_before']:.3g})",
                          f"after adding {best}: {g['model']} (MSE {g['mse_after']:.3g})")),
@@ -212,6 +214,13 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
                  f"Validation MSE of {diagnose_coefficient} per maneuver and alpha band ({rd.ALPHA_BAND} rad) before "
                  f"and after the best effect of the library, {best}; noise floor {diagnosis['noise_floor']:.3g}; "
                  f"{verdict}. Empty cells: the maneuver never flew that band.")
+        curves = (diagnosis.get("unexplained") or {}).get("partial_dependence") or []
+        if curves and not diagnosis["explained"]:
+            emit(fg.partial_dependence(curves, diagnose_coefficient), "unexplained_signals.png",
+                 "What the library does not explain",
+                 f"{unexplained_sentence(diagnosis)} Residual of {diagnosis['final_model']} against the signals it "
+                 "follows best: a smooth function of each signal alone, fitted on the training maneuvers (line), "
+                 "and the validation maneuvers' mean residual per bin (points).")
     try:
         from ..flight.replay import replay
         runs = replay(campaign.data.select([hyst["index"]]), ms.aero, window_s=5.0)
@@ -226,6 +235,10 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
     write_text(out / "report.html", page)
     return {"html": out / "report.html", "figures": [fig_dir / f.file for f in written], "notes": notes,
             "seconds": time.perf_counter() - t0}
+
+
+def _or_nan(x):
+    return float("nan") if x is None else x
 
 
 def _image(path: Path) -> str:
@@ -278,10 +291,11 @@ def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, di
     if diagnosis is not None:
         parts.append(f"<h2>Diagnosis of {html.escape(diagnosis['baseline'])}</h2>"
                      f"<p>Validation MSE {diagnosis['mse']['validation']:.4g}, noise floor "
-                     f"{diagnosis['noise_floor']:.4g}; explained: {'yes' if diagnosis['explained'] else 'no'}.</p>")
-        rows = [[e["name"], e.get("shrink", float("nan")), e.get("p_value", float("nan")),
-                 e.get("acts_in", "-"), e.get("error", "")] for e in diagnosis["effects"]]
-        parts.append(render_table(rows, ["effect", "shrink", "p-value", "acts in", "error"], "html",
+                     f"{diagnosis['noise_floor']:.4g}; final model {html.escape(diagnosis['final_model'])}; explained: "
+                     f"{'yes' if diagnosis['explained'] else 'no'}. {html.escape(unexplained_sentence(diagnosis))}</p>")
+        rows = [[e["name"], _or_nan(e.get("shrink")), _or_nan(e.get("p_value")),
+                 (e.get("acts_in") or {}).get("phase", "-"), e.get("error", "")] for e in diagnosis["effects"]]
+        parts.append(render_table(rows, ["effect", "shrink", "p-value", "acts most in (phase)", "error"], "html",
                                   floatfmt=".3g"))
     tables = [(grid, _ranking_table(out, grid)) for grid in ("separation", "lift", "drag", "pitch")]
     if any(t for _, t in tables):
