@@ -67,7 +67,7 @@ def _simulate(args) -> int:
     from .data.campaign import write_campaign
     from .flight.flighttest import build_campaign
     campaign = build_campaign(seed=args.seed, withhold=args.withhold or (), scale=args.scale,
-                              extras=args.extras, aircraft=args.aircraft)
+                              extras=args.extras, aircraft=args.aircraft, anomaly=args.anomaly)
     out = write_campaign(campaign, Path(args.out), fmt=args.format)
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
@@ -246,12 +246,21 @@ def _demo(args) -> int:
           f"({t_sim:.0f} s); search of {sum(len(r) for r in result.grids.values())} candidates on {jobs} "
           f"process(es): {total - t_sim:.0f} s; total {total:.0f} s")
     print(f"tables and ranking.csv in {out}")
+    from .diagnosis.story import van_ingen_story
+    from .report.diagnosis_doc import write_story
+    t1 = time.perf_counter()
+    story = van_ingen_story(campaign, progress=None if args.quiet else stderr_progress, n_jobs=jobs)
+    _, story_md = write_story(story, out, f"structsearch demo --out {out}")
+    print(f"the story, Van Ingen's simulator model against the flight data ({time.perf_counter() - t1:.0f} s; "
+          f"{story_md}):")
+    for line in story["lines"]:
+        print(f"  {line}")
     from .report import figures
     if figures.plt is None:
         print("no figures: the report needs matplotlib (pip install 'structsearch[figures]')")
         return 0
     from .report.page import build
-    _print_report(build(campaign, out, settings=Settings(n_starts=args.starts), n_jobs=jobs,
+    _print_report(build(campaign, out, settings=Settings(n_starts=args.starts), n_jobs=jobs, story=story["lines"],
                         progress=None if args.quiet else stderr_progress))
     return 0
 
@@ -285,14 +294,22 @@ def _diagnose(args) -> int:
     if args.benchmark:
         from .diagnosis import withheld
         res = withheld.run(seed=args.seed, scale=args.scale, null_seeds=tuple(range(args.null_seeds)),
+                           n_jobs=_jobs(args),
                            progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr,
                                                                            flush=True))
+        command = " ".join(["structsearch diagnose --benchmark --out", str(out)]
+                           + ([f"--scale {args.scale:g}"] if args.scale != 1.0 else [])
+                           + ([f"--seed {args.seed}"] if args.seed else [])
+                           + ([f"--null-seeds {args.null_seeds}"] if args.null_seeds != 3 else []))
         write_text(out / "withheld_benchmark.json", json.dumps(res, indent=2, default=float))
-        write_text(out / "withheld_benchmark.md", withheld.markdown(res))
+        write_text(out / "withheld_benchmark.md", withheld.markdown(res, command))
         hits = sum(r["ranked_first"] for r in res["rows"])
-        alarms = sum(not n["explained"] for n in res["null"])
-        print(f"withheld effect ranked first {hits}/{len(res['rows'])}; false alarms {alarms}/{len(res['null'])}; "
-              f"wrote {out / 'withheld_benchmark.md'}")
+        outside = res["outside"]
+        good = sum(r["located"] and not r["false_claim"] and r["signal_first"] for r in outside)
+        print(f"withheld effect ranked first {hits}/{len(res['rows'])}; out-of-library effects located, not falsely "
+              f"explained and their signal first {good}/{len(outside)}; false alarms "
+              f"{sum(n['alarm_combined'] for n in res['null'])}/{len(res['null'])} (Wald test alone "
+              f"{sum(n['alarm_test'] for n in res['null'])}); wrote {out / 'withheld_benchmark.md'}")
         return 0
     if not args.data or not args.model:
         raise_error("diagnose needs --data and --model (or --benchmark)")
@@ -305,7 +322,7 @@ def _diagnose(args) -> int:
     baseline = resolve_candidate(args.model, args.coefficient)
     settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
     check_bounds(settings.bounds, [baseline])
-    doc = diagnose(campaign, baseline, settings=settings,
+    doc = diagnose(campaign, baseline, settings=settings, n_jobs=_jobs(args),
                    progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr, flush=True))
     js, md = write(doc, out)
     best = next((e for e in doc["effects"] if "error" not in e), None)
@@ -407,6 +424,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.set_defaults(func=_bench)
 
     from .flight.aero import TRUTHS, WITHHOLDABLE
+    from .flight.anomalies import ANOMALIES
     s = sub.add_parser("simulate", help="simulate a flight-test campaign (thesis Table 4) of the Citation II or the "
                                         "twin-jet transport")
     s.add_argument("--aircraft", choices=tuple(TRUTHS), default="citation",
@@ -416,6 +434,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=_non_negative, default=0, help="random seed (same seed, same campaign bit for bit)")
     s.add_argument("--withhold", action="append", choices=sorted(WITHHOLDABLE), metavar="EFFECT",
                    help="remove an effect from the truth model (repeatable): " + ", ".join(WITHHOLDABLE))
+    s.add_argument("--anomaly", choices=sorted(ANOMALIES), metavar="NAME",
+                   help="add an effect outside the diagnosis' library to the Citation's truth: " + ", ".join(ANOMALIES))
     s.add_argument("--scale", type=_fraction, default=1.0,
                    help="fraction of the maneuvers of each kind to fly (small test campaigns)")
     s.add_argument("--extras", action="store_true", help="add pullups, pushovers and phugoids")
@@ -447,6 +467,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the withheld-effect benchmark on simulated campaigns instead")
     g.add_argument("--scale", type=_fraction, default=1.0, help="benchmark campaign scale")
     g.add_argument("--null-seeds", type=_non_negative, default=3, help="benchmark: seeds of the null case")
+    g.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
     g.add_argument("--quiet", action="store_true")
     g.set_defaults(func=_diagnose)
 

@@ -192,3 +192,20 @@ def test_cli_diagnose(campaign, tmp_path):
     bad = run_cli("diagnose", "--data", str(tmp_path / "c"), "--model", "CD-XI", "--coefficient", "CL",
                   "--out", str(tmp_path / "o"))
     assert bad.returncode == 2 and "models CD, not CL" in bad.stderr
+
+
+def test_a_gap_outside_the_library_is_not_explained_and_follows_its_signal():
+    """Issue 14: lift slopes that grow with airspeed (no library term uses V). The truth structure CL-VI is
+    not at the library-free floor even after what the library adds, and the remainder follows V."""
+    camp = build_campaign(seed=5, scale=0.1, slow_errors=0.0, anomaly="compressibility")
+    d = diagnose(camp, find_candidate("CL-VI"), settings=SETTINGS, max_rounds=2, states=False)
+    assert not d["gap_explained_by_baseline"] and not d["explained"]
+    u = d["unexplained"]
+    assert u["signals"][0]["name"] == "V" and u["signals"][0]["share"] > 0.3
+    assert 0.0 < u["share"] <= 1.0 and u["noise_floor"] >= d["noise_floor"]
+    assert all(0.0 <= e["shrink"] <= 1.0 for r in d["rounds"] for e in r["effects"] if e.get("shrink") is not None)
+    assert u["partial_dependence"][0]["name"] == "V"
+    # the same campaign without the anomaly: the truth structure is at the floor, nothing unexplained
+    clean = diagnose(build_campaign(seed=5, scale=0.1, slow_errors=0.0), find_candidate("CL-VI"),
+                     settings=SETTINGS, max_rounds=1, states=False)
+    assert clean["explained"] and clean["unexplained"]["signals"] == []

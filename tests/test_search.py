@@ -228,8 +228,13 @@ def test_cli_demo_small(tmp_path):
     for grid in ("separation", "lift", "drag", "pitch"):
         assert f"{grid}: " in proc.stdout
     assert (tmp_path / "ranking.csv").exists() and (tmp_path / "campaign" / "campaign.toml").exists()
-    # the demo ends with the report (matplotlib is part of the test extra)
+    # the demo ends with the report (matplotlib is part of the test extra), which opens with the story of the
+    # Van Ingen model against the flight data, also printed and written to story.md
     assert (tmp_path / "report.html").exists() and (tmp_path / "figures" / "lift_static.png").exists()
+    assert "the Van Ingen model CL-I misses the flight data" in proc.stdout
+    assert "the Van Ingen model Cm-I" in (tmp_path / "story.md").read_text()
+    page = (tmp_path / "report.html").read_text()
+    assert page.index("From the Van Ingen simulator model to the final model") < page.index("<h2>Figures</h2>")
 
 
 def test_unknown_model_name_is_one_line_error(tiny):

@@ -75,6 +75,22 @@ def _fit(c: Candidate, train: FlightData, val: FlightData, lift, lift_c, setting
     return Fitted(c, summary, val[c.coefficient] - pred, train[c.coefficient] - pred_train)
 
 
+def _fit_or_error(c: Candidate, train, val, lift, lift_c, settings, start) -> Fitted | str:
+    try:
+        return _fit(c, train, val, lift, lift_c, settings, start=start)
+    except DeclarationError as exc:
+        return str(exc)
+
+
+def _fit_all(models, train, val, lift, lift_c, settings, start, n_jobs: int) -> list[Fitted | str]:
+    """:func:`_fit` of every model (the error text where one fails), in order, on ``n_jobs`` processes."""
+    if n_jobs == 1 or len(models) < 2:
+        return [_fit_or_error(c, train, val, lift, lift_c, settings, start) for c in models]
+    from joblib import Parallel, delayed
+    return Parallel(n_jobs=n_jobs)(delayed(_fit_or_error)(c, train, val, lift, lift_c, settings, start)
+                                   for c in models)
+
+
 def spectral_floor(residual: np.ndarray, data: FlightData) -> float:
     """Spectral noise estimate: residual power above 3 Hz, and the same density below."""
     total, n = 0.0, 0
@@ -133,14 +149,16 @@ def where(r_base, r_sat, data: FlightData, x: np.ndarray, seed: int = 0) -> list
     rng = np.random.default_rng(seed)
     slices = data.segment_slices()
     out = []
+    maneuver_of = np.concatenate([np.full(sl.stop - sl.start, i) for i, sl in enumerate(slices)])
     for dim, lab in labels.items():
         keys, shares = _shares(excess, lab)
+        # excess summed per (maneuver, bin): a bootstrap over maneuvers adds rows of this table
+        code = np.searchsorted(np.array(keys, dtype=object), lab)
+        table = np.zeros((len(slices), len(keys)))
+        np.add.at(table, (maneuver_of, code), excess)
         boot = []
         for _ in range(N_BOOTSTRAP if dim != "maneuver" else 0):
-            pick = rng.integers(0, len(slices), len(slices))
-            idx = np.concatenate([np.arange(slices[i].start, slices[i].stop) for i in pick])
-            sub = {k: excess[idx][lab[idx] == k].sum() for k in keys}
-            pos = np.clip(np.array([sub[k] for k in keys]), 0, None)
+            pos = np.clip(table[rng.integers(0, len(slices), len(slices))].sum(axis=0), 0, None)
             boot.append(pos / pos.sum() if pos.sum() > 0 else np.zeros(len(keys)))
         spread = np.std(boot, axis=0) if boot else np.full(len(keys), np.nan)
         for k, s, sd in zip(keys, shares, spread):
@@ -236,8 +254,9 @@ def _shrink(mse_base: float, mse_after: float, floor: float) -> float | None:
 
 def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Settings(n_starts=2, cv_folds=0),
              max_rounds: int = 3, progress: Callable[[str], None] | None = None, seed: int = 0,
-             states: bool = True) -> dict:
-    """Diagnose one coefficient; returns the JSON document of interfaces.md sections 3 and 5.4."""
+             states: bool = True, n_jobs: int = 1) -> dict:
+    """Diagnose one coefficient; returns the JSON document of interfaces.md sections 3 and 5.4. The fits of
+    each round's effects run on ``n_jobs`` processes."""
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     # the diagnosis compares fits on the validation maneuvers itself: no cross-validation folds
@@ -279,14 +298,9 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
             names = [p for name, ps in added.items() if name != skip for p in ps]
             return wald_p_value(sat_fit.summary, names)
         mse_base, se_base = _mse_se(base_fit.residual, val)
-        candidates = []
-        for e in library:
-            changed = e.apply(current)
-            try:
-                candidates.append((e, changed, _fit(changed, train, val, lift, lift_c, settings,
-                                                     start=base_fit.summary.params)))
-            except DeclarationError as exc:
-                candidates.append((e, changed, str(exc)))
+        changed_models = [e.apply(current) for e in library]
+        fits = _fit_all(changed_models, train, val, lift, lift_c, settings, base_fit.summary.params, n_jobs)
+        candidates = list(zip(library, changed_models, fits))
         # the floor: the lowest validation MSE of the saturated model, the library-free flexible model and
         # every model fitted here, so that no shrink leaves [0, 1]
         floors = [(float(np.mean(sat_fit.residual ** 2)), sat_fit.residual, "saturated library model"),

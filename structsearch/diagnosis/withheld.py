@@ -1,25 +1,36 @@
-"""Withheld-effect benchmark: diagnose the final model minus one effect on data that contain it.
+"""Diagnosis benchmark: withheld library effects, out-of-library effects, and the null case, each scored
+against the truth itself, never against the diagnosis' own fits.
 
-For every effect of the final model that the candidate system can express, the
-baseline is the final model of the effect's coefficient without it; the
-campaign is the default one (its truth contains every effect). Scores: is the
-withheld effect ranked first; how close is its reported shrink to the shrink of
-refitting the true structure; which bins hold most of the gap. The null case
-diagnoses the final models themselves on several seeds: the gap must be
-explained.
+* Withheld effects: for every effect of the final model that the candidate system can express, the
+  baseline is the final model of its coefficient without it, on the default campaign (whose truth
+  contains every effect). Is the effect ranked first, does it close at least half of the gap, and is
+  the gap where the truth says the effect acts?
+* Out-of-library effects (:mod:`structsearch.flight.anomalies`): campaigns whose truth contains
+  something no library effect expresses; the baseline is the final model of the coefficient it affects.
+  Is the gap located where the truth differs, is it not claimed explained by a library effect that
+  closes less than half of it, and is the responsible signal ranked first among what remains?
+* Null case: the final models themselves on several seeds. A false alarm by the Wald test alone (the
+  saturated model's additions significant at 1 %) and by the combined rule (not at the floor).
+
+"Where the truth differs" is the phase and alpha band holding the largest share of the squared
+difference between the truth with and without the effect, evaluated on the flown validation states
+(:func:`structsearch.flight.anomalies.truth_difference`), with the phases from the truth's own stall-strip
+state.
 """
 from __future__ import annotations
 
 import time
 from typing import Callable
 
-from .diagnose import diagnose
-from ..flight.flighttest import build_campaign
-from ..search.runner import Settings
-from ..search.candidates import Candidate
-from ..search.specs import find_candidate
-from ..flight.reference import FINAL_MODEL_NAMES
+import numpy as np
 
+from .diagnose import _bins, _shares, diagnose
+from ..flight.anomalies import ANOMALIES, truth_difference
+from ..flight.flighttest import build_campaign
+from ..flight.reference import FINAL_MODEL_NAMES
+from ..search.candidates import Candidate
+from ..search.runner import Settings
+from ..search.specs import find_candidate
 
 # effect -> (coefficient, regressors to drop, state kind changes)
 WITHHELD = {
@@ -35,6 +46,8 @@ WITHHELD = {
 }
 NOT_EXPRESSIBLE = {"separation_delay": "the final X_ss is unsteady (tau1 and tau2); a lag without delay is not one "
                                        "of the S/Q/U kinds, so 'final model minus tau2' has no candidate"}
+# A library effect "explains" a gap only when it closes at least this share of it.
+HALF = 0.5
 
 
 def baseline_without(effect: str) -> Candidate:
@@ -47,80 +60,164 @@ def baseline_without(effect: str) -> Candidate:
                      f"{final.name} without {effect}", bounds)
 
 
-def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None,
-        progress: Callable[[str], None] | None = None, settings: Settings = Settings(n_starts=2, cv_folds=0)) -> dict:
+def truth_location(campaign, effect: str) -> dict:
+    """Where the truth with and without ``effect`` differ most on the validation maneuvers: the phase and
+    alpha band holding the largest share of the squared difference, and its mean square."""
+    delta = truth_difference(campaign, effect)
+    mask = np.concatenate([np.full(sl.stop - sl.start, m.split == "validation")
+                           for m, sl in zip(campaign.maneuvers, campaign.data.segment_slices())])
+    val = campaign.split("validation")
+    labels = _bins(val, val["X_ss_true"])
+    out = {"truth_mse": float(np.mean(delta[mask] ** 2))}
+    for dim in ("phase", "alpha_band"):
+        keys, shares = _shares(delta[mask] ** 2, labels[dim])
+        out[dim] = str(keys[int(np.argmax(shares))])
+        out[f"{dim}_share"] = float(np.max(shares))
+    return out
+
+
+def _top(doc: dict) -> dict:
+    return {dim: max((r for r in doc["where"] if r["dimension"] == dim), key=lambda r: r["share"])["bin"]
+            for dim in ("phase", "alpha_band")}
+
+
+def _closed_by_library(doc: dict) -> float:
+    """Fraction of the first round's gap the adopted library effects close together (NaN: no gap)."""
+    gap = doc["mse"]["validation"] - doc["noise_floor"]
+    last = doc["rounds"][-1]
+    final_mse = last["mse"]["validation"] if last["baseline"] == doc["final_model"] else next(
+        e["mse_validation_after"] for e in last["effects"] if e.get("model") == doc["final_model"])
+    return float((doc["mse"]["validation"] - final_mse) / gap) if gap > 0 else float("nan")
+
+
+def withheld_row(campaign, effect: str, settings: Settings, n_jobs: int) -> dict:
+    base = baseline_without(effect)
+    doc = diagnose(campaign, base, settings=settings, max_rounds=1, n_jobs=n_jobs)
+    first = doc["effects"][0]
+    reported = next((e for e in doc["effects"] if e["name"] == effect), None)
+    truth = truth_location(campaign, effect)
+    top = _top(doc)
+    return {"effect": effect, "coefficient": base.coefficient, "baseline": base.name,
+            "ranked_first": first["name"] == effect, "first": first["name"],
+            "shrink": reported["shrink"] if reported else None,
+            "closes_half": bool(reported and reported["shrink"] is not None and reported["shrink"] >= HALF),
+            "top_phase": top["phase"], "top_alpha_band": top["alpha_band"],
+            "truth_phase": truth["phase"], "truth_alpha_band": truth["alpha_band"], "truth_mse": truth["truth_mse"],
+            "located": top["phase"] == truth["phase"],
+            "gap_p_value": doc["rounds"][0]["gap_p_value"], "explained": doc["explained"],
+            "state_alpha_rms": (doc.get("state_level") or {}).get("before", {}).get("alpha"),
+            "state_alpha_rms_after": (doc.get("state_level") or {}).get("after", {}).get("alpha"),
+            "seconds": doc["seconds"]}
+
+
+def anomaly_row(name: str, seed: int, scale: float, settings: Settings, n_jobs: int) -> dict:
+    anomaly = ANOMALIES[name]
+    campaign = build_campaign(seed=seed, scale=scale, anomaly=name)
+    base = find_candidate(FINAL_MODEL_NAMES[anomaly.coefficient])
+    doc = diagnose(campaign, base, settings=settings, max_rounds=2, states=False, n_jobs=n_jobs)
+    truth = truth_location(campaign, name)
+    top = _top(doc)
+    closed = _closed_by_library(doc)
+    signals = (doc.get("unexplained") or {}).get("signals") or []
+    detected = not doc["gap_explained_by_baseline"]
+    false_claim = bool(doc["explained"] and doc["final_model"] != base.name and not closed >= HALF)
+    return {"anomaly": name, "coefficient": anomaly.coefficient, "baseline": base.name,
+            "description": anomaly.description, "signal": anomaly.signal,
+            "detected": detected, "top_phase": top["phase"], "top_alpha_band": top["alpha_band"],
+            "truth_phase": truth["phase"], "truth_alpha_band": truth["alpha_band"],
+            "truth_mse": truth["truth_mse"],
+            "located": bool(detected and top["phase"] == truth["phase"]),
+            "adopted": doc["final_model"], "closed_by_library": closed, "explained": doc["explained"],
+            "false_claim": false_claim,
+            "unexplained_share": (doc.get("unexplained") or {}).get("share"),
+            "first_signal": signals[0]["name"] if signals else None,
+            "signal_first": bool(signals and signals[0]["name"] == anomaly.signal),
+            "gap_p_value": doc["rounds"][0]["gap_p_value"], "seconds": doc["seconds"]}
+
+
+def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, anomalies=None,
+        progress: Callable[[str], None] | None = None, settings: Settings = Settings(n_starts=2, cv_folds=0),
+        n_jobs: int = 1) -> dict:
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     campaign = build_campaign(seed=seed, scale=scale)
     rows = []
-    for effect in effects or WITHHELD:
+    for effect in WITHHELD if effects is None else effects:
         say(f"withheld {effect}")
-        base = baseline_without(effect)
-        doc = diagnose(campaign, base, settings=settings, max_rounds=1)
-        first = doc["effects"][0]
-        reported = next((e for e in doc["effects"] if e["name"] == effect), None)
-        from .diagnose import _fit  # the reference: refit the true structure
-        from ..search.runner import fit_lift_model
-        truth = find_candidate(FINAL_MODEL_NAMES[base.coefficient])
-        train, val = campaign.split("train"), campaign.split("validation")
-        lift, lift_c = fit_lift_model(truth, train, val, settings)
-        ref = _fit(truth, train, val, lift, lift_c, settings)
-        mse_ref = float((ref.residual ** 2).mean())
-        gap = doc["mse"]["validation"] - doc["noise_floor"]
-        ref_shrink = (doc["mse"]["validation"] - mse_ref) / gap if gap > 0 else 0.0
-        top = {dim: max((r for r in doc["where"] if r["dimension"] == dim), key=lambda r: r["share"])["bin"]
-               for dim in ("phase", "alpha_band")}
-        acts = reported.get("acts_in", {}) if reported else {}
-        rows.append({"effect": effect, "coefficient": base.coefficient, "baseline": base.name,
-                     "acts_in_phase": acts.get("phase"), "where_matches": acts.get("phase") == top["phase"],
-                     "ranked_first": first["name"] == effect, "first": first["name"],
-                     "shrink": reported["shrink"] if reported else None, "reference_shrink": ref_shrink,
-                     "shrink_error": abs(reported["shrink"] - ref_shrink) if reported else None,
-                     "gap_p_value": doc["rounds"][0]["gap_p_value"], "top_phase": top["phase"],
-                     "top_alpha_band": top["alpha_band"], "explained": doc["explained"],
-                     "state_alpha_rms": (doc.get("state_level") or {}).get("before", {}).get("alpha"),
-                     "state_alpha_rms_after": (doc.get("state_level") or {}).get("after", {}).get("alpha"),
-                     "seconds": doc["seconds"]})
+        rows.append(withheld_row(campaign, effect, settings, n_jobs))
+    outside = []
+    for name in ANOMALIES if anomalies is None else anomalies:
+        say(f"out of the library: {name}")
+        outside.append(anomaly_row(name, seed, scale, settings, n_jobs))
     null = []
     for s in null_seeds:
         camp = campaign if s == seed else build_campaign(seed=s, scale=scale)
         for coef, name in FINAL_MODEL_NAMES.items():
             say(f"null case seed {s} {name}")
-            doc = diagnose(camp, find_candidate(name), settings=settings, max_rounds=1, states=False)
-            null.append({"seed": s, "model": name, "explained": doc["explained"],
-                         "gap_p_value": doc["rounds"][0]["gap_p_value"], "seconds": doc["seconds"]})
-    return {"seed": seed, "scale": scale, "rows": rows, "null": null, "not_expressible": NOT_EXPRESSIBLE,
-            "seconds": time.perf_counter() - t0}
+            doc = diagnose(camp, find_candidate(name), settings=settings, max_rounds=1, states=False, n_jobs=n_jobs)
+            p = doc["rounds"][0]["gap_p_value"]
+            null.append({"seed": s, "model": name, "explained": doc["explained"], "gap_p_value": p,
+                         "alarm_test": bool(p < 0.01), "alarm_combined": not doc["explained"],
+                         "seconds": doc["seconds"]})
+    return {"seed": seed, "scale": scale, "rows": rows, "outside": outside, "null": null,
+            "not_expressible": NOT_EXPRESSIBLE, "seconds": time.perf_counter() - t0}
 
 
-def markdown(res: dict) -> str:
+def _yes(flag) -> str:
+    return "yes" if flag else "NO"
+
+
+def markdown(res: dict, command: str = "structsearch diagnose --benchmark --out results") -> str:
     from tabulate import tabulate
-    body = [[r["effect"], r["coefficient"], r["first"], "yes" if r["ranked_first"] else "NO",
-             "-" if r["shrink"] is None else f"{r['shrink']:.2f}", f"{r['reference_shrink']:.2f}",
-             "-" if r["shrink_error"] is None else f"{r['shrink_error']:.2f}", r["top_phase"],
-             r.get("acts_in_phase") or "-", r["top_alpha_band"],
-             "-" if r.get("state_alpha_rms") is None else
-             f"{r['state_alpha_rms']:.4f} -> {r['state_alpha_rms_after']:.4f}",
-             f"{r['seconds']:.0f}"] for r in res["rows"]]
-    hits = sum(r["ranked_first"] for r in res["rows"])
-    close = sum(r["shrink_error"] is not None and r["shrink_error"] <= 0.1 for r in res["rows"])
-    located = sum(bool(r.get("where_matches")) for r in res["rows"])
-    alarms = sum(not n["explained"] for n in res["null"])
-    lines = ["# Withheld-effect benchmark", "",
-             f"Default simulated campaign (seed {res['seed']}, scale {res['scale']}); baseline = final model of the "
-             f"effect's coefficient without it.", "",
-             tabulate(body, headers=["withheld effect", "coef.", "ranked first", "hit", "reported shrink",
-                                     "reference shrink", "|difference|", "top phase of the gap",
-                                     "phase where the effect acts", "top alpha band",
-                                     "replayed alpha RMS [rad] before -> after", "s"],
-                      tablefmt="github"), "",
-             f"Withheld effect ranked first: **{hits}/{len(res['rows'])}**; reported shrink within 0.1 of the "
-             f"reference: **{close}/{len(res['rows'])}**; the top phase of the gap is the phase where the "
-             f"withheld effect improves the fit most: **{located}/{len(res['rows'])}**.", "",
-             "Not benchmarked: " + "; ".join(f"{k}: {v}" for k, v in res["not_expressible"].items()) + ".", "",
-             "## Null case (nothing withheld)", "",
-             tabulate([[n["seed"], n["model"], "yes" if n["explained"] else "NO (false alarm)",
-                        f"{n['gap_p_value']:.2g}"] for n in res["null"]],
-                      headers=["seed", "model", "explained", "gap p-value"], tablefmt="github"), "",
-             f"False alarms: **{alarms}/{len(res['null'])}**. Total time {res['seconds']:.0f} s.", ""]
+    rows, outside, null = res["rows"], res.get("outside", []), res["null"]
+    n = len(rows)
+    lines = ["# Diagnosis benchmark", "", f"Every figure on this page was made by `{command}` "
+             f"(seed {res['seed']}, scale {res['scale']}; {res['seconds']:.0f} s).", "",
+             "References come from the truth itself: the truth coefficient with and without the effect, evaluated "
+             "on the flown validation states, gives where the effect acts (the phase and alpha band with the "
+             "largest share of the squared difference).", "",
+             "## Withheld library effects", "",
+             "Default campaign; baseline = final model of the effect's coefficient without it.", "",
+             tabulate([[r["effect"], r["coefficient"], r["first"], _yes(r["ranked_first"]),
+                        "n/a" if r["shrink"] is None else f"{r['shrink']:.2f}", _yes(r["closes_half"]),
+                        f"{r['top_phase']} / {r['top_alpha_band']}", f"{r['truth_phase']} / {r['truth_alpha_band']}",
+                        _yes(r["located"]), "-" if r.get("state_alpha_rms") is None else
+                        f"{r['state_alpha_rms']:.4f} -> {r['state_alpha_rms_after']:.4f}", f"{r['seconds']:.0f}"]
+                       for r in rows],
+                      headers=["withheld effect", "coef.", "ranked first", "hit", "shrink", ">= 0.5",
+                               "gap's top phase / alpha band", "truth's top phase / alpha band", "phase matches",
+                               "replayed alpha RMS [rad] before -> after", "s"], tablefmt="github"), "",
+             f"Ranked first: **{sum(r['ranked_first'] for r in rows)}/{n}**; closes at least half of the gap: "
+             f"**{sum(r['closes_half'] for r in rows)}/{n}**; the gap's top phase is the truth's: "
+             f"**{sum(r['located'] for r in rows)}/{n}**.", "",
+             "Not benchmarked: " + "; ".join(f"{k}: {v}" for k, v in res["not_expressible"].items()) + ".", ""]
+    if outside:
+        m = len(outside)
+        scored = [r["located"] and not r["false_claim"] and r["signal_first"] for r in outside]
+        lines += ["## Effects outside the library", "",
+                  "Campaigns whose truth contains an effect no library term expresses; baseline = the final model "
+                  "of the coefficient it affects (two rounds).", "",
+                  tabulate([[r["anomaly"], r["coefficient"], _yes(r["detected"]),
+                             f"{r['top_phase']} / {r['top_alpha_band']}",
+                             f"{r['truth_phase']} / {r['truth_alpha_band']}", _yes(r["located"]), r["adopted"],
+                             "n/a" if not np.isfinite(r["closed_by_library"]) else f"{r['closed_by_library']:.2f}",
+                             "NO (false claim)" if r["false_claim"] else "yes",
+                             "n/a" if r["unexplained_share"] is None else f"{r['unexplained_share']:.2f}",
+                             r["signal"], r["first_signal"] or "-", _yes(r["signal_first"]), f"{r['seconds']:.0f}"]
+                            for r in outside],
+                           headers=["effect", "coef.", "gap found", "gap's top phase / band", "truth's top phase / band",
+                                    "located", "model after adopted effects", "share the library closes",
+                                    "not falsely explained", "unexplained share", "responsible signal",
+                                    "first signal", "signal first", "s"], tablefmt="github"), "",
+                  f"Located: **{sum(r['located'] for r in outside)}/{m}**; not falsely explained: "
+                  f"**{sum(not r['false_claim'] for r in outside)}/{m}**; responsible signal first: "
+                  f"**{sum(r['signal_first'] for r in outside)}/{m}**; all three: **{sum(scored)}/{m}**.", "",
+                  *[f"- `{r['anomaly']}`: {r['description']}" for r in outside], ""]
+    lines += ["## Null case (nothing withheld)", "",
+              tabulate([[r["seed"], r["model"], f"{r['gap_p_value']:.2g}", _yes(not r["alarm_test"]),
+                         _yes(not r["alarm_combined"])] for r in null],
+                       headers=["seed", "model", "gap p-value (Wald)", "no alarm by the test alone",
+                                "no alarm by the combined rule (at the floor)"], tablefmt="github"), "",
+              f"False alarms by the Wald test alone (1 %): **{sum(r['alarm_test'] for r in null)}/{len(null)}**; "
+              f"by the combined rule: **{sum(r['alarm_combined'] for r in null)}/{len(null)}**.", ""]
     return "\n".join(lines)

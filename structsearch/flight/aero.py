@@ -16,7 +16,7 @@ import sympy as sp
 
 from ..data.errors import DeclarationError
 from .reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH, final_drag_model, final_lift_model, final_pitch_model
-from ..engine.regressors import compile_expression
+from ..engine.regressors import compile_expression, parse
 from ..engine.separation import SeparationState, static_separation
 from ..engine.stallmodel import StallModel
 from .transport import (TRANSPORT_DRAG, TRANSPORT_LIFT, TRANSPORT_PITCH, TRANSPORT_ZEROED, transport_drag_model,
@@ -56,15 +56,33 @@ class StateSpec:
     a_star: float
 
 
+def steady_target(spec: StateSpec, alpha, alpha_dot) -> np.ndarray:
+    """X0(alpha - tau2 alpha_dot) of one state (tau2 ignored for a steady state): what it relaxes to."""
+    return static_separation(alpha - (spec.tau2 if spec.kind != "S" else 0.0) * alpha_dot, spec.a1, spec.a_star)
+
+
 class AeroModel:
-    """C_L, C_D and C_m as compiled functions; drag and pitch take C_L from the lift model."""
+    """C_L, C_D and C_m as compiled functions; drag and pitch take C_L from the lift model.
+
+    ``anomaly`` (optional, see :mod:`.anomalies`) puts aerodynamics outside the model library into
+    the truth: its ``factors`` (pairs parameter name, expression text in the data columns) multiply
+    the terms of those parameters, and its ``separation_target(spec, alpha, alpha_dot, h)`` replaces
+    :func:`steady_target` as the value every separation state relaxes to.
+    """
 
     def __init__(self, lift: StallModel, drag: StallModel, pitch: StallModel, params: Mapping[str, float],
-                 constant_states: Mapping[str, float] | None = None, name: str = "aero"):
+                 constant_states: Mapping[str, float] | None = None, name: str = "aero", anomaly=None):
         self.name = name
         self.models = {"CL": lift, "CD": drag, "Cm": pitch}
         self.params = dict(params)
         self.constant_states = dict(constant_states or {})
+        self.anomaly = anomaly
+        self._factors = {k: parse(text, known=(), context=f"{name}: factor of {k}")
+                         for k, text in (getattr(anomaly, "factors", ()) or ())}
+        unknown = [k for k in self._factors if not any(k in m.linear_names for m in self.models.values())]
+        if unknown:
+            raise DeclarationError(f"{name}: anomaly {getattr(anomaly, 'name', anomaly)!r} scales "
+                                   f"{unknown[0]!r}, which no coefficient of this model has")
         specs: dict[str, StateSpec] = {}
         for model in self.models.values():
             values = dict(model.fixed)
@@ -82,15 +100,26 @@ class AeroModel:
                     raise DeclarationError(f"{name}: separation state {s.symbol} differs between models")
                 specs[s.symbol] = spec
         self.states = tuple(specs.values())
+        absent = [x for x in (getattr(anomaly, "states", ()) or ()) if x not in specs]
+        if absent:
+            raise DeclarationError(f"{name}: anomaly {getattr(anomaly, 'name', anomaly)!r} acts on separation "
+                                   f"state {absent[0]}, which this model does not have")
         self._compiled = {}
         for coef, model in self.models.items():
             missing = [p for p in model.linear_names if p not in self.params]
             if missing:
                 raise DeclarationError(f"{name}: no value for {coef} coefficient {missing[0]!r}")
-            expr = sum(sp.Float(self.params[r.name]) * r.expr for r in model.regressors)
+            expr = sum(self._term(r) for r in model.regressors)
             expr = expr.subs({sp.Symbol(k, real=True): v for k, v in self.constant_states.items()})
             args = tuple(sorted(s.name for s in expr.free_symbols))
             self._compiled[coef] = (expr, args)
+        self._terms: dict[str, tuple] = {}
+
+    def _term(self, r) -> sp.Expr:
+        """The term of regressor ``r``: its value times its expression (times the anomaly's factor)."""
+        if r.name in self._factors:
+            return sp.Float(self.params[r.name]) * self._factors[r.name] * r.expr
+        return sp.Float(self.params[r.name]) * r.expr
 
     @property
     def columns(self) -> frozenset[str]:
@@ -101,10 +130,12 @@ class AeroModel:
     def unsteady(self) -> tuple[StateSpec, ...]:
         return tuple(s for s in self.states if s.kind == "U")
 
-    def separation_targets(self, alpha, alpha_dot) -> dict[str, np.ndarray]:
-        """X0(alpha - tau2 alpha_dot) of every state (the value a lagged state relaxes to)."""
-        return {s.symbol: static_separation(alpha - (s.tau2 if s.kind != "S" else 0.0) * alpha_dot,
-                                            s.a1, s.a_star) for s in self.states}
+    def separation_targets(self, alpha, alpha_dot, h=None) -> dict[str, np.ndarray]:
+        """X0(alpha - tau2 alpha_dot) of every state (the value a lagged state relaxes to); an anomaly's
+        targets may depend on the altitude ``h`` too."""
+        if self.anomaly is None:
+            return {s.symbol: steady_target(s, alpha, alpha_dot) for s in self.states}
+        return {s.symbol: self.anomaly.separation_target(s, alpha, alpha_dot, h) for s in self.states}
 
     def _evaluate(self, expr: sp.Expr, args: tuple[str, ...], values: Mapping[str, np.ndarray], what: str):
         try:
@@ -115,6 +146,21 @@ class AeroModel:
     def coefficient(self, coef: str, values: Mapping[str, np.ndarray]) -> np.ndarray:
         expr, args = self._compiled[coef]
         return self._evaluate(expr, args, values, coef)
+
+    def terms(self, coef: str, values: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Each term of ``coef`` (parameter name -> value times regressor) at ``values``, broadcast to the
+        shape of ``values["alpha"]``; their sum is :meth:`coefficient` up to rounding."""
+        if coef not in self._terms:
+            subs = {sp.Symbol(k, real=True): v for k, v in self.constant_states.items()}
+            compiled = []
+            for r in self.models[coef].regressors:
+                expr = self._term(r).subs(subs)
+                compiled.append((r.name, expr, tuple(sorted(s.name for s in expr.free_symbols))))
+            self._terms[coef] = tuple(compiled)
+        shape = np.shape(values["alpha"])
+        return {name: np.broadcast_to(np.asarray(self._evaluate(expr, args, values, f"{coef} term {name}"), float),
+                                      shape).copy()
+                for name, expr, args in self._terms[coef]}
 
     def partial(self, coef: str, wrt: str, values: Mapping[str, np.ndarray]) -> np.ndarray:
         """d coef / d ``wrt`` (a column such as C_L or delta_e) at ``values``, differentiated symbolically."""
@@ -152,9 +198,10 @@ TRUTHS = {
 }
 
 
-def truth_model(withhold=(), aircraft: str = "citation") -> AeroModel:
+def truth_model(withhold=(), aircraft: str = "citation", anomaly=None) -> AeroModel:
     """The truth of ``aircraft``: for the Citation II the final model of the thesis (CL-VI, CD-IXr,
-    Cm-XXXIIIr), for the transport its one-state model (:mod:`.transport`); named effects removed."""
+    Cm-XXXIIIr), for the transport its one-state model (:mod:`.transport`); named effects removed,
+    an ``anomaly`` of :mod:`.anomalies` (the object, not its name) added."""
     if aircraft not in TRUTHS:
         raise DeclarationError(f"no aircraft {aircraft!r}: the simulator flies {', '.join(TRUTHS)}")
     truth = TRUTHS[aircraft]
@@ -183,8 +230,9 @@ def truth_model(withhold=(), aircraft: str = "citation") -> AeroModel:
     models = [_with_kind(m, truth.lagged_state, kind)
               for m in (truth.lift(), truth.drag(lift_params), truth.pitch(lift_params))]
     label = ("truth" if aircraft == "citation" else f"{aircraft} truth") \
-        + ("" if not withhold else " without " + ", ".join(withhold))
-    return AeroModel(*models, params, constant, name=label)
+        + ("" if not withhold else " without " + ", ".join(withhold)) \
+        + ("" if anomaly is None else f" with {anomaly.name}")
+    return AeroModel(*models, params, constant, name=label, anomaly=anomaly)
 
 
 def _with_kind(model: StallModel, state: str, kind: str) -> StallModel:

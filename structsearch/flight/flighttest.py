@@ -12,6 +12,7 @@ from .transport import TRANSPORT
 from .aero import AeroModel
 from .simulation import Condition, Pilot, simulate, trim
 from .synthetic import smooth_noise
+from ..data.errors import DeclarationError
 
 DT = 0.01  # truth and output sample time [s]
 # Quasi-random elevator wiggles of the quasi-steady stalls: slow and small, as flown by hand while
@@ -233,9 +234,10 @@ def fly_batch(model: AeroModel, flown: list[Flown], aircraft: Aircraft = CITATIO
     pilot = Pilot(stack("alpha_ref"), stack("de_extra"), stack("throttle"),
                   np.array([f.de_trim for f in flown]), np.array([f.gains for f in flown]))
     alpha0 = np.array([f.alpha0 for f in flown])
-    x0 = model.separation_targets(alpha0, np.zeros_like(alpha0))
+    h0 = np.array([f.condition.h for f in flown])
+    x0 = model.separation_targets(alpha0, np.zeros_like(alpha0), h0)
     y0 = {"V": np.array([f.V0 for f in flown]), "alpha": alpha0, "q": np.zeros(len(flown)),
-          "theta": np.array([f.theta0 for f in flown]), "h": np.array([f.condition.h for f in flown])}
+          "theta": np.array([f.theta0 for f in flown]), "h": h0}
     y0.update({s.symbol: x0[s.symbol] for s in model.unsteady})
     masses = np.array([f.condition.mass for f in flown])
     # fuel burnt along the maneuver
@@ -245,11 +247,13 @@ def fly_batch(model: AeroModel, flown: list[Flown], aircraft: Aircraft = CITATIO
 
 
 def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int = 0, slow_errors: float = 1.0,
-                      proc: Procedures = Procedures()):
+                      proc: Procedures = Procedures(), anomaly=None):
     """Fly every planned maneuver and measure it; returns (plan, list of column dicts) in plan order.
 
     ``slow_errors`` scales the slow reconstruction errors (1: realistic, 0: a laboratory-clean
-    campaign with sensor noise, buffet and biases only, for tests of mechanisms).
+    campaign with sensor noise, buffet and biases only, for tests of mechanisms). ``anomaly``
+    (:mod:`.anomalies`; ``model`` already flies it when it acts on the aerodynamics) adds the truth
+    alpha as the column ``alpha_true`` and, when it lags the alpha vane, lags it in the measurement.
     """
     from .measurement import measure
     rng = np.random.default_rng(seed)
@@ -276,7 +280,8 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
             # a withheld second state is recorded as attached flow
             symbols = ("X_ss", "X_w") if craft is CITATION else tuple(traj.X)
             truth["states"] = {sym: traj.X[sym][:, j] if sym in traj.X else np.ones(duration) for sym in symbols}
-            columns = measure(rng, traj.t, truth, errors[i], SLOW_ERROR_STALL_GAIN, craft)
+            columns = measure(rng, traj.t, truth, errors[i], SLOW_ERROR_STALL_GAIN, craft,
+                              vane_lag_s=getattr(anomaly, "vane_lag_s", 0.0), record_alpha=anomaly is not None)
             results[i] = _cut(plan[i], columns)
     return results
 
@@ -292,23 +297,41 @@ def _cut(p: PlannedManeuver, columns: dict) -> dict:
 
 
 def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False,
-                   slow_errors: float = 1.0, aircraft: str = "citation"):
+                   slow_errors: float = 1.0, aircraft: str = "citation", anomaly: str | None = None):
     """The simulated flight-test campaign (thesis Table 4) of ``aircraft`` (``citation`` or ``transport``),
     ready for :func:`write_campaign`.
 
-    ``slow_errors`` scales the slow reconstruction errors (see :func:`simulate_campaign`)."""
+    ``slow_errors`` scales the slow reconstruction errors (see :func:`simulate_campaign`). ``anomaly``
+    (a name of :data:`.anomalies.ANOMALIES`, Citation only, not with ``withhold``) flies a truth with an
+    effect outside the diagnosis' library; the same seed flies the same profiles and draws the same
+    errors as without it. Such a campaign also carries the truth alpha (``alpha_true``) and its manifest
+    the key ``anomaly``."""
     from .aero import truth_model
+    from .anomalies import anomaly_named
     from ..data.campaign import Maneuver, make_campaign
-    model = truth_model(withhold, aircraft)
+    withhold = tuple(withhold)
+    chosen = None
+    if anomaly is not None:
+        chosen = anomaly_named(anomaly)
+        if aircraft != "citation":
+            raise DeclarationError(f"anomaly {anomaly!r}: anomalies are declared for the Citation II only, "
+                                   f"not the {aircraft}")
+        if withhold:
+            raise DeclarationError(f"anomaly {anomaly!r} cannot be combined with withheld effects "
+                                   f"({', '.join(withhold)}): a campaign tests one departure from the final model")
+    model = truth_model(withhold, aircraft, chosen if chosen is not None and chosen.flies else None)
     proc = PROCEDURES[aircraft]
     plan = scaled_plan(thesis_plan(extras), scale)
-    segments = simulate_campaign(plan, model, seed, slow_errors, proc)
+    segments = simulate_campaign(plan, model, seed, slow_errors, proc, chosen)
     maneuvers = [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split) for p in plan]
     extra = {"seed": int(seed), "scale": float(scale), "extras": bool(extras), "truth": model.name,
              "withheld": ",".join(withhold) or "none", "slow_errors": float(slow_errors)}
     if aircraft != "citation":  # campaigns written before the second aircraft carry no such key
         extra["simulated_aircraft"] = aircraft
-    name = f"simulated {proc.aircraft.label} stall campaign (seed {seed})"
+    if chosen is not None:  # nor do campaigns without an anomaly
+        extra["anomaly"] = chosen.name
+    name = f"simulated {proc.aircraft.label} stall campaign (seed {seed}" \
+        + (f", anomaly {chosen.name})" if chosen is not None else ")")
     # the aircraft data of interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope
     mass = proc.aircraft.empty_mass + proc.aircraft.crew_mass + float(np.mean(proc.fuel))
     return make_campaign(name, proc.aircraft.manifest(mass), maneuvers, segments, extra)

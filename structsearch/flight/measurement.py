@@ -10,6 +10,7 @@ import numpy as np
 
 from .aircraft import CITATION, Aircraft
 from ..data.prefilter import derivative, prefilter
+from ..engine.separation import first_order_lag
 
 # Sensor rates [Hz] (thesis Table 2) and noise standard deviations (SI units) as left after
 # flight-path reconstruction (alpha: vane noise would turn into alpha_dot noise of ~0.02 rad/s); the
@@ -31,11 +32,23 @@ def _resample(t_out, t_in, values):
     return np.interp(t_out, t_in, values)
 
 
-def _sensor(rng, t, truth, rate, noise, bias=0.0):
-    """Sample ``truth`` at ``rate`` with white noise and a constant bias, then back onto ``t``."""
+def _sensor(rng, t, truth, rate, noise, bias=0.0, also=None):
+    """Sample ``truth`` at ``rate`` with white noise and a constant bias, then back onto ``t``.
+
+    ``also``: a second signal read with the same noise and bias; then both readings are returned."""
     t_s = np.arange(t[0], t[-1] + 1e-9, 1.0 / rate)
-    sampled = _resample(t_s, t, truth) + rng.normal(0.0, noise, len(t_s)) + bias
-    return _resample(t, t_s, sampled)
+    white = rng.normal(0.0, noise, len(t_s))
+    sampled = _resample(t_s, t, truth) + white + bias
+    if also is None:
+        return _resample(t, t_s, sampled)
+    return _resample(t, t_s, sampled), _resample(t, t_s, _resample(t_s, t, also) + white + bias)
+
+
+def vane_lag(t: np.ndarray, signal: np.ndarray, tau: float) -> np.ndarray:
+    """``signal`` through a first-order lag of time constant ``tau`` [s], starting in equilibrium
+    (exact for a signal linear between samples)."""
+    bounds = np.array([0, len(t)])
+    return first_order_lag(t, signal, np.zeros((len(t), 1)), tau, bounds)[0]
 
 
 def band_noise(rng, n, fs, low, high):
@@ -47,7 +60,8 @@ def band_noise(rng, n, fs, low, high):
 
 
 def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np.ndarray | None = None,
-            slow_error_stall_gain: float = 1.0, aircraft: Aircraft = CITATION) -> dict:
+            slow_error_stall_gain: float = 1.0, aircraft: Aircraft = CITATION, vane_lag_s: float = 0.0,
+            record_alpha: bool = False) -> dict:
     """One maneuver's measured, pre-filtered, reconstructed columns from its truth histories.
 
     ``truth`` holds 1-D arrays: V, alpha, q, theta, h, de, thrust, qbar, mass, x_cg,
@@ -55,6 +69,11 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     ``slow_error`` (n, 3) holds slow C_L, C_D, C_m reconstruction errors at attached flow; they grow by
     ``slow_error_stall_gain`` per unit of separation and enter through the body-axis forces (C_L, C_D)
     and the pitch moment. ``aircraft`` gives S, cbar and the pitch inertia.
+
+    ``vane_lag_s`` > 0 passes the alpha vane's reading through a first-order lag of that time constant
+    (the ``vane_lag`` anomaly) and adds the column ``alpha_unlagged``: the alpha this chain gives without
+    the lag (same noise, bias and pre-filter). ``record_alpha`` adds the truth alpha as ``alpha_true``.
+    Neither draws random numbers: with the same ``rng`` every other column is unchanged.
     """
     fs = 1.0 / (t[1] - t[0])
     n = len(t)
@@ -77,8 +96,15 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     gyro_buffet = vibration()
     boom = BOOM_VIBRATION * band_noise(rng, n, fs, 8.0, 12.0)
 
+    vane = alpha + boom
+    unlagged = None
+    if vane_lag_s > 0:
+        vane, unlagged = vane_lag(t, vane, vane_lag_s), vane
+    alpha_reading = _sensor(rng, t, vane, RATES["boom"], NOISE["alpha"], rng.normal(0, BIAS["alpha"]), unlagged)
+    if unlagged is not None:
+        alpha_reading, unlagged = alpha_reading
     raw = {
-        "alpha": _sensor(rng, t, alpha + boom, RATES["boom"], NOISE["alpha"], rng.normal(0, BIAS["alpha"])),
+        "alpha": alpha_reading,
         "q": _sensor(rng, t, truth["q"] + aircraft.gyro_buffet * gyro_buffet, RATES["ahrs"], aircraft.gyro_noise,
                      rng.normal(0, BIAS["q"])),
         "theta": _sensor(rng, t, truth["theta"], RATES["ahrs"], NOISE["theta"]),
@@ -114,6 +140,10 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
         "mass": mass, "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
         **{f"{symbol}_true": x for symbol, x in truth["states"].items()},
     }
+    if record_alpha:
+        columns["alpha_true"] = alpha
+    if unlagged is not None:
+        columns["alpha_unlagged"] = prefilter("alpha", unlagged, fs)
     if not aircraft.records_cg:  # flown at a fixed cg nobody recorded
         del columns["x_cg"]
     return columns

@@ -67,7 +67,7 @@ def replay(data: FlightData, model: AeroModel, window_s: float = 10.0) -> list[R
         pilot = Pilot(np.zeros((per, n_win)), col("de"), np.zeros((per, n_win)), np.zeros(n_win),
                       np.zeros((n_win, 3)), thrust=thrust)
         first = lambda c: data[c][sl][starts]  # noqa: E731
-        x0 = model.separation_targets(first("alpha"), first("alpha_dot"))
+        x0 = model.separation_targets(first("alpha"), first("alpha_dot"), first("h"))
         y0 = {s: first(s) for s in STATES}
         y0.update({s.symbol: x0[s.symbol] for s in model.unsteady})
         x_cg = first("x_cg") if "x_cg" in data else np.full(n_win, np.nan)

@@ -47,7 +47,7 @@ def _forces(model: AeroModel, aircraft: Aircraft, V, alpha, q, h, de, throttle, 
         thrust = throttle * aircraft.max_thrust(h)
     ct = thrust / (qbar * aircraft.S)
     values = {"alpha": alpha, "q": q, "V": V, "de": de, "CT": ct, "x_cg": x_cg, "cbar": aircraft.cbar,
-              "S": aircraft.S, "b": aircraft.b}
+              "S": aircraft.S, "b": aircraft.b, "h": h}
     values.update(X)
     cl, cd, cm = model.coefficients(values)
     return qbar, thrust, ct, cl, cd, cm
@@ -64,17 +64,21 @@ def _rates(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg, X, 
     return v_dot, alpha_dot, q_dot, (qbar, thrust, ct, cl, cd, cm)
 
 
-def algebraic_states(model: AeroModel, alpha, alpha_dot, lagged: dict) -> dict:
-    """Separation states: lagged ones from the state vector, the others from alpha (and alpha_dot)."""
-    targets = model.separation_targets(alpha, alpha_dot)
-    return {s.symbol: (lagged[s.symbol] if s.kind == "U" else targets[s.symbol]) for s in model.states}
+def algebraic_states(model: AeroModel, alpha, alpha_dot, lagged: dict, h=None) -> dict:
+    """Separation states: lagged ones from the state vector, the others from alpha (and alpha_dot; the
+    altitude ``h`` for a truth with an anomaly that depends on it)."""
+    targets = model.separation_targets(alpha, alpha_dot, h)
+    # a lagged state integrated with a time constant near the step may overshoot [0, 1] by a hair; sqrt(X)
+    # in K_L must not see it
+    return {s.symbol: (np.clip(lagged[s.symbol], 0.0, 1.0) if s.kind == "U" else targets[s.symbol])
+            for s in model.states}
 
 
 def trim(model: AeroModel, cond: Condition, gamma: float = 0.0, aircraft: Aircraft = CITATION) -> Trim:
     """Steady straight flight (level when gamma = 0): alpha, elevator and throttle."""
     def residual(x):
         alpha, de, throttle = x
-        X = model.separation_targets(np.array([alpha]), np.zeros(1))
+        X = model.separation_targets(np.array([alpha]), np.zeros(1), np.array([cond.h]))
         v_dot, alpha_dot, q_dot, _ = _rates(model, aircraft, np.array([cond.V]), np.array([alpha]), np.zeros(1),
                                             np.array([alpha + gamma]), np.array([cond.h]), np.array([de]),
                                             np.array([throttle]), cond.mass, cond.x_cg, X)
@@ -127,9 +131,11 @@ class Trajectory:
 def _alpha_dot_with_states(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg, lagged, thrust=None):
     """alpha_dot and the separation states consistently (quasi-steady states depend on alpha_dot)."""
     alpha_dot = np.zeros_like(alpha)
-    iterations = 4 if any(s.kind == "Q" for s in model.states) else 1
+    rate_dependent = getattr(model.anomaly, "rate_states", ())  # an anomaly may make a steady state depend on it
+    iterations = 4 if any(s.kind == "Q" or (s.kind == "S" and s.symbol in rate_dependent) for s in model.states) \
+        else 1
     for _ in range(iterations):
-        X = algebraic_states(model, alpha, alpha_dot, lagged)
+        X = algebraic_states(model, alpha, alpha_dot, lagged, h)
         v_dot, alpha_dot, q_dot, extra = _rates(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg,
                                                 X, thrust)
     return X, v_dot, alpha_dot, q_dot, extra
@@ -161,7 +167,7 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
         X, v_dot, alpha_dot, q_dot, extra = _alpha_dot_with_states(
             model, aircraft, V, alpha, q, theta, h, de, pilot.throttle[k], mass[k], x_cg, lagged,
             None if pilot.thrust is None else pilot.thrust[k])
-        targets = model.separation_targets(alpha, alpha_dot)
+        targets = model.separation_targets(alpha, alpha_dot, h)
         dx = [(targets[s] - lagged[s]) / taus[s] for s in lagged_names]
         gamma = theta - alpha
         return np.vstack([v_dot, alpha_dot, q_dot, q, V * np.sin(gamma), alpha - pilot.alpha_ref[k]] + dx)

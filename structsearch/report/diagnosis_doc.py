@@ -111,3 +111,29 @@ def write(doc: dict, out: Path) -> tuple[Path, Path]:
     write_json(out / "diagnosis.json", public(doc))
     write_text(out / "diagnosis.md", markdown(doc))
     return out / "diagnosis.json", out / "diagnosis.md"
+
+
+def story_markdown(story: dict, command: str) -> str:
+    """The Van Ingen -> final story: the lines, then each coefficient's rounds."""
+    lines = ["# From the Van Ingen simulator model to the final model", "", f"Made by `{command}`.", ""]
+    lines += [f"- {line}" for line in story["lines"]] + [""]
+    for coef, doc in story["diagnoses"].items():
+        lines += [f"## {coef}: {doc['baseline']} -> {doc['final_model']}", ""]
+        body = []
+        for i, r in enumerate(doc["rounds"]):
+            best = next((e for e in r["effects"] if "error" not in e), None)
+            body.append([i + 1, r["baseline"], f"{r['mse']['validation']:.4g}",
+                         "-" if best is None else best["name"], "-" if best is None else _num(best["shrink"]),
+                         "-" if best is None else f"{best['p_value']:.2g}", "yes" if r["explained_before"] else "no"])
+        lines += [tabulate(body, headers=["round", "model", "validation MSE", "best effect", "shrink",
+                                          "p (Wald)", "at the floor"], tablefmt="github"), "",
+                  f"Noise floor {doc['noise_floor']:.4g}; explained: {'yes' if doc['explained'] else 'no'}. "
+                  + unexplained_sentence(doc), ""]
+    return "\n".join(lines)
+
+
+def write_story(story: dict, out: Path, command: str) -> tuple[Path, Path]:
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / "story.json", public(story))
+    write_text(out / "story.md", story_markdown(story, command))
+    return out / "story.json", out / "story.md"

@@ -110,7 +110,7 @@ def _best_effect(doc: dict) -> str | None:
 
 
 def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_jobs: int = 1,
-          diagnose_coefficient: str | None = "Cm", models: tuple[str, ...] = (),
+          diagnose_coefficient: str | None = "Cm", models: tuple[str, ...] = (), story: list[str] | None = None,
           progress: Callable[[str], None] | None = None) -> dict:
     """Write ``out/figures/*.png`` and ``out/report.html``; returns what was written and the notes."""
     fg.require()
@@ -199,7 +199,7 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
         from ..diagnosis.diagnose import diagnose
         say(f"report: diagnosing {names[diagnose_coefficient]}")
         diagnosis = diagnose(campaign, ms.candidates[diagnose_coefficient], settings=settings, max_rounds=1,
-                             states=False)
+                             states=False, n_jobs=n_jobs)
         best = _best_effect(diagnosis)
         if best is not None:
             g = rd.with_effect(ms, diagnose_coefficient, best, campaign, out, settings)
@@ -231,7 +231,7 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
              f"error: alpha {rms['alpha']:.4f} rad, q {rms['q']:.4f} rad/s, V {rms['V']:.2f} m/s.")
     except DataError as exc:
         notes.append(f"No forward simulation: {exc}")
-    page = render_html(campaign, out, names, ms, vi, written, notes, diagnosis)
+    page = render_html(campaign, out, names, ms, vi, written, notes, diagnosis, story)
     write_text(out / "report.html", page)
     return {"html": out / "report.html", "figures": [fig_dir / f.file for f in written], "notes": notes,
             "seconds": time.perf_counter() - t0}
@@ -263,7 +263,7 @@ table{border-collapse:collapse;font-size:12px;margin:0.5em 0 1.5em}td,th{border:
 figure{margin:1.5em 0}img{max-width:100%}figcaption{font-size:13px;color:#444}.note{color:#8a5a00}"""
 
 
-def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, diagnosis) -> str:
+def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, diagnosis, story=None) -> str:
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>structsearch report: "
@@ -271,6 +271,10 @@ def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, di
              f"<h1>{html.escape(campaign.name)}</h1>",
              f"<p>{len(campaign.maneuvers)} maneuvers ({n_val} validation), {d.n_samples} samples. Models: "
              + ", ".join(f"{c} {html.escape(n)}" for c, n in names.items()) + ".</p>"]
+    if story:
+        parts.append("<h2>From the Van Ingen simulator model to the final model</h2><ul>"
+                     + "".join(f"<li>{html.escape(line)}</li>" for line in story) + "</ul>"
+                     "<p>Details: story.md (made by <code>structsearch demo</code>).</p>")
     parts += [f"<p class='note'>{html.escape(n)}</p>" for n in notes]
     parts.append("<h2>Figures</h2>")
     for f in written:
