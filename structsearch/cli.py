@@ -249,8 +249,10 @@ def _demo(args) -> int:
     from .diagnosis.story import van_ingen_story
     from .report.diagnosis_doc import write_story
     t1 = time.perf_counter()
+    # the story's diagnoses use the diagnose command's defaults (2 starts), not the search's --starts
     story = van_ingen_story(campaign, progress=None if args.quiet else stderr_progress, n_jobs=jobs)
-    _, story_md = write_story(story, out, f"structsearch demo --out {out}")
+    _, story_md = write_story(story, out, f"structsearch demo --out {out}"
+                              + (f" --scale {args.scale:g}" if args.scale != 1.0 else ""))
     print(f"the story, Van Ingen's simulator model against the flight data ({time.perf_counter() - t1:.0f} s; "
           f"{story_md}):")
     for line in story["lines"]:
@@ -293,14 +295,20 @@ def _diagnose(args) -> int:
     out = Path(args.out)
     if args.benchmark:
         from .diagnosis import withheld
+        from .search.runner import Settings
+        from .engine.statistics import DEFAULT_COVARIANCE
+        settings = Settings(n_starts=args.starts, covariance=args.covariance, bounds=_bounds(args), cv_folds=0)
         res = withheld.run(seed=args.seed, scale=args.scale, null_seeds=tuple(range(args.null_seeds)),
-                           n_jobs=_jobs(args),
+                           n_jobs=_jobs(args), settings=settings,
                            progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr,
                                                                            flush=True))
         command = " ".join(["structsearch diagnose --benchmark --out", str(out)]
                            + ([f"--scale {args.scale:g}"] if args.scale != 1.0 else [])
                            + ([f"--seed {args.seed}"] if args.seed else [])
-                           + ([f"--null-seeds {args.null_seeds}"] if args.null_seeds != 3 else []))
+                           + ([f"--null-seeds {args.null_seeds}"] if args.null_seeds != 3 else [])
+                           + ([f"--starts {args.starts}"] if args.starts != 2 else [])
+                           + ([f"--covariance {args.covariance}"] if args.covariance != DEFAULT_COVARIANCE else [])
+                           + [f"--bound {n}={lo:g}:{hi:g}" for n, (lo, hi) in args.bound])
         write_text(out / "withheld_benchmark.json", json.dumps(res, indent=2, default=float))
         write_text(out / "withheld_benchmark.md", withheld.markdown(res, command))
         hits = sum(r["ranked_first"] for r in res["rows"])
@@ -309,7 +317,7 @@ def _diagnose(args) -> int:
         print(f"withheld effect ranked first {hits}/{len(res['rows'])}; out-of-library effects located, not falsely "
               f"explained and their signal first {good}/{len(outside)}; false alarms "
               f"{sum(n['alarm_combined'] for n in res['null'])}/{len(res['null'])} (Wald test alone "
-              f"{sum(n['alarm_test'] for n in res['null'])}); wrote {out / 'withheld_benchmark.md'}")
+              f"{sum(bool(n['alarm_test']) for n in res['null'])}); wrote {out / 'withheld_benchmark.md'}")
         return 0
     if not args.data or not args.model:
         raise_error("diagnose needs --data and --model (or --benchmark)")
@@ -322,7 +330,7 @@ def _diagnose(args) -> int:
     baseline = resolve_candidate(args.model, args.coefficient)
     settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
     check_bounds(settings.bounds, [baseline])
-    doc = diagnose(campaign, baseline, settings=settings, n_jobs=_jobs(args),
+    doc = diagnose(campaign, baseline, settings=settings, n_jobs=_jobs(args), seed=args.seed,
                    progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr, flush=True))
     js, md = write(doc, out)
     best = next((e for e in doc["effects"] if "error" not in e), None)

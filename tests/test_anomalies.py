@@ -79,20 +79,20 @@ def test_default_campaign_is_unchanged_and_carries_no_anomaly(default):
     for k in default.data.columns:
         assert np.array_equal(again.data[k], default.data[k]), k
     assert "anomaly" not in default.extra and default.name.endswith("(seed 4)")
-    assert "alpha_true" not in default.data and "alpha_unlagged" not in default.data
+    assert "alpha_true" not in default.data and "alpha_unlagged_true" not in default.data
 
 
 def test_an_anomaly_is_recorded_and_leaves_the_random_streams_alone(default, vane):
     c = vane
     assert c.extra["anomaly"] == "vane_lag" and "anomaly vane_lag" in c.name
     assert {k: v for k, v in c.extra.items() if k != "anomaly"} == dict(default.extra)
-    assert "alpha_true" in c.data and "alpha_unlagged" in c.data
+    assert "alpha_true" in c.data and "alpha_unlagged_true" in c.data
     # a measurement-side anomaly flies the same truth with the same profiles and sensor errors
     for k in TRUTH_COLUMNS:
         assert np.array_equal(c.data[k], default.data[k]), k
     assert not np.array_equal(c.data["alpha"], default.data["alpha"])
     # the chain without the lag reads what the default campaign recorded
-    assert np.array_equal(c.data["alpha_unlagged"], default.data["alpha"])
+    assert np.array_equal(c.data["alpha_unlagged_true"], default.data["alpha"])
 
 
 # ----- each anomaly changes the truth as described --------------------------------------------------------
@@ -101,7 +101,7 @@ def test_vane_lag_lags_the_recorded_alpha(vane):
     tau = ANOMALIES["vane_lag"].vane_lag_s
     inner = np.concatenate([np.arange(s.start + 300, s.stop - 300) for s in c.data.segment_slices()])
     # a first-order lag: reading + tau * d(reading)/dt = input (the pre-filter is linear and commutes)
-    gap = (c.data["alpha_unlagged"] - c.data["alpha"])[inner]
+    gap = (c.data["alpha_unlagged_true"] - c.data["alpha"])[inner]
     rate = c.data["alpha_dot"][inner]
     estimate = float(gap @ rate / (rate @ rate))
     assert estimate == pytest.approx(tau, rel=0.03)

@@ -16,7 +16,7 @@ def _campaign(rng, n_maneuvers, n=800):
         h = np.full(n, rng.uniform(2000, 6000)) + 20 * t
         de = 0.02 * np.sin(2 * np.pi * t / rng.uniform(3, 9))
         segments.append({"t": t, "alpha": alpha, "V": V, "h": h, "de": de, "q": np.gradient(alpha, t),
-                         "CL": np.zeros(n), "CL_true": np.zeros(n)})
+                         "CL": np.zeros(n), "CL_true": np.zeros(n), "alpha_unlagged_true": alpha})
     return from_segments(segments)
 
 
@@ -38,7 +38,7 @@ def test_signals_exclude_outputs_and_truth_and_add_state_and_time(split):
     train, _, _ = split
     sig = fl.signals(train, np.ones(train.n_samples))
     assert {"alpha", "V", "h", "de", "q", "X", "time_in_maneuver"} <= set(sig)
-    assert not {"CL", "CL_true", "t"} & set(sig)
+    assert not {"CL", "CL_true", "t", "alpha_unlagged_true"} & set(sig)  # outputs and what only a simulator has
     assert sig["time_in_maneuver"][0] == 0.0 and np.all(sig["time_in_maneuver"] >= 0)
 
 

@@ -150,7 +150,8 @@ def test_transport_searches_rank_an_admissible_one_state_structure_first(transpo
                         ).grids[grid]
         first = ranked[0]
         assert first.admissible and not first.reasons, (grid, first.name, first.reasons)
-        assert first.name.startswith(("X U", "CL-II")) and not any("_ss" in n for n in first.names), grid
+        assert first.name.startswith({"separation": "X U", "lift": "CL-II"}[grid]), (grid, first.name)
+        assert not any(n.endswith(("_ss", "_w")) for n in first.names), grid
         two_state = [r for r in ranked if any(n.endswith("_w") for n in r.names)]
         assert two_state and all(r.admissible or r.reasons for r in two_state), grid
         assert not any(r.admissible for r in two_state), grid  # two states on a one-state wing

@@ -40,7 +40,7 @@ from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
 from ..search.models import build_model, predict_candidate
 from ..search.runner import Settings, fit_candidate, fit_lift_model
-from ..engine.regressors import declare
+from ..engine.regressors import declare, symbol_names
 from ..engine.separation import static_separation
 from ..search.candidates import Candidate
 from ..search.specs import find_candidate
@@ -121,12 +121,13 @@ def _bins(data: FlightData, x: np.ndarray):
     return labels
 
 
-def _shares(excess: np.ndarray, labels: np.ndarray, weights=None):
+def _shares(excess: np.ndarray, labels: np.ndarray):
+    """Each bin's share of the positive summed excess; NaN everywhere when there is no excess to share."""
     keys = sorted(set(labels))
     sums = np.array([excess[labels == k].sum() for k in keys])
     pos = np.clip(sums, 0, None)
     total = pos.sum()
-    return keys, (pos / total if total > 0 else np.full(len(keys), 1.0 / len(keys)))
+    return keys, (pos / total if total > 0 else np.full(len(keys), np.nan))
 
 
 def _frequency_excess(r_base, r_sat, data):
@@ -223,7 +224,8 @@ def wald_p_value(summary: CandidateResult, names) -> float:
 
 def _overlap(gap_rows, r_base, r_new, data, x):
     """Histogram intersection of gap shares and improvement shares over alpha bands and phases, and the
-    bins where the effect improves the fit most (where it acts)."""
+    bins where the effect improves the fit most (where it acts); NaN and no bins where it improves nothing
+    or there is no gap."""
     labels = _bins(data, x)
     improvement = r_base ** 2 - r_new ** 2
     scores, acts = [], {}
@@ -231,7 +233,9 @@ def _overlap(gap_rows, r_base, r_new, data, x):
         keys, imp = _shares(improvement, labels[dim])
         gap = {row["bin"]: row["share"] for row in gap_rows if row["dimension"] == dim}
         scores.append(float(sum(min(gap.get(k, 0.0), s) for k, s in zip(keys, imp))))
-        acts[dim] = str(keys[int(np.argmax(imp))])
+        if np.all(np.isnan(imp)):
+            return float("nan"), {}
+        acts[dim] = str(keys[int(np.nanargmax(imp))])
     return float(np.mean(scores)), acts
 
 
@@ -240,16 +244,44 @@ def within_noise(residual: np.ndarray, floor_residual: np.ndarray, data: FlightD
     MSE excess over the floor model is on average within one standard error of zero or below 1 %. Returns
     (at floor, mean excess, its standard error); the error is NaN with fewer than three maneuvers."""
     mean, se = _relative_excess(residual, floor_residual, data)
+    if len(data.names) < MIN_MANEUVERS:
+        se = float("nan")
     bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
     return bool(mean <= bar), float(mean), float(se)
 
 
 def _shrink(mse_base: float, mse_after: float, floor: float) -> float | None:
-    """Fraction of the gap an effect closes, in [0, 1]; None when there is no gap to close."""
+    """Fraction of the gap an effect closes; None when there is no gap to close. The floor is never above
+    a fitted model's MSE, so it is at most 1; an effect that makes the validation MSE worse closes 0."""
     gap = mse_base - floor
     if not gap > 0:
         return None
-    return float(min(max((mse_base - mse_after) / gap, 0.0), 1.0))
+    return float(max((mse_base - mse_after) / gap, 0.0))
+
+
+@dataclass(frozen=True)
+class _Floor:
+    """One estimate of the floor: its validation MSE, residual and where it comes from."""
+
+    mse: float
+    residual: np.ndarray
+    source: str
+    library_free: bool = False
+
+
+def _flexible(fit: Fitted, model: Candidate, lift, train: FlightData, val: FlightData, seed: int):
+    """The library-free floor of one model's residual, with the signals and the validation phase state."""
+    x_train = _state_for_phases(model, fit.summary, lift, train)
+    x_val = _state_for_phases(model, fit.summary, lift, val)
+    sig_train, sig_val = fl.signals(train, x_train), fl.signals(val, x_val)
+    flex = fl.flexible_fit(fit.train_residual, train, sig_train, fit.residual, sig_val, seed)
+    return flex, sig_train, sig_val, x_val
+
+
+def _rank_key(r: dict):
+    """Significant effects first (Wald test, 1 %; an untestable one counts as not significant), then by shrink."""
+    p = r["p_value"]
+    return (not (p is not None and p < 0.01), -(r["shrink"] or 0.0), p if p is not None else np.inf)
 
 
 def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Settings(n_starts=2, cv_folds=0),
@@ -259,6 +291,8 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
     each round's effects run on ``n_jobs`` processes."""
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
+    if max_rounds < 1:
+        raise DeclarationError(f"a diagnosis needs at least one round, not {max_rounds}")
     # the diagnosis compares fits on the validation maneuvers itself: no cross-validation folds
     settings = dataclasses.replace(settings, cv_folds=0)
     train, val = campaign.split("train"), campaign.split("validation")
@@ -268,8 +302,7 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
     if baseline.lift:
         say(f"fitting the lift model {baseline.lift}")
     lift, lift_c = fit_lift_model(baseline, train, val, settings)
-    library = fx.applicable(baseline)
-    if not library:
+    if not fx.applicable(baseline):
         raise DeclarationError(f"no effect of the library applies to {baseline.name} that it does not contain")
     warnings = []
     if len(val.names) < MIN_MANEUVERS:
@@ -278,18 +311,16 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
     rounds, current = [], baseline
     base_fit = _fit(current, train, val, lift, lift_c, settings)
     baseline_fit, first_best = base_fit, None
-    say("library-free floor: gradient boosting of the baseline's residual on the measured signals")
-    x_train = _state_for_phases(current, base_fit.summary, lift, train)
-    x_val = _state_for_phases(current, base_fit.summary, lift, val)
-    sig_train, sig_val = fl.signals(train, x_train), fl.signals(val, x_val)
-    flexible = fl.flexible_fit(base_fit.train_residual, train, sig_train, base_fit.residual, sig_val, seed)
-    fitted_mses = [float(np.mean(base_fit.residual ** 2))]
-    floor_models = [(flexible.mse, flexible.residual)]   # (validation MSE, residual) of every floor candidate
+    floors: list[_Floor] = []   # every floor estimate of every round
+    flexible = None
     for rnd in range(max_rounds):
         library = fx.applicable(current)
         if not library:
             break
-        say(f"round {rnd + 1}: baseline {current.name}, {len(library)} effects")
+        say(f"round {rnd + 1}: baseline {current.name}, {len(library)} effects; library-free floor of its residual")
+        flexible, sig_train, sig_val, x_val = _flexible(base_fit, current, lift, train, val, seed)
+        if rnd == 0:
+            first_floor = (base_fit, flexible, sig_train, sig_val)
         saturated_c, added = saturated(current, library)
         sat_fit = _fit(saturated_c, train, val, lift, lift_c, settings, start=base_fit.summary.params)
 
@@ -303,79 +334,77 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
         candidates = list(zip(library, changed_models, fits))
         # the floor: the lowest validation MSE of the saturated model, the library-free flexible model and
         # every model fitted here, so that no shrink leaves [0, 1]
-        floors = [(float(np.mean(sat_fit.residual ** 2)), sat_fit.residual, "saturated library model"),
-                  (flexible.mse, flexible.residual, "library-free flexible model of the residual")]
-        floors += [(float(np.mean(f.residual ** 2)), f.residual, f"{c.name}") for _, c, f in candidates
-                   if not isinstance(f, str)]
-        floors.append((mse_base, base_fit.residual, current.name))
-        floor, floor_residual, floor_source = min(floors, key=lambda t: t[0])
-        floor_models.append((floor, floor_residual))
-        fitted_mses += [t[0] for t in floors if t[2] != "library-free flexible model of the residual"]
-        gap = mse_base - floor
-        p_gap = remaining_p(None)
-        explained_now, excess, excess_se = within_noise(base_fit.residual, floor_residual, val)
-        where_rows = where(base_fit.residual, floor_residual, val, x_val, seed=seed)
+        here = [_Floor(float(np.mean(sat_fit.residual ** 2)), sat_fit.residual, "saturated library model"),
+                _Floor(flexible.mse, flexible.residual, "library-free flexible model of the residual", True),
+                _Floor(mse_base, base_fit.residual, current.name)]
+        here += [_Floor(float(np.mean(f.residual ** 2)), f.residual, c.name) for _, c, f in candidates
+                 if not isinstance(f, str)]
+        floors += here
+        floor = min(here, key=lambda f: f.mse)
+        explained_now, excess, excess_se = within_noise(base_fit.residual, floor.residual, val)
+        where_rows = where(base_fit.residual, floor.residual, val, x_val, seed=seed)
         ranked = []
         for e, changed, f in candidates:
             if isinstance(f, str):
                 ranked.append({"name": e.name, "error": f})
                 continue
-            mse_after, se_after = _mse_se(f.residual, val)
+            p = wald_p_value(f.summary, e.new_parameters(current, changed))
             ranked.append({
-                "name": e.name, "shrink": None if explained_now else _shrink(mse_base, mse_after, floor),
-                "mse_validation_after": mse_after, "mse_train_after": f.summary.mse_train,
-                "p_value": wald_p_value(f.summary, e.new_parameters(current, changed)),
+                "name": e.name, "shrink": None if explained_now else _shrink(mse_base, float(np.mean(f.residual ** 2)),
+                                                                           floor.mse),
+                "mse_validation_after": float(np.mean(f.residual ** 2)), "mse_train_after": f.summary.mse_train,
+                "p_value": p if np.isfinite(p) else None,
                 **dict(zip(("overlap", "acts_in"), _overlap(where_rows, base_fit.residual, f.residual, val, x_val))),
-                "at_floor": within_noise(f.residual, floor_residual, val)[0],
-                "p_value_remaining": remaining_p(e.name),
-                "model": changed.name, "_fit": f, "_se": se_after})
-        # significant effects first (Wald test with the settings' covariance), then by shrink
-        ok = sorted((r for r in ranked if "error" not in r),
-                    key=lambda r: (not (r["p_value"] < 0.01), -(r["shrink"] or 0.0), r["p_value"]))
+                "at_floor": within_noise(f.residual, floor.residual, val)[0],
+                "model": changed.name, "_fit": f})
+        ok = sorted((r for r in ranked if "error" not in r), key=_rank_key)
         ranked = ok + [r for r in ranked if "error" in r]
         best = ok[0] if ok else None
-        rows = [{k: v for k, v in r.items() if not k.startswith("_")} for r in ranked]
+        p_gap = remaining_p(None)
         rounds.append({"baseline": current.name, "mse": {"train": base_fit.summary.mse_train,
                                                          "validation": mse_base},
-                       "noise_floor": floor, "floor_source": floor_source,
+                       "noise_floor_round": floor.mse, "floor_source": floor.source,
                        "noise_floor_spectral": spectral_floor(base_fit.residual, val),
-                       "gap": gap, "gap_se": se_base, "excess_over_floor": excess, "excess_se": excess_se,
-                       "where": where_rows, "effects": rows, "explained_before": explained_now,
-                       "gap_p_value": p_gap})
-        significant = best is not None and np.isfinite(best["p_value"]) and best["p_value"] < 0.01
+                       "gap_se": se_base, "where": where_rows,
+                       "effects": [{k: v for k, v in r.items() if not k.startswith("_")} for r in ranked],
+                       "explained_before": explained_now, "excess_over_floor": excess, "excess_se": excess_se,
+                       "gap_p_value": p_gap if np.isfinite(p_gap) else None, "adopted": None})
+        significant = best is not None and best["p_value"] is not None and best["p_value"] < 0.01
         if explained_now or not significant or not (best["shrink"] or 0.0) > 0:
             break
+        rounds[-1]["adopted"] = best["name"]
         if first_best is None:
             first_best = best["_fit"]
         current, base_fit = best["_fit"].candidate, best["_fit"]
     final_fit = base_fit
-    say("library-free floor of the final model's residual")
-    x_train_f = _state_for_phases(current, final_fit.summary, lift, train)
-    x_val_f = _state_for_phases(current, final_fit.summary, lift, val)
-    sig_train_f, sig_val_f = fl.signals(train, x_train_f), fl.signals(val, x_val_f)
-    flexible_final = fl.flexible_fit(final_fit.train_residual, train, sig_train_f, final_fit.residual, sig_val_f,
-                                     seed)
-    library_free = min(flexible.mse, flexible_final.mse)
-    floor_all = min(fitted_mses + [library_free])
-    floor_models.append((flexible_final.mse, flexible_final.residual))
-    floor_residual = min(floor_models, key=lambda t: t[0])[1]
-    explained, final_excess, final_excess_se = within_noise(final_fit.residual, floor_residual, val)
-    first = rounds[0]
-    mse_first = first["mse"]["validation"]
-    for r in rounds:  # one floor for every reported shrink: the lowest of everything fitted
-        r["noise_floor_round"] = r["noise_floor"]
+    if rounds[-1]["adopted"] is not None or flexible is None:  # the final model's own library-free floor
+        say("library-free floor of the final model's residual")
+        flexible, sig_train, sig_val, x_val = _flexible(final_fit, current, lift, train, val, seed)
+        floors.append(_Floor(flexible.mse, flexible.residual, "library-free flexible model of the residual", True))
+    floor = min(floors, key=lambda f: f.mse)
+    explained, final_excess, final_excess_se = within_noise(final_fit.residual, floor.residual, val)
+    for r in rounds:  # one floor for every reported shrink and verdict: the lowest of everything fitted
+        r["noise_floor"], r["gap"] = floor.mse, r["mse"]["validation"] - floor.mse
         for e in r["effects"]:
             if "error" not in e and e["shrink"] is not None:
-                e["shrink"] = _shrink(r["mse"]["validation"], e["mse_validation_after"], floor_all)
-    unexplained = _unexplained(mse_first, final_fit, flexible_final, library_free, train, val, sig_train_f,
-                               sig_val_f, x_val_f, explained, seed)
+                e["shrink"] = _shrink(r["mse"]["validation"], e["mse_validation_after"], floor.mse)
+    last = rounds[-1]
+    if last["adopted"] is None:  # the final model is the last round's baseline: one verdict for both
+        last["explained_before"], last["excess_over_floor"], last["excess_se"] = \
+            explained, final_excess, final_excess_se
+    first = rounds[0]
+    library_free = min(f.mse for f in floors if f.library_free)
+    unexplained = _unexplained(first["mse"]["validation"], final_fit, flexible, library_free, val, sig_train,
+                               sig_val, x_val, explained, seed, first_floor)
     doc = {"coefficient": baseline.coefficient, "baseline": baseline.name,
-           "mse": first["mse"], "noise_floor": floor_all, "noise_floor_library": min(fitted_mses),
+           "mse": first["mse"], "noise_floor": floor.mse, "floor_source": floor.source,
+           "noise_floor_library": min(f.mse for f in floors if not f.library_free),
            "noise_floor_spectral": first["noise_floor_spectral"], "where": first["where"],
            "effects": first["effects"], "explained": explained,
            "gap_explained_by_baseline": first["explained_before"],
            "final_excess_over_floor": final_excess, "final_excess_se": final_excess_se,
-           "rounds": rounds, "final_model": current.name, "unexplained": unexplained, "warnings": warnings}
+           "rounds": rounds, "final_model": current.name, "final_mse": float(np.mean(final_fit.residual ** 2)),
+           "unexplained": unexplained, "warnings": warnings}
     if states and first_best is not None:
         say("state level: replaying the validation maneuvers before and after")
         try:
@@ -386,36 +415,65 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
     return doc
 
 
-def _unexplained(mse_base: float, final: Fitted, flexible: fl.FlexibleFit, library_free: float, train: FlightData,
+def _top_bins(rows: list[dict]) -> dict | None:
+    """The phase and alpha band holding the largest share of an excess; None when there is no excess."""
+    out = {}
+    for dim in ("phase", "alpha_band"):
+        shares = [r for r in rows if r["dimension"] == dim and np.isfinite(r["share"])]
+        if not shares:
+            return None
+        out[dim] = max(shares, key=lambda r: r["share"])["bin"]
+    return out
+
+
+def _signal_ranking(train_residual: np.ndarray, residual: np.ndarray, flex: fl.FlexibleFit, sig_train: dict,
+                    sig_val: dict, gap: float, seed: int) -> tuple[list[dict], dict]:
+    """The signals a gap of size ``gap`` follows, best first by their permutation importance in the flexible
+    model on the validation maneuvers (it sees the signals jointly, so V counts for a dependence on V times
+    delta_e even where V alone explains little, and a signal that only travels with the responsible one, such
+    as the time in a maneuver that bleeds off speed, does not), ties by a one-signal fit; each with the share
+    of the gap a function of it alone, fitted on the training maneuvers, removes on the validation maneuvers
+    (interfaces.md 5.4)."""
+    fits = {f.name: f for f in fl.ranked_signals(train_residual, sig_train, residual, sig_val)}
+    importance = fl.permutation_importance(flex, residual, sig_val, seed)
+    mse = float(np.mean(residual ** 2))
+    order = sorted(fits, key=lambda n: (-importance.get(n, 0.0), fits[n].mse))
+    return [{"name": n, "share": float(min(max((mse - fits[n].mse) / gap, 0.0), 1.0)),
+             "importance": float(importance.get(n, 0.0))} for n in order], fits
+
+
+def _unexplained(mse_base: float, final: Fitted, flexible: fl.FlexibleFit, library_free: float,
                  val: FlightData, sig_train: dict, sig_val: dict, x_val: np.ndarray, explained: bool,
-                 seed: int) -> dict:
+                 seed: int, first=None) -> dict:
     """The interfaces.md 5.4 ``unexplained`` block: the share of the gap (baseline validation MSE minus the
-    library-free floor) left after the adopted library effects, the signals the rest follows, where it sits."""
+    library-free floor) left after the adopted library effects, the signals the rest follows, where it sits.
+    ``flexible`` is the library-free model of the final model's residual. ``first`` (the baseline's fit, its
+    flexible model and signals) adds ``gap_signals``: the signals the whole gap followed before any effect."""
     mse_final = float(np.mean(final.residual ** 2))
     gap, remaining = mse_base - library_free, mse_final - library_free
     out = {"noise_floor": library_free, "flexible_iterations": flexible.n_iter,
            "share": float(min(max(remaining / gap, 0.0), 1.0)) if gap > 0 else None,
-           "signals": [], "where": None, "partial_dependence": []}
+           "signals": [], "gap_signals": [], "where": None, "partial_dependence": []}
     if gap <= 0:
         out["note"] = "no gap above the library-free floor"
-    if explained or not remaining > 0:
+    elif first is not None:
+        base_fit, base_flex, base_train, base_val = first
+        out["gap_signals"] = _signal_ranking(base_fit.train_residual, base_fit.residual, base_flex, base_train,
+                                             base_val, gap, seed)[0]
+    if explained:
         return out
-    fits = fl.ranked_signals(final.train_residual, sig_train, final.residual, sig_val)
-    out["signals"] = [{"name": f.name, "share": float(min(max((mse_final - f.mse) / remaining, 0.0), 1.0))}
-                      for f in fits]
-    rows = where(final.residual, flexible.residual, val, x_val, seed=seed)
-    out["where"] = {dim: max((r for r in rows if r["dimension"] == dim), key=lambda r: r["share"])["bin"]
-                    for dim in ("phase", "alpha_band")}
-    for f in fits[:3]:
-        v = sig_val[f.name]
-        edges = np.unique(np.quantile(v, np.linspace(0, 1, fl.SIGNAL_BINS + 1)))
-        idx = np.clip(np.searchsorted(edges, v, side="right") - 1, 0, max(len(edges) - 2, 0))
-        counts = np.bincount(idx, minlength=max(len(edges) - 1, 1))
-        keep = counts > 0
-        out["partial_dependence"].append({
-            "name": f.name, "x": f.centres.tolist(), "fitted": f.values.tolist(),
-            "validation_x": (np.bincount(idx, weights=v)[keep] / counts[keep]).tolist(),
-            "validation_mean": (np.bincount(idx, weights=final.residual)[keep] / counts[keep]).tolist()})
+    if not remaining > 0:
+        out["note"] = ("the final model is at the library-free floor but not at the floor the library sets with "
+                       "several effects together (the saturated model); no single effect was significant")
+        return out
+    out["signals"], fits = _signal_ranking(final.train_residual, final.residual, flexible, sig_train, sig_val,
+                                           remaining, seed)
+    out["where"] = _top_bins(where(final.residual, flexible.residual, val, x_val, seed=seed))
+    for entry in out["signals"][:3]:
+        f = fits[entry["name"]]
+        x, mean = fl.binned_means(sig_val[f.name], final.residual)
+        out["partial_dependence"].append({"name": f.name, "x": f.centres.tolist(), "fitted": f.values.tolist(),
+                                          "validation_x": x.tolist(), "validation_mean": mean.tolist()})
     return out
 
 
@@ -457,15 +515,18 @@ def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, lift_c,
                 params.update(fitted.summary.params)
                 continue
             structure = find_candidate(FINAL_MODEL_NAMES[other])
-            # terms on states this lift model does not have are left out (before and after alike)
+            # terms on states this lift model does not have, or on columns the campaign lacks (x_cg), are left
+            # out (before and after alike)
             symbols = [f"X_{n}" if n else "X" for n, _ in lift_cand.states]
+            have = set(campaign.data.columns) | set(campaign.data.constants) | set(symbols)
             kept = []
             for name, text in structure.regressors:
                 try:
                     declare(name, text, states=symbols)
-                    kept.append((name, text))
                 except DeclarationError:
                     continue
+                if set(symbol_names(text)) <= have | {"CL"}:
+                    kept.append((name, text))
             structure = Candidate(structure.name, structure.grid, structure.coefficient, tuple(kept),
                                   lift_cand.states, lift_cand.name, structure.note, lift_cand.bounds)
             s = fit_candidate(structure, train, val, lift_fit, lift_cand, settings)

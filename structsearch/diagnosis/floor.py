@@ -14,9 +14,11 @@ number of boosting iterations is chosen by maneuver-grouped cross-validation on 
 (splitting samples would leak through the residual's autocorrelation and overfit). Training rows are
 decimated (samples 10 ms apart carry nearly the same information).
 
-The signals a remaining gap follows are ranked by a smooth function of one signal at a time (means in
-quantile bins, interpolated), fitted to the training residual and judged on the validation maneuvers: the
-fraction of the remaining gap it removes there.
+The signals a gap follows are ranked by their permutation importance in the flexible model on the
+validation maneuvers (it sees the signals jointly: a dependence on V times delta_e shows even where V
+alone explains little, and a signal that merely travels with the responsible one does not), and each is
+given the fraction of the gap a smooth function of that signal alone (means in quantile bins,
+interpolated, fitted to the training residual) removes on the validation maneuvers.
 """
 from __future__ import annotations
 
@@ -42,6 +44,7 @@ class FlexibleFit:
     residual: np.ndarray       # that corrected validation residual
     n_iter: int                # boosting iterations chosen by maneuver-grouped cross-validation
     signals: tuple[str, ...]   # the inputs it used
+    model: object = None       # the fitted regressor (None when no iteration generalised)
 
 
 @dataclass(frozen=True)
@@ -109,22 +112,49 @@ def flexible_fit(r_train: np.ndarray, train: FlightData, train_signals: dict, r_
         return FlexibleFit(float(np.mean(r_val ** 2)), r_val.copy(), 0, names)
     fit = model(n_iter).fit(x, y)
     corrected = r_val - fit.predict(_matrix(val_signals, names))
-    return FlexibleFit(float(np.mean(corrected ** 2)), corrected, n_iter, names)
+    return FlexibleFit(float(np.mean(corrected ** 2)), corrected, n_iter, names, fit)
+
+
+def permutation_importance(flex: FlexibleFit, r_val: np.ndarray, val_signals: dict, seed: int = 0
+                           ) -> dict[str, float]:
+    """How much of what the flexible model removes on the validation maneuvers each signal carries: the rise
+    of the corrected MSE when that signal's values are shuffled, over the MSE the model removes (0 for every
+    signal when it removes nothing). The model sees signals jointly, so a dependence on V times alpha counts
+    for V, which a function of V alone may miss."""
+    if flex.model is None:
+        return {n: 0.0 for n in flex.signals}
+    removed = float(np.mean(r_val ** 2)) - flex.mse
+    if not removed > 0:
+        return {n: 0.0 for n in flex.signals}
+    rng = np.random.default_rng(seed)
+    base = _matrix(val_signals, flex.signals)
+    out = {}
+    for j, name in enumerate(flex.signals):
+        shuffled = base.copy()
+        shuffled[:, j] = rng.permutation(shuffled[:, j])
+        mse = float(np.mean((r_val - flex.model.predict(shuffled)) ** 2))
+        out[name] = (mse - flex.mse) / removed
+    return out
+
+
+def binned_means(signal: np.ndarray, residual: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean signal and mean residual in each of up to SIGNAL_BINS quantile bins of the signal (empty bins
+    left out)."""
+    edges = np.unique(np.quantile(signal, np.linspace(0, 1, SIGNAL_BINS + 1)))
+    if len(edges) < 2:
+        return np.array([float(signal[0])]), np.array([float(np.mean(residual))])
+    index = np.clip(np.searchsorted(edges, signal, side="right") - 1, 0, len(edges) - 2)
+    counts = np.bincount(index, minlength=len(edges) - 1)
+    keep = counts > 0
+    return ((np.bincount(index, weights=signal, minlength=len(edges) - 1)[keep] / counts[keep]),
+            (np.bincount(index, weights=residual, minlength=len(edges) - 1)[keep] / counts[keep]))
 
 
 def signal_fit(name: str, r_train: np.ndarray, train_signal: np.ndarray, r_val: np.ndarray,
                val_signal: np.ndarray) -> SignalFit:
     """Means of ``r_train`` in quantile bins of one signal, interpolated: the residual explained by that
     signal alone, applied to the validation maneuvers."""
-    edges = np.unique(np.quantile(train_signal, np.linspace(0, 1, SIGNAL_BINS + 1)))
-    if len(edges) < 2:
-        return SignalFit(name, float(np.mean(r_val ** 2)), np.array([float(train_signal[0])]), np.zeros(1))
-    index = np.clip(np.searchsorted(edges, train_signal, side="right") - 1, 0, len(edges) - 2)
-    counts = np.bincount(index, minlength=len(edges) - 1)
-    sums = np.bincount(index, weights=r_train, minlength=len(edges) - 1)
-    sums_x = np.bincount(index, weights=train_signal, minlength=len(edges) - 1)
-    keep = counts > 0
-    centres, values = sums_x[keep] / counts[keep], sums[keep] / counts[keep]
+    centres, values = binned_means(train_signal, r_train)
     corrected = r_val - np.interp(val_signal, centres, values)
     return SignalFit(name, float(np.mean(corrected ** 2)), centres, values)
 

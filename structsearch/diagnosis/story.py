@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import Callable
 
+import numpy as np
+
 from .diagnose import diagnose
 from ..data.campaign import Campaign
 from ..flight.reference import VAN_INGEN_MODEL_NAMES
@@ -29,40 +31,58 @@ def van_ingen_story(campaign: Campaign, settings: Settings = Settings(n_starts=2
 
 
 def _steps(doc: dict) -> list[tuple[str, float]]:
-    """(effect adopted, fraction of the first round's gap it closed), round by round. A round adopted its
-    best effect when the next round (or, after the last round, the final model) is that effect's model."""
+    """(effect adopted, fraction of the first round's gap it closed), round by round."""
     rounds = doc["rounds"]
-    gap = rounds[0]["mse"]["validation"] - doc["noise_floor"] if rounds else 0.0
-    following = [r["baseline"] for r in rounds[1:]] + [doc["final_model"]]
+    gap = rounds[0]["mse"]["validation"] - doc["noise_floor"]
     out = []
-    for r, next_model in zip(rounds, following):
-        best = next((e for e in r["effects"] if "error" not in e), None)
-        if best is not None and best["model"] == next_model:
-            closed = r["mse"]["validation"] - best["mse_validation_after"]
-            out.append((best["name"], closed / gap if gap > 0 else float("nan")))
+    for r in rounds:
+        if r.get("adopted"):
+            after = next(e["mse_validation_after"] for e in r["effects"] if e["name"] == r["adopted"])
+            out.append((r["adopted"], (r["mse"]["validation"] - after) / gap if gap > 0 else float("nan")))
     return out
 
 
+def _above(mse: float, floor: float) -> str:
+    return f"{mse / floor - 1:.0%}" if floor > 0 else "n/a"
+
+
 def story_lines(docs: dict[str, dict]) -> list[str]:
-    """One line per coefficient, in words."""
+    """One line per coefficient, in words; "above the floor" is the pooled validation MSE's excess."""
     lines = []
     for coef, doc in docs.items():
         mse, floor = doc["mse"]["validation"], doc["noise_floor"]
-        text = (f"{coef}: the Van Ingen model {doc['baseline']} misses the flight data by "
-                f"{mse / floor - 1:.0%} above the noise floor (validation MSE {mse:.3g} against {floor:.3g})")
+        text = (f"{coef}: the Van Ingen model {doc['baseline']} misses the flight data by {_above(mse, floor)} "
+                f"above the noise floor (validation MSE {mse:.3g} against {floor:.3g})")
         steps = _steps(doc)
         if steps:
-            text += "; " + ", then ".join(f"adding {name} closes {share:.0%} of that gap" for name, share in steps)
+            text += "; " + ", then ".join(
+                f"adding {name} closes {'n/a' if not np.isfinite(share) else f'{share:.0%}'} of that gap"
+                for name, share in steps)
         verdict = ("at the floor" if doc["explained"] else
-                   f"still {doc['final_excess_over_floor']:.0%} above the floor")
+                   f"still {_above(doc['final_mse'], floor)} above the floor")
         text += f"; {doc['final_model']} is {verdict}"
         sl = doc.get("state_level") or {}
         if "before" in sl:
             text += (f" (replayed alpha RMS {sl['before']['alpha']:.4f} -> {sl['after']['alpha']:.4f} rad with the "
                      "first effect)")
         unexplained = doc.get("unexplained") or {}
-        if not doc["explained"] and unexplained.get("signals"):
+        if not doc["explained"] and unexplained.get("signals") and unexplained.get("share") is not None:
             text += (f"; what remains is not in the library ({unexplained['share']:.0%} of the gap) and follows "
                      f"{unexplained['signals'][0]['name']}")
         lines.append(text + ".")
     return lines
+
+
+def unexplained_sentence(doc: dict) -> str:
+    """What the library cannot explain, in words (empty when the final model is at the floor)."""
+    u = doc.get("unexplained") or {}
+    if doc.get("explained") or u.get("share") is None or not u["share"] > 0:
+        return ""
+    text = f"{u['share']:.0%} of the gap is not explained by the library"
+    top = [s for s in u.get("signals", []) if s["share"] > 0][:1]
+    if top:
+        text += f"; it follows {top[0]['name']} (a function of it alone removes {top[0]['share']:.0%} of the rest)"
+    where = u.get("where")
+    if where:
+        text += f", mostly at alpha {where['alpha_band']} rad in the {where['phase']} phase"
+    return text + "."

@@ -24,7 +24,10 @@ from typing import Callable
 
 import numpy as np
 
-from .diagnose import _bins, _shares, diagnose
+from .diagnose import _bins, _shares, _top_bins, diagnose
+from .story import unexplained_sentence
+from ..engine.separation import static_separation
+from ..flight.reference import FINAL_LIFT
 from ..flight.anomalies import ANOMALIES, truth_difference
 from ..flight.flighttest import build_campaign
 from ..flight.reference import FINAL_MODEL_NAMES
@@ -67,27 +70,25 @@ def truth_location(campaign, effect: str) -> dict:
     mask = np.concatenate([np.full(sl.stop - sl.start, m.split == "validation")
                            for m, sl in zip(campaign.maneuvers, campaign.data.segment_slices())])
     val = campaign.split("validation")
-    labels = _bins(val, val["X_ss_true"])
+    # phases as the diagnosis defines them (a static stall-strip curve), from the truth's parameters
+    labels = _bins(val, static_separation(val["alpha"], FINAL_LIFT["a1_ss"], FINAL_LIFT["a_star_ss"]))
     out = {"truth_mse": float(np.mean(delta[mask] ** 2))}
     for dim in ("phase", "alpha_band"):
         keys, shares = _shares(delta[mask] ** 2, labels[dim])
-        out[dim] = str(keys[int(np.argmax(shares))])
-        out[f"{dim}_share"] = float(np.max(shares))
+        top = None if np.all(np.isnan(shares)) else int(np.nanargmax(shares))
+        out[dim] = None if top is None else str(keys[top])
+        out[f"{dim}_share"] = None if top is None else float(shares[top])
     return out
 
 
 def _top(doc: dict) -> dict:
-    return {dim: max((r for r in doc["where"] if r["dimension"] == dim), key=lambda r: r["share"])["bin"]
-            for dim in ("phase", "alpha_band")}
+    return _top_bins(doc["where"]) or {"phase": None, "alpha_band": None}
 
 
 def _closed_by_library(doc: dict) -> float:
     """Fraction of the first round's gap the adopted library effects close together (NaN: no gap)."""
     gap = doc["mse"]["validation"] - doc["noise_floor"]
-    last = doc["rounds"][-1]
-    final_mse = last["mse"]["validation"] if last["baseline"] == doc["final_model"] else next(
-        e["mse_validation_after"] for e in last["effects"] if e.get("model") == doc["final_model"])
-    return float((doc["mse"]["validation"] - final_mse) / gap) if gap > 0 else float("nan")
+    return float((doc["mse"]["validation"] - doc["final_mse"]) / gap) if gap > 0 else float("nan")
 
 
 def withheld_row(campaign, effect: str, settings: Settings, n_jobs: int) -> dict:
@@ -101,9 +102,13 @@ def withheld_row(campaign, effect: str, settings: Settings, n_jobs: int) -> dict
             "ranked_first": first["name"] == effect, "first": first["name"],
             "shrink": reported["shrink"] if reported else None,
             "closes_half": bool(reported and reported["shrink"] is not None and reported["shrink"] >= HALF),
+            # the truth's own measure of the effect against the baseline's gap: an upper bound of what adding it
+            # can close (the baseline's refit absorbs part of the effect through its other terms)
+            "truth_share": (min(truth["truth_mse"] / (doc["mse"]["validation"] - doc["noise_floor"]), 1.0)
+                            if doc["mse"]["validation"] > doc["noise_floor"] else None),
             "top_phase": top["phase"], "top_alpha_band": top["alpha_band"],
             "truth_phase": truth["phase"], "truth_alpha_band": truth["alpha_band"], "truth_mse": truth["truth_mse"],
-            "located": top["phase"] == truth["phase"],
+            "located": top["phase"] is not None and top["phase"] == truth["phase"],
             "gap_p_value": doc["rounds"][0]["gap_p_value"], "explained": doc["explained"],
             "state_alpha_rms": (doc.get("state_level") or {}).get("before", {}).get("alpha"),
             "state_alpha_rms_after": (doc.get("state_level") or {}).get("after", {}).get("alpha"),
@@ -118,7 +123,11 @@ def anomaly_row(name: str, seed: int, scale: float, settings: Settings, n_jobs: 
     truth = truth_location(campaign, name)
     top = _top(doc)
     closed = _closed_by_library(doc)
-    signals = (doc.get("unexplained") or {}).get("signals") or []
+    # the signal the whole gap followed before any library effect: an adopted effect may absorb part of the
+    # anomaly and leave a remainder that follows something else (flight-to-flight offsets)
+    u = doc.get("unexplained") or {}
+    signals = u.get("gap_signals") or []
+    remaining = u.get("signals") or []
     detected = not doc["gap_explained_by_baseline"]
     false_claim = bool(doc["explained"] and doc["final_model"] != base.name and not closed >= HALF)
     return {"anomaly": name, "coefficient": anomaly.coefficient, "baseline": base.name,
@@ -126,11 +135,12 @@ def anomaly_row(name: str, seed: int, scale: float, settings: Settings, n_jobs: 
             "detected": detected, "top_phase": top["phase"], "top_alpha_band": top["alpha_band"],
             "truth_phase": truth["phase"], "truth_alpha_band": truth["alpha_band"],
             "truth_mse": truth["truth_mse"],
-            "located": bool(detected and top["phase"] == truth["phase"]),
+            "located": bool(detected and top["phase"] is not None and top["phase"] == truth["phase"]),
             "adopted": doc["final_model"], "closed_by_library": closed, "explained": doc["explained"],
             "false_claim": false_claim,
             "unexplained_share": (doc.get("unexplained") or {}).get("share"),
-            "first_signal": signals[0]["name"] if signals else None,
+            "first_signal": signals[0]["name"] if signals else None, "says": unexplained_sentence(doc),
+            "first_signal_remaining": remaining[0]["name"] if remaining else None,
             "signal_first": bool(signals and signals[0]["name"] == anomaly.signal),
             "gap_p_value": doc["rounds"][0]["gap_p_value"], "seconds": doc["seconds"]}
 
@@ -157,7 +167,7 @@ def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, a
             doc = diagnose(camp, find_candidate(name), settings=settings, max_rounds=1, states=False, n_jobs=n_jobs)
             p = doc["rounds"][0]["gap_p_value"]
             null.append({"seed": s, "model": name, "explained": doc["explained"], "gap_p_value": p,
-                         "alarm_test": bool(p < 0.01), "alarm_combined": not doc["explained"],
+                         "alarm_test": None if p is None else bool(p < 0.01), "alarm_combined": not doc["explained"],
                          "seconds": doc["seconds"]})
     return {"seed": seed, "scale": scale, "rows": rows, "outside": outside, "null": null,
             "not_expressible": NOT_EXPRESSIBLE, "seconds": time.perf_counter() - t0}
@@ -180,11 +190,13 @@ def markdown(res: dict, command: str = "structsearch diagnose --benchmark --out 
              "Default campaign; baseline = final model of the effect's coefficient without it.", "",
              tabulate([[r["effect"], r["coefficient"], r["first"], _yes(r["ranked_first"]),
                         "n/a" if r["shrink"] is None else f"{r['shrink']:.2f}", _yes(r["closes_half"]),
+                        "n/a" if r["truth_share"] is None else f"{r['truth_share']:.2f}",
                         f"{r['top_phase']} / {r['top_alpha_band']}", f"{r['truth_phase']} / {r['truth_alpha_band']}",
                         _yes(r["located"]), "-" if r.get("state_alpha_rms") is None else
                         f"{r['state_alpha_rms']:.4f} -> {r['state_alpha_rms_after']:.4f}", f"{r['seconds']:.0f}"]
                        for r in rows],
                       headers=["withheld effect", "coef.", "ranked first", "hit", "shrink", ">= 0.5",
+                               "truth's share of the gap (upper bound)",
                                "gap's top phase / alpha band", "truth's top phase / alpha band", "phase matches",
                                "replayed alpha RMS [rad] before -> after", "s"], tablefmt="github"), "",
              f"Ranked first: **{sum(r['ranked_first'] for r in rows)}/{n}**; closes at least half of the gap: "
@@ -203,21 +215,28 @@ def markdown(res: dict, command: str = "structsearch diagnose --benchmark --out 
                              "n/a" if not np.isfinite(r["closed_by_library"]) else f"{r['closed_by_library']:.2f}",
                              "NO (false claim)" if r["false_claim"] else "yes",
                              "n/a" if r["unexplained_share"] is None else f"{r['unexplained_share']:.2f}",
-                             r["signal"], r["first_signal"] or "-", _yes(r["signal_first"]), f"{r['seconds']:.0f}"]
+                             r["signal"], r["first_signal"] or "-", r.get("first_signal_remaining") or "-",
+                             _yes(r["signal_first"]), f"{r['seconds']:.0f}"]
                             for r in outside],
                            headers=["effect", "coef.", "gap found", "gap's top phase / band", "truth's top phase / band",
                                     "located", "model after adopted effects", "share the library closes",
                                     "not falsely explained", "unexplained share", "responsible signal",
-                                    "first signal", "signal first", "s"], tablefmt="github"), "",
+                                    "first signal of the gap", "first signal of what remains", "signal first",
+                                    "s"],
+                           tablefmt="github"), "",
                   f"Located: **{sum(r['located'] for r in outside)}/{m}**; not falsely explained: "
                   f"**{sum(not r['false_claim'] for r in outside)}/{m}**; responsible signal first: "
                   f"**{sum(r['signal_first'] for r in outside)}/{m}**; all three: **{sum(scored)}/{m}**.", "",
-                  *[f"- `{r['anomaly']}`: {r['description']}" for r in outside], ""]
+                  *[f"- `{r['anomaly']}`: {r['description']} The diagnosis says: "
+                    f"{r['says'] or ('explained by ' + r['adopted'] if r['explained'] else '(nothing)')}"
+                    for r in outside], ""]
     lines += ["## Null case (nothing withheld)", "",
-              tabulate([[r["seed"], r["model"], f"{r['gap_p_value']:.2g}", _yes(not r["alarm_test"]),
+              tabulate([[r["seed"], r["model"], "n/a" if r["gap_p_value"] is None else f"{r['gap_p_value']:.2g}",
+                         "not testable" if r["alarm_test"] is None else _yes(not r["alarm_test"]),
                          _yes(not r["alarm_combined"])] for r in null],
                        headers=["seed", "model", "gap p-value (Wald)", "no alarm by the test alone",
                                 "no alarm by the combined rule (at the floor)"], tablefmt="github"), "",
-              f"False alarms by the Wald test alone (1 %): **{sum(r['alarm_test'] for r in null)}/{len(null)}**; "
+              f"False alarms by the Wald test alone (1 %): **{sum(bool(r['alarm_test']) for r in null)}/"
+              f"{sum(r['alarm_test'] is not None for r in null)}** testable; "
               f"by the combined rule: **{sum(r['alarm_combined'] for r in null)}/{len(null)}**.", ""]
     return "\n".join(lines)

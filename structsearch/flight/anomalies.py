@@ -225,7 +225,7 @@ def truth_difference(campaign, effect: str, coefficient: str | None = None) -> n
       lack it; a model with it misses this, with the opposite sign);
     - anomaly campaign, ``effect`` its anomaly: the truth with the anomaly minus the final truth. For
       ``vane_lag`` (a measurement error): the final truth on the alpha the chain reads without the lag
-      (column ``alpha_unlagged``, its alpha_dot differentiated as the chain does) minus the final truth
+      (column ``alpha_unlagged_true``, its alpha_dot differentiated as the chain does) minus the final truth
       on the recorded, lagged alpha, plus the change of the reconstructed C_L and C_D from rotating the
       body-axis forces with the lagged alpha (C_m is not rotated).
 
@@ -264,10 +264,10 @@ def truth_difference(campaign, effect: str, coefficient: str | None = None) -> n
 
 
 def _vane_lag_difference(data, coef: str, model: AeroModel) -> np.ndarray:
-    if "alpha_unlagged" not in data:
-        raise DeclarationError("the vane_lag difference needs the column alpha_unlagged (campaigns built with "
+    if "alpha_unlagged_true" not in data:
+        raise DeclarationError("the vane_lag difference needs the column alpha_unlagged_true (campaigns built with "
                                "anomaly='vane_lag' carry it)")
-    unlagged = data["alpha_unlagged"]
+    unlagged = data["alpha_unlagged_true"]
     unlagged_dot = np.concatenate([derivative(unlagged[sl], data["t"][sl]) for sl in data.segment_slices()])
     out = _difference(flown_terms(model, data, coef, unlagged, unlagged_dot), flown_terms(model, data, coef),
                       data.n_samples)

@@ -278,7 +278,7 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
                      ("V", "alpha", "q", "theta", "h", "de", "thrust", "qbar", "mass", "x_cg", "CL", "CD", "Cm",
                       "q_dot")}
             # a withheld second state is recorded as attached flow
-            symbols = ("X_ss", "X_w") if craft is CITATION else tuple(traj.X)
+            symbols = ("X_ss", "X_w") if craft.name == "citation" else tuple(traj.X)
             truth["states"] = {sym: traj.X[sym][:, j] if sym in traj.X else np.ones(duration) for sym in symbols}
             columns = measure(rng, traj.t, truth, errors[i], SLOW_ERROR_STALL_GAIN, craft,
                               vane_lag_s=getattr(anomaly, "vane_lag_s", 0.0), record_alpha=anomaly is not None)

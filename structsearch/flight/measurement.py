@@ -71,7 +71,7 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     and the pitch moment. ``aircraft`` gives S, cbar and the pitch inertia.
 
     ``vane_lag_s`` > 0 passes the alpha vane's reading through a first-order lag of that time constant
-    (the ``vane_lag`` anomaly) and adds the column ``alpha_unlagged``: the alpha this chain gives without
+    (the ``vane_lag`` anomaly) and adds the column ``alpha_unlagged_true``: the alpha this chain gives without
     the lag (same noise, bias and pre-filter). ``record_alpha`` adds the truth alpha as ``alpha_true``.
     Neither draws random numbers: with the same ``rng`` every other column is unchanged.
     """
@@ -143,7 +143,7 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     if record_alpha:
         columns["alpha_true"] = alpha
     if unlagged is not None:
-        columns["alpha_unlagged"] = prefilter("alpha", unlagged, fs)
+        columns["alpha_unlagged_true"] = prefilter("alpha", unlagged, fs)
     if not aircraft.records_cg:  # flown at a fixed cg nobody recorded
         del columns["x_cg"]
     return columns

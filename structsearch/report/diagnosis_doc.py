@@ -8,6 +8,7 @@ import numpy as np
 from tabulate import tabulate
 
 from ..data.atomic import json_ready, write_json, write_text
+from ..diagnosis.story import unexplained_sentence
 
 
 def public(doc: dict) -> dict:
@@ -23,29 +24,14 @@ def _num(x, fmt=".2f") -> str:
     return "n/a" if x is None or not np.isfinite(x) else format(x, fmt)
 
 
-def unexplained_sentence(doc: dict) -> str:
-    """What the library cannot explain, in words (empty when the final model is at the floor)."""
-    u = doc.get("unexplained") or {}
-    if doc.get("explained") or u.get("share") is None or not u["share"] > 0:
-        return ""
-    text = f"{u['share']:.0%} of the gap is not explained by the library"
-    top = [s for s in u.get("signals", []) if s["share"] > 0][:1]
-    if top:
-        text += f"; it follows {top[0]['name']} (a function of it alone removes {top[0]['share']:.0%} of the rest)"
-    where = u.get("where")
-    if where:
-        text += f", mostly at alpha {where['alpha_band']} rad in the {where['phase']} phase"
-    return text + "."
-
-
 def markdown(doc: dict) -> str:
     lines = [f"# Diagnosis of {doc['coefficient']} (baseline {doc['baseline']})", ""]
     m = doc["mse"]
     u = doc.get("unexplained") or {}
-    lines += [f"Validation MSE {m['validation']:.4g} (training {m['train']:.4g}); noise floor {doc['noise_floor']:.4g}: "
-              f"the lowest of the saturated library model ({doc['noise_floor_library']:.4g}, the lowest any library "
-              f"model reaches) and a library-free flexible model of the residual ({u.get('noise_floor', np.nan):.4g}); "
-              f"spectral estimate {doc['noise_floor_spectral']:.4g}.", ""]
+    lines += [f"Validation MSE {m['validation']:.4g} (training {m['train']:.4g}); noise floor {doc['noise_floor']:.4g} "
+              f"({doc['floor_source']}): the lowest of every library model fitted ({doc['noise_floor_library']:.4g}, "
+              f"the saturated model among them) and of a library-free flexible model of the residual "
+              f"({u.get('noise_floor', np.nan):.4g}); spectral estimate {doc['noise_floor_spectral']:.4g}.", ""]
     lines += [f"Warning: {w}" for w in doc.get("warnings", [])] + ([""] if doc.get("warnings") else [])
     first = doc["rounds"][0] if doc["rounds"] else {}
     if doc["gap_explained_by_baseline"]:
@@ -54,7 +40,8 @@ def markdown(doc: dict) -> str:
                   "one standard error, or below 1 %).", ""]
     else:
         lines += [f"**Gap**: {m['validation'] - doc['noise_floor']:.4g} "
-                  f"({(m['validation'] / doc['noise_floor'] - 1):.1%} above the floor).", ""]
+                  f"({_pct(m['validation'] / doc['noise_floor'] - 1 if doc['noise_floor'] > 0 else None)} above the "
+                  "floor).", ""]
         lines += ["## Where the gap lies", ""]
         for dim in ("phase", "alpha_band", "alpha_dot_sign", "frequency_band", "maneuver"):
             rows = sorted((r for r in doc["where"] if r["dimension"] == dim), key=lambda r: -r["share"])
@@ -68,21 +55,29 @@ def markdown(doc: dict) -> str:
         if "error" in e:
             body.append([e["name"], "-", "-", "-", "-", "-", e["error"]])
         else:
-            body.append([e["name"], _num(e["shrink"]), f"{e['mse_validation_after']:.4g}", f"{e['p_value']:.2g}",
-                         f"{e['overlap']:.2f}", e["acts_in"]["phase"], "at floor" if e["at_floor"] else ""])
+            body.append([e["name"], _num(e["shrink"]), f"{e['mse_validation_after']:.4g}", _num(e["p_value"], ".2g"),
+                         _num(e["overlap"]), (e["acts_in"] or {}).get("phase", "-"),
+                         "at floor" if e["at_floor"] else ""])
     lines += [tabulate(body, headers=["effect", "shrink", "validation MSE after", "p (Wald)",
                                       "overlap with gap", "acts most in", ""], tablefmt="github"), ""]
     lines += ["## How far it shrinks", ""]
     for i, r in enumerate(doc["rounds"]):
         best = next((e for e in r["effects"] if "error" not in e), None)
-        step = (f"adding {best['name']} closes {_pct(best['shrink'])} of the gap (p = {best['p_value']:.2g})"
-                if best and not r["explained_before"] else "at the floor")
-        lines.append(f"{i + 1}. {r['baseline']}: validation MSE {r['mse']['validation']:.4g}, floor "
-                     f"{r['noise_floor']:.4g}; {step}.")
+        step = ("at the floor" if r["explained_before"] else
+                f"adopted {r['adopted']}, which closes {_pct(best['shrink'])} of the gap (p = {_num(best['p_value'], '.2g')})"
+                if r.get("adopted") and best else "no effect significant at 1 % closes part of the gap")
+        lines.append(f"{i + 1}. {r['baseline']}: validation MSE {r['mse']['validation']:.4g} (floor of this "
+                     f"round {r['noise_floor_round']:.4g}, {r['floor_source']}); {step}.")
     lines += ["", f"**Explained**: {'yes' if doc['explained'] else 'no'} (the final model's per-maneuver excess over "
               f"the floor: {_pct(doc.get('final_excess_over_floor'))} +- {_pct(doc.get('final_excess_se'))}). "
               f"Final model: {doc['final_model']}.", ""]
     sentence = unexplained_sentence(doc)
+    if u.get("gap_signals") and not doc["gap_explained_by_baseline"]:
+        top = ", ".join(f"{g['name']} ({g['share']:.2f})" for g in u["gap_signals"][:4])
+        lines += [f"Before any effect, the gap followed (share of it a function of one signal removes on the "
+                  f"validation maneuvers): {top}.", ""]
+    if u.get("note") and not doc["explained"]:
+        lines += [f"Note: {u['note']}.", ""]
     if sentence:
         lines += ["## What the library does not explain", "", sentence, ""]
         body = [[s["name"], f"{s['share']:.2f}"] for s in u.get("signals", [])[:8]]
@@ -124,9 +119,11 @@ def story_markdown(story: dict, command: str) -> str:
             best = next((e for e in r["effects"] if "error" not in e), None)
             body.append([i + 1, r["baseline"], f"{r['mse']['validation']:.4g}",
                          "-" if best is None else best["name"], "-" if best is None else _num(best["shrink"]),
-                         "-" if best is None else f"{best['p_value']:.2g}", "yes" if r["explained_before"] else "no"])
-        lines += [tabulate(body, headers=["round", "model", "validation MSE", "best effect", "shrink",
-                                          "p (Wald)", "at the floor"], tablefmt="github"), "",
+                         "-" if best is None else _num(best["p_value"], ".2g"), r.get("adopted") or "-",
+                         "yes" if r["explained_before"] else "no"])
+        lines += [tabulate(body, headers=["round", "model", "validation MSE", "best effect",
+                                          "shrink (of this round's gap)", "p (Wald)", "adopted", "at the floor"],
+                           tablefmt="github"), "",
                   f"Noise floor {doc['noise_floor']:.4g}; explained: {'yes' if doc['explained'] else 'no'}. "
                   + unexplained_sentence(doc), ""]
     return "\n".join(lines)
