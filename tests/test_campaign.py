@@ -199,7 +199,9 @@ def test_aircraft_data_round_trips(tmp_path):
     from structsearch.flight.flighttest import build_campaign
     written = write_campaign(build_campaign(seed=2, scale=0.05), tmp_path / "c")
     back = read_campaign(written)
-    assert back.aircraft["x_cg_range"] == pytest.approx((7.0104, 7.2644)) and back.aircraft["Iyy"] == 31501.0
+    # Iyy at the mean test mass: empty-mass inertia + 0.9 m^2 per kg of crew (255 kg) and mean fuel (975 kg)
+    assert back.aircraft["x_cg_range"] == pytest.approx((7.0104, 7.2644))
+    assert back.aircraft["Iyy"] == pytest.approx(31501.0 + 0.9 * (255.0 + 975.0))
     assert "x_cg_range" not in back.data.constants and back.data.constants["Iyy"] == 31501.0
 
 
