@@ -67,7 +67,7 @@ def _simulate(args) -> int:
     from .data.campaign import write_campaign
     from .flight.flighttest import build_campaign
     campaign = build_campaign(seed=args.seed, withhold=args.withhold or (), scale=args.scale,
-                              extras=args.extras, aircraft=args.aircraft, anomaly=args.anomaly)
+                              extras=args.extras, aircraft=args.aircraft, anomaly=args.anomaly, raw=args.raw)
     out = write_campaign(campaign, Path(args.out), fmt=args.format)
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
@@ -448,6 +448,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="fraction of the maneuvers of each kind to fly (small test campaigns)")
     s.add_argument("--extras", action="store_true", help="add pullups, pushovers and phugoids")
     s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.add_argument("--raw", action="store_true",
+                   help="write the raw sensor channels (interfaces.md 5.2) with the injected sensor errors recorded")
     s.set_defaults(func=_simulate)
 
     f = sub.add_parser("fit", help="fit one model structure to a campaign")

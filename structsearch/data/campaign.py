@@ -25,6 +25,10 @@ KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugo
 SPLITS = ("train", "validation")
 REQUIRED = ("t", "alpha", "q", "V", "de")
 ANGLES = ("alpha", "de", "theta")
+# Raw flight-test campaigns (interfaces.md 5.2, ``format = "raw"``): the channels as recorded.
+RAW_REQUIRED = ("t", "ax", "ay", "az", "p", "q", "r", "phi", "theta", "V", "alpha", "h", "de", "thrust")
+RAW_ANGLES = ("alpha", "de", "theta", "phi", "beta", "da", "dr")
+FORMATS = ("standard", "raw")
 # Largest plausible magnitude of an angle in radians; more looks like degrees.
 MAX_ANGLE_RAD = 1.2
 # Shortest maneuver that leaves room for separation dynamics (tau up to ~1 s).
@@ -240,11 +244,12 @@ def _row_message(columns: Mapping[str, np.ndarray], row: int) -> str:
     return f" (line {int(lines[row])})" if lines is not None and row < len(lines) else ""
 
 
-def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path) -> None:
-    """One clear error for the first problem found in a maneuver's columns."""
+def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=REQUIRED, angles=ANGLES) -> None:
+    """One clear error for the first problem found in a maneuver's columns (``required`` and ``angles``: those
+    of the standard format, or RAW_REQUIRED and RAW_ANGLES for a raw campaign)."""
     source = str(path)
     names = [c for c in columns if c != LINE_KEY]
-    for col in REQUIRED:
+    for col in required:
         if col not in columns:
             close = [c for c in names if c.lower() == col.lower()]
             spaced = [c for c in names if c.strip() == col]
@@ -275,7 +280,7 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path) -> None:
     if slow.size:
         raise DataError(f"airspeed {columns['V'][slow[0]]:g} m/s is not positive"
                         + _row_message(columns, int(slow[0])), source=source, column="V", row=int(slow[0]))
-    for col in ANGLES:
+    for col in angles:
         if col in columns:
             big = np.flatnonzero(np.abs(columns[col]) > MAX_ANGLE_RAD)
             if big.size:
@@ -284,16 +289,29 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path) -> None:
                                 row=int(big[0]))
 
 
-def read_campaign(directory: Path | str) -> Campaign:
-    """Read and validate a campaign directory."""
+def read_campaign(directory: Path | str, fmt: str = "standard") -> Campaign:
+    """Read and validate a campaign directory: a standard one (interfaces.md section 1), or with ``fmt="raw"``
+    a raw flight-test campaign (section 5.2). Top-level keys other than the name and format are kept in
+    ``Campaign.extra``."""
     directory = Path(directory)
     toml = str(directory / "campaign.toml")
-    name, aircraft, maneuvers = _parse_manifest(_manifest(directory), toml)
+    doc = _manifest(directory)
+    found = doc.get("format", "standard")
+    if found not in FORMATS:
+        raise DataError(f"unknown format {found!r}; expected one of {', '.join(FORMATS)}", source=toml,
+                        column="format")
+    if found != fmt:
+        hint = (" (recorded channels: turn them into coefficients with `structsearch preprocess --raw DIR "
+                "--out DIR2`)" if found == "raw" else "")
+        raise DataError(f"a {found} campaign where a {fmt} one is needed{hint}", source=toml, column="format")
+    name, aircraft, maneuvers = _parse_manifest(doc, toml)
+    extra = {k: v for k, v in doc.items() if k not in RESERVED_KEYS and not isinstance(v, (dict, list))}
+    required, angles = (RAW_REQUIRED, RAW_ANGLES) if fmt == "raw" else (REQUIRED, ANGLES)
     segments = []
     for m in maneuvers:
         path = directory / m.file
         columns = _read_table(path)
-        validate_maneuver(columns, path)
+        validate_maneuver(columns, path, required, angles)
         columns.pop(LINE_KEY, None)
         segments.append(columns)
     # keep only the columns every maneuver has: optional columns must be all-or-nothing
@@ -305,8 +323,10 @@ def read_campaign(directory: Path | str) -> Campaign:
                             column=sorted(missing)[0])
     data = from_segments([{k: s[k] for k in sorted(common)} for s in segments],
                          names=[m.id for m in maneuvers], source=str(directory),
-                         constants=scalar_constants(aircraft))
-    return Campaign(name, aircraft, tuple(maneuvers), data, directory)
+                         constants=scalar_constants(aircraft), derive_alpha_dot=fmt != "raw")
+    if fmt == "raw":
+        extra["format"] = "raw"
+    return Campaign(name, aircraft, tuple(maneuvers), data, directory, extra)
 
 
 # ----- writing -----------------------------------------------------------------------------
@@ -386,9 +406,10 @@ RESERVED_KEYS = ("name", "format", "aircraft", "maneuver")
 def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[Maneuver],
                   segments: Sequence[Mapping[str, np.ndarray]], extra: Mapping[str, object] | None = None
                   ) -> Campaign:
-    clash = [k for k in (extra or {}) if k in RESERVED_KEYS]
+    clash = [k for k in (extra or {}) if k in RESERVED_KEYS and not (k == "format" and extra[k] == "raw")]
     if clash:
         raise DataError(f"campaign key {clash[0]!r} is reserved in campaign.toml ({', '.join(RESERVED_KEYS)})")
     data = from_segments(list(segments), names=[m.id for m in maneuvers], source=name,
-                         constants=scalar_constants(aircraft))
+                         constants=scalar_constants(aircraft),
+                         derive_alpha_dot=(extra or {}).get("format") != "raw")  # raw: recorded channels only
     return Campaign(name, dict(aircraft), tuple(maneuvers), data, None, dict(extra or {}))

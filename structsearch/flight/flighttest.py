@@ -247,13 +247,15 @@ def fly_batch(model: AeroModel, flown: list[Flown], aircraft: Aircraft = CITATIO
 
 
 def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int = 0, slow_errors: float = 1.0,
-                      proc: Procedures = Procedures(), anomaly=None):
+                      proc: Procedures = Procedures(), anomaly=None, sensor_errors=None):
     """Fly every planned maneuver and measure it; returns (plan, list of column dicts) in plan order.
 
     ``slow_errors`` scales the slow reconstruction errors (1: realistic, 0: a laboratory-clean
     campaign with sensor noise, buffet and biases only, for tests of mechanisms). ``anomaly``
     (:mod:`.anomalies`; ``model`` already flies it when it acts on the aerodynamics) adds the truth
     alpha as the column ``alpha_true`` and, when it lags the alpha vane, lags it in the measurement.
+    With ``sensor_errors`` (:class:`.raw.SensorErrors`) the maneuvers are recorded as raw channels
+    (:func:`.raw.raw_channels`) instead of measured coefficients.
     """
     from .measurement import measure
     rng = np.random.default_rng(seed)
@@ -280,8 +282,12 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
             # a withheld second state is recorded as attached flow
             symbols = ("X_ss", "X_w") if craft.name == "citation" else tuple(traj.X)
             truth["states"] = {sym: traj.X[sym][:, j] if sym in traj.X else np.ones(duration) for sym in symbols}
-            columns = measure(rng, traj.t, truth, errors[i], SLOW_ERROR_STALL_GAIN, craft,
-                              vane_lag_s=getattr(anomaly, "vane_lag_s", 0.0), record_alpha=anomaly is not None)
+            if sensor_errors is not None:
+                from .raw import raw_channels
+                columns = raw_channels(rng, traj.t, truth, sensor_errors, craft)
+            else:
+                columns = measure(rng, traj.t, truth, errors[i], SLOW_ERROR_STALL_GAIN, craft,
+                                  vane_lag_s=getattr(anomaly, "vane_lag_s", 0.0), record_alpha=anomaly is not None)
             results[i] = _cut(plan[i], columns)
     return results
 
@@ -297,7 +303,8 @@ def _cut(p: PlannedManeuver, columns: dict) -> dict:
 
 
 def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False,
-                   slow_errors: float = 1.0, aircraft: str = "citation", anomaly: str | None = None):
+                   slow_errors: float = 1.0, aircraft: str = "citation", anomaly: str | None = None,
+                   raw: bool = False):
     """The simulated flight-test campaign (thesis Table 4) of ``aircraft`` (``citation`` or ``transport``),
     ready for :func:`write_campaign`.
 
@@ -305,7 +312,9 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     (a name of :data:`.anomalies.ANOMALIES`, Citation only, not with ``withhold``) flies a truth with an
     effect outside the diagnosis' library; the same seed flies the same profiles and draws the same
     errors as without it. Such a campaign also carries the truth alpha (``alpha_true``) and its manifest
-    the key ``anomaly``."""
+    the key ``anomaly``. ``raw`` records the raw channels of interfaces.md 5.2 instead (``format = "raw"``,
+    the injected sensor errors as ``injected_*`` keys; no slow reconstruction errors: there is no
+    reconstruction yet)."""
     from .aero import truth_model
     from .anomalies import anomaly_named
     from ..data.campaign import Maneuver, make_campaign
@@ -322,7 +331,11 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     model = truth_model(withhold, aircraft, chosen if chosen is not None and chosen.flies else None)
     proc = PROCEDURES[aircraft]
     plan = scaled_plan(thesis_plan(extras), scale)
-    segments = simulate_campaign(plan, model, seed, slow_errors, proc, chosen)
+    sensor_errors = None
+    if raw:
+        from .raw import SensorErrors
+        sensor_errors = SensorErrors.draw(np.random.default_rng([seed, 2]))
+    segments = simulate_campaign(plan, model, seed, slow_errors, proc, chosen, sensor_errors)
     maneuvers = [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split) for p in plan]
     extra = {"seed": int(seed), "scale": float(scale), "extras": bool(extras), "truth": model.name,
              "withheld": ",".join(withhold) or "none", "slow_errors": float(slow_errors)}
@@ -330,6 +343,9 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
         extra["simulated_aircraft"] = aircraft
     if chosen is not None:  # nor do campaigns without an anomaly
         extra["anomaly"] = chosen.name
+    if sensor_errors is not None:
+        extra.pop("slow_errors")
+        extra.update(sensor_errors.manifest(), format="raw")
     name = f"simulated {proc.aircraft.label} stall campaign (seed {seed}" \
         + (f", anomaly {chosen.name})" if chosen is not None else ")")
     # the aircraft data of interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope

@@ -59,6 +59,13 @@ def band_noise(rng, n, fs, low, high):
     return x / (x.std() or 1.0)
 
 
+def vibration(rng: np.random.Generator, n: int, fs: float) -> np.ndarray:
+    """Buffet at unit separation: narrow-band random vibration around each buffet peak (not pure tones: real
+    buffet decorrelates)."""
+    return sum(w * band_noise(rng, n, fs, f - BUFFET_HALF_WIDTH_HZ, f + BUFFET_HALF_WIDTH_HZ)
+               for f, w in zip(BUFFET_HZ, BUFFET_WEIGHTS))
+
+
 def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np.ndarray | None = None,
             slow_error_stall_gain: float = 1.0, aircraft: Aircraft = CITATION, vane_lag_s: float = 0.0,
             record_alpha: bool = False) -> dict:
@@ -86,14 +93,9 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     az_true = qs * cz / truth["mass"]
     # buffet while the flow is separated, boom vibration always
     separation = np.clip(sum(1 - x for x in truth["states"].values()) + np.zeros(n), 0, 2)
-    # narrow-band random vibration around each buffet peak (not pure tones: real buffet decorrelates)
-    def vibration():
-        return sum(w * band_noise(rng, n, fs, f - BUFFET_HALF_WIDTH_HZ, f + BUFFET_HALF_WIDTH_HZ)
-                   for f, w in zip(BUFFET_HZ, BUFFET_WEIGHTS)) * separation
-
-    buffet = vibration()
+    buffet = vibration(rng, n, fs) * separation
     # the rate gyro sees the same frequencies through other mode shapes: its own realisation
-    gyro_buffet = vibration()
+    gyro_buffet = vibration(rng, n, fs) * separation
     boom = BOOM_VIBRATION * band_noise(rng, n, fs, 8.0, 12.0)
 
     vane = alpha + boom
