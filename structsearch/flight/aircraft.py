@@ -13,20 +13,12 @@ from typing import Mapping
 import numpy as np
 
 from ..data.errors import DataError
+from ..data.reduction import G, RHO0, isa_density
 from .reference import AIRCRAFT, EMPTY_MASS, IYY
 
-G = 9.80665
-RHO0 = 1.225
-T0 = 288.15
-LAPSE = 0.0065
-GAS_EXPONENT = G / (287.053 * LAPSE) - 1.0
 FT = 0.3048
 INCH = 0.0254
-
-
-def density(h):
-    """ISA troposphere density [kg/m^3] at geometric altitude h [m]."""
-    return RHO0 * (1.0 - LAPSE * np.asarray(h) / T0) ** GAS_EXPONENT
+density = isa_density
 
 
 def flight_level_altitude(fl: float) -> float:

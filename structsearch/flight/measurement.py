@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .aircraft import CITATION, Aircraft
+from ..data.reduction import body_force_coefficients, lift_drag, pitch_moment_coefficient
 from ..data.prefilter import derivative, prefilter
 from ..engine.separation import first_order_lag
 
@@ -124,19 +125,17 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     thrust_model = truth["thrust"] * (1 + rng.normal(0, ENGINE_MODEL_ERROR))
     mass = truth["mass"]
     qs_m = f["qbar"] * aircraft.S
-    cx_m = (mass * f["ax"] - thrust_model) / qs_m
-    cz_m = mass * f["az"] / qs_m
+    cx_m, cz_m = body_force_coefficients(f["ax"], f["az"], mass, thrust_model, qs_m)
     a = f["alpha"]
     cm_error = np.zeros(n)
     if slow_error is not None:
         d_cl, d_cd, cm_error = (slow_error * (1.0 + slow_error_stall_gain * separation)[:, None]).T
         cx_m = cx_m - d_cd * np.cos(a) + d_cl * np.sin(a)
         cz_m = cz_m - d_cl * np.cos(a) - d_cd * np.sin(a)
+    cl_m, cd_m = lift_drag(cx_m, cz_m, a)
     columns = {
-        "t": t - t[0], "alpha": a, "q": f["q"], "V": f["V"], "de": f["de"],
-        "CL": cx_m * np.sin(a) - cz_m * np.cos(a),
-        "CD": -cx_m * np.cos(a) - cz_m * np.sin(a),
-        "Cm": aircraft.inertia(mass) * q_dot / (qs_m * aircraft.cbar) + cm_error,
+        "t": t - t[0], "alpha": a, "q": f["q"], "V": f["V"], "de": f["de"], "CL": cl_m, "CD": cd_m,
+        "Cm": pitch_moment_coefficient(q_dot, aircraft.inertia(mass), qs_m, aircraft.cbar) + cm_error,
         "alpha_dot": alpha_dot, "CT": thrust_model / qs_m, "x_cg": truth["x_cg"],
         "theta": f["theta"], "h": f["h"], "CX": cx_m, "CZ": cz_m,
         "mass": mass, "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
