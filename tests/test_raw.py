@@ -64,3 +64,22 @@ def test_raw_campaign_round_trip_and_format_errors(raw, tmp_path):
     toml.write_text(toml.read_text().replace('format = "raw"', 'format = "rare"'))
     with pytest.raises(DataError, match="unknown format 'rare'"):
         read_campaign(written, fmt="raw")
+
+
+def test_buffet_peaks_are_found_where_the_simulator_puts_them():
+    """Issue 15 item 2: Welch spectra of stalled against attached samples find the injected buffet peaks
+    (6, 10, 12, 15 Hz) within 1 Hz, and nothing else, in the longitudinal accelerometer and the rate gyro;
+    the suggested cut-off lies below them."""
+    from structsearch.data.spectra import channel_spectrum
+    from structsearch.flight.measurement import BUFFET_HZ
+    c = build_campaign(seed=4, scale=0.1, raw=True)
+    d = c.data
+    fs = 1.0 / np.median(np.diff(d["t"][:100]))
+    stalled = d["alpha"] > 0.22
+    for channel in ("ax", "q"):
+        s = channel_spectrum(channel, d[channel], stalled, d.segment_slices(), fs)
+        assert all(min(abs(p - f) for p in s.peaks_hz) <= 1.0 for f in BUFFET_HZ), (channel, s.peaks_hz)
+        assert all(min(abs(p - f) for f in BUFFET_HZ) <= 1.0 for p in s.peaks_hz), (channel, s.peaks_hz)
+        assert 1.0 <= s.cutoff_hz < min(BUFFET_HZ)
+    # the vane sees no buffet: no peak, no cut-off suggested (the default stays)
+    assert channel_spectrum("alpha", d["alpha"], stalled, d.segment_slices(), fs).cutoff_hz is None
