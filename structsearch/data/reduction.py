@@ -26,6 +26,18 @@ def specific_force_at_cg(ax, az, q, q_dot, position):
     return ax + q * q * x - q_dot * z, az + q_dot * x + q * q * z
 
 
+def specific_force_at_accelerometer(ax_cg, az_cg, q, q_dot, position):
+    """The inverse of :func:`specific_force_at_cg`: what an accelerometer at ``position`` reads,
+    a_acc = a_cg + q_dot x r + q x (q x r) (the simulator's instrumentation model)."""
+    x, _, z = position
+    return ax_cg - q * q * x + q_dot * z, az_cg - q_dot * x - q * q * z
+
+
+def body_from_lift_drag(cl, cd, alpha):
+    """The inverse of :func:`lift_drag`: C_X and C_Z from C_L, C_D at angle of attack alpha."""
+    return -cd * np.cos(alpha) + cl * np.sin(alpha), -cl * np.cos(alpha) - cd * np.sin(alpha)
+
+
 def body_force_coefficients(ax, az, mass, thrust, qbar_s):
     """C_X and C_Z from the specific forces at the cg (Eq. 3): the aerodynamic force over q S, with the
     thrust (along body x) removed from the x force."""

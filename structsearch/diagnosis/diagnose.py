@@ -437,9 +437,10 @@ def _signal_ranking(train_residual: np.ndarray, residual: np.ndarray, flex: fl.F
     fits = {f.name: f for f in fl.ranked_signals(train_residual, sig_train, residual, sig_val)}
     importance = fl.permutation_importance(flex, residual, sig_val, seed)
     mse = float(np.mean(residual ** 2))
-    order = sorted(fits, key=lambda n: (-importance.get(n, 0.0), fits[n].mse))
+    # without importances (the flexible model removed nothing) the one-signal fits alone order the signals
+    order = sorted(fits, key=lambda n: (-importance.get(n, -np.inf), fits[n].mse))
     return [{"name": n, "share": float(min(max((mse - fits[n].mse) / gap, 0.0), 1.0)),
-             "importance": float(importance.get(n, 0.0))} for n in order], fits
+             "importance": importance.get(n)} for n in order], fits
 
 
 def _unexplained(mse_base: float, final: Fitted, flexible: fl.FlexibleFit, library_free: float,

@@ -118,14 +118,13 @@ def flexible_fit(r_train: np.ndarray, train: FlightData, train_signals: dict, r_
 def permutation_importance(flex: FlexibleFit, r_val: np.ndarray, val_signals: dict, seed: int = 0
                            ) -> dict[str, float]:
     """How much of what the flexible model removes on the validation maneuvers each signal carries: the rise
-    of the corrected MSE when that signal's values are shuffled, over the MSE the model removes (0 for every
-    signal when it removes nothing). The model sees signals jointly, so a dependence on V times alpha counts
-    for V, which a function of V alone may miss."""
-    if flex.model is None:
-        return {n: 0.0 for n in flex.signals}
+    of the corrected MSE when that signal's values are shuffled, over the MSE the model removes. Empty when
+    the model removes nothing on the validation maneuvers: then no signal's share of it can be estimated.
+    The model sees signals jointly, so a dependence on V times alpha counts for V, which a function of V
+    alone may miss."""
     removed = float(np.mean(r_val ** 2)) - flex.mse
-    if not removed > 0:
-        return {n: 0.0 for n in flex.signals}
+    if flex.model is None or not removed > 0:
+        return {}
     rng = np.random.default_rng(seed)
     base = _matrix(val_signals, flex.signals)
     out = {}

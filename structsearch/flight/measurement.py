@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .aircraft import CITATION, Aircraft
-from ..data.reduction import body_force_coefficients, lift_drag, pitch_moment_coefficient
+from ..data.reduction import body_force_coefficients, body_from_lift_drag, lift_drag, pitch_moment_coefficient
 from ..data.prefilter import derivative, prefilter
 from ..engine.separation import first_order_lag
 
@@ -33,7 +33,7 @@ def _resample(t_out, t_in, values):
     return np.interp(t_out, t_in, values)
 
 
-def _sensor(rng, t, truth, rate, noise, bias=0.0, also=None):
+def sensor(rng, t, truth, rate, noise, bias=0.0, also=None):
     """Sample ``truth`` at ``rate`` with white noise and a constant bias, then back onto ``t``.
 
     ``also``: a second signal read with the same noise and bias; then both readings are returned."""
@@ -58,6 +58,11 @@ def band_noise(rng, n, fs, low, high):
     sos = butter(2, [low, high], btype="band", fs=fs, output="sos")
     x = sosfiltfilt(sos, rng.standard_normal(n + 400))[200:-200]
     return x / (x.std() or 1.0)
+
+
+def separation_of(states: dict, n: int) -> np.ndarray:
+    """Flow separation summed over the states (1 - X each), 0 to 2: what buffet and slow errors scale with."""
+    return np.clip(sum(1 - x for x in states.values()) + np.zeros(n), 0, 2)
 
 
 def vibration(rng: np.random.Generator, n: int, fs: float) -> np.ndarray:
@@ -88,12 +93,11 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     alpha, V = truth["alpha"], truth["V"]
     # body-axis specific forces measured by the AHRS (aerodynamic and thrust forces over mass)
     qs = truth["qbar"] * aircraft.S
-    cx = -truth["CD"] * np.cos(alpha) + truth["CL"] * np.sin(alpha)
-    cz = -truth["CL"] * np.cos(alpha) - truth["CD"] * np.sin(alpha)
+    cx, cz = body_from_lift_drag(truth["CL"], truth["CD"], alpha)
     ax_true = (qs * cx + truth["thrust"]) / truth["mass"]
     az_true = qs * cz / truth["mass"]
     # buffet while the flow is separated, boom vibration always
-    separation = np.clip(sum(1 - x for x in truth["states"].values()) + np.zeros(n), 0, 2)
+    separation = separation_of(truth["states"], n)
     buffet = vibration(rng, n, fs) * separation
     # the rate gyro sees the same frequencies through other mode shapes: its own realisation
     gyro_buffet = vibration(rng, n, fs) * separation
@@ -103,21 +107,21 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     unlagged = None
     if vane_lag_s > 0:
         vane, unlagged = vane_lag(t, vane, vane_lag_s), vane
-    alpha_reading = _sensor(rng, t, vane, RATES["boom"], NOISE["alpha"], rng.normal(0, BIAS["alpha"]), unlagged)
+    alpha_reading = sensor(rng, t, vane, RATES["boom"], NOISE["alpha"], rng.normal(0, BIAS["alpha"]), unlagged)
     if unlagged is not None:
         alpha_reading, unlagged = alpha_reading
     raw = {
         "alpha": alpha_reading,
-        "q": _sensor(rng, t, truth["q"] + aircraft.gyro_buffet * gyro_buffet, RATES["ahrs"], aircraft.gyro_noise,
+        "q": sensor(rng, t, truth["q"] + aircraft.gyro_buffet * gyro_buffet, RATES["ahrs"], aircraft.gyro_noise,
                      rng.normal(0, BIAS["q"])),
-        "theta": _sensor(rng, t, truth["theta"], RATES["ahrs"], NOISE["theta"]),
-        "ax": _sensor(rng, t, ax_true + 0.25 * BUFFET_AZ * buffet, RATES["ahrs"], NOISE["ax"],
+        "theta": sensor(rng, t, truth["theta"], RATES["ahrs"], NOISE["theta"]),
+        "ax": sensor(rng, t, ax_true + 0.25 * BUFFET_AZ * buffet, RATES["ahrs"], NOISE["ax"],
                       rng.normal(0, BIAS["ax"])),
-        "az": _sensor(rng, t, az_true + BUFFET_AZ * buffet, RATES["ahrs"], NOISE["az"], rng.normal(0, BIAS["az"])),
-        "V": _sensor(rng, t, V, RATES["tas"], NOISE["V"]),
-        "qbar": _sensor(rng, t, truth["qbar"], RATES["qbar"], NOISE["qbar"]),
-        "de": _sensor(rng, t, truth["de"], RATES["synchro"], NOISE["de"]),
-        "h": _sensor(rng, t, truth["h"], RATES["gps"], NOISE["h"]),
+        "az": sensor(rng, t, az_true + BUFFET_AZ * buffet, RATES["ahrs"], NOISE["az"], rng.normal(0, BIAS["az"])),
+        "V": sensor(rng, t, V, RATES["tas"], NOISE["V"]),
+        "qbar": sensor(rng, t, truth["qbar"], RATES["qbar"], NOISE["qbar"]),
+        "de": sensor(rng, t, truth["de"], RATES["synchro"], NOISE["de"]),
+        "h": sensor(rng, t, truth["h"], RATES["gps"], NOISE["h"]),
     }
     f = {name: prefilter(name, values, fs) for name, values in raw.items()}
     q_dot = derivative(f["q"], t)

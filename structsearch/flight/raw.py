@@ -15,7 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .aircraft import Aircraft
-from .measurement import BOOM_VIBRATION, BUFFET_AZ, ENGINE_MODEL_ERROR, NOISE, RATES, _sensor, band_noise, vibration
+from ..data.reduction import body_from_lift_drag, specific_force_at_accelerometer
+from .measurement import (BOOM_VIBRATION, BUFFET_AZ, ENGINE_MODEL_ERROR, NOISE, RATES, band_noise, sensor,
+                          separation_of, vibration)
 
 # Accelerometer position from the cg [m], body axes (x forward, z down): the instrumentation rack.
 ACCELEROMETER = (0.5, 0.0, -0.3)
@@ -47,10 +49,8 @@ class SensorErrors:
 
 
 def specific_force_at(ax_cg, az_cg, q, q_dot, position=ACCELEROMETER):
-    """Specific force at an accelerometer ``position`` from the cg of a body pitching at q, q_dot (no roll,
-    no yaw): a_acc = a_cg + q_dot x r + q x (q x r), longitudinal components."""
-    x, _, z = position
-    return ax_cg - q * q * x + q_dot * z, az_cg - q_dot * x - q * q * z
+    """Specific force at the instrumentation's accelerometer (:data:`ACCELEROMETER`)."""
+    return specific_force_at_accelerometer(ax_cg, az_cg, q, q_dot, position)
 
 
 def raw_channels(rng: np.random.Generator, t: np.ndarray, truth: dict, errors: SensorErrors,
@@ -61,31 +61,30 @@ def raw_channels(rng: np.random.Generator, t: np.ndarray, truth: dict, errors: S
     n = len(t)
     alpha, V, q = truth["alpha"], truth["V"], truth["q"]
     qs = truth["qbar"] * aircraft.S
-    cx = -truth["CD"] * np.cos(alpha) + truth["CL"] * np.sin(alpha)
-    cz = -truth["CL"] * np.cos(alpha) - truth["CD"] * np.sin(alpha)
+    cx, cz = body_from_lift_drag(truth["CL"], truth["CD"], alpha)
     ax_acc, az_acc = specific_force_at((qs * cx + truth["thrust"]) / truth["mass"], qs * cz / truth["mass"], q,
                                        truth["q_dot"])
-    separation = np.clip(sum(1 - x for x in truth["states"].values()) + np.zeros(n), 0, 2)
+    separation = separation_of(truth["states"], n)
     buffet = vibration(rng, n, fs) * separation
     gyro_buffet = vibration(rng, n, fs) * separation
     boom = BOOM_VIBRATION * band_noise(rng, n, fs, 8.0, 12.0)
     zero = np.zeros(n)
     out = {
         "t": t - t[0],
-        "ax": _sensor(rng, t, ax_acc + 0.25 * BUFFET_AZ * buffet, RATES["ahrs"], NOISE["ax"], errors.ax_bias),
-        "ay": _sensor(rng, t, zero, RATES["ahrs"], NOISE["ax"]),
-        "az": _sensor(rng, t, az_acc + BUFFET_AZ * buffet, RATES["ahrs"], NOISE["az"], errors.az_bias),
-        "p": _sensor(rng, t, zero, RATES["ahrs"], aircraft.gyro_noise),
-        "q": _sensor(rng, t, q + aircraft.gyro_buffet * gyro_buffet, RATES["ahrs"], aircraft.gyro_noise,
+        "ax": sensor(rng, t, ax_acc + 0.25 * BUFFET_AZ * buffet, RATES["ahrs"], NOISE["ax"], errors.ax_bias),
+        "ay": sensor(rng, t, zero, RATES["ahrs"], NOISE["ax"]),
+        "az": sensor(rng, t, az_acc + BUFFET_AZ * buffet, RATES["ahrs"], NOISE["az"], errors.az_bias),
+        "p": sensor(rng, t, zero, RATES["ahrs"], aircraft.gyro_noise),
+        "q": sensor(rng, t, q + aircraft.gyro_buffet * gyro_buffet, RATES["ahrs"], aircraft.gyro_noise,
                      errors.q_bias),
-        "r": _sensor(rng, t, zero, RATES["ahrs"], aircraft.gyro_noise),
-        "phi": _sensor(rng, t, zero, RATES["ahrs"], NOISE["theta"]),
-        "theta": _sensor(rng, t, truth["theta"], RATES["ahrs"], NOISE["theta"]),
-        "V": _sensor(rng, t, errors.V_scale * V, RATES["tas"], NOISE["V"]),
-        "alpha": _sensor(rng, t, errors.alpha_scale * (alpha + boom), RATES["boom"], NOISE["alpha"],
+        "r": sensor(rng, t, zero, RATES["ahrs"], aircraft.gyro_noise),
+        "phi": sensor(rng, t, zero, RATES["ahrs"], NOISE["theta"]),
+        "theta": sensor(rng, t, truth["theta"], RATES["ahrs"], NOISE["theta"]),
+        "V": sensor(rng, t, errors.V_scale * V, RATES["tas"], NOISE["V"]),
+        "alpha": sensor(rng, t, errors.alpha_scale * (alpha + boom), RATES["boom"], NOISE["alpha"],
                          errors.alpha_bias),
-        "h": _sensor(rng, t, truth["h"], RATES["gps"], NOISE["h"]),
-        "de": _sensor(rng, t, truth["de"], RATES["synchro"], NOISE["de"]),
+        "h": sensor(rng, t, truth["h"], RATES["gps"], NOISE["h"]),
+        "de": sensor(rng, t, truth["de"], RATES["synchro"], NOISE["de"]),
         "thrust": truth["thrust"] * (1 + rng.normal(0, ENGINE_MODEL_ERROR)),
         "mass": truth["mass"],
         "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"], "alpha_true": alpha,
