@@ -59,6 +59,7 @@ class Campaign:
     data: FlightData
     directory: Path | None = None
     extra: Mapping[str, object] = field(default_factory=dict)
+    cutoffs_hz: Mapping[str, float] = field(default_factory=dict)   # [cutoffs] of a raw campaign: overrides
 
     def split(self, which: str) -> FlightData:
         """The maneuvers of one split ("train" or "validation") as FlightData."""
@@ -305,6 +306,7 @@ def read_campaign(directory: Path | str, fmt: str = "standard") -> Campaign:
                 "--out DIR2`)" if found == "raw" else "")
         raise DataError(f"a {found} campaign where a {fmt} one is needed{hint}", source=toml, column="format")
     name, aircraft, maneuvers = _parse_manifest(doc, toml)
+    cutoffs = _parse_cutoffs(doc.get("cutoffs", {}), toml)
     extra = {k: v for k, v in doc.items() if k not in RESERVED_KEYS and not isinstance(v, (dict, list))}
     required, angles = (RAW_REQUIRED, RAW_ANGLES) if fmt == "raw" else (REQUIRED, ANGLES)
     segments = []
@@ -326,7 +328,18 @@ def read_campaign(directory: Path | str, fmt: str = "standard") -> Campaign:
                          constants=scalar_constants(aircraft), derive_alpha_dot=fmt != "raw")
     if fmt == "raw":
         extra["format"] = "raw"
-    return Campaign(name, aircraft, tuple(maneuvers), data, directory, extra)
+    return Campaign(name, aircraft, tuple(maneuvers), data, directory, extra, cutoffs)
+
+
+def _parse_cutoffs(table, toml: str) -> dict[str, float]:
+    """``[cutoffs]``: pre-filter cut-offs [Hz] by channel that override the defaults (interfaces.md 5.2)."""
+    if not isinstance(table, dict):
+        raise DataError("[cutoffs] must be a table of channel = frequency in Hz", source=toml, column="cutoffs")
+    for key, value in table.items():
+        if not (_number(value) and value > 0):
+            raise DataError(f"[cutoffs] {key} must be a positive frequency in Hz, not {value!r}", source=toml,
+                            column=key)
+    return {k: float(v) for k, v in table.items()}
 
 
 # ----- writing -----------------------------------------------------------------------------
@@ -361,6 +374,8 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
         lines += [f"{k} = {_toml_value(v)}" for k, v in campaign.aircraft.items() if k not in AIRCRAFT_KEYS]
         for key, value in campaign.extra.items():
             lines.insert(1, f"{key} = {_toml_value(value)}")
+        if campaign.cutoffs_hz:
+            lines += ["", "[cutoffs]"] + [f"{k} = {_toml_value(v)}" for k, v in campaign.cutoffs_hz.items()]
         slices = campaign.data.segment_slices()
         for m, sl in zip(campaign.maneuvers, slices):
             file = f"{m.id}.{fmt}"
@@ -400,7 +415,7 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
 
 
 # Top-level names of campaign.toml that free-text keys of a campaign may not take.
-RESERVED_KEYS = ("name", "format", "aircraft", "maneuver")
+RESERVED_KEYS = ("name", "format", "aircraft", "maneuver", "cutoffs")
 
 
 def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[Maneuver],

@@ -21,6 +21,12 @@ PEAK_PROMINENCE_DECADES = 0.15
 # The cut-off keeps this margin below the lowest peak, and never goes below the rigid-body content.
 CUTOFF_MARGIN_HZ = 1.5
 MIN_CUTOFF_HZ = 1.0
+# A channel's noise floor: the median of its attached-flow spectrum over this band [Hz] (above the rigid-body
+# motion, where a 52 Hz sensor resampled by linear interpolation is still flat); the rigid-body bandwidth ends where the spectrum falls
+# to NOISE_CROSSOVER times that floor.
+NOISE_FLOOR_BAND_HZ = (8.0, 16.0)
+NOISE_CROSSOVER = 3.0
+FLAT_RATIO = 2.0
 
 
 @dataclass(frozen=True)
@@ -32,7 +38,8 @@ class ChannelSpectrum:
     stalled: np.ndarray        # power spectral density [unit^2/Hz]; NaN where no stalled run was long enough
     attached: np.ndarray
     peaks_hz: tuple[float, ...]
-    cutoff_hz: float | None    # None: no peak found, keep the default cut-off
+    cutoff_hz: float | None    # None: no peak and no bandwidth found, keep the default cut-off
+    bandwidth_hz: float | None = None   # rigid-body bandwidth: where the attached spectrum meets the noise
 
 
 def _runs(mask: np.ndarray, minimum: int) -> list[slice]:
@@ -74,21 +81,49 @@ def buffet_peaks(freq: np.ndarray, stalled: np.ndarray, attached: np.ndarray, lo
         if ratio[i] > np.log10(PEAK_RATIO):
             # the ratio's maximum leans towards where the attached spectrum falls off: place the peak at the
             # largest excess power within +- 0.75 Hz (the half-width of a buffet band)
-            near = np.flatnonzero(np.abs(freq - freq[i]) <= 0.75)
+            near = np.flatnonzero((np.abs(freq - freq[i]) <= 0.75) & band)
             peaks.append(float(freq[near[np.argmax(excess[near])]]))
     return tuple(dict.fromkeys(peaks))
 
 
-def suggested_cutoff(peaks: tuple[float, ...]) -> float | None:
-    """A low-pass cut-off below every buffet peak (by CUTOFF_MARGIN_HZ), not below MIN_CUTOFF_HZ."""
-    if not peaks:
+def rigid_body_bandwidth(freq: np.ndarray, psd: np.ndarray, fs: float) -> float | None:
+    """The lowest frequency above 0.5 Hz where the spectrum falls to NOISE_CROSSOVER times its noise floor
+    (the median over NOISE_FLOOR_BAND_HZ): above it the channel carries more noise than motion. None when the
+    spectrum is undefined or never falls that far (a channel without a white noise floor)."""
+    band = (freq >= NOISE_FLOOR_BAND_HZ[0]) & (freq <= min(NOISE_FLOOR_BAND_HZ[1], 0.45 * fs))
+    if np.all(np.isnan(psd)) or not band.any():
         return None
-    return max(min(peaks) - CUTOFF_MARGIN_HZ, MIN_CUTOFF_HZ)
+    floor = float(np.nanmedian(psd[band]))
+    halves = np.array_split(psd[band], 2)
+    if not floor > 0 or not 1 / FLAT_RATIO <= np.nanmedian(halves[0]) / np.nanmedian(halves[1]) <= FLAT_RATIO:
+        return None   # no white floor: a slow sensor resampled (its spectrum falls off above its Nyquist)
+    below = np.flatnonzero((freq >= 0.5) & (psd <= NOISE_CROSSOVER * floor))
+    return float(freq[below[0]]) if below.size else None
 
 
-def channel_spectrum(channel: str, x: np.ndarray, stalled_mask: np.ndarray, slices, fs: float) -> ChannelSpectrum:
-    """The spectra, peaks and cut-off of one channel, maneuver by maneuver (``slices``)."""
+def noise_floor(freq: np.ndarray, psd: np.ndarray, fs: float) -> float:
+    """Median power spectral density over NOISE_FLOOR_BAND_HZ: a channel's white-noise level."""
+    band = (freq >= NOISE_FLOOR_BAND_HZ[0]) & (freq <= min(NOISE_FLOOR_BAND_HZ[1], 0.45 * fs))
+    return float(np.nanmedian(psd[band]))
+
+
+def suggested_cutoff(peaks: tuple[float, ...], bandwidth: float | None = None) -> float | None:
+    """A low-pass cut-off below every buffet peak (by CUTOFF_MARGIN_HZ) and, when known, at the rigid-body
+    bandwidth (where motion gives way to noise), never below MIN_CUTOFF_HZ; None when neither is found."""
+    candidates = [min(peaks) - CUTOFF_MARGIN_HZ] if peaks else []
+    if bandwidth is not None:
+        candidates.append(bandwidth)
+    if not candidates:
+        return None
+    return max(min(candidates), MIN_CUTOFF_HZ)
+
+
+def channel_spectrum(channel: str, x: np.ndarray, stalled_mask: np.ndarray, slices, fs: float,
+                     attached_mask: np.ndarray | None = None) -> ChannelSpectrum:
+    """The spectra, peaks and cut-off of one channel, maneuver by maneuver (``slices``); attached flow is
+    ``attached_mask``, by default wherever the flow is not stalled."""
     freq, stalled = mean_psd(x, stalled_mask, slices, fs)
-    _, attached = mean_psd(x, ~stalled_mask, slices, fs)
+    _, attached = mean_psd(x, ~stalled_mask if attached_mask is None else attached_mask, slices, fs)
     peaks = buffet_peaks(freq, stalled, attached)
-    return ChannelSpectrum(channel, freq, stalled, attached, peaks, suggested_cutoff(peaks))
+    bandwidth = rigid_body_bandwidth(freq, attached, fs)
+    return ChannelSpectrum(channel, freq, stalled, attached, peaks, suggested_cutoff(peaks, bandwidth), bandwidth)

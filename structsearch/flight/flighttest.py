@@ -350,4 +350,8 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
         + (f", anomaly {chosen.name})" if chosen is not None else ")")
     # the aircraft data of interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope
     mass = proc.aircraft.empty_mass + proc.aircraft.crew_mass + float(np.mean(proc.fuel))
-    return make_campaign(name, proc.aircraft.manifest(mass), maneuvers, segments, extra)
+    manifest = proc.aircraft.manifest(mass)
+    if raw:  # where the accelerometer sits; the simulated thrust acts through the cg
+        from .raw import ACCELEROMETER
+        manifest.update(accelerometer=ACCELEROMETER, thrust_line_z=0.0)
+    return make_campaign(name, manifest, maneuvers, segments, extra)
