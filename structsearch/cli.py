@@ -76,6 +76,54 @@ def _simulate(args) -> int:
     return 0
 
 
+def _cutoff(text: str) -> tuple[str, float]:
+    """One --cutoff NAME=HZ."""
+    import math
+    name, eq, value = text.partition("=")
+    try:
+        hz = float(value)
+    except ValueError:
+        hz = math.nan
+    if not (eq and name.strip() and math.isfinite(hz) and hz > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected CHANNEL=HZ with a positive frequency, e.g. q=2")
+    return name.strip(), hz
+
+
+def _preprocess(args) -> int:
+    import time
+    import numpy as np
+    from .data.campaign import read_campaign, write_campaign
+    from .preprocess.pipeline import preprocess, truth_agreement
+    from .report.preprocess_doc import write
+    started = time.perf_counter()
+    raw = read_campaign(args.raw, fmt="raw")
+    last = {}
+
+    def progress(stage: str, fraction: float) -> None:
+        step = int(fraction * 10)
+        if last.get(stage) != step:
+            last[stage] = step
+            print(f"preprocess: {stage} {100 * fraction:.0f} %", file=sys.stderr, flush=True)
+
+    result = preprocess(raw, dict(args.cutoff or []), use_suggested=args.cutoffs == "spectra",
+                        stall_alpha_rad=None if args.stall_alpha is None else np.deg2rad(args.stall_alpha),
+                        progress=None if args.quiet else progress)
+    out = write_campaign(result.campaign, Path(args.out))
+    seconds = time.perf_counter() - started
+    command = "structsearch preprocess " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["preprocess"] else \
+        f"structsearch preprocess --raw {args.raw} --out {args.out}"
+    md = write(result, out, command, seconds, figures=not args.no_figures)
+    worst = {}
+    for _, name, r2 in truth_agreement(result.campaign):
+        worst[name] = min(worst.get(name, np.inf), r2)
+    errors = ", ".join(f"{e.name} {e.estimate:.4g} +- {e.sd:.2g}" for e in result.reconstruction.errors)
+    print(f"sensor errors: {errors}")
+    if worst:
+        print("min R^2 per maneuver against the truth: " + ", ".join(f"{k} {v:.3f}" for k, v in worst.items()))
+    print(f"wrote {out} (standard campaign) and {md} in {seconds:.1f} s")
+    return 0
+
+
 def raise_error(message: str):
     from .data.errors import DeclarationError
     raise DeclarationError(message)
@@ -451,6 +499,21 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--raw", action="store_true",
                    help="write the raw sensor channels (interfaces.md 5.2) with the injected sensor errors recorded")
     s.set_defaults(func=_simulate)
+
+    pp = sub.add_parser("preprocess", help="turn a raw flight-test campaign (interfaces.md 5.2) into a standard one: "
+                                           "spectra, pre-filter, flight-path reconstruction, coefficients")
+    pp.add_argument("--raw", required=True, help="raw campaign directory (format = \"raw\")")
+    pp.add_argument("--out", required=True, help="standard campaign directory to write, with preprocess.md")
+    pp.add_argument("--cutoffs", choices=("table5", "spectra"), default="table5",
+                    help="default cut-offs: thesis Table 5 (default) or those the spectra suggest")
+    pp.add_argument("--cutoff", action="append", type=_cutoff, metavar="CHANNEL=HZ",
+                    help="pre-filter cut-off of one channel (repeatable; over campaign.toml's [cutoffs])")
+    pp.add_argument("--stall-alpha", type=float, metavar="DEG",
+                    help="stalled flow for the spectra: alpha above this [deg] (default: campaign.toml's "
+                         "stall_alpha [rad], else the angle of maximum normal force less 1 deg)")
+    pp.add_argument("--no-figures", action="store_true", help="skip the spectra figures (no matplotlib needed)")
+    pp.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    pp.set_defaults(func=_preprocess)
 
     f = sub.add_parser("fit", help="fit one model structure to a campaign")
     _campaign_options(f)

@@ -40,6 +40,7 @@ class Smoothed:
     smoothed_cov: np.ndarray       # (N, n, n)
     innovation: np.ndarray         # (N, m); NaN where the channel was not used at that step
     innovation_var: np.ndarray     # (N, m); predicted variance H P H' + R of each innovation
+    process_var: np.ndarray        # (n,) expected squared process noise per step (NaN without smoothing)
 
 
 def filter_smooth(model: StateSpace, inputs: np.ndarray, y: np.ndarray, use: np.ndarray, starts: np.ndarray,
@@ -96,10 +97,21 @@ def filter_smooth(model: StateSpace, inputs: np.ndarray, y: np.ndarray, use: np.
         if progress is not None and k % report_every == 0:
             progress(0.5 * k / n_steps)
     xs, ps = x_filt.copy(), p_filt.copy()
+    # E[(x[k+1] - f(x[k]))^2] under the smoothed distribution, summed over the transitions within records
+    # (Shumway and Stoffer's M-step for the process noise, linearised): the squared mean plus
+    # P[k+1] - 2 F C[k] P[k+1] + F P[k] F' on the diagonal, C the smoother gain
+    process_sum, transitions = np.zeros(n), 0
     for k in range(n_steps - 2, -1, -1) if smooth else ():
-        gain = np.linalg.solve(p_pred[k + 1], jac[k + 1] @ p_filt[k]).T
+        f = jac[k + 1]
+        gain = np.linalg.solve(p_pred[k + 1], f @ p_filt[k]).T
         xs[k] = x_filt[k] + gain @ (xs[k + 1] - x_pred[k + 1])
         ps[k] = p_filt[k] + gain @ (ps[k + 1] - p_pred[k + 1]) @ gain.T
+        if not starts[k + 1]:
+            mean = xs[k + 1] - model.transition(xs[k], inputs[k], inputs[k + 1])[0]
+            process_sum += (mean * mean + np.diag(ps[k + 1]) - 2.0 * np.einsum("ij,jk,ki->i", f, gain, ps[k + 1])
+                            + np.einsum("ij,jk,ik->i", f, ps[k], f))
+            transitions += 1
         if progress is not None and k % report_every == 0:
             progress(1.0 - 0.5 * k / n_steps)
-    return Smoothed(x_filt, xs, ps, innovation, innovation_var)
+    process_var = process_sum / transitions if transitions else np.full(n, np.nan)
+    return Smoothed(x_filt, xs, ps, innovation, innovation_var, process_var)

@@ -170,10 +170,12 @@ def reconstruct(filtered: Mapping[str, np.ndarray], slices: Sequence[slice], fs:
     def stage(lo, hi):
         return None if progress is None else (lambda f: progress(lo + (hi - lo) * f))
 
-    share = 0.8 / (EM_STEPS + 2)
+    share = 0.6 / (EM_STEPS + 1)
     for i in range(EM_STEPS):
         run = filter_smooth(model, inputs, y, use, starts, x0, p0, q, r, stage(i * share, (i + 1) * share))
         r = np.maximum(_expected_squared_residual(model, run, y, use), R_FLOOR * r)
+        # the process noise of the kinematic states likewise, never below the inputs' white noise
+        q[:4, :4] = np.diag(np.maximum(run.process_var[:4], np.diag(q)[:4]))
         # the next pass starts from these sensor errors with PRIOR_INFLATION times their variance: from the
         # wide nominal prior, a pass with the tighter noise can diverge in the first maneuver, before the errors
         # are learnt (bilinear terms such as k_alpha * atan(w/u)); the prior then carries 1/PRIOR_INFLATION of
@@ -181,13 +183,13 @@ def reconstruct(filtered: Mapping[str, np.ndarray], slices: Sequence[slice], fs:
         x0 = np.concatenate([np.zeros(4), run.smoothed[0, 4:]])
         p0 = p0.copy()
         p0[4:, 4:] = PRIOR_INFLATION * run.smoothed_cov[0, 4:, 4:]
-    final = filter_smooth(model, inputs, y, use, starts, x0, p0, q, r, stage(EM_STEPS * share, 0.8))
+    final = filter_smooth(model, inputs, y, use, starts, x0, p0, q, r, stage(EM_STEPS * share, 0.6))
     held = np.diag(np.concatenate([START_SD, PRIOR_SD]) ** 2)
     held[4:, 4:] = np.diag((1e-9 * PRIOR_SD) ** 2)
     nominal = filter_smooth(model, inputs, y, use, starts, np.concatenate([np.zeros(4), NOMINAL]), held, q, r,
-                            stage(0.95, 1.0))
+                            stage(0.6, 0.75))
     estimate, cov = final.smoothed[0, 4:], final.smoothed_cov[0, 4:, 4:]
-    jackknife = _jackknife_sd(model, inputs, y, use, starts, x0, p0, q, r, stage(0.8, 0.95))
+    jackknife = _jackknife_sd(model, inputs, y, use, starts, x0, p0, q, r, stage(0.75, 1.0))
     errors = tuple(SensorError(name, UNITS[name], float(v), float(max(np.sqrt(cov[i, i]), jackknife[i])),
                                float(np.sqrt(cov[i, i])), float(jackknife[i]))
                    for i, (name, v) in enumerate(zip(SENSOR_ERRORS, estimate)))

@@ -207,3 +207,26 @@ def replay_traces(r, states=("alpha", "q", "V", "theta")):
     axes[-1].set_xlabel("time [s] (grey lines: re-initialised on the measured states)")
     fig.tight_layout()
     return fig
+
+
+def spectra(group: str, spectra_by_channel: dict, cutoffs: dict):
+    """Welch spectra of stalled against attached flow for one channel group, with the detected buffet peaks
+    (dotted) and the applied cut-off (dashed)."""
+    fig, axes = plt.subplots(1, len(spectra_by_channel), figsize=(4.2 * len(spectra_by_channel), 3.4),
+                             squeeze=False)
+    for ax, (channel, s) in zip(axes[0], spectra_by_channel.items()):
+        keep = s.frequency > 0
+        ax.semilogy(s.frequency[keep], s.attached[keep], color="C0", lw=1, label="attached")
+        ax.semilogy(s.frequency[keep], s.stalled[keep], color="C3", lw=1, label="stalled")
+        for p in s.peaks_hz:
+            ax.axvline(p, color="C3", ls=":", lw=1)
+        if cutoffs.get(channel) is not None:
+            ax.axvline(cutoffs[channel], color="k", ls="--", lw=1, label=f"cut-off {cutoffs[channel]:.2g} Hz")
+        ax.set_title(channel)
+        ax.set_xlabel("frequency [Hz]")
+        ax.set_xlim(0, min(30.0, float(s.frequency.max())))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    axes[0][0].set_ylabel("power spectral density [unit^2/Hz]")
+    fig.suptitle(group)
+    return fig
