@@ -67,7 +67,8 @@ def _simulate(args) -> int:
     from .data.campaign import write_campaign
     from .flight.flighttest import build_campaign
     campaign = build_campaign(seed=args.seed, withhold=args.withhold or (), scale=args.scale,
-                              extras=args.extras, aircraft=args.aircraft, anomaly=args.anomaly, raw=args.raw)
+                              extras=args.extras, aircraft=args.aircraft, anomaly=args.anomaly, raw=args.raw,
+                              slow_errors=args.slow_errors)
     out = write_campaign(campaign, Path(args.out), fmt=args.format)
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
@@ -107,6 +108,7 @@ def _preprocess(args) -> int:
 
     result = preprocess(raw, dict(args.cutoff or []), use_suggested=args.cutoffs == "spectra",
                         stall_alpha_rad=None if args.stall_alpha is None else np.deg2rad(args.stall_alpha),
+                        stall_state=args.stall_state,
                         progress=None if args.quiet else progress)
     out = write_campaign(result.campaign, Path(args.out))
     seconds = time.perf_counter() - started
@@ -445,6 +447,29 @@ def _integer(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
 
 
+def _angle_degrees(text: str) -> float:
+    """A finite angle of attack in degrees, within +-90."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not -90.0 < value < 90.0:
+        raise argparse.ArgumentTypeError(f"must be an angle of attack in degrees within +-90, not {text}")
+    return value
+
+
+def _non_negative_float(text: str) -> float:
+    """A finite number >= 0."""
+    import math
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value >= 0.0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, not {text}")
+    return value
+
+
 def _fraction(text: str) -> float:
     """A number in (0, 1] (scales, correlation limits)."""
     try:
@@ -496,6 +521,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="fraction of the maneuvers of each kind to fly (small test campaigns)")
     s.add_argument("--extras", action="store_true", help="add pullups, pushovers and phugoids")
     s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.add_argument("--slow-errors", type=_non_negative_float, default=1.0, metavar="F",
+                   help="scale of the slow reconstruction errors of a standard campaign (1, the default: realistic; "
+                        "0: only sensor noise, buffet and residual biases, like a raw campaign's channels)")
     s.add_argument("--raw", action="store_true",
                    help="write the raw sensor channels (interfaces.md 5.2) with the injected sensor errors recorded")
     s.set_defaults(func=_simulate)
@@ -508,9 +536,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="default cut-offs: thesis Table 5 (default) or those the spectra suggest")
     pp.add_argument("--cutoff", action="append", type=_cutoff, metavar="CHANNEL=HZ",
                     help="pre-filter cut-off of one channel (repeatable; over campaign.toml's [cutoffs])")
-    pp.add_argument("--stall-alpha", type=float, metavar="DEG",
+    pp.add_argument("--stall-alpha", type=_angle_degrees, metavar="DEG",
                     help="stalled flow for the spectra: alpha above this [deg] (default: campaign.toml's "
                          "stall_alpha [rad], else the angle of maximum normal force less 1 deg)")
+    pp.add_argument("--stall-state", metavar="COLUMN",
+                    help="stalled flow for the spectra: where this column (a separation state, 1 attached, 0 "
+                         "separated) is below 0.5, instead of an alpha threshold")
     pp.add_argument("--no-figures", action="store_true", help="skip the spectra figures (no matplotlib needed)")
     pp.add_argument("--quiet", action="store_true", help="no progress on stderr")
     pp.set_defaults(func=_preprocess)

@@ -144,7 +144,7 @@ def _derivative(data, x: np.ndarray) -> np.ndarray:
 
 
 def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_suggested: bool = False,
-               stall_alpha_rad: float | None = None,
+               stall_alpha_rad: float | None = None, stall_state: str | None = None,
                progress: Callable[[str, float], None] | None = None) -> Preprocessed:
     """The whole chain on a raw campaign (:func:`structsearch.data.campaign.read_campaign` with ``fmt="raw"``)."""
     say = progress or (lambda stage, fraction: None)
@@ -160,13 +160,27 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
     if stall_alpha_rad is not None:
         stall_alpha, stall_source = float(stall_alpha_rad), "command line"
     elif "stall_alpha" in raw.extra:
-        stall_alpha, stall_source = float(raw.extra["stall_alpha"]), "campaign.toml"
+        value = raw.extra["stall_alpha"]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not abs(value) < np.pi / 2:
+            where = str(raw.directory / "campaign.toml") if raw.directory is not None else raw.name
+            raise DataError(f"stall_alpha must be an angle of attack in radians, not {value!r}", source=where,
+                            column="stall_alpha")
+        stall_alpha, stall_source = float(value), "campaign.toml"
     else:
         stall_alpha, stall_source = default_stall_alpha(raw), "maximum normal force less 1 deg"
     stalled = d["alpha"] > stall_alpha
+    if stall_state is not None:   # a separation state from an earlier identification: separated below one half
+        if stall_state not in d:
+            raise DeclarationError(f"--stall-state {stall_state}: no such column in the raw campaign")
+        x = d[stall_state]
+        if np.nanmin(x) < -0.01 or np.nanmax(x) > 1.01:
+            raise DataError(f"a separation state lies in [0, 1]; this column spans {np.nanmin(x):g} to "
+                            f"{np.nanmax(x):g}", source=str(raw.directory or raw.name), column=stall_state)
+        stalled, stall_source = x < 0.5, f"separation state {stall_state} below 0.5"
+        stall_alpha = float(np.nan)
     if np.mean(stalled) < MIN_STALLED_SHARE:
-        raise DataError(f"only {100 * np.mean(stalled):.1f} % of the samples lie above the stall angle of attack "
-                        f"{np.rad2deg(stall_alpha):.1f} deg ({stall_source}); give a lower --stall-alpha",
+        raise DataError(f"only {100 * np.mean(stalled):.1f} % of the samples are stalled (alpha above "
+                        f"{np.rad2deg(stall_alpha):.1f} deg; {stall_source}); give a lower --stall-alpha",
                         source=str(raw.directory or raw.name), column="alpha")
     # attached flow: the lower half of the angles of attack flown (trim and entry conditions), clear of the
     # separation that begins well below the stall on some aircraft
@@ -220,7 +234,9 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
     segments = [{k: v[sl] for k, v in columns.items()} for sl in slices]
     record = {"preprocessed_by": f"structsearch {__version__}",
               "preprocessed_from": str(raw.directory) if raw.directory is not None else raw.name,
-              "stall_alpha_deg": float(np.rad2deg(stall_alpha)), "reconstruction_step_s": rec.step_s}
+              "stalled_flow": stall_source, "reconstruction_step_s": rec.step_s}
+    if np.isfinite(stall_alpha):
+        record["stall_alpha_deg"] = float(np.rad2deg(stall_alpha))
     record.update({f"cutoff_{x.channel}_hz": x.applied_hz for x in cutoffs if x.applied_hz is not None})
     for e in rec.errors:
         record[f"estimated_{e.name}"] = e.estimate
@@ -232,17 +248,20 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
     return Preprocessed(standard, raw, tuple(spectra.values()), cutoffs, rec, stall_alpha, stall_source)
 
 
-def truth_agreement(campaign: Campaign) -> list[tuple[str, str, float]]:
+def truth_agreement(campaign: Campaign, less_offset: bool = False) -> list[tuple[str, str, float]]:
     """Per maneuver and coefficient, R^2 of the reconstructed coefficient against ``<coefficient>_true`` when
-    the campaign carries it (a simulated one): (maneuver, coefficient, R^2)."""
+    the campaign carries it (a simulated one): (maneuver, coefficient, R^2). ``less_offset`` removes each
+    maneuver's mean error first (what a per-maneuver constant error, e.g. a thrust model's, leaves)."""
     d = campaign.data
     out = []
     for m, sl in zip(campaign.maneuvers, d.segment_slices()):
         for name in COEFFICIENTS:
             if f"{name}_true" in d:
-                truth, got = d[f"{name}_true"][sl], d[name][sl]
+                truth, error = d[f"{name}_true"][sl], d[name][sl] - d[f"{name}_true"][sl]
+                if less_offset:
+                    error = error - error.mean()
                 ss = np.sum((truth - truth.mean()) ** 2)
-                out.append((m.id, name, float(1 - np.sum((got - truth) ** 2) / ss) if ss > 0 else float("nan")))
+                out.append((m.id, name, float(1 - np.sum(error ** 2) / ss) if ss > 0 else float("nan")))
     return out
 
 
