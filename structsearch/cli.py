@@ -97,6 +97,8 @@ def _preprocess(args) -> int:
     from .preprocess.pipeline import preprocess, truth_agreement
     from .report.preprocess_doc import write
     started = time.perf_counter()
+    if Path(args.raw).resolve() == Path(args.out).resolve():
+        raise_error(f"--out {args.out} is the raw campaign itself: it would be replaced; give another directory")
     raw = read_campaign(args.raw, fmt="raw")
     last = {}
 
@@ -117,7 +119,7 @@ def _preprocess(args) -> int:
     md = write(result, out, command, seconds, figures=not args.no_figures)
     worst = {}
     for _, name, r2 in truth_agreement(result.campaign):
-        worst[name] = min(worst.get(name, np.inf), r2)
+        worst[name] = np.fmin(worst.get(name, np.inf), r2)   # a NaN R^2 (constant truth) does not hide others
     errors = ", ".join(f"{e.name} {e.estimate:.4g} +- {e.sd:.2g}" for e in result.reconstruction.errors)
     print(f"sensor errors: {errors}")
     if worst:

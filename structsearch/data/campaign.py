@@ -7,6 +7,7 @@ file, the column and the row (0-based data row; for CSV also the line).
 """
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import tempfile
@@ -119,7 +120,13 @@ def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
 
 
 def _number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+    """A finite int or float (TOML integers are unbounded: one beyond float range is not finite)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
 
 
 def _parse_aircraft(aircraft: dict, toml: str) -> dict:

@@ -93,7 +93,7 @@ def rigid_body_bandwidth(freq: np.ndarray, psd: np.ndarray, fs: float) -> float 
     band = (freq >= NOISE_FLOOR_BAND_HZ[0]) & (freq <= min(NOISE_FLOOR_BAND_HZ[1], 0.45 * fs))
     if np.all(np.isnan(psd)) or not band.any():
         return None
-    floor = float(np.nanmedian(psd[band]))
+    floor = noise_floor(freq, psd, 0.9 * fs)
     halves = np.array_split(psd[band], 2)
     if not floor > 0 or not 1 / FLAT_RATIO <= np.nanmedian(halves[0]) / np.nanmedian(halves[1]) <= FLAT_RATIO:
         return None   # no white floor: a slow sensor resampled (its spectrum falls off above its Nyquist)
@@ -101,10 +101,12 @@ def rigid_body_bandwidth(freq: np.ndarray, psd: np.ndarray, fs: float) -> float 
     return float(freq[below[0]]) if below.size else None
 
 
-def noise_floor(freq: np.ndarray, psd: np.ndarray, fs: float) -> float:
-    """Median power spectral density over NOISE_FLOOR_BAND_HZ: a channel's white-noise level."""
-    band = (freq >= NOISE_FLOOR_BAND_HZ[0]) & (freq <= min(NOISE_FLOOR_BAND_HZ[1], 0.45 * fs))
-    return float(np.nanmedian(psd[band]))
+def noise_floor(freq: np.ndarray, psd: np.ndarray, fs: float, band_hz=NOISE_FLOOR_BAND_HZ) -> float:
+    """Median power spectral density over ``band_hz`` (up to 0.5 fs): a channel's white-noise level; NaN when
+    the band holds no defined value."""
+    band = (freq >= band_hz[0]) & (freq <= min(band_hz[1], 0.5 * fs))
+    values = psd[band]
+    return float(np.nanmedian(values)) if np.any(np.isfinite(values)) else float("nan")
 
 
 def suggested_cutoff(peaks: tuple[float, ...], bandwidth: float | None = None) -> float | None:

@@ -16,7 +16,7 @@ from ..data.errors import DataError, DeclarationError
 from ..data.prefilter import CUTOFF_HZ, derivative, lowpass
 from ..data.reduction import (body_force_coefficients, isa_density, lift_drag, pitch_moment_coefficient,
                               specific_force_at_cg)
-from ..data.spectra import ChannelSpectrum, channel_spectrum
+from ..data.spectra import SEGMENT_S, ChannelSpectrum, channel_spectrum, noise_floor
 from .reconstruction import Reconstruction, reconstruct
 
 # Channels whose spectra the record shows, by figure.
@@ -92,6 +92,9 @@ def default_stall_alpha(raw: Campaign) -> float:
     which = np.digitize(alpha, edges)
     medians = [(np.median(cn[which == i]), 0.5 * (edges[i - 1] + edges[i])) for i in range(1, len(edges))
                if np.count_nonzero(which == i) >= 50]
+    if not medians:
+        raise DataError("too few samples to find the angle of maximum normal force (50 per 0.5 deg bin); give "
+                        "--stall-alpha DEG", source=str(raw.directory or raw.name), column="alpha")
     return float(max(medians)[1] - STALL_MARGIN_RAD)
 
 
@@ -115,7 +118,7 @@ def choose_cutoffs(raw: Campaign, spectra: Mapping[str, ChannelSpectrum], overri
                 raise DeclarationError(f"{source} {name}={hz:g}: a cut-off lies between 0 and the Nyquist "
                                        f"frequency {fs / 2:g} Hz")
     out = []
-    for c in channels + sorted(set(overrides) | set(toml) - set(channels)):
+    for c in channels + sorted((set(overrides) | set(toml)) - set(channels)):
         default = CUTOFF_HZ.get(c)
         suggested = spectra[c].cutoff_hz if c in spectra else None
         if c in overrides:
@@ -179,8 +182,9 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
         stalled, stall_source = x < 0.5, f"separation state {stall_state} below 0.5"
         stall_alpha = float(np.nan)
     if np.mean(stalled) < MIN_STALLED_SHARE:
-        raise DataError(f"only {100 * np.mean(stalled):.1f} % of the samples are stalled (alpha above "
-                        f"{np.rad2deg(stall_alpha):.1f} deg; {stall_source}); give a lower --stall-alpha",
+        what = (f"alpha above {np.rad2deg(stall_alpha):.1f} deg; " if np.isfinite(stall_alpha) else "") + stall_source
+        raise DataError(f"only {100 * np.mean(stalled):.1f} % of the samples are stalled ({what}); give a lower "
+                        "--stall-alpha or another --stall-state",
                         source=str(raw.directory or raw.name), column="alpha")
     # attached flow: the lower half of the angles of attack flown (trim and entry conditions), clear of the
     # separation that begins well below the stall on some aircraft
@@ -192,6 +196,10 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
         say("spectra", (i + 1) / len(channels))
     cutoffs = choose_cutoffs(raw, spectra, dict(overrides or {}), use_suggested, fs)
     hz = {c.channel: c.applied_hz for c in cutoffs}
+    for c in cutoffs:
+        if c.applied_hz is not None and not c.applied_hz < fs / 2:
+            raise DeclarationError(f"channel {c.channel!r}: cut-off {c.applied_hz:g} Hz ({c.source}) is not below the "
+                                   f"Nyquist frequency {fs / 2:g} Hz; give --cutoff {c.channel}=HZ")
     for needed in ("ax", "az", "q", "V", "alpha", "theta", "h"):
         if hz.get(needed) is None:
             raise DeclarationError(f"channel {needed!r} needs a cut-off (--cutoff {needed}=HZ)")
@@ -200,9 +208,14 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
     f["q_dot"] = _derivative(d, f["q"])
     noise = {}
     for c in ("ax", "az", "q"):
-        band = (spectra[c].frequency >= NOISE_BAND_HZ[0]) & (spectra[c].frequency <= min(NOISE_BAND_HZ[1], fs / 2))
-        level = np.nanmedian(np.where(np.isnan(spectra[c].attached), spectra[c].stalled, spectra[c].attached)[band])
-        noise[c] = float(level)
+        sp = spectra[c]
+        level = noise_floor(sp.frequency, np.where(np.isnan(sp.attached), sp.stalled, sp.attached), fs, NOISE_BAND_HZ)
+        if not np.isfinite(level) or level <= 0:
+            raise DataError(f"no noise floor in the {c} spectrum between {NOISE_BAND_HZ[0]:g} and "
+                            f"{NOISE_BAND_HZ[1]:g} Hz: preprocess needs maneuvers longer than {SEGMENT_S:g} s sampled at "
+                            f"{2 * NOISE_BAND_HZ[0] / 0.45:.0f} Hz or more (this campaign: {fs:g} Hz)",
+                            source=str(raw.directory or raw.name), column=c)
+        noise[c] = level
     accelerometer = tuple(raw.aircraft.get("accelerometer", (0.0, 0.0, 0.0)))
     # the kinematic equations hold between signals filtered alike: the reconstruction sees every channel at
     # the lowest of their cut-offs (a linear zero-phase filter commutes with the linear terms)

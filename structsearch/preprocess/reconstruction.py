@@ -15,6 +15,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
+from ..data.errors import FitError
 from ..data.reduction import specific_force_at_cg
 from .kalman import filter_smooth
 from .kinematics import (INPUTS, MEASUREMENTS, NOMINAL, PRIOR_SD, SENSOR_ERRORS, START_SD, UNITS,
@@ -155,6 +156,9 @@ def reconstruct(filtered: Mapping[str, np.ndarray], slices: Sequence[slice], fs:
     steps_left = np.concatenate([np.arange(len(range(sl.start, sl.stop, every)))[::-1] for sl in slices])
     edge = int(round(EDGE_S / dt))
     use &= ((step_number >= edge) & (steps_left >= edge))[:, None]
+    if not use.any():
+        raise FitError(f"no maneuver is longer than {2 * EDGE_S:g} s: the flight-path reconstruction leaves "
+                       f"{EDGE_S:g} s at each end to the filters' transients and has nothing left to compare")
     model = LongitudinalKinematics(dt)
     psd = {c: 0.5 * float(input_psd[c]) for c in ("ax", "az", "q")}   # two-sided
     q = np.zeros((model.n_states, model.n_states))
@@ -190,7 +194,11 @@ def reconstruct(filtered: Mapping[str, np.ndarray], slices: Sequence[slice], fs:
                             stage(0.6, 0.75))
     estimate, cov = final.smoothed[0, 4:], final.smoothed_cov[0, 4:, 4:]
     jackknife = _jackknife_sd(model, inputs, y, use, starts, x0, p0, q, r, stage(0.75, 1.0))
-    errors = tuple(SensorError(name, UNITS[name], float(v), float(max(np.sqrt(cov[i, i]), jackknife[i])),
+    if not np.all(np.isfinite(estimate)) or not np.all(np.isfinite(np.diag(cov))):
+        raise FitError("the flight-path reconstruction diverged (non-finite sensor errors); check the channels' "
+                       "units and the accelerometer position")
+    # without a jackknife (one maneuver) the smoother's standard deviation stands alone; the record says so
+    errors = tuple(SensorError(name, UNITS[name], float(v), float(np.fmax(np.sqrt(cov[i, i]), jackknife[i])),
                                float(np.sqrt(cov[i, i])), float(jackknife[i]))
                    for i, (name, v) in enumerate(zip(SENSOR_ERRORS, estimate)))
     before = _residual_rms(model, nominal.smoothed, y, use)
