@@ -128,6 +128,25 @@ def _preprocess(args) -> int:
     return 0
 
 
+def _study(args) -> int:
+    from .data.campaign import read_campaign
+    from .search.runner import Settings, stderr_progress
+    from .study.study import run_study
+    from .report import figures
+    from .report.study_doc import write
+    campaign = read_campaign(args.data)
+    out = Path(args.out)
+    cache = Path(args.cache) if args.cache else out
+    study = run_study(campaign, cache, Settings(n_starts=args.starts), n_jobs=_jobs(args),
+                      progress=None if args.quiet else stderr_progress)
+    command = f"structsearch study --data {args.data} --out {args.out}" + (f" --cache {args.cache}" if args.cache
+                                                                           else "")
+    written = write(study, out, command, figures=figures.plt is not None)
+    print(f"wrote {len(written)} files in {out} (final_vs_van_ingen, dynamic_stalls, separation_matrix, derived, "
+          "collinearity, r2_boxes.png)")
+    return 0
+
+
 def raise_error(message: str):
     from .data.errors import DeclarationError
     raise DeclarationError(message)
@@ -547,6 +566,16 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--no-figures", action="store_true", help="skip the spectra figures (no matplotlib needed)")
     pp.add_argument("--quiet", action="store_true", help="no progress on stderr")
     pp.set_defaults(func=_preprocess)
+
+    st = sub.add_parser("study", help="the thesis' comparison tables on a campaign: final models against Van Ingen's, "
+                                      "the dynamic-stall study, the separation matrix, derived quantities")
+    st.add_argument("--data", required=True, help="campaign directory")
+    st.add_argument("--out", required=True, help="directory for the tables (Markdown, LaTeX, CSV) and box plots")
+    st.add_argument("--cache", help="the search's output directory whose cache to reuse (default: --out)")
+    st.add_argument("--starts", type=_count, default=4, help="starts per nonlinear fit (as search: its cache serves)")
+    st.add_argument("--jobs", type=_non_negative, default=0, help="processes (0: all cores)")
+    st.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    st.set_defaults(func=_study)
 
     f = sub.add_parser("fit", help="fit one model structure to a campaign")
     _campaign_options(f)

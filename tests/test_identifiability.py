@@ -41,12 +41,18 @@ def test_dynamic_stalls_decorrelate_tau1_and_tau2(fits):
     assert full.stderr["tau1_ss"] < 0.5 * quasi.stderr["tau1_ss"]
 
 
-@pytest.mark.xfail(strict=True, reason="issue 3 asks |corr| < 0.3 once dynamic stalls are added (thesis 0.06); "
-                   "dynamic stalls alone give about -0.14, but the 34 quasi-steady stalls of Table 4 pin "
-                   "tau1 + tau2 and pull the whole campaign to about -0.4 (issue 3 is blocked on this)")
-def test_thesis_level_decorrelation(fits):
-    full, _ = fits
-    assert abs(_tau_correlation(full)) < 0.3
+def test_the_study_table_reports_the_decorrelation(campaign):
+    """Issue 16 (replacing issue 3's strict xfail on |rho| < 0.3): the study's Tables 10.1-10.3 counterpart,
+    on the same maneuvers, shows the dynamic stalls cutting |rho(tau1_ss, tau2_ss)| by at least 0.3; the
+    thesis' 0.06 is not what this simulated plan gives (README)."""
+    from structsearch.search.runner import Settings
+    from structsearch.study.dynamic_stalls import dynamic_stall_study
+    study = dynamic_stall_study(campaign, settings=Settings(n_starts=2))
+    (a, b, quasi, full), _ = study.called_out()
+    assert (a, b) == ("tau1_ss", "tau2_ss")
+    assert abs(full) <= abs(quasi) - 0.3, (quasi, full)
+    i = study.full.names.index("tau1_ss")
+    assert study.full.sd[i] < study.quasi_steady.sd[study.quasi_steady.names.index("tau1_ss")]
 
 
 def test_dynamic_stalls_alone_separate_lag_from_delay(campaign):

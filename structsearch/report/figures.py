@@ -230,3 +230,27 @@ def spectra(group: str, spectra_by_channel: dict, cutoffs: dict):
     axes[0][0].set_ylabel("power spectral density [unit^2/Hz]")
     fig.suptitle(group)
     return fig
+
+
+def r2_boxes(r2: dict, coefficients, models, splits=("train", "validation")):
+    """Per-maneuver R^2 box plots (thesis Fig. 12): ``r2[(model, coefficient, split)]`` -> values."""
+    fig, axes = plt.subplots(1, len(coefficients), figsize=(3.3 * len(coefficients), 3.8), squeeze=False)
+    for ax, coefficient in zip(axes[0], coefficients):
+        data, labels, colours = [], [], []
+        for i, model in enumerate(models):
+            for split in splits:
+                values = [v for v in r2.get((model, coefficient, split), ()) if np.isfinite(v)]
+                if values:
+                    data.append(values)
+                    labels.append(f"{model}\n{split}")
+                    colours.append(f"C{i}")
+        if data:
+            boxes = ax.boxplot(data, patch_artist=True, widths=0.6)
+            for patch, colour in zip(boxes["boxes"], colours):
+                patch.set_facecolor(colour)
+                patch.set_alpha(0.45)
+            ax.set_xticks(range(1, len(labels) + 1), labels, rotation=90, fontsize=6)
+        ax.set_title(coefficient)
+        ax.grid(alpha=0.3, axis="y")
+    axes[0][0].set_ylabel("R^2 per maneuver [-]")
+    return fig

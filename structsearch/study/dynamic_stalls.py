@@ -1,0 +1,74 @@
+"""The same lift structure identified with and without the dynamic stalls (thesis Tables 10.1-10.3): estimates,
+standard deviations, p-values and the correlation matrices side by side, with the entries the thesis discusses
+(tau1-tau2 of the stall-strip state, tau1-C_Lq*) called out.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..data.campaign import Campaign
+from ..engine.results import FitResult
+from ..search.models import build_model
+from ..search.runner import Settings
+from ..search.specs import find_candidate
+
+# The thesis' figures for the tau1-tau2 correlation of X_ss: quasi-steady stalls only, and with the dynamic
+# stalls (Tables 10.2 and 10.3; catalogue section 7).
+THESIS_TAU_CORRELATION = {"quasi-steady only": 0.73, "full training set": 0.06}
+CALLED_OUT = (("tau1_ss", "tau2_ss"), ("tau1_ss", "CL_qstar"))
+
+
+@dataclass(frozen=True)
+class Identification:
+    """One fit of the structure: what Tables 10.1-10.3 print."""
+
+    label: str
+    maneuvers: tuple[str, ...]
+    names: tuple[str, ...]
+    estimate: tuple[float, ...]
+    sd: tuple[float, ...]
+    p_value: tuple[float, ...]
+    correlation: tuple[tuple[float, ...], ...]
+
+    def rho(self, a: str, b: str) -> float:
+        if a not in self.names or b not in self.names:
+            return float("nan")
+        return float(self.correlation[self.names.index(a)][self.names.index(b)])
+
+
+@dataclass(frozen=True)
+class DynamicStallStudy:
+    model: str
+    quasi_steady: Identification
+    full: Identification
+
+    def called_out(self) -> list[tuple[str, str, float, float]]:
+        """(parameter, parameter, rho quasi-steady only, rho full training set)."""
+        return [(a, b, self.quasi_steady.rho(a, b), self.full.rho(a, b)) for a, b in CALLED_OUT]
+
+
+def _identification(label: str, result: FitResult, names_of_maneuvers) -> Identification:
+    names = tuple(result.names)
+    sd = result.stderr
+    p = result.p_values
+    corr = np.asarray(result.correlation, float)
+    return Identification(label, tuple(names_of_maneuvers), names, tuple(float(result.params[n]) for n in names),
+                          tuple(float(sd[n]) for n in names), tuple(float(p[n]) for n in names),
+                          tuple(tuple(float(x) for x in row) for row in corr))
+
+
+def dynamic_stall_study(campaign: Campaign, model_name: str = "CL-VI", settings: Settings = Settings()
+                        ) -> DynamicStallStudy:
+    """Fit ``model_name`` on the quasi-steady training stalls only and on the whole training set."""
+    candidate = find_candidate(model_name)
+    model = build_model(candidate)
+    train = campaign.split("train")
+    kinds = [m.kind for m in campaign.maneuvers if m.split == "train"]
+    quasi = [i for i, k in enumerate(kinds) if k == "quasi-steady"]
+    fits = {}
+    for label, data in (("quasi-steady only", train.select(quasi)), ("full training set", train)):
+        result = model.fit(data, n_starts=settings.n_starts, seed=settings.seed, covariance=settings.covariance)
+        fits[label] = _identification(label, result, data.names)
+    return DynamicStallStudy(model_name, fits["quasi-steady only"], fits["full training set"])

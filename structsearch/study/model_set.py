@@ -1,0 +1,69 @@
+"""A model set: one simulator's lift, drag and pitch structures fitted together on the training maneuvers
+(drag and pitch on the lift model's separation states), through the search's cache. The report draws it and the
+study compares it; a set's coefficients are predicted on any data.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from ..data.campaign import Campaign
+from ..data.errors import DeclarationError
+from ..data.flightdata import FlightData
+from ..flight.aero import AeroModel
+from ..search.candidate_result import CandidateResult
+from ..search.candidates import Candidate
+from ..search.models import build_model, predict_candidate
+from ..search.runner import Settings, run
+from ..search.specs import find_candidate
+
+COEFFICIENTS = ("CL", "CD", "Cm")
+
+
+@dataclass(frozen=True)
+class ModelSet:
+    """Lift, drag and pitch structures fitted together (drag and pitch on the lift model's states)."""
+
+    label: str
+    candidates: Mapping[str, Candidate]
+    summaries: Mapping[str, CandidateResult]
+    aero: AeroModel
+
+    @property
+    def lift_summary(self) -> CandidateResult:
+        return self.summaries["CL"]
+
+    def predict(self, coef: str, data: FlightData, candidate: Candidate | None = None,
+                params: dict | None = None) -> np.ndarray:
+        """Output of the set's ``coef`` model (or of ``candidate`` with ``params`` in its place) on ``data``."""
+        c = candidate or self.candidates[coef]
+        lift = None if coef == "CL" else self.lift_summary
+        return predict_candidate(c, params or self.summaries[coef].params, data, lift,
+                                 None if coef == "CL" else self.candidates["CL"])
+
+
+def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out: Path, settings: Settings,
+                  n_jobs: int = 1, progress=None) -> ModelSet:
+    """Fit the named lift, drag and pitch structures (cached under ``out/cache``)."""
+    cands = {coef: find_candidate(names[coef]) for coef in COEFFICIENTS}
+    for coef in ("CD", "Cm"):
+        if cands[coef].lift != cands["CL"].name:
+            raise DeclarationError(f"{cands[coef].name} takes its separation states from {cands[coef].lift}, "
+                                   f"not from the lift model {cands['CL'].name} of the same model set")
+    lift = run([cands["CL"]], campaign, out, settings=settings, progress=progress)[0]
+    others = run([cands["CD"], cands["Cm"]], campaign, out, lift_results={cands["CL"].name: lift},
+                 lift_candidates={cands["CL"].name: cands["CL"]}, settings=settings, n_jobs=n_jobs,
+                 progress=progress)
+    summaries = {"CL": lift, "CD": others[0], "Cm": others[1]}
+    for coef, s in summaries.items():
+        if s.failed:
+            raise DeclarationError(f"report: fitting {cands[coef].name} failed: {s.error}")
+    params = dict(lift.params)
+    for coef in ("CD", "Cm"):
+        params.update({k: v for k, v in summaries[coef].params.items() if k not in lift.params})
+    aero = AeroModel(build_model(cands["CL"]), build_model(cands["CD"], lift), build_model(cands["Cm"], lift),
+                     params, name=label)
+    return ModelSet(label, cands, summaries, aero)

@@ -1,0 +1,66 @@
+"""The thesis' comparison tables regenerated on a campaign (issue 16): final models against Van Ingen's (as
+published and refitted), the dynamic-stall identifiability study, the separation grid as a 3 x 3 matrix, the
+final lift model's derived quantities and the collinearity of its regressors. Numerics only; the tables are
+rendered by :mod:`structsearch.report.study_doc`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Mapping
+
+from ..data.campaign import Campaign
+from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_LIFT, VAN_INGEN_MODEL_NAMES, van_ingen_lift_model
+from ..search.models import build_model
+from ..search.runner import Settings, run
+from ..search.specs import load_grid
+from .comparison import CoefficientScores, score_set
+from .derived import Collinearity, DerivedQuantity, collinearity, physical_quantities, separation_matrix
+from .dynamic_stalls import DynamicStallStudy, dynamic_stall_study
+from .model_set import fit_model_set
+
+FINAL = "final"
+VAN_INGEN_REFITTED = "Van Ingen (refitted)"
+VAN_INGEN_PUBLISHED = "Van Ingen (published)"
+
+
+@dataclass(frozen=True)
+class Study:
+    models: Mapping[str, Mapping[str, str]]        # label -> coefficient -> structure
+    scores: tuple[CoefficientScores, ...]
+    dynamic_stalls: DynamicStallStudy
+    separation_kinds: tuple[str, ...]
+    separation_mse: tuple[tuple[float, ...], ...]   # rows X_ss kind, columns X_w kind (training MSE)
+    derived: tuple[DerivedQuantity, ...]
+    collinearity: Collinearity
+
+
+def run_study(campaign: Campaign, cache: Path, settings: Settings = Settings(), n_jobs: int = 1,
+              progress: Callable[[str], None] | None = None) -> Study:
+    """Everything the study tables hold; fits go through the search's cache under ``cache`` (a search of the
+    same campaign with the same settings makes them instant)."""
+    say = progress or (lambda m: None)
+    say("study: the final model set")
+    final = fit_model_set(FINAL, FINAL_MODEL_NAMES, campaign, cache, settings, n_jobs=n_jobs, progress=progress)
+    say("study: Van Ingen's structures refitted")
+    refitted = fit_model_set(VAN_INGEN_REFITTED, VAN_INGEN_MODEL_NAMES, campaign, cache, settings, n_jobs=n_jobs,
+                             progress=progress)
+    published = van_ingen_lift_model()
+    scores = (score_set(FINAL, lambda c, d: final.predict(c, d), campaign)
+              + score_set(VAN_INGEN_REFITTED, lambda c, d: refitted.predict(c, d), campaign)
+              # only the lift model's values are published (catalogue section 6)
+              + score_set(VAN_INGEN_PUBLISHED,
+                          lambda c, d: published.predict(d, VAN_INGEN_LIFT) if c == "CL" else None, campaign))
+    say("study: the separation grid")
+    separation = run(load_grid("separation").candidates, campaign, cache, settings=settings, n_jobs=n_jobs,
+                     progress=progress)
+    kinds, matrix = separation_matrix(separation)
+    say("study: CL-VI with and without the dynamic stalls")
+    dynamic = dynamic_stall_study(campaign, FINAL_MODEL_NAMES["CL"], settings)
+    train = campaign.split("train")
+    lift = final.summaries["CL"]
+    derived = physical_quantities(dict(lift.params), train)
+    coll = collinearity(build_model(final.candidates["CL"]), dict(lift.params), train)
+    models = {FINAL: dict(FINAL_MODEL_NAMES), VAN_INGEN_REFITTED: dict(VAN_INGEN_MODEL_NAMES),
+              VAN_INGEN_PUBLISHED: {"CL": VAN_INGEN_MODEL_NAMES["CL"]}}
+    return Study(models, tuple(scores), dynamic, kinds, matrix, tuple(derived), coll)
