@@ -328,7 +328,16 @@ def _demo(args) -> int:
           f"{story_md}):")
     for line in story["lines"]:
         print(f"  {line}")
+    from .study.study import run_study
     from .report import figures
+    from .report.study_doc import write as write_study
+    t2 = time.perf_counter()
+    study = run_study(campaign, out, Settings(n_starts=args.starts), n_jobs=jobs,
+                      progress=None if args.quiet else stderr_progress)
+    written = write_study(study, out / "study", f"structsearch study --data {camp_dir} --out {out / 'study'} "
+                          f"--cache {out}" + (f" --starts {args.starts}" if args.starts != 4 else ""),
+                          figures=figures.plt is not None)
+    print(f"the thesis' comparison tables: {len(written)} files in {out / 'study'} ({time.perf_counter() - t2:.0f} s)")
     if figures.plt is None:
         print("no figures: the report needs matplotlib (pip install 'structsearch[figures]')")
         return 0

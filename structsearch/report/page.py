@@ -245,12 +245,20 @@ def _image(path: Path) -> str:
     return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode("ascii")
 
 
+# The study's tables the page shows (stem -> title).
+STUDY_TABLES = {"final_vs_van_ingen": "Final models against Van Ingen's refitted (Tables 17, 11.1)",
+                "final_vs_van_ingen_published": "Final lift model against Van Ingen's as published",
+                "dynamic_stalls": "CL-VI with and without the dynamic stalls (Tables 10.1-10.3)",
+                "separation_matrix": "Separation kinds, training MSE (Table 8)",
+                "derived": "Derived quantities", "collinearity": "Collinearity of the lift regressors"}
+
+
 def _ranking_table(out: Path, grid: str, top: int = 10) -> str | None:
     path = out / f"{grid}.csv"
     if not path.exists():
         return None
     with path.open(newline="", encoding="utf-8") as fh:
-        rows = list(csv.reader(fh))
+        rows = [r for r in csv.reader(fh) if r and not r[0].startswith("# command:")]
     if len(rows) < 2:
         return None
     head = "".join(f"<th>{html.escape(h)}</th>" for h in rows[0])
@@ -301,6 +309,15 @@ def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, di
                  (e.get("acts_in") or {}).get("phase", "-"), e.get("error", "")] for e in diagnosis["effects"]]
         parts.append(render_table(rows, ["effect", "shrink", "p-value", "acts most in (phase)", "error"], "html",
                                   floatfmt=".3g"))
+    study = out / "study"
+    study_tables = [(stem, _ranking_table(study, stem, top=40)) for stem in STUDY_TABLES]
+    if any(t for _, t in study_tables):
+        parts.append("<h2>The thesis' comparison tables (structsearch study)</h2><p>Markdown, LaTeX and CSV of "
+                     "each in study/.</p>")
+        parts += [f"<h3>{html.escape(STUDY_TABLES[stem])}</h3>{t}" for stem, t in study_tables if t]
+        if (study / "r2_boxes.png").exists():
+            parts.append(f"<figure><h3>Per-maneuver R^2 (thesis Fig. 12)</h3><img src='{_image(study / 'r2_boxes.png')}' "
+                         "alt='R^2 box plots'></figure>")
     tables = [(grid, _ranking_table(out, grid)) for grid in ("separation", "lift", "drag", "pitch")]
     if any(t for _, t in tables):
         parts.append("<h2>Search rankings (first ten of each grid)</h2>")
