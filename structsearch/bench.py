@@ -20,10 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .flight.reference import FINAL_LIFT, final_lift_model
-from .engine.snls import model_jacobian, project, solve
+from .engine.fullnls import full_nls
+from .engine.snls import solve
 from .flight.synthetic import campaign, with_coefficient
 
 
@@ -48,41 +48,6 @@ def bench_data(samples: int, seed: int, sigma: float, phi: float):
     return model, with_coefficient(data, model, FINAL_LIFT, noise_sigma=sigma, noise_phi=phi, seed=seed + 1)
 
 
-def full_nls(problem, y, theta0, lower, upper, tol=1e-10, max_nfev=1000, jacobian="analytic"):
-    """All parameters as one nonlinear least-squares problem (the approach SNLS replaces).
-
-    ``jacobian="analytic"`` hands scipy the exact Jacobian (the strongest baseline);
-    ``"2-point"`` is what ``least_squares`` does by default (finite differences).
-    """
-    k = len(theta0)
-    c0 = project(problem.evaluate(theta0).phi, y).coef
-    cache = {}
-
-    def at(x):
-        key = x.tobytes()
-        if key not in cache:
-            cache.clear()
-            ev = problem.evaluate(x[:k])
-            cache[key] = (ev, y - ev.phi @ x[k:])
-        return cache[key]
-
-    def fun(x):
-        return at(x)[1]
-
-    def jac(x):
-        ev, _ = at(x)
-        return -model_jacobian(ev, x[k:], k)
-
-    n = len(c0)
-    lo = np.concatenate([lower, np.full(n, -np.inf)])
-    hi = np.concatenate([upper, np.full(n, np.inf)])
-    span = np.concatenate([upper - lower, np.ones(n)])
-    x0 = np.concatenate([np.clip(theta0, lower + 1e-10 * (upper - lower), upper - 1e-10 * (upper - lower)), c0])
-    sol = least_squares(fun, x0, jac=jac if jacobian == "analytic" else "2-point", bounds=(lo, hi),
-                        method="trf", x_scale=span, ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev)
-    return sol.x[:k], float(2 * sol.cost), int(sol.nfev), int(sol.njev or 0)
-
-
 def _timed(fn, *args, **kw):
     t0 = time.perf_counter()
     out = fn(*args, **kw)
@@ -95,8 +60,8 @@ def _snls_run(problem, y, start, lower, upper):
 
 
 def _full_run(problem, y, start, lower, upper, jacobian="analytic"):
-    (theta, rss, nfev, njev), dt = _timed(full_nls, problem, y, start, lower, upper, jacobian=jacobian)
-    return rss, dt, nfev, njev
+    fit, dt = _timed(full_nls, problem, y, start, lower, upper, jacobian=jacobian)
+    return fit.rss, dt, fit.nfev, fit.njev
 
 
 def _peak(model, data):

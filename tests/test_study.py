@@ -9,7 +9,7 @@ from structsearch.cli import main
 from structsearch.study.comparison import per_maneuver_r2, percent_difference
 from structsearch.data.flightdata import from_segments
 
-STEMS = ("final_vs_van_ingen", "final_vs_van_ingen_published", "dynamic_stalls", "correlation_quasi_steady",
+STEMS = ("legacy_vs_snls", "legacy_vs_snls_parameters", "final_vs_van_ingen", "final_vs_van_ingen_published", "dynamic_stalls", "correlation_quasi_steady",
          "correlation_full", "separation_matrix", "derived", "collinearity")
 
 
@@ -57,6 +57,10 @@ def test_study_numbers_equal_the_search_tables(studied):
                                                         rel=6e-4)
     published = _csv(out / "final_vs_van_ingen_published.csv")
     assert {r["coefficient"] for r in published} == {"CL"}      # only Van Ingen's lift values are published
+    legacy = {(r["coefficient"], r["split"]): r for r in _csv(out / "legacy_vs_snls.csv")}
+    assert set(legacy) == {(c, s) for c in ("CL", "CD", "CX", "CZ", "Cm") for s in ("train", "validation")}
+    # SNLS minimises the training C_L error over the whole set: the legacy average cannot do better there
+    assert float(legacy[("CL", "train")]["MSE SNLS"]) <= float(legacy[("CL", "train")]["MSE legacy"])
     dynamic = {r["parameter"]: r for r in _csv(out / "dynamic_stalls.csv")}
     assert set(dynamic) >= {"tau1_ss", "tau2_ss", "CL_qstar"} and float(dynamic["tau1_ss"]["sd (full)"]) > 0
 

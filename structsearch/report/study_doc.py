@@ -12,6 +12,7 @@ from tabulate import tabulate
 from ..data.atomic import write_text
 from ..study.comparison import COEFFICIENTS, comparison_rows
 from ..study.dynamic_stalls import THESIS_TAU_CORRELATION
+from ..study.legacy import LEGACY, SNLS
 from ..study.study import FINAL, VAN_INGEN_PUBLISHED, VAN_INGEN_REFITTED, Study
 
 FORMATS = ("md", "tex", "csv")
@@ -53,9 +54,30 @@ def _comparison(study: Study, out: Path, command: str, reference: str, stem: str
     return write_table(out, stem, title, headers, rows, command, note)
 
 
+def _estimators(study: Study, out: Path, command: str) -> list[Path]:
+    e = study.estimators
+    rows = [[r["coefficient"], r["split"], r["reference_mse"], r["mse"], r["difference_pct"]]
+            for r in comparison_rows(list(e.scores), SNLS, LEGACY)]
+    structures = ", ".join(f"{c} {n}" for c, n in e.names.items())
+    note = (f"Structures: {structures}. The lift model estimated both ways from the same {e.n_starts} start points "
+            f"(the declared start and scrambled Sobol points): legacy, per training maneuver with every parameter "
+            f"free, the best start kept, the separation parameters averaged, the linear ones re-estimated by OLS on "
+            f"all training maneuvers ({e.legacy.seconds:.1f} s); SNLS on all training maneuvers at once "
+            f"({e.snls_seconds:.1f} s; the solver alone, like the legacy one). Drag and pitch by OLS on each lift "
+            "fit's separation states. % difference: SNLS against legacy (thesis Table 7: C_L -36 % in training).")
+    written = write_table(out, "legacy_vs_snls", "The legacy estimator against SNLS (thesis Table 7)",
+                          ["coefficient", "split", "MSE legacy", "MSE SNLS", "% difference"], rows, command, note)
+    names = list(e.snls_params)
+    written += write_table(out, "legacy_vs_snls_parameters", f"{e.names['CL']}'s parameters, legacy and SNLS",
+                           ["parameter", "legacy", "SNLS"],
+                           [[n, e.legacy.params.get(n, float("nan")), e.snls_params[n]] for n in names], command)
+    return written
+
+
 def write(study: Study, out: Path, command: str, figures: bool = True) -> list[Path]:
     out = Path(out)
-    written = _comparison(study, out, command, VAN_INGEN_REFITTED, "final_vs_van_ingen",
+    written = _estimators(study, out, command)
+    written += _comparison(study, out, command, VAN_INGEN_REFITTED, "final_vs_van_ingen",
                           "Final models against Van Ingen's structures refitted (thesis Tables 17 and 11.1)")
     written += _comparison(study, out, command, VAN_INGEN_PUBLISHED, "final_vs_van_ingen_published",
                            "Final lift model against Van Ingen's lift model as published (thesis Table 11.1, "
