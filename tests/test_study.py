@@ -10,7 +10,8 @@ from structsearch.study.comparison import per_maneuver_r2, percent_difference
 from structsearch.data.flightdata import from_segments
 
 STEMS = ("legacy_vs_snls", "legacy_vs_snls_parameters", "final_vs_van_ingen", "final_vs_van_ingen_published", "dynamic_stalls", "correlation_quasi_steady",
-         "correlation_full", "separation_matrix", "derived", "collinearity")
+         "correlation_full", "separation_matrix", "derived", "collinearity", "lift_thesis", "drag_thesis",
+         "pitch_thesis")
 
 
 @pytest.fixture(scope="module")
@@ -55,6 +56,10 @@ def test_study_numbers_equal_the_search_tables(studied):
         for b in "SQU":
             assert float(matrix[a][b]) == pytest.approx(float(separation[f"X_ss/X_w {a}/{b}"]["MSE train"]),
                                                         rel=6e-4)
+    thesis_lift = {r["model"]: r for r in _csv(out / "lift_thesis.csv")}
+    assert float(thesis_lift["CL-VI"]["MSE CL train"]) == pytest.approx(float(ranking["CL-VI"]["mse_train"]), rel=1e-9)
+    assert float(thesis_lift["CL-I"]["% to CL-I"]) == pytest.approx(0.0, abs=1e-9)
+    assert thesis_lift["CL-VI"]["CL_qstar"] == "*" and thesis_lift["CL-I"]["CL_qstar"] == ""
     published = _csv(out / "final_vs_van_ingen_published.csv")
     assert {r["coefficient"] for r in published} == {"CL"}      # only Van Ingen's lift values are published
     legacy = {(r["coefficient"], r["split"]): r for r in _csv(out / "legacy_vs_snls.csv")}

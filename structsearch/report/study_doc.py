@@ -124,6 +124,12 @@ def write(study: Study, out: Path, command: str, figures: bool = True) -> list[P
                            "alpha and delta_e move together in trimmed flight; q and alpha_dot nearly coincide "
                            "when the flight path hardly turns: their derivatives trade off (thesis chapter 11). "
                            "VIF above 10 names a regressor the data pin poorly.")
+    for t in study.search_tables:
+        written += write_table(out, f"{t.grid}_thesis", f"The {t.grid} grid in the thesis' layout (Tables 9, 10, 20)",
+                               list(t.headers), [list(r) for r in t.rows], command,
+                               "A star marks a regressor the candidate holds; X columns give each separation "
+                               "state's kind (S static, Q quasi-steady, U unsteady); % to the reference: training "
+                               f"MSE against {t.reference} refitted. Coefficients and MSEs are dimensionless.")
     if figures:
         from . import figures as fg
         fg.require()

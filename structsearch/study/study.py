@@ -18,6 +18,7 @@ from .comparison import CoefficientScores, score_set
 from .derived import Collinearity, DerivedQuantity, collinearity, physical_quantities, separation_matrix
 from .dynamic_stalls import DynamicStallStudy, dynamic_stall_study
 from .legacy import EstimatorComparison, compare_estimators
+from .search_tables import ThesisTable, thesis_table
 from .model_set import fit_model_set
 
 FINAL = "final"
@@ -35,6 +36,7 @@ class Study:
     derived: tuple[DerivedQuantity, ...]
     collinearity: Collinearity
     estimators: EstimatorComparison
+    search_tables: tuple[ThesisTable, ...]
 
 
 def run_study(campaign: Campaign, cache: Path, settings: Settings = Settings(), n_jobs: int = 1,
@@ -57,6 +59,17 @@ def run_study(campaign: Campaign, cache: Path, settings: Settings = Settings(), 
     separation = run(load_grid("separation").candidates, campaign, cache, settings=settings, n_jobs=n_jobs,
                      progress=progress)
     kinds, matrix = separation_matrix(separation)
+    say("study: the lift, drag and pitch grids in the thesis' layout")
+    lift_grid = load_grid("lift")
+    tables = []
+    for name in ("lift", "drag", "pitch"):
+        grid = lift_grid if name == "lift" else load_grid(name, lift_grid)
+        lifts = {final.candidates["CL"].name: final.summaries["CL"]} if name != "lift" else None
+        results = run(grid.candidates, campaign, cache, lift_results=lifts,
+                      lift_candidates={final.candidates["CL"].name: final.candidates["CL"]} if lifts else None,
+                      settings=settings, n_jobs=n_jobs, progress=progress)
+        coefficient = grid.candidates[0].coefficient
+        tables.append(thesis_table(name, grid.candidates, results, refitted.summaries[coefficient]))
     say("study: CL-VI with and without the dynamic stalls")
     dynamic = dynamic_stall_study(campaign, FINAL_MODEL_NAMES["CL"], settings)
     train = campaign.split("train")
@@ -67,4 +80,4 @@ def run_study(campaign: Campaign, cache: Path, settings: Settings = Settings(), 
                                     seed=settings.seed, progress=progress)
     models = {FINAL: dict(FINAL_MODEL_NAMES), VAN_INGEN_REFITTED: dict(VAN_INGEN_MODEL_NAMES),
               VAN_INGEN_PUBLISHED: {"CL": VAN_INGEN_MODEL_NAMES["CL"]}}
-    return Study(models, tuple(scores), dynamic, kinds, matrix, tuple(derived), coll, estimators)
+    return Study(models, tuple(scores), dynamic, kinds, matrix, tuple(derived), coll, estimators, tuple(tables))
