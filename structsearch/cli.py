@@ -283,7 +283,6 @@ def _simulated_as(directory: Path) -> dict | None:
 
 
 def _demo(args) -> int:
-    import os
     import time
     from .data.campaign import read_campaign, write_campaign
     from .flight.flighttest import build_campaign
@@ -477,38 +476,31 @@ def _integer(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
 
 
-def _angle_degrees(text: str) -> float:
-    """A finite angle of attack in degrees, within +-90."""
+def _float_option(text: str, ok, requirement: str) -> float:
+    """A number that passes ``ok``; otherwise "must <requirement>, not <text>"."""
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not -90.0 < value < 90.0:
-        raise argparse.ArgumentTypeError(f"must be an angle of attack in degrees within +-90, not {text}")
+    if not ok(value):
+        raise argparse.ArgumentTypeError(f"must {requirement}, not {text}")
     return value
+
+
+def _angle_degrees(text: str) -> float:
+    """A finite angle of attack in degrees, within +-90."""
+    return _float_option(text, lambda v: -90.0 < v < 90.0, "be an angle of attack in degrees within +-90")
 
 
 def _non_negative_float(text: str) -> float:
     """A finite number >= 0."""
     import math
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(value) and value >= 0.0):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, not {text}")
-    return value
+    return _float_option(text, lambda v: math.isfinite(v) and v >= 0.0, "be a finite number >= 0")
 
 
 def _fraction(text: str) -> float:
     """A number in (0, 1] (scales, correlation limits)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not 0.0 < value <= 1.0:
-        raise argparse.ArgumentTypeError(f"must lie in (0, 1], not {text}")
-    return value
+    return _float_option(text, lambda v: 0.0 < v <= 1.0, "lie in (0, 1]")
 
 
 def _jobs(args) -> int:

@@ -27,6 +27,7 @@ from .tables import parameter_table, render_table
 from .diagnosis_doc import unexplained_sentence
 from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_MODEL_NAMES
 from ..search.runner import Settings
+from ..search.specs import find_candidate
 
 GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
 
@@ -43,7 +44,7 @@ def chosen_models(out: Path, overrides: tuple[str, ...] = ()) -> tuple[dict[str,
     ``overrides`` (model names) replace the model of their coefficient."""
     names, notes = dict(FINAL_MODEL_NAMES), []
     if overrides:
-        names.update({rd.find_candidate(n).coefficient: rd.find_candidate(n).name for n in overrides})
+        names.update({find_candidate(n).coefficient: find_candidate(n).name for n in overrides})
         return names, [f"Models chosen on the command line: {', '.join(overrides)}."]
     path = out / "ranking.csv"
     if not path.exists():
@@ -59,12 +60,12 @@ def chosen_models(out: Path, overrides: tuple[str, ...] = ()) -> tuple[dict[str,
         if grid not in firsts:
             continue
         try:
-            rd.find_candidate(firsts[grid])
+            find_candidate(firsts[grid])
             names[coef] = firsts[grid]
         except DeclarationError:
             notes.append(f"The {grid} winner {firsts[grid]} is an automatic refinement that is not in the shipped "
                          f"grids; the report shows {names[coef]} instead.")
-    lifts = {rd.find_candidate(names[c]).lift for c in ("CD", "Cm")}
+    lifts = {find_candidate(names[c]).lift for c in ("CD", "Cm")}
     if lifts != {names["CL"]}:
         notes.append(f"The drag and pitch winners take their states from {', '.join(sorted(lifts))}, not from the "
                      f"lift winner {names['CL']}; the report shows the final structures.")
@@ -87,11 +88,11 @@ def applicable_models(names: dict[str, str], campaign: Campaign) -> tuple[dict[s
     from ..search.specs import load_grid
     out, notes = dict(names), []
     for coef, name in names.items():
-        missing = missing_columns(rd.find_candidate(name), campaign)
+        missing = missing_columns(find_candidate(name), campaign)
         if not missing:
             continue
         grid = load_grid(GRIDS[coef], load_grid("lift")) if coef != "CL" else load_grid("lift")
-        lift = rd.find_candidate(names["CL"]).name if coef != "CL" else None
+        lift = find_candidate(names["CL"]).name if coef != "CL" else None
         substitute = next((c.name for c in grid.candidates
                            if not missing_columns(c, campaign) and (lift is None or c.lift == lift)), None)
         if substitute is None:
