@@ -139,8 +139,9 @@ def _study(args) -> int:
     cache = Path(args.cache) if args.cache else out
     study = run_study(campaign, cache, Settings(n_starts=args.starts), n_jobs=_jobs(args),
                       progress=None if args.quiet else stderr_progress)
-    command = f"structsearch study --data {args.data} --out {args.out}" + (f" --cache {args.cache}" if args.cache
-                                                                           else "")
+    command = (f"structsearch study --data {args.data} --out {args.out}" + (f" --cache {args.cache}" if args.cache
+                                                                            else "")
+               + (f" --starts {args.starts}" if args.starts != 4 else ""))
     written = write(study, out, command, figures=figures.plt is not None)
     print(f"wrote {len(written)} files in {out} (final_vs_van_ingen, dynamic_stalls, separation_matrix, derived, "
           "collinearity, r2_boxes.png)")

@@ -95,10 +95,11 @@ def write(study: Study, out: Path, command: str, figures: bool = True) -> list[P
                 f"rho({a}, {b}) {_fmt(rq, '+.2f')} -> {_fmt(rf, '+.2f')}" for a, b, rq, rf in d.called_out())
             + f". The thesis (Tables 10.2-10.3) reports |rho(tau1_ss, tau2_ss)| "
             f"{THESIS_TAU_CORRELATION['quasi-steady only']} -> {THESIS_TAU_CORRELATION['full training set']}; here "
-            f"{abs(d.quasi_steady.rho('tau1_ss', 'tau2_ss')):.2f} -> {abs(d.full.rho('tau1_ss', 'tau2_ss')):.2f}. "
-            "The dynamic stalls carry the information that tells the lag from the delay; how much of it remains "
-            "with the quasi-steady stalls in the mix depends on the campaign (on a simulated one, on its noise "
-            "and slow errors) and on the covariance estimator (here the fit's default).")
+            f"{abs(d.quasi_steady.rho('tau1_ss', 'tau2_ss')):.2f} -> {abs(d.full.rho('tau1_ss', 'tau2_ss')):.2f}"
+            + (": the other maneuvers tell the lag from the delay. " if abs(d.full.rho('tau1_ss', 'tau2_ss'))
+               < abs(d.quasi_steady.rho('tau1_ss', 'tau2_ss')) else ": the other maneuvers do not decorrelate them. ")
+            + "The level depends on the campaign (on a simulated one, on its noise and slow errors) and on the "
+            "covariance estimator (here the fit's default).")
     written += write_table(out, "dynamic_stalls", "The lift model with and without the dynamic stalls (thesis "
                            "Tables 10.1-10.3)", ["parameter", "estimate (QS only)", "sd (QS only)", "p (QS only)",
                                                  "estimate (full)", "sd (full)", "p (full)"], rows, command, note)
@@ -121,15 +122,19 @@ def write(study: Study, out: Path, command: str, figures: bool = True) -> list[P
     rows += [["condition number (scaled)", c.condition_number]]
     written += write_table(out, "collinearity", f"Collinearity of {study.models[FINAL]['CL']}'s regressors in the "
                            "training data", ["measure", "value"], rows, command,
-                           "alpha and delta_e move together in trimmed flight; q and alpha_dot nearly coincide "
-                           "when the flight path hardly turns: their derivatives trade off (thesis chapter 11). "
-                           "VIF above 10 names a regressor the data pin poorly.")
+                           "Pairs of data columns strongly correlated make derivatives on both trade off "
+                           "(thesis chapter 11: alpha with delta_e in trimmed flight, q with alpha_dot when the "
+                           "flight path hardly turns); the VIFs are those of this model's own regressors, and one "
+                           "above 10 names a regressor the data pin poorly.")
     for t in study.search_tables:
         written += write_table(out, f"{t.grid}_thesis", f"The {t.grid} grid in the thesis' layout (Tables 9, 10, 20)",
                                list(t.headers), [list(r) for r in t.rows], command,
                                "A star marks a regressor the candidate holds; X columns give each separation "
                                "state's kind (S static, Q quasi-steady, U unsteady); % to the reference: training "
-                               f"MSE against {t.reference} refitted. Coefficients and MSEs are dimensionless.")
+                               f"MSE against {t.reference} refitted. C_X and C_Z (lift and drag) combine the "
+                               "candidate's coefficient with the other one as measured, as the search tables do "
+                               "(final_vs_van_ingen combines both models' predictions). Coefficients and MSEs are "
+                               "dimensionless.")
     if figures:
         from . import figures as fg
         fg.require()

@@ -1,10 +1,9 @@
 """Derived physical quantities of a fitted lift model and the collinearity of the regressors in the data
 (thesis chapter 11's discussion), and the separation grid as the thesis' 3 x 3 matrix (Table 8).
 
-Caveats the thesis makes and these numbers inherit: alpha and delta_e move together in trimmed flight (the
-elevator holds the angle of attack), and q and alpha_dot nearly coincide in quasi-steady stalls (the flight
-path hardly turns), so their derivatives trade off; a high variance inflation factor names the regressor whose
-estimate the data pin least.
+Caveats the thesis makes: alpha and delta_e move together in trimmed flight (the elevator holds the angle of
+attack), and q and alpha_dot come close in quasi-steady stalls (the flight path hardly turns), so derivatives
+on such pairs trade off; a high variance inflation factor names the regressor whose estimate the data pin least.
 """
 from __future__ import annotations
 
@@ -69,8 +68,10 @@ def collinearity(model: StallModel, params: dict[str, float], data: FlightData) 
         vif = [(names[j], float(inverse[i, i])) for i, j in enumerate(varying)]
     elif varying:
         vif = [(names[varying[0]], 1.0)]
-    scaled = phi / np.linalg.norm(phi, axis=0)
-    singular = np.linalg.svd(scaled, compute_uv=False)
+    norms = np.linalg.norm(phi, axis=0)
+    if np.any(norms == 0):   # a regressor that is zero throughout: the matrix is singular
+        return Collinearity(tuple(pairs), tuple(vif), float("inf"))
+    singular = np.linalg.svd(phi / norms, compute_uv=False)
     return Collinearity(tuple(pairs), tuple(vif), float(singular[0] / singular[-1]))
 
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data.campaign import Campaign
+from ..data.errors import DeclarationError
 from ..engine.results import FitResult
 from ..search.models import build_model
 from ..search.runner import Settings
@@ -67,6 +68,9 @@ def dynamic_stall_study(campaign: Campaign, model_name: str = "CL-VI", settings:
     train = campaign.split("train")
     kinds = [m.kind for m in campaign.maneuvers if m.split == "train"]
     quasi = [i for i, k in enumerate(kinds) if k == "quasi-steady"]
+    if not quasi or len(quasi) == len(kinds):
+        raise DeclarationError(f"the dynamic-stall study needs quasi-steady and other training maneuvers; this "
+                               f"campaign's training set has {len(quasi)} quasi-steady of {len(kinds)}")
     fits = {}
     for label, data in (("quasi-steady only", train.select(quasi)), ("full training set", train)):
         result = model.fit(data, n_starts=settings.n_starts, seed=settings.seed, covariance=settings.covariance)

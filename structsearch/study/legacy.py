@@ -18,6 +18,7 @@ from typing import Callable
 import numpy as np
 
 from ..data.campaign import Campaign
+from ..data.errors import FitError
 from ..data.flightdata import FlightData
 from ..engine.fullnls import full_nls
 from ..engine.snls import multistart, project, start_points
@@ -34,7 +35,7 @@ SNLS = "SNLS"
 class LegacyFit:
     model: str
     params: dict[str, float]
-    per_maneuver: tuple[dict[str, float], ...]   # the best start of each maneuver, all parameters
+    per_maneuver: tuple[dict[str, float], ...]   # the best start of each maneuver that any start fitted
     n_starts: int
     seconds: float
 
@@ -72,6 +73,8 @@ def legacy_fit(model: StallModel, data: FlightData, n_starts: int = 8, seed: int
         if best is not None:
             per_maneuver.append({**dict(zip(model.nonlinear_names, map(float, best.theta))),
                                  **dict(zip(model.linear_names, map(float, best.coef)))})
+    if not per_maneuver:
+        raise FitError(f"legacy estimator of {model.name}: no start produced a fit on any maneuver")
     theta = np.array([np.mean([p[n] for p in per_maneuver]) for n in model.nonlinear_names])
     y = data[model.coefficient]
     coef = project(model.bind(data).evaluate(theta).phi, y).coef

@@ -64,10 +64,12 @@ def run_study(campaign: Campaign, cache: Path, settings: Settings = Settings(), 
     tables = []
     for name in ("lift", "drag", "pitch"):
         grid = lift_grid if name == "lift" else load_grid(name, lift_grid)
-        lifts = {final.candidates["CL"].name: final.summaries["CL"]} if name != "lift" else None
-        results = run(grid.candidates, campaign, cache, lift_results=lifts,
-                      lift_candidates={final.candidates["CL"].name: final.candidates["CL"]} if lifts else None,
-                      settings=settings, n_jobs=n_jobs, progress=progress)
+        # the grid's candidates take the final lift model's states, Van Ingen's drag and pitch his lift's
+        lifts = {ms.candidates["CL"].name: ms.summaries["CL"] for ms in (final, refitted)}
+        lift_candidates = {ms.candidates["CL"].name: ms.candidates["CL"] for ms in (final, refitted)}
+        results = run(grid.candidates, campaign, cache, lift_results=lifts if name != "lift" else None,
+                      lift_candidates=lift_candidates if name != "lift" else None, settings=settings,
+                      n_jobs=n_jobs, progress=progress)
         coefficient = grid.candidates[0].coefficient
         tables.append(thesis_table(name, grid.candidates, results, refitted.summaries[coefficient]))
     say("study: CL-VI with and without the dynamic stalls")
