@@ -587,7 +587,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("search", help="fit and rank every candidate of a grid")
     _campaign_options(r)
     r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all, or a grid spec file")
-    r.add_argument("--jobs", type=_non_negative, default=1, help="parallel processes")
+    r.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
     r.add_argument("--backend", default="loky", choices=("loky", "dask"),
                    help="loky: local processes; dask: a dask.distributed cluster")
     r.add_argument("--scheduler", default=None,
@@ -610,7 +610,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("report", help="figures and one self-contained HTML page for a campaign")
     _campaign_options(p)  # the search's defaults, so that its cached fits are reused
-    p.add_argument("--jobs", type=_non_negative, default=1, help="parallel processes for the fits")
+    p.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes for the fits (default 0: all cores)")
     p.add_argument("--diagnose", choices=("CL", "CD", "Cm", "none"), default="Cm",
                    help="coefficient whose gap breakdown is shown (default Cm; none: skip the diagnosis)")
     p.add_argument("--model", action="append", metavar="NAME",
