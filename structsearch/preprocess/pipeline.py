@@ -5,7 +5,7 @@ Numerics only: the command line writes the campaign and :mod:`structsearch.repor
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Callable, Mapping
 
 import numpy as np
@@ -23,8 +23,10 @@ from .reconstruction import Reconstruction, reconstruct
 CHANNEL_GROUPS = {"specific forces": ("ax", "ay", "az"), "body rates": ("p", "q", "r"),
                   "air data and attitude": ("alpha", "beta", "V", "theta", "phi", "h"),
                   "controls": ("de", "da", "dr")}
-# The band [Hz] whose median attached-flow spectrum is an input's noise floor: above the rigid-body motion,
-# below where a slow sensor's resampling images start.
+# The band [Hz] whose median attached-flow spectrum is an input's noise floor for the filter's process noise:
+# above the rigid-body motion, below where a slow sensor's resampling images start. Wider than spectra's
+# NOISE_FLOOR_BAND_HZ, which must also be flat to judge a bandwidth; the jackknife standard deviations do not
+# rest on this level.
 NOISE_BAND_HZ = (10.0, 25.0)
 # Stalled flow for the spectra, by default: above the angle of attack of maximum normal force less this margin.
 STALL_MARGIN_RAD = np.deg2rad(1.0)
@@ -277,6 +279,3 @@ def truth_agreement(campaign: Campaign, less_offset: bool = False) -> list[tuple
                 out.append((m.id, name, float(1 - np.sum(error ** 2) / ss) if ss > 0 else float("nan")))
     return out
 
-
-def with_directory(p: Preprocessed, directory) -> Preprocessed:
-    return replace(p, campaign=replace(p.campaign, directory=directory))

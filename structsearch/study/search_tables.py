@@ -12,9 +12,6 @@ from ..search.candidate_result import CandidateResult
 from ..search.candidates import Candidate
 from .comparison import percent_difference
 
-UNITS = {"CL": "-", "CD": "-", "Cm": "-"}
-
-
 @dataclass(frozen=True)
 class ThesisTable:
     grid: str
