@@ -130,7 +130,7 @@ def _qs(x):
 
 
 @pytest.mark.parametrize("kind,bandwidth", [("hac", 6.5), ("hac-qs", 4.0), ("hac", None), ("hac-qs", None),
-                                            ("hac-maneuver", None)])
+                                            ("hac-maneuver", None), ("hac", 95.0)])
 def test_hac_equals_a_dense_double_sum(kind, bandwidth):
     rng = np.random.default_rng(31)
     bounds = np.array([0, 60, 140, 150])
@@ -144,6 +144,23 @@ def test_hac_equals_a_dense_double_sum(kind, bandwidth):
         assert b == 80  # the longest maneuver: every lag inside it carries weight
     kernel = (lambda j: max(1 - j / b, 0.0)) if kind != "hac-qs" else (lambda j: _qs(j / b))
     assert np.allclose(cov, _dense_hac(jac, residual, bounds, kernel), rtol=1e-9, atol=1e-14)
+
+
+def test_full_window_bartlett_sums_equal_the_dense_double_sum_per_maneuver():
+    """The running-sum form (used when the bandwidth covers every maneuver) against the double sum."""
+    from structsearch.engine.statistics import bartlett_maneuver_sums
+    rng = np.random.default_rng(8)
+    bounds = np.array([0, 7, 57, 58, 130])
+    g = rng.standard_normal((130, 3)) + 2.0 * np.sin(np.arange(130) / 9.0)[:, None]
+    b = 75.0
+    sums = bartlett_maneuver_sums(g, bounds, b)
+    diagonals = bartlett_maneuver_sums(g, bounds, b, diagonal=True)
+    for i, (s, e) in enumerate(zip(bounds[:-1], bounds[1:])):
+        dense = sum((1 - abs(t - u) / b) * np.outer(g[t], g[u]) for t in range(s, e) for u in range(s, e))
+        assert np.allclose(sums[i], dense, rtol=1e-11, atol=1e-11)
+        assert np.allclose(diagonals[i], np.diag(dense), rtol=1e-11, atol=1e-11)
+    with pytest.raises(ValueError, match="shorter than maneuver"):
+        bartlett_maneuver_sums(g, bounds, 50.0)
 
 
 def test_quadratic_spectral_weights_match_andrews():

@@ -110,10 +110,12 @@ def test_state_sensitivities_match_finite_differences(kind, uniform):
     truth = {"tau1": 0.41, "tau2": 0.33, "a1": 40.0, "a_star": 0.21}
     theta = np.array([truth[p] for p in state.base_parameters])
 
-    def value(th):
-        return evaluate_state(state, dict(zip(state.base_parameters, th)), alpha, alpha_dot, t, bounds)[0]
+    def value(th):  # the value-only path a prediction takes
+        return evaluate_state(state, dict(zip(state.base_parameters, th)), alpha, alpha_dot, t, bounds,
+                              sensitivities=False)[0]
 
-    _, analytic = evaluate_state(state, dict(zip(state.base_parameters, theta)), alpha, alpha_dot, t, bounds)
+    x, analytic = evaluate_state(state, dict(zip(state.base_parameters, theta)), alpha, alpha_dot, t, bounds)
+    assert np.max(np.abs(value(theta) - x)) <= 1e-14
     numeric = central_difference(value, theta)
     scale = np.max(np.abs(numeric), axis=0)
     assert np.all(np.max(np.abs(analytic - numeric), axis=0) <= 1e-6 * scale + 1e-10)

@@ -20,6 +20,7 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
+from scipy.linalg import qr
 
 # 1/RANK_RTOL bounds the scaled condition number of an identifiable fit. 1e8 ~ 1/sqrt(eps): beyond it
 # the normal equations behind every covariance lose all digits. The NIST StRD problems reach 6e4
@@ -54,7 +55,9 @@ def rank_reasons(jac: np.ndarray, names: Sequence[str], skip: Sequence[str] = ()
     live = np.flatnonzero(~zero & np.isfinite(norms))
     if live.size == 0:
         return out
-    _, s, vt = np.linalg.svd(sub[:, live] / norms[live], full_matrices=False)
+    # the triangular factor has the Jacobian's singular values and right singular vectors: SVD p x p, not m x p
+    r = qr(sub[:, live] / norms[live], mode="r", check_finite=False)[0][:live.size]
+    _, s, vt = np.linalg.svd(r)
     null = vt[s < RANK_RTOL * s[0]]
     if null.size == 0:
         return out
@@ -104,6 +107,8 @@ def covariance_basis(jac: np.ndarray, names: Sequence[str], reasons: dict, n_non
     still reported as NaN. Named nonlinear parameters carry no information and are held fixed.
     """
     keep = np.array([n not in reasons for n in names])
+    if keep.all():
+        return keep
     norms = np.sqrt(np.sum(jac * jac, axis=0))
     norms[norms == 0] = 1.0
     scaled = jac / norms

@@ -191,6 +191,14 @@ class Regressor:
         out = compile_expression(self.expr, self.argnames)(*self._arguments(data, state_values))
         return np.broadcast_to(np.asarray(out, dtype=float), (n,))
 
+    def column_derivative(self, column: str, data, state_values, n: int) -> np.ndarray:
+        """d value / d (data column ``column``): zero when the regressor does not read it."""
+        if column not in self.columns:
+            return np.zeros(n)
+        expr = sp.diff(self.expr, _real(column))
+        out = compile_expression(expr, self.argnames)(*self._arguments(data, state_values))
+        return np.broadcast_to(np.asarray(out, dtype=float), (n,))
+
     def derivative(self, state: str, data, state_values, n: int) -> np.ndarray:
         out = compile_expression(self.derivatives[state], self.argnames)(*self._arguments(data, state_values))
         return np.broadcast_to(np.asarray(out, dtype=float), (n,))

@@ -203,6 +203,8 @@ def _lag_common_step(t, u, du, tau1, bounds, step):
     decay = np.exp(offsets * (-step / tau1))
     x = lfilter([b1, b0], [1.0, -a], u)
     x[index] -= decay * (x[starts] - u[starts])[segment]
+    if du is None:
+        return x, None, None
     dx = lfilter([b1, b0], [1.0, -a], du, axis=0)
     dx[index] -= decay[:, None] * (dx[starts] - du[starts])[segment]
     forcing = np.empty_like(u)
@@ -218,7 +220,7 @@ def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
     """tau1 dX/dt + X = u on every maneuver, each starting at X = u(t0).
 
     ``du`` (n, p) holds du/dtheta for the parameters inside u; returns ``X`` (n,),
-    ``dX`` (n, p) = dX/dtheta and ``dX_dtau1`` (n,). ``step`` may pass in the
+    ``dX`` (n, p) = dX/dtheta and ``dX_dtau1`` (n,); with ``du`` None, only ``X`` (the others None). ``step`` may pass in the
     result of :func:`common_step` for this grid (it is found here otherwise).
     """
     bounds = np.asarray(bounds, dtype=np.int64)
@@ -227,13 +229,19 @@ def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
     if step is not None:
         return _lag_common_step(t, u, du, tau1, bounds, step)
     x_out = np.empty_like(u)
-    dx_out = np.empty_like(du)
-    dtau_out = np.empty_like(u)
+    dx_out = np.empty_like(du) if du is not None else None
+    dtau_out = np.empty_like(u) if du is not None else None
     for i in range(len(bounds) - 1):
         s, e = int(bounds[i]), int(bounds[i + 1])
-        ts, us, dus = t[s:e], u[s:e], du[s:e]
+        ts, us = t[s:e], u[s:e]
         dt = np.diff(ts)
         a, b0, b1, da, db0, db1 = _lag_coefficients(dt, tau1)
+        if du is None:
+            drive = np.zeros_like(us)
+            drive[1:] = b0 * us[:-1] + b1 * us[1:]
+            x_out[s:e] = linear_recurrence(np.concatenate([[1.0], a]), drive, us[0])
+            continue
+        dus = du[s:e]
         if _is_uniform(dt):
             a0, b00, b10 = a[0], b0[0], b1[0]
             x = lfilter([b10, b00], [1.0, -a0], us, zi=[(1.0 - b10) * us[0]])[0]
@@ -259,16 +267,21 @@ def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
 
 def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.ndarray,
                    alpha_dot: np.ndarray, t: np.ndarray, bounds: np.ndarray,
-                   step: float | None | bool = False):
+                   step: float | None | bool = False, sensitivities: bool = True):
     """Value of a separation state and its sensitivities.
 
     ``values`` maps base parameter names (``a1``, ``tau2``...) to numbers. Returns
-    ``X`` (n,) and ``dX`` (n, k) with columns in ``state.base_parameters`` order.
+    ``X`` (n,) and ``dX`` (n, k) with columns in ``state.base_parameters`` order;
+    ``dX`` is None without ``sensitivities`` (a prediction needs X alone).
     """
     a1, a_star = values["a1"], values["a_star"]
     tau2 = values.get("tau2", 0.0)
     effective_alpha = alpha - tau2 * alpha_dot if state.kind != "S" else alpha
     x0 = static_separation(effective_alpha, a1, a_star)
+    if not sensitivities:
+        if state.kind != "U":
+            return x0, None
+        return first_order_lag(t, x0, None, values["tau1"], bounds, step)[0], None
     slope = -2.0 * x0 * (1.0 - x0)  # dX0 / d(a1 (alpha_eff - a_star))
     inner = ("tau2", "a1", "a_star") if state.kind != "S" else ("a1", "a_star")
     du = np.empty((len(alpha), len(inner)), order="F")

@@ -27,7 +27,8 @@ from .regressors import X_FLOOR, Regressor, declare
 from .results import FitResult
 from .separation import (DEFAULT_BOUNDS, DEFAULT_START, SeparationState, common_step, data_bounds,
                          evaluate_state)
-from .snls import BoundProblem, Evaluation
+from .ols import ols
+from .snls import BoundProblem, Evaluation, multistart
 from .statistics import DEFAULT_COVARIANCE
 
 
@@ -95,11 +96,13 @@ class StallModel:
         return tuple(r.name for r in self.regressors)
 
     @property
+    def state_inputs(self) -> tuple[str, ...]:
+        """The data columns the separation states read."""
+        return ("alpha", "alpha_dot", "t") if self.states else ()
+
+    @property
     def required_columns(self) -> tuple[str, ...]:
-        cols = {c for r in self.regressors for c in r.columns}
-        if self.states:
-            cols |= {"alpha", "alpha_dot", "t"}
-        return tuple(sorted(cols))
+        return tuple(sorted({c for r in self.regressors for c in r.columns} | set(self.state_inputs)))
 
     def _free(self):
         return [(s, p) for s in self.states for p in s.base_parameters if s.parameter_name(p) not in self.fixed]
@@ -131,13 +134,9 @@ class StallModel:
                                 f"{', '.join(sorted(data.columns))})", source=data.source, column=col)
         return StallProblem(self, data)
 
-    def fit(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
-            seed: int = 0, n_jobs: int = 1, covariance: str = DEFAULT_COVARIANCE, max_lag=None,
-            tol: float = 1e-10, max_nfev: int | None = None) -> FitResult:
-        """Fit the coefficient column of ``data``: SNLS when there are separation states, else OLS.
-        The covariance defaults to the project's best-calibrated one (per-maneuver HAC)."""
+    def _prepared(self, data: FlightData, start: Mapping[str, float] | None):
+        """The bound problem, observations, start vector and bounds of a fit on ``data``."""
         problem = self.bind(data)
-        y = data[self.coefficient]
         lower, upper = self.bound_vectors(data)
         # a default start outside the data's box (alpha* of a low-alpha campaign) begins on its nearest
         # face; a start the user gives outside the box stays an error (fit_problem names it)
@@ -146,19 +145,36 @@ class StallModel:
             if key not in self.nonlinear_names:
                 raise DeclarationError(f"model {self.name!r}: {key!r} is not one of its nonlinear parameters")
             theta0[self.nonlinear_names.index(key)] = value
+        return problem, data[self.coefficient], theta0, lower, upper
+
+    def fit(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
+            seed: int = 0, n_jobs: int = 1, covariance: str = DEFAULT_COVARIANCE, max_lag=None,
+            tol: float = 1e-10, max_nfev: int | None = None) -> FitResult:
+        """Fit the coefficient column of ``data``: SNLS when there are separation states, else OLS.
+        The covariance defaults to the project's best-calibrated one (per-maneuver HAC)."""
+        problem, y, theta0, lower, upper = self._prepared(data, start)
         return fit_problem(problem, y, bounds=data.bounds, segment_names=data.names, start=theta0,
                            lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
                            covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev,
                            model=self.name, coefficient=self.coefficient, source=data.source)
+
+    def estimate(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
+                 seed: int = 0, tol: float = 1e-10) -> dict[str, float]:
+        """The parameter estimates alone, without statistics (what a cross-validation fold needs)."""
+        problem, y, theta0, lower, upper = self._prepared(data, start)
+        if self.nonlinear_names:
+            outcome = multistart(problem, y, theta0, lower, upper, n_starts=n_starts, seed=seed, tol=tol).best
+        else:
+            outcome = ols(problem, y)
+        return dict(zip(self.nonlinear_names + self.linear_names, np.concatenate([outcome.theta, outcome.coef])))
 
     def predict(self, data: FlightData, params: Mapping[str, float]) -> np.ndarray:
         """Model output for given parameter values (nonlinear and linear)."""
         missing = [p for p in self.nonlinear_names + self.linear_names if p not in params]
         if missing:
             raise DeclarationError(f"model {self.name!r}: no value for parameter {missing[0]!r}")
-        ev = self.bind(data).evaluate(np.array([params[p] for p in self.nonlinear_names], float))
-
-        return ev.phi @ np.array([params[p] for p in self.linear_names], float)
+        phi = self.bind(data).regression_matrix(np.array([params[p] for p in self.nonlinear_names], float))
+        return phi @ np.array([params[p] for p in self.linear_names], float)
 
 
 @dataclass(frozen=True, eq=False)
@@ -177,8 +193,9 @@ class StallProblem(BoundProblem):
         reg = self.model.regressors[index]
         return ", ".join(f"{c} = {self.data[c][row]:.6g}" for c in reg.columns if c in self.data)
 
-    def state_values(self, theta: np.ndarray):
-        """Each separation state: (index of each parameter's column in theta or -1 if fixed, X, dX/dparams)."""
+    def state_values(self, theta: np.ndarray, sensitivities: bool = True):
+        """Each separation state: (index of each parameter's column in theta or -1 if fixed, X, dX/dparams);
+        dX/dparams is None without ``sensitivities``."""
         out = {}
         d = self.data
         names = self.model.nonlinear_names
@@ -188,9 +205,22 @@ class StallProblem(BoundProblem):
                       for p in s.base_parameters}
             index = np.array([names.index(s.parameter_name(p)) if s.parameter_name(p) in given else -1
                               for p in s.base_parameters])
-            x, dx = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step)
+            # a state whose parameters are all fixed (a drag or pitch model's) needs no sensitivities
+            x, dx = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step,
+                                   sensitivities and bool(np.any(index >= 0)))
             out[s.symbol] = (index, x, dx)
         return out
+
+    def regression_matrix(self, theta: np.ndarray, data: FlightData | None = None) -> np.ndarray:
+        """Phi(theta) alone, without derivatives (a prediction). ``data`` may replace columns that are
+        not state inputs (a centred regressor column); the states come from the bound data."""
+        m = self.data.n_samples
+        x_values = {sym: v[1] for sym, v in self.state_values(np.asarray(theta, float), False).items()}
+        data = self.data if data is None else data
+        phi = np.empty((m, len(self.model.regressors)), order="F")
+        for i, reg in enumerate(self.model.regressors):
+            phi[:, i] = reg.value(data, x_values, m)
+        return phi
 
     def evaluate(self, theta: np.ndarray) -> Evaluation:
         m = self.data.n_samples
@@ -222,7 +252,7 @@ class StallProblem(BoundProblem):
         sample carries no information on its own parameters; a regressor of it is then
         (nearly) a function of the data alone and may coincide with other regressors.
         """
-        states = self.state_values(np.asarray(theta, float))
+        states = self.state_values(np.asarray(theta, float), False)
         names = self.model.nonlinear_names
         reasons: dict[str, str] = {}
         saturated: dict[str, tuple[float, str]] = {}

@@ -217,6 +217,33 @@ def andrews_bandwidth(scores: np.ndarray, bounds: np.ndarray, kernel: str) -> fl
     return float(max(1.3221 * (num / den * n) ** (1 / 5), 1.0))
 
 
+def bartlett_maneuver_sums(scores: np.ndarray, bounds: np.ndarray, bandwidth: float,
+                           diagonal: bool = False) -> np.ndarray:
+    """Per maneuver, sum_t sum_s (1 - |t-s|/b) g_t g_s^T for a Bartlett bandwidth b at least as long as
+    the maneuver (every lag inside it carries weight): (G, p, p), or its diagonals (G, p).
+
+    With S = sum_t g_t and E_t = sum_{s<t} (t-s) g_s (a double running sum), the double sum is
+    S S^T - (G^T E + E^T G)/b: O(n p^2) per maneuver instead of a convolution per column.
+    """
+    b = float(bandwidth)
+    p = scores.shape[1]
+    out = np.empty((len(bounds) - 1, p) if diagonal else (len(bounds) - 1, p, p))
+    for i in range(len(bounds) - 1):
+        g = scores[int(bounds[i]):int(bounds[i + 1])]
+        if len(g) - 1 > b:
+            raise ValueError(f"bandwidth {b} is shorter than maneuver {i} ({len(g)} samples)")
+        running = np.cumsum(g, axis=0)
+        lagged = np.zeros_like(g)          # E_t = E_{t-1} + sum_{s<t} g_s
+        np.cumsum(running[:-1], axis=0, out=lagged[1:])
+        total = running[-1]
+        if diagonal:
+            out[i] = total * total - 2.0 * np.einsum("tj,tj->j", g, lagged) / b
+        else:
+            cross = g.T @ lagged
+            out[i] = np.outer(total, total) - (cross + cross.T) / b
+    return out
+
+
 def hac_meat(scores: np.ndarray, bounds: np.ndarray, kind: str = "hac",
              bandwidth: float | None = None) -> tuple[np.ndarray, float]:
     """sum over maneuvers of sum_t sum_s w(|t-s|/b) g_t g_s^T; returns (meat, bandwidth b)."""
@@ -228,6 +255,8 @@ def hac_meat(scores: np.ndarray, bounds: np.ndarray, kind: str = "hac",
     else:
         b = andrews_bandwidth(scores, bounds, kernel)
     longest = int(np.max(np.diff(bounds))) - 1
+    if kernel == "bartlett" and b >= longest:  # every lag of every maneuver: running sums, no convolution
+        return bartlett_maneuver_sums(scores, bounds, b).sum(axis=0), b
     n_lags = min(int(np.ceil(b)), longest) if kernel == "bartlett" else longest
     return scores.T @ toeplitz_product(scores, kernel_weights(kernel, b, n_lags), bounds), b
 
@@ -281,9 +310,13 @@ def effective_maneuvers(jac: np.ndarray, scores: np.ndarray, bounds: np.ndarray,
         share = np.add.reduceat(u, starts, axis=0) ** 2
     else:  # a positive semi-definite kernel inside each maneuver: every share is >= 0
         b = float(np.max(np.diff(bounds))) if bandwidth is None else float(bandwidth)
-        lags = min(int(np.ceil(b)), int(np.max(np.diff(bounds))) - 1)
-        share = np.add.reduceat(u * toeplitz_product(u, kernel_weights("bartlett", b, lags), bounds), starts,
-                                axis=0)
+        longest = int(np.max(np.diff(bounds))) - 1
+        if b >= longest:
+            share = bartlett_maneuver_sums(u, bounds, b, diagonal=True)
+        else:
+            lags = min(int(np.ceil(b)), longest)
+            share = np.add.reduceat(u * toeplitz_product(u, kernel_weights("bartlett", b, lags), bounds), starts,
+                                    axis=0)
     total, square = share.sum(axis=0), (share ** 2).sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(square > 0, total ** 2 / square, np.nan)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import sympy
+from scipy.linalg import qr, solve_triangular
 
 from ..engine.regressors import parse, symbol_names
 from ..engine.separation import SeparationState
@@ -149,13 +150,13 @@ def _centred(data, names):
     return FlightData(columns, data.starts, data.names, data.source, data.constants)
 
 
-def _basis_change(phi: np.ndarray, phi_c: np.ndarray) -> np.ndarray | None:
-    """M with phi_c = phi M when the two span the same space, else None."""
-    m_, *_ = np.linalg.lstsq(phi, phi_c, rcond=None)
-    miss = np.linalg.norm(phi_c - phi @ m_)
+def _basis_change(q: np.ndarray, r: np.ndarray, phi_c: np.ndarray) -> np.ndarray | None:
+    """M with phi_c = phi M when the two span the same space, else None; phi = q r (thin QR, r invertible)."""
+    projected = q.T @ phi_c
+    miss = np.linalg.norm(phi_c - q @ projected)
     if not miss <= SAME_SPAN_RTOL * max(np.linalg.norm(phi_c), np.finfo(float).tiny):
         return None
-    return m_
+    return solve_triangular(r, projected, check_finite=False)
 
 
 def centred_correlation(candidate: Candidate, model, data, fit) -> np.ndarray | None:
@@ -168,14 +169,23 @@ def centred_correlation(candidate: Candidate, model, data, fit) -> np.ndarray | 
         return None
     k = len(fit.nonlinear_names)
     theta = np.asarray(fit.values[:k], float)
-    phi = model.bind(data).evaluate(theta).phi
+    problem = model.bind(data)
+    q, r = qr(problem.regression_matrix(theta), mode="economic", check_finite=False)
+    if np.any(np.abs(np.diag(r)) <= SAME_SPAN_RTOL * np.max(np.abs(np.diag(r)))):
+        return None  # dependent regressors: no basis change is defined
+
+    def centred_phi(names):
+        # the states are computed once unless a state input (alpha, alpha_dot, t) is centred
+        if set(model.state_inputs) & set(names):
+            return model.bind(_centred(data, names)).regression_matrix(theta)
+        return problem.regression_matrix(theta, _centred(data, names))
+
     used = {n for _, text in candidate.regressors for n in symbol_names(text)} & set(data.columns)
     movable = [n for n in sorted(used)
-               if np.ptp(data[n]) > 0 and _basis_change(phi, model.bind(_centred(data, [n])).evaluate(theta).phi)
-               is not None]
+               if np.ptp(data[n]) > 0 and _basis_change(q, r, centred_phi([n])) is not None]
     if not movable:
         return None
-    change = _basis_change(phi, model.bind(_centred(data, movable)).evaluate(theta).phi)
+    change = _basis_change(q, r, centred_phi(movable))
     if change is None:
         return None
     try:

@@ -6,10 +6,9 @@ one-step covariance is therefore conditional on the lift estimates. This module
 replaces it by the two-step covariance of :mod:`structsearch.engine.twostep`,
 which needs three things at the estimates: the lift model's Jacobian and residual
 on the training maneuvers, the candidate's own Jacobian, and the sensitivity of
-the candidate's output to every lift parameter. The sensitivity is taken by
-central differences (step 1e-6 of each parameter's magnitude): it enters the
-covariance linearly, where eight digits are far more than the Monte Carlo check
-of the correction (20 %) can see.
+the candidate's output to every lift parameter. The sensitivity is analytic (the
+chain rule through the shared separation states and through the C_L column, see
+:func:`lift_sensitivity`); a test checks it against central differences.
 """
 from __future__ import annotations
 
@@ -39,26 +38,33 @@ def _jacobian(model, data: FlightData, params) -> tuple[np.ndarray, np.ndarray]:
     return model_jacobian(ev, coef, len(theta)), ev.phi @ coef
 
 
-def lift_sensitivity(model: StallModel, params: dict, train: FlightData, lift_model: StallModel,
-                     lift_params: dict, names) -> np.ndarray:
+def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lift_jacobian: np.ndarray,
+                     lift_names, lift_params: dict, names) -> np.ndarray:
     """d (candidate output) / d (lift parameter), one column per name in ``names``.
 
-    ``model`` is the candidate with the lift model's separation parameters fixed; a perturbed lift
-    parameter moves those fixed values and the C_L column the candidate sees.
+    ``model`` is the candidate with the lift model's separation parameters fixed, ``predicted`` the data
+    it was fitted on (column CL is the lift model's output) and ``lift_jacobian`` the lift model's
+    Jacobian on it, one column per name in ``lift_names``. The lift model reaches the candidate two ways,
+    so by the chain rule the sensitivity is the candidate's derivative in the shared separation
+    parameters (its regressors' state derivatives, with the states' own sensitivities) plus its
+    derivative in the C_L column times the lift model's Jacobian.
     """
-    def output(values):
-        cols = dict(train.columns)
-        cols["CL"] = lift_model.predict(train, values)
-        data = FlightData(cols, train.starts, train.names, train.source, dict(train.constants))
-        moved = dataclasses.replace(model, fixed={k: values[k] for k in model.fixed})
-        return moved.predict(data, params)
+    m = predicted.n_samples
+    coef = np.array([params[n] for n in model.linear_names], float)
+    free = dataclasses.replace(model, fixed={})  # the shared separation parameters, now with derivatives
+    problem = free.bind(predicted)
+    theta = np.array([lift_params[n] for n in free.nonlinear_names], float)
+    through_states = model_jacobian(problem.evaluate(theta), coef, len(theta))[:, :len(theta)]
+    x_values = {sym: v[1] for sym, v in problem.state_values(theta, False).items()}
+    d_output_d_cl = sum((c * reg.column_derivative("CL", predicted, x_values, m)
+                         for c, reg in zip(coef, model.regressors)), np.zeros(m))
+    lift_names = list(lift_names)
     cols = []
     for name in names:
-        h = STEP * max(abs(lift_params[name]), 1e-3)
-        up, down = dict(lift_params), dict(lift_params)
-        up[name] += h
-        down[name] -= h
-        cols.append((output(up) - output(down)) / (2 * h))
+        col = d_output_d_cl * lift_jacobian[:, lift_names.index(name)]
+        if name in free.nonlinear_names:
+            col = col + through_states[:, free.nonlinear_names.index(name)]
+        cols.append(col)
     return np.column_stack(cols)
 
 
@@ -76,7 +82,7 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
 
     jac2, _ = _jacobian(model, predicted, result.params)
     basis2 = covariance_basis(jac2, result.names, dict(result.unidentifiable), len(result.nonlinear_names))
-    sensitivity = lift_sensitivity(model, result.params, train, lift_model, lift.params,
+    sensitivity = lift_sensitivity(model, result.params, predicted, jac1, lift_names, lift.params,
                                    [n for n, keep in zip(lift_names, basis1) if keep])
     cov = np.full((result.n_params, result.n_params), np.nan)
     block, lags, bandwidth, effective_block = generated_regressor_covariance(

@@ -27,6 +27,7 @@ from ..data.atomic import write_json
 from .admissibility import centred_correlation
 from .candidates import Candidate
 from .specs import load_grid
+from ..engine.ols import held_out_residuals
 from ..engine.scores import ManeuverScores
 from ..engine.statistics import DEFAULT_COVARIANCE
 from .candidate_result import JSON_LAYOUT, CandidateResult, SplitScores
@@ -77,13 +78,17 @@ def maneuver_folds(n_maneuvers: int, folds: int) -> list[list[int]]:
 
 
 def cross_validate(model, train: FlightData, result, folds: list[list[int]]) -> np.ndarray:
-    """Held-out residuals of every training maneuver: each fold refitted on the other maneuvers, warm
-    started from the full training fit (one start), and predicted on its own maneuvers.
+    """Held-out residuals of every training maneuver: each fold refitted on the other maneuvers and
+    predicted on its own. A linear model's folds share one factorisation of its regressors
+    (:func:`held_out_residuals`); a nonlinear model's fold is one solve warm started from the full
+    training fit. Folds need estimates only: no statistics are computed for them.
 
     Drag and pitch candidates keep the separation states and C_L of the lift model fitted on all
     training maneuvers (held-out ones included): their comparison is conditional on that lift model,
     as their fits are; it is the same for every candidate of a grid, so it does not favour one."""
     y = train[model.coefficient]
+    if not model.nonlinear_names:
+        return held_out_residuals(model.bind(train).regression_matrix(np.zeros(0)), y, train.bounds, folds)
     residual = np.empty_like(y)
     slices = train.segment_slices()
     warm = {k: result.params[k] for k in model.nonlinear_names}
@@ -91,12 +96,10 @@ def cross_validate(model, train: FlightData, result, folds: list[list[int]]) -> 
     for held in folds:
         rest = [i for i in everything if i not in held]
         subset = train.select(rest)
-        start = None
-        if warm:  # the subset's default box may be narrower (alpha range flown): start inside it
-            lo, hi = model.bound_vectors(subset)
-            start = {k: float(np.clip(v, a, b)) for (k, v), a, b in zip(warm.items(), lo, hi)}
-        part = model.fit(subset, start=start, n_starts=1, covariance="white")
-        predicted = model.predict(train.select(held), part.params)
+        # the subset's default box may be narrower (alpha range flown): start inside it
+        lo, hi = model.bound_vectors(subset)
+        start = {k: float(np.clip(v, a, b)) for (k, v), a, b in zip(warm.items(), lo, hi)}
+        predicted = model.predict(train.select(held), model.estimate(subset, start=start))
         at = 0
         for i in held:
             n = slices[i].stop - slices[i].start
