@@ -156,7 +156,7 @@ def raise_error(message: str):
 def _fit(args) -> int:
     from .data.campaign import read_campaign
     from .data.atomic import write_json, write_text
-    from .search.runner import Settings, check_bounds, fit_candidate, fit_lift_model
+    from .search.runner import Settings, check_bounds, fit_lift_model, fit_staged
     from .search.specs import resolve_candidate
     from .report.documents import fit_document
     from .report.tables import parameter_table
@@ -166,7 +166,7 @@ def _fit(args) -> int:
     check_bounds(settings.bounds, [candidate])
     train, validation = campaign.split("train"), campaign.split("validation")
     lift, lift_candidate = fit_lift_model(candidate, train, validation, settings)
-    summary = fit_candidate(candidate, train, validation, lift, lift_candidate, settings)
+    summary = fit_staged(candidate, train, validation, lift, lift_candidate, settings)
     if summary.failed:
         raise_error(summary.error)
     out = Path(args.out)

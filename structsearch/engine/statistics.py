@@ -144,9 +144,10 @@ def _inverse_factor(jac: np.ndarray) -> np.ndarray:
     return r_inv / scale[:, None]
 
 
-def _sandwich(jac: np.ndarray, meat: np.ndarray) -> np.ndarray:
-    """(F^T F)^-1 meat (F^T F)^-1, with the meat symmetrised."""
-    r_inv = _inverse_factor(jac)
+def _sandwich(jac: np.ndarray, meat: np.ndarray, r_inv: np.ndarray | None = None) -> np.ndarray:
+    """(F^T F)^-1 meat (F^T F)^-1, with the meat symmetrised. ``r_inv``: :func:`_inverse_factor` of
+    ``jac`` when the caller has it (one QR of an m x p Jacobian serves every estimator)."""
+    r_inv = _inverse_factor(jac) if r_inv is None else r_inv
     a_inv = r_inv @ r_inv.T
     return a_inv @ (0.5 * (meat + meat.T)) @ a_inv
 
@@ -157,18 +158,19 @@ def scaled_condition_number(jac: np.ndarray) -> float:
     return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
-def white_covariance(jac: np.ndarray, residual: np.ndarray) -> np.ndarray:
+def white_covariance(jac: np.ndarray, residual: np.ndarray, r_inv: np.ndarray | None = None) -> np.ndarray:
     m, p = jac.shape
-    r_inv = _inverse_factor(jac)
+    r_inv = _inverse_factor(jac) if r_inv is None else r_inv
     s2 = float(residual @ residual) / max(m - p, 1)
     return s2 * (r_inv @ r_inv.T)
 
 
-def colored_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, max_lag=None):
+def colored_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, max_lag=None,
+                       r_inv: np.ndarray | None = None):
     """Toeplitz-autocorrelation sandwich; returns (covariance, number of lags used)."""
     lags = choose_max_lag(residual, bounds, max_lag)
     lam = autocovariance(residual, bounds, lags) * lag_weights(lags, max_lag)
-    return _sandwich(jac, jac.T @ toeplitz_product(jac, lam, bounds)), lags
+    return _sandwich(jac, jac.T @ toeplitz_product(jac, lam, bounds), r_inv), lags
 
 
 # ----- heteroscedasticity- and autocorrelation-consistent (HAC) sandwich --------------------------
@@ -262,11 +264,11 @@ def hac_meat(scores: np.ndarray, bounds: np.ndarray, kind: str = "hac",
 
 
 def hac_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, kind: str = "hac",
-                   bandwidth: float | None = None) -> tuple[np.ndarray, float]:
+                   bandwidth: float | None = None, r_inv: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """HAC sandwich A^-1 (sum_maneuvers G^T W G) A^-1 * m/(m-p); returns (covariance, bandwidth)."""
     m, p = jac.shape
     meat, b = hac_meat(jac * residual[:, None], bounds, kind, bandwidth)
-    return _sandwich(jac, meat) * (m / max(m - p, 1)), b
+    return _sandwich(jac, meat, r_inv) * (m / max(m - p, 1)), b
 
 
 def cluster_meat(scores: np.ndarray, bounds: np.ndarray) -> np.ndarray:
@@ -281,7 +283,8 @@ def cluster_estimable(bounds: np.ndarray, n_params: int) -> bool:
     return len(bounds) - 2 >= n_params
 
 
-def cluster_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+def cluster_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray,
+                       r_inv: np.ndarray | None = None) -> np.ndarray:
     """Maneuver-clustered sandwich (Liang-Zeger; CR1 small-sample factor): any correlation and any
     change of variance inside a maneuver, independence between maneuvers. Its meat has rank at most
     G - 1 for G maneuvers, so with fewer than p + 1 maneuvers it is not estimable (NaN, never a
@@ -289,7 +292,7 @@ def cluster_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray
     m, p = jac.shape
     if not cluster_estimable(bounds, p):
         return np.full((p, p), np.nan)
-    return _sandwich(jac, cluster_meat(jac * residual[:, None], bounds)) * ((m - 1) / max(m - p, 1))
+    return _sandwich(jac, cluster_meat(jac * residual[:, None], bounds), r_inv) * ((m - 1) / max(m - p, 1))
 
 
 COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs", "hac-maneuver", "cluster")
@@ -298,12 +301,12 @@ PER_MANEUVER_KINDS = ("hac-maneuver", "cluster")
 
 
 def effective_maneuvers(jac: np.ndarray, scores: np.ndarray, bounds: np.ndarray, kind: str,
-                        bandwidth: float | None = None) -> np.ndarray:
+                        bandwidth: float | None = None, r_inv: np.ndarray | None = None) -> np.ndarray:
     """Effective number of maneuvers behind each parameter's variance (Satterthwaite 1946; the
     "effective number of clusters" of Carter, Schnepel & Steigerwald 2017): (sum_g c_g)^2 / sum_g c_g^2,
     with c_g >= 0 maneuver g's share of the sandwich's diagonal. G when every maneuver informs a
     parameter equally, about 1 when one maneuver does (a deep-stall term seen in one maneuver)."""
-    r_inv = _inverse_factor(jac)
+    r_inv = _inverse_factor(jac) if r_inv is None else r_inv
     u = scores @ (r_inv @ r_inv.T)                  # (A^-1 g_t)^T per sample
     starts = np.asarray(bounds[:-1], int)
     if kind == "cluster":
@@ -355,17 +358,19 @@ class Covariances:
         if sub.shape[1] and np.all(np.isfinite(sub)) and np.all(np.isfinite(residual)):
             block = np.ix_(keep, keep)
             try:
-                white[block] = white_covariance(sub, residual)
+                r_inv = _inverse_factor(sub)
+                white[block] = white_covariance(sub, residual, r_inv)
                 if kind == "colored":
-                    full[block], lags = colored_covariance(sub, residual, bounds, max_lag)
+                    full[block], lags = colored_covariance(sub, residual, bounds, max_lag, r_inv)
                 elif kind in HAC_KERNELS:
-                    full[block], bandwidth = hac_covariance(sub, residual, bounds, kind)
+                    full[block], bandwidth = hac_covariance(sub, residual, bounds, kind, r_inv=r_inv)
                 elif kind == "cluster":
-                    full[block] = cluster_covariance(sub, residual, bounds)
+                    full[block] = cluster_covariance(sub, residual, bounds, r_inv)
                 else:
                     full[block] = white[block]
                 if kind in PER_MANEUVER_KINDS:
-                    effective[keep] = effective_maneuvers(sub, sub * residual[:, None], bounds, kind, bandwidth)
+                    effective[keep] = effective_maneuvers(sub, sub * residual[:, None], bounds, kind, bandwidth,
+                                                          r_inv)
             except np.linalg.LinAlgError:
                 # an exactly singular factor despite the basis choice: report "not estimable" (NaN)
                 full[block] = white[block] = np.nan

@@ -46,6 +46,7 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
     """
     m, p2 = jac2.shape
     a1_inv = _inverse_factor(jac1)
+    r2_inv = _inverse_factor(jac2)
     gain = (jac2.T @ sensitivity) @ (a1_inv @ a1_inv.T)        # K, p2 x p1
     carry = -(jac1 @ gain.T)                                    # multiplies e1 in u_t
     lags = bandwidth = None
@@ -77,6 +78,6 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
                 + jac2.T @ shifted_product(carry, gamma12[::-1], bounds))
     else:
         raise ValueError(f"unknown covariance kind {kind!r}")
-    effective = (effective_maneuvers(jac2, scores, bounds, kind, bandwidth) if kind in PER_MANEUVER_KINDS
+    effective = (effective_maneuvers(jac2, scores, bounds, kind, bandwidth, r2_inv) if kind in PER_MANEUVER_KINDS
                  else np.full(p2, np.nan))
-    return _sandwich(jac2, meat), lags, bandwidth, effective
+    return _sandwich(jac2, meat, r2_inv), lags, bandwidth, effective

@@ -70,6 +70,7 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, se
     refinements: dict[str, list[Refinement]] = {}
     lift_results: dict[str, CandidateResult] = {}
     lift_candidates: dict[str, Candidate] = {}
+    by_grid_results: dict[str, list[CandidateResult]] = {}
 
     def ensure_lift(names):
         missing = [n for n in names if n not in lift_results]
@@ -86,8 +87,11 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, se
         needed = sorted({c.lift for c in grid.candidates if c.lift})
         ensure_lift(needed)
         say(f"grid {grid.name}: {len(grid.candidates)} candidates")
+        # earlier grids' candidates are warm starts too (the lift grid's CL-VI is the separation grid's U/S)
+        earlier = [(c, r) for g in grids[:grids.index(grid)] for c, r in zip(g.candidates, by_grid_results[g.name])]
         results = run(grid.candidates, campaign, out, lift_results=lift_results, lift_candidates=lift_candidates,
-                      settings=settings, n_jobs=n_jobs, backend=backend, progress=say)
+                      settings=settings, n_jobs=n_jobs, backend=backend, progress=say, fitted_before=earlier)
+        by_grid_results[grid.name] = results
         if grid.name == "lift":
             for c, s in zip(grid.candidates, results):
                 lift_results[c.name], lift_candidates[c.name] = s, c

@@ -33,6 +33,7 @@ from ..engine.statistics import DEFAULT_COVARIANCE
 from .candidate_result import JSON_LAYOUT, CandidateResult, SplitScores
 from .generated import with_lift_uncertainty
 from .models import build_model, with_lift_prediction
+from .staging import WARM_STARTS, stages, warm_start, waves
 
 # Cross-validation folds over the training maneuvers (fewer when a fold would hold fewer than
 # CV_MIN_MANEUVERS maneuvers; none below two folds).
@@ -168,8 +169,9 @@ def _derived(coef: str, predicted: np.ndarray, data: FlightData, other: np.ndarr
 
 def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift: CandidateResult | None,
                   lift_candidate: Candidate | None, settings: Settings,
-                  start: dict | None = None) -> CandidateResult:
-    """Fit one candidate on the training maneuvers and score it on both splits."""
+                  start: dict | None = None, n_starts: int | None = None) -> CandidateResult:
+    """Fit one candidate on the training maneuvers and score it on both splits; ``start`` (a warm start)
+    is the first of ``n_starts`` starts (default ``settings.n_starts``)."""
     t0 = time.perf_counter()
     c = c.with_bounds(settings.bounds)
     try:
@@ -188,7 +190,8 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
             lo, hi = model.bound_vectors(train)
             bounds = dict(zip(model.nonlinear_names, zip(lo, hi)))
             warm = {k: float(np.clip(v, *bounds[k])) for k, v in warm.items()}
-        result = model.fit(train, start=warm or None, n_starts=settings.n_starts if model.nonlinear_names else 1,
+        starts = settings.n_starts if n_starts is None else n_starts
+        result = model.fit(train, start=warm or None, n_starts=starts if model.nonlinear_names else 1,
                            seed=settings.seed, covariance=settings.covariance)
         if c.lift and lift_candidate is not None:
             result = with_lift_uncertainty(result, model, measured, train, lift, lift_candidate)
@@ -214,20 +217,43 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
                                        error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
 
 
+def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: CandidateResult | None,
+               lift_candidate: Candidate | None, settings: Settings, start: dict | None = None) -> CandidateResult:
+    """:func:`fit_candidate` from a warm start when one is given, else up ``c``'s own chain of stages
+    (:func:`.staging.stages`: every state steady, then quasi-steady): the first stage from
+    ``settings.n_starts`` quasi-random starts, each later one and ``c`` from the stage before."""
+    if start is None:
+        for stage in stages(c):
+            model = build_model(stage.with_bounds(settings.bounds))
+            lo, hi = model.bound_vectors(train)
+            begin = None if start is None else {k: float(np.clip(start.get(k, v), a, b)) for k, v, a, b in
+                                                zip(model.nonlinear_names, model.start_vector(), lo, hi)}
+            try:
+                params = model.estimate(train, start=begin, n_starts=settings.n_starts if begin is None
+                                        else WARM_STARTS, seed=settings.seed)
+            except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError):
+                start = None  # a stage that cannot be fitted gives no start: c gets quasi-random starts
+                break
+            start = {k: params[k] for k in model.nonlinear_names}
+    return fit_candidate(c, train, validation, lift, lift_candidate, settings, start=start,
+                         n_starts=WARM_STARTS if start else None)
+
+
 def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, settings: Settings):
     """The fitted lift model a drag or pitch candidate names: (summary, lift candidate), or (None, None)."""
     if not c.lift:
         return None, None
     lift_candidate = load_grid("lift")[c.lift]
-    lift = fit_candidate(lift_candidate, train, validation, None, None, settings)
+    lift = fit_staged(lift_candidate, train, validation, None, None, settings)
     if lift.failed:
         raise StructSearchError(f"fitting the lift model {c.lift} that {c.name} needs failed: {lift.error}")
     return lift, lift_candidate
 
 
-def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings) -> Path:
+def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings,
+               start: dict | None = None) -> Path:
     from .. import __version__
-    blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params,
+    blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params, "start": start,
                        "settings": settings.key(), "version": [__version__, code_fingerprint(), JSON_LAYOUT]},
                       sort_keys=True, default=float)
     key = hashlib.sha256(blob.encode()).hexdigest()[:16]
@@ -237,46 +263,61 @@ def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None,
 
 def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_results: dict | None = None,
         lift_candidates: dict | None = None, settings: Settings = Settings(), n_jobs: int = 1,
-        backend: str = "loky", progress: Callable[[str], None] | None = None) -> list[CandidateResult]:
-    """Fit candidates (cached, in parallel); results in the order of ``candidates``."""
+        backend: str = "loky", progress: Callable[[str], None] | None = None,
+        fitted_before: Sequence[tuple[Candidate, CandidateResult]] = ()) -> list[CandidateResult]:
+    """Fit candidates (cached, in parallel) in staged waves (:mod:`.staging`): a candidate starts from the
+    estimates of a candidate nested in it, fitted in an earlier wave or in ``fitted_before``. Results
+    come in the order of ``candidates``."""
     say = progress or (lambda msg: None)
     train, validation = campaign.split("train"), campaign.split("validation")
     data_key = campaign_fingerprint(campaign)
     lift_results = lift_results or {}
     lift_candidates = lift_candidates or {}
-    todo, results, paths = [], [None] * len(candidates), []
-    for i, c in enumerate(candidates):
-        lift = lift_results.get(c.lift) if c.lift else None
-        path = cache_path(out, c, data_key, lift.params if lift else None, settings)
-        paths.append(path)
-        cached = _read_cached(path, say)
-        if cached is not None:
-            results[i] = cached
-        else:
-            todo.append(i)
-    if len(todo) < len(candidates):
-        say(f"{len(candidates) - len(todo)} of {len(candidates)} candidates from the cache")
+    results: list[CandidateResult | None] = [None] * len(candidates)
+    fitted = list(fitted_before)
+    for wave in waves(candidates):
+        todo, paths, starts = [], {}, {}
+        for i in wave:
+            c = candidates[i]
+            lift = lift_results.get(c.lift) if c.lift else None
+            starts[i] = warm_start(c, fitted)
+            paths[i] = cache_path(out, c, data_key, lift.params if lift else None, settings, starts[i])
+            cached = _read_cached(paths[i], say)
+            if cached is not None:
+                results[i] = cached
+            else:
+                todo.append(i)
+        if len(todo) < len(wave):
+            say(f"{len(wave) - len(todo)} of {len(wave)} candidates from the cache")
+        if todo:
+            _fit_wave(todo, candidates, starts, paths, results, train, validation, lift_results, lift_candidates,
+                      settings, n_jobs, backend, say)
+        fitted += [(candidates[i], results[i]) for i in wave]
+    return results
 
+
+def _fit_wave(todo, candidates, starts, paths, results, train, validation, lift_results, lift_candidates,
+              settings, n_jobs, backend, say) -> None:
+    """Fit the candidates ``todo`` of one wave in parallel, caching each result as soon as it exists."""
     def task(i):
         c = candidates[i]
-        return i, fit_candidate(c, train, validation, lift_results.get(c.lift) if c.lift else None,
-                                lift_candidates.get(c.lift), settings)
+        return i, fit_staged(c, train, validation, lift_results.get(c.lift) if c.lift else None,
+                             lift_candidates.get(c.lift), settings, start=starts[i])
 
-    if todo:
-        from joblib import Parallel, delayed, parallel_config
-        done = 0
-        t0 = time.perf_counter()
-        with parallel_config(backend=backend, n_jobs=n_jobs):
-            # unordered: each result is cached as soon as it exists (a crash loses only running fits)
-            for i, summary in Parallel(return_as="generator_unordered")(delayed(task)(i) for i in todo):
-                if not summary.failed or summary.error.startswith(CACHED_FAILURES):
-                    write_json(paths[i], summary.to_json(), indent=1)
-                results[i] = summary
-                done += 1
-                status = "failed: " + summary.error if summary.failed else f"{summary.seconds:.1f} s"
-                say(f"[{done}/{len(todo)}] {candidates[i].grid} {candidates[i].name}: {status} "
-                    f"({time.perf_counter() - t0:.0f} s elapsed)")
-    return results
+    from joblib import Parallel, delayed, parallel_config
+    done = 0
+    t0 = time.perf_counter()
+    with parallel_config(backend=backend, n_jobs=n_jobs):
+        # unordered: each result is cached as soon as it exists (a crash loses only running fits)
+        for i, summary in Parallel(return_as="generator_unordered")(delayed(task)(i) for i in todo):
+            if not summary.failed or summary.error.startswith(CACHED_FAILURES):
+                write_json(paths[i], summary.to_json(), indent=1)
+            results[i] = summary
+            done += 1
+            status = "failed: " + summary.error if summary.failed else f"{summary.seconds:.1f} s"
+            warm = " (warm start)" if starts[i] else ""
+            say(f"[{done}/{len(todo)}] {candidates[i].grid} {candidates[i].name}{warm}: {status} "
+                f"({time.perf_counter() - t0:.0f} s elapsed)")
 
 
 def _read_cached(path: Path, say) -> CandidateResult | None:
