@@ -47,6 +47,9 @@ def _bench(args) -> int:
     if not args.no_search:
         from .bench import run_search
         fig["search"] = run_search(n_jobs=_jobs(args), progress=say)
+    if args.staged:
+        from .bench import run_staged
+        fig["staged"] = run_staged(campaigns=args.staged, n_jobs=_jobs(args), progress=say)
     md, js = write(fig, Path(args.out))
     o, r = fig["one_start"], fig["random_starts"]
     print(f"one start: SNLS {o['snls_median_s']:.3f} s ({o['snls_nfev']} evaluations), full NLS "
@@ -58,7 +61,13 @@ def _bench(args) -> int:
     if "search" in fig:
         s = fig["search"]
         print("search --grid all: " + ", ".join(f"{g} {t:.1f} s" for g, t in s["by_grid_s"].items())
-              + f"; total {s['search_s']:.1f} s on {s['n_jobs']} processes")
+              + f"; total {s['search_s']:.1f} s on {s['n_jobs']} processes = "
+              f"{s['search_in_cl_vi_starts']:.0f} CL-VI starts of {s['cl_vi_start_s']:.2f} s")
+    if "staged" in fig:
+        st = fig["staged"]
+        print(f"staged default fit reached the best of {st['random_starts']} random starts on "
+              f"{st['staged_success']}/{st['campaigns']} campaigns (previous default {st['previous_success']}, "
+              f"one random start {100 * st['random_start_success']:.0f} %)")
     print(f"wrote {md} and {js}")
     return 0
 
@@ -520,6 +529,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seed", type=_non_negative, default=2025)
     b.add_argument("--jobs", type=_non_negative, default=2, help="processes for the random starts and the search")
     b.add_argument("--no-search", action="store_true", help="skip the search --grid all benchmark")
+    b.add_argument("--staged", type=_count, default=None, metavar="CAMPAIGNS",
+                   help="also measure the default fit's success over this many seeded campaigns (50: ~10 min)")
     b.add_argument("--calibration", action="store_true",
                    help="instead: Monte Carlo calibration of the covariances on simulated campaigns "
                         "(writes calibration.md and calibration.json)")
