@@ -52,11 +52,10 @@ def _bench(args) -> int:
         fig["staged"] = run_staged(campaigns=args.staged, n_jobs=_jobs(args), progress=say)
     md, js = write(fig, Path(args.out))
     o, r = fig["one_start"], fig["random_starts"]
-    print(f"one start: SNLS {o['snls_median_s']:.3f} s ({o['snls_nfev']} evaluations), full NLS "
-          f"{o['full_median_s']:.3f} s ({o['speedup']:.1f}x), full NLS with finite differences "
-          f"{o['fd_median_s']:.3f} s ({o['fd_speedup']:.1f}x); random starts reaching the best: SNLS "
-          f"{r['snls_success']}/{r['n']}, full NLS {r['full_success']}/{r['n']}, finite differences "
-          f"{r['fd_success']}/{r['n']}; peak memory "
+    print(f"one start: SNLS {o['snls']['median_s']:.3f} s = {o['snls']['median_s'] / o['prototype']['median_s']:.2f}x "
+          f"the prototype's {o['prototype']['median_s']:.3f} s; time per success over {r['n']} random starts: SNLS "
+          f"{r['snls']['s_per_success']:.3f} s, prototype {r['prototype']['s_per_success']:.3f} s, full NLS "
+          f"{r['full']['s_per_success']:.3f} s, finite differences {r['fd']['s_per_success']:.3f} s; peak memory "
           f"{fig['memory'][0]['peak_mb']:.0f} MB -> {fig['memory'][1]['peak_mb']:.0f} MB at 2x samples")
     if "search" in fig:
         s = fig["search"]

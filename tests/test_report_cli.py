@@ -78,10 +78,15 @@ def test_bench_command_end_to_end(tmp_path):
                    "--out", str(tmp_path))
     assert proc.returncode == 0, proc.stderr
     fig = json.loads((tmp_path / "bench.json").read_text())
-    assert fig["one_start"]["snls_nfev"] > 0 and fig["random_starts"]["n"] == 2
+    assert fig["random_starts"]["n"] == 2
+    for method in ("snls", "prototype", "full", "fd"):  # every method measured alike
+        assert fig["one_start"][method]["nfev"] > 0 and 0 <= fig["random_starts"][method]["success"] <= 2
+        assert fig["memory_by_method"][method][0]["peak_mb"] > 0
     assert fig["memory"][1]["samples"] == 2 * fig["memory"][0]["samples"]
+    # the prototype reaches the same answer as SNLS from the default start (it is a correct baseline)
+    assert fig["one_start"]["prototype"]["rss"] == pytest.approx(fig["one_start"]["snls"]["rss"], rel=1e-6)
     md = (tmp_path / "bench.md").read_text()
-    assert "Speed-up per start" in md and "random starts" in md
+    assert "Like for like" in md and "prototype" in md
     assert not list(tmp_path.glob(".bench*"))  # no temporary files left behind
 
 
