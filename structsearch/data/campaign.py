@@ -66,10 +66,19 @@ class Campaign:
         """The maneuvers of one split ("train" or "validation") as FlightData."""
         if which not in SPLITS:
             raise DataError(f"unknown split {which!r}; expected one of {SPLITS}")
-        idx = [i for i, m in enumerate(self.maneuvers) if m.split == which]
-        if not idx:
-            raise DataError(f"the campaign has no {which} maneuvers", source=self._where())
-        return self.data.select(idx)
+        # computed once per campaign (a search splits it for every grid and refinement step); the frozen
+        # dataclass keeps the cache in its __dict__, and the arrays are read-only so that no caller can
+        # change what the next one reads
+        cache = self.__dict__.setdefault("_split_cache", {})
+        if which not in cache:
+            idx = [i for i, m in enumerate(self.maneuvers) if m.split == which]
+            if not idx:
+                raise DataError(f"the campaign has no {which} maneuvers", source=self._where())
+            data = self.data.select(idx)
+            for values in data.columns.values():
+                values.flags.writeable = False
+            cache[which] = data
+        return cache[which]
 
     def of_kind(self, *kinds: str) -> FlightData:
         idx = [i for i, m in enumerate(self.maneuvers) if m.kind in kinds]

@@ -9,7 +9,7 @@ from .results import FitResult
 from .identifiability import covariance_basis, rank_reasons
 from .snls import SeparableProblem, model_jacobian, multistart, project
 from .scores import ManeuverScores, slices_of
-from .statistics import COVARIANCE_KINDS, Covariances, scaled_condition_number
+from .statistics import COVARIANCE_KINDS, Covariances, inverse_factor, scaled_factor, scaled_condition_number
 
 
 
@@ -29,7 +29,7 @@ def check_observed(y: np.ndarray, bounds: np.ndarray, names, source: str, column
 def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
                 segment_names, start=None, lower=None, upper=None, n_starts: int = 1,
                 seed: int = 0, n_jobs: int = 1, covariance: str = "colored", max_lag=None,
-                tol: float = 1e-10, max_nfev: int | None = None, model: str = "model",
+                tol: float = 1e-10, max_nfev: int | None = None, also=(), model: str = "model",
                 coefficient: str | None = None, source: str = "<memory>") -> FitResult:
     """Estimate all parameters and their statistics.
 
@@ -58,7 +58,7 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
     else:
         lower, upper = np.asarray(lower, float), np.asarray(upper, float)
         ms = multistart(problem, y, start, lower, upper, n_starts=n_starts, seed=seed,
-                        n_jobs=n_jobs, tol=tol, max_nfev=max_nfev)
+                        n_jobs=n_jobs, tol=tol, max_nfev=max_nfev, also=also)
         outcome, n_starts_used, reached = ms.best, len(ms.outcomes), ms.n_reached_best
     ev = problem.evaluate(outcome.theta)
     proj = project(ev.phi, y)
@@ -68,9 +68,12 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
         residual = problem.extended_residual(outcome.theta, proj.coef, y)
     names = tuple(problem.nonlinear_names) + tuple(problem.linear_names)
     reasons = dict(problem.identifiability(outcome.theta)) if hasattr(problem, "identifiability") else {}
-    reasons.update(rank_reasons(jac, names, skip=tuple(reasons)))
+    factor = scaled_factor(jac)  # one QR of the m x p Jacobian serves the rank test, condition and covariance
+    reasons.update(rank_reasons(jac, names, skip=tuple(reasons), factor=factor[0]))
     basis = covariance_basis(jac, names, reasons, k)
-    estimate = Covariances.on(jac, basis, residual, bounds, covariance, max_lag).without(
+    everything = bool(np.all(basis)) and bool(np.all(np.isfinite(jac)))
+    estimate = Covariances.on(jac, basis, residual, bounds, covariance, max_lag,
+                              r_inv=inverse_factor(jac, factor) if everything else None).without(
         [i for i, n in enumerate(names) if n in reasons])
     return FitResult(
         model=model, coefficient=coefficient, nonlinear_names=tuple(problem.nonlinear_names),
@@ -78,7 +81,7 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
         values=np.concatenate([outcome.theta, proj.coef]), lower=lower, upper=upper,
         covariance=estimate.covariance, white_covariance=estimate.white, covariance_kind=covariance,
         max_lag=estimate.max_lag, bandwidth=estimate.bandwidth, effective_maneuvers=estimate.effective_maneuvers,
-        condition_number=scaled_condition_number(jac),
+        condition_number=scaled_condition_number(jac, factor[0]),
         unidentifiable=reasons,
         residuals=residual, segment_names=tuple(segment_names),
         segments=ManeuverScores.of(y, residual, slices_of(bounds)), total_sst=float(np.sum((y - y.mean()) ** 2)),

@@ -40,8 +40,10 @@ def join_names(names: Sequence[str]) -> str:
     return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
 
-def rank_reasons(jac: np.ndarray, names: Sequence[str], skip: Sequence[str] = ()) -> dict[str, str]:
-    """Parameters in the numerical null space of the column-scaled Jacobian (``skip``: already named)."""
+def rank_reasons(jac: np.ndarray, names: Sequence[str], skip: Sequence[str] = (),
+                 factor: np.ndarray | None = None) -> dict[str, str]:
+    """Parameters in the numerical null space of the column-scaled Jacobian (``skip``: already named);
+    ``factor``: the R of the thin QR of the whole column-scaled Jacobian, when the caller has it."""
     keep = [i for i, n in enumerate(names) if n not in set(skip)]
     if not keep:
         return {}
@@ -56,7 +58,10 @@ def rank_reasons(jac: np.ndarray, names: Sequence[str], skip: Sequence[str] = ()
     if live.size == 0:
         return out
     # the triangular factor has the Jacobian's singular values and right singular vectors: SVD p x p, not m x p
-    r = qr(sub[:, live] / norms[live], mode="r", check_finite=False)[0][:live.size]
+    if factor is not None and live.size == len(names):
+        r = factor   # every column is in: the caller's factor is this one
+    else:
+        r = qr(sub[:, live] / norms[live], mode="r", check_finite=False)[0][:live.size]
     _, s, vt = np.linalg.svd(r)
     null = vt[s < RANK_RTOL * s[0]]
     if null.size == 0:

@@ -271,11 +271,17 @@ def reached(outcomes, best_cost: float, scale: float, rtol: float = 1e-6) -> int
 
 def multistart(problem: SeparableProblem, y: np.ndarray, start, lower, upper, *, n_starts: int = 1,
                seed: int = 0, n_jobs: int = 1, tol: float = 1e-10,
-               max_nfev: int | None = None) -> MultistartOutcome:
-    """Solve from several starts (in parallel with joblib); keep the lowest cost."""
+               max_nfev: int | None = None, also=()) -> MultistartOutcome:
+    """Solve from several starts (in parallel with joblib); keep the lowest cost. The starts are ``start``,
+    the points in ``also`` (inside the bounds) and ``n_starts`` - 1 scrambled Sobol points."""
     check_bounds(problem.nonlinear_names, np.asarray(start, float), np.asarray(lower, float),
                  np.asarray(upper, float))
+    for point in also:
+        check_bounds(problem.nonlinear_names, np.asarray(point, float), np.asarray(lower, float),
+                     np.asarray(upper, float))
     points = start_points(start, lower, upper, n_starts, seed)
+    if len(also):
+        points = np.vstack([points[:1], np.asarray(also, float).reshape(-1, len(points[0])), points[1:]])
     if n_jobs == 1 or len(points) == 1:
         outcomes = [_solve_or_record(problem, y, p, lower, upper, tol, max_nfev) for p in points]
     else:

@@ -134,36 +134,41 @@ class StallModel:
                                 f"{', '.join(sorted(data.columns))})", source=data.source, column=col)
         return StallProblem(self, data)
 
-    def _prepared(self, data: FlightData, start: Mapping[str, float] | None):
-        """The bound problem, observations, start vector and bounds of a fit on ``data``."""
+    def _prepared(self, data: FlightData, start: Mapping[str, float] | None, declared_too: bool = False):
+        """The bound problem, observations, start vector, bounds and further starts of a fit on ``data``:
+        with ``declared_too``, the declared start follows a given ``start`` (a warm start)."""
         problem = self.bind(data)
         lower, upper = self.bound_vectors(data)
         # a default start outside the data's box (alpha* of a low-alpha campaign) begins on its nearest
         # face; a start the user gives outside the box stays an error (fit_problem names it)
-        theta0 = np.clip(self.start_vector(), lower, upper)
+        declared = np.clip(self.start_vector(), lower, upper)
+        theta0 = declared.copy()
         for key, value in (start or {}).items():
             if key not in self.nonlinear_names:
                 raise DeclarationError(f"model {self.name!r}: {key!r} is not one of its nonlinear parameters")
             theta0[self.nonlinear_names.index(key)] = value
-        return problem, data[self.coefficient], theta0, lower, upper
+        also = [declared] if declared_too and not np.array_equal(declared, theta0) else []
+        return problem, data[self.coefficient], theta0, lower, upper, also
 
     def fit(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
             seed: int = 0, n_jobs: int = 1, covariance: str = DEFAULT_COVARIANCE, max_lag=None,
-            tol: float = 1e-10, max_nfev: int | None = None) -> FitResult:
+            tol: float = 1e-10, max_nfev: int | None = None, declared_too: bool = False) -> FitResult:
         """Fit the coefficient column of ``data``: SNLS when there are separation states, else OLS.
-        The covariance defaults to the project's best-calibrated one (per-maneuver HAC)."""
-        problem, y, theta0, lower, upper = self._prepared(data, start)
+        The covariance defaults to the project's best-calibrated one (per-maneuver HAC). With
+        ``declared_too`` the declared start is tried after a given ``start``."""
+        problem, y, theta0, lower, upper, also = self._prepared(data, start, declared_too)
         return fit_problem(problem, y, bounds=data.bounds, segment_names=data.names, start=theta0,
                            lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
-                           covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev,
+                           covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev, also=also,
                            model=self.name, coefficient=self.coefficient, source=data.source)
 
     def estimate(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
-                 seed: int = 0, tol: float = 1e-10) -> dict[str, float]:
+                 seed: int = 0, tol: float = 1e-10, declared_too: bool = False) -> dict[str, float]:
         """The parameter estimates alone, without statistics (what a cross-validation fold needs)."""
-        problem, y, theta0, lower, upper = self._prepared(data, start)
+        problem, y, theta0, lower, upper, also = self._prepared(data, start, declared_too)
         if self.nonlinear_names:
-            outcome = multistart(problem, y, theta0, lower, upper, n_starts=n_starts, seed=seed, tol=tol).best
+            outcome = multistart(problem, y, theta0, lower, upper, n_starts=n_starts, seed=seed, tol=tol,
+                                 also=also).best
         else:
             outcome = ols(problem, y)
         return dict(zip(self.nonlinear_names + self.linear_names, np.concatenate([outcome.theta, outcome.coef])))
@@ -195,7 +200,12 @@ class StallProblem(BoundProblem):
 
     def state_values(self, theta: np.ndarray, sensitivities: bool = True):
         """Each separation state: (index of each parameter's column in theta or -1 if fixed, X, dX/dparams);
-        dX/dparams is None without ``sensitivities``."""
+        dX/dparams is None without ``sensitivities``. The last result is kept: a fit evaluates the
+        solution again for its statistics, its identifiability and its predictions."""
+        key = np.asarray(theta, float).tobytes()
+        last = self.__dict__.get("_last_states")
+        if last is not None and last[0] == key and (last[1] or not sensitivities):
+            return last[2]
         out = {}
         d = self.data
         names = self.model.nonlinear_names
@@ -209,6 +219,7 @@ class StallProblem(BoundProblem):
             x, dx = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step,
                                    sensitivities and bool(np.any(index >= 0)))
             out[s.symbol] = (index, x, dx)
+        self.__dict__["_last_states"] = (key, sensitivities, out)  # frozen dataclass: a cache, not a field
         return out
 
     def regression_matrix(self, theta: np.ndarray, data: FlightData | None = None) -> np.ndarray:

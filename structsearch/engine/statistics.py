@@ -130,37 +130,39 @@ def toeplitz_product(matrix: np.ndarray, lam: np.ndarray, bounds: np.ndarray) ->
     return shifted_product(matrix, np.concatenate([lam[:0:-1], lam]), bounds)
 
 
-def _scaled_factor(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def scaled_factor(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """R of the thin QR of the Jacobian with unit-norm columns, and the column norms."""
     scale = np.sqrt(np.sum(jac * jac, axis=0))
     scale[scale == 0] = 1.0
     return qr(jac / scale, mode="r", check_finite=False)[0][: jac.shape[1]], scale
 
 
-def _inverse_factor(jac: np.ndarray) -> np.ndarray:
-    """R^-1 of the thin QR of the column-scaled Jacobian, with the scaling folded back in."""
-    r, scale = _scaled_factor(jac)
+def inverse_factor(jac: np.ndarray, factor: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """R^-1 of the thin QR of the column-scaled Jacobian, with the scaling folded back in; ``factor``:
+    (R, column norms) of :func:`scaled_factor` when the caller has it."""
+    r, scale = scaled_factor(jac) if factor is None else factor
     r_inv = solve_triangular(r, np.eye(r.shape[0]), check_finite=False)
     return r_inv / scale[:, None]
 
 
 def _sandwich(jac: np.ndarray, meat: np.ndarray, r_inv: np.ndarray | None = None) -> np.ndarray:
-    """(F^T F)^-1 meat (F^T F)^-1, with the meat symmetrised. ``r_inv``: :func:`_inverse_factor` of
+    """(F^T F)^-1 meat (F^T F)^-1, with the meat symmetrised. ``r_inv``: :func:`inverse_factor` of
     ``jac`` when the caller has it (one QR of an m x p Jacobian serves every estimator)."""
-    r_inv = _inverse_factor(jac) if r_inv is None else r_inv
+    r_inv = inverse_factor(jac) if r_inv is None else r_inv
     a_inv = r_inv @ r_inv.T
     return a_inv @ (0.5 * (meat + meat.T)) @ a_inv
 
 
-def scaled_condition_number(jac: np.ndarray) -> float:
-    """Condition number of the Jacobian with unit-norm columns (its thin-QR factor has the same one)."""
-    s = np.linalg.svd(_scaled_factor(jac)[0], compute_uv=False)
+def scaled_condition_number(jac: np.ndarray, factor: np.ndarray | None = None) -> float:
+    """Condition number of the Jacobian with unit-norm columns (its thin-QR factor has the same one);
+    ``factor``: that factor when the caller has it."""
+    s = np.linalg.svd(scaled_factor(jac)[0] if factor is None else factor, compute_uv=False)
     return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
 def white_covariance(jac: np.ndarray, residual: np.ndarray, r_inv: np.ndarray | None = None) -> np.ndarray:
     m, p = jac.shape
-    r_inv = _inverse_factor(jac) if r_inv is None else r_inv
+    r_inv = inverse_factor(jac) if r_inv is None else r_inv
     s2 = float(residual @ residual) / max(m - p, 1)
     return s2 * (r_inv @ r_inv.T)
 
@@ -306,7 +308,7 @@ def effective_maneuvers(jac: np.ndarray, scores: np.ndarray, bounds: np.ndarray,
     "effective number of clusters" of Carter, Schnepel & Steigerwald 2017): (sum_g c_g)^2 / sum_g c_g^2,
     with c_g >= 0 maneuver g's share of the sandwich's diagonal. G when every maneuver informs a
     parameter equally, about 1 when one maneuver does (a deep-stall term seen in one maneuver)."""
-    r_inv = _inverse_factor(jac) if r_inv is None else r_inv
+    r_inv = inverse_factor(jac) if r_inv is None else r_inv
     u = scores @ (r_inv @ r_inv.T)                  # (A^-1 g_t)^T per sample
     starts = np.asarray(bounds[:-1], int)
     if kind == "cluster":
@@ -348,8 +350,9 @@ class Covariances:
 
     @classmethod
     def on(cls, jac: np.ndarray, keep: np.ndarray, residual: np.ndarray, bounds: np.ndarray, kind: str,
-           max_lag=None) -> "Covariances":
-        """Covariances of the parameters selected by ``keep`` (the others held at their estimates)."""
+           max_lag=None, r_inv: np.ndarray | None = None) -> "Covariances":
+        """Covariances of the parameters selected by ``keep`` (the others held at their estimates);
+        ``r_inv``: :func:`inverse_factor` of ``jac[:, keep]`` when the caller has it."""
         p = jac.shape[1]
         full, white = np.full((p, p), np.nan), np.full((p, p), np.nan)
         lags = bandwidth = None
@@ -358,7 +361,7 @@ class Covariances:
         if sub.shape[1] and np.all(np.isfinite(sub)) and np.all(np.isfinite(residual)):
             block = np.ix_(keep, keep)
             try:
-                r_inv = _inverse_factor(sub)
+                r_inv = inverse_factor(sub) if r_inv is None else r_inv
                 white[block] = white_covariance(sub, residual, r_inv)
                 if kind == "colored":
                     full[block], lags = colored_covariance(sub, residual, bounds, max_lag, r_inv)

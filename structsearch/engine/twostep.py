@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .statistics import (HAC_KERNELS, PER_MANEUVER_KINDS, _inverse_factor, _sandwich, autocovariance, choose_max_lag,
+from .statistics import (HAC_KERNELS, PER_MANEUVER_KINDS, inverse_factor, _sandwich, autocovariance, choose_max_lag,
                          cluster_estimable, cluster_meat, cross_covariance, effective_maneuvers, hac_meat,
                          lag_weights,
                          shifted_product, toeplitz_product)
@@ -36,17 +36,18 @@ from .statistics import (HAC_KERNELS, PER_MANEUVER_KINDS, _inverse_factor, _sand
 
 def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1: np.ndarray,
                                    residual1: np.ndarray, sensitivity: np.ndarray, bounds: np.ndarray,
-                                   kind: str, max_lag=None):
+                                   kind: str, max_lag=None, a1_inv: np.ndarray | None = None):
     """Covariance of the second-step parameters including the first step's estimation error.
 
     ``jac1`` (m x p1) and ``jac2`` (m x p2) are the model Jacobians on the identifiable parameters of
     each step, ``sensitivity`` (m x p1) is d f2 / d beta1 on the same first-step parameters. Returns
     (covariance, lags, bandwidth, effective maneuvers per parameter) like the one-step estimators; the
-    effective maneuvers (of the corrected scores) are NaN except for the per-maneuver kinds.
+    effective maneuvers (of the corrected scores) are NaN except for the per-maneuver kinds. ``a1_inv``:
+    the first step's inverse factor (``statistics.inverse_factor(jac1)``) when the caller has it.
     """
     m, p2 = jac2.shape
-    a1_inv = _inverse_factor(jac1)
-    r2_inv = _inverse_factor(jac2)
+    a1_inv = inverse_factor(jac1) if a1_inv is None else a1_inv
+    r2_inv = inverse_factor(jac2)
     gain = (jac2.T @ sensitivity) @ (a1_inv @ a1_inv.T)        # K, p2 x p1
     carry = -(jac1 @ gain.T)                                    # multiplies e1 in u_t
     lags = bandwidth = None

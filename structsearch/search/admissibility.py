@@ -150,13 +150,20 @@ def _centred(data, names):
     return FlightData(columns, data.starts, data.names, data.source, data.constants)
 
 
-def _basis_change(q: np.ndarray, r: np.ndarray, phi_c: np.ndarray) -> np.ndarray | None:
-    """M with phi_c = phi M when the two span the same space, else None; phi = q r (thin QR, r invertible)."""
-    projected = q.T @ phi_c
-    miss = np.linalg.norm(phi_c - q @ projected)
-    if not miss <= SAME_SPAN_RTOL * max(np.linalg.norm(phi_c), np.finfo(float).tiny):
+def _basis_change(phi: np.ndarray, q: np.ndarray, r: np.ndarray, phi_c: np.ndarray) -> np.ndarray | None:
+    """M with phi_c = phi M when the two span the same space, else None; phi = q r (thin QR, r invertible).
+    Only the columns centring changed are projected: the others are phi's own (M's identity columns)."""
+    change = np.eye(phi.shape[1])
+    moved = [j for j in range(phi.shape[1]) if not np.array_equal(phi[:, j], phi_c[:, j])]
+    if not moved:
+        return change
+    columns = phi_c[:, moved]
+    projected = q.T @ columns
+    miss = np.linalg.norm(columns - q @ projected)
+    if not miss <= SAME_SPAN_RTOL * max(np.linalg.norm(columns), np.finfo(float).tiny):
         return None
-    return solve_triangular(r, projected, check_finite=False)
+    change[:, moved] = solve_triangular(r, projected, check_finite=False)
+    return change
 
 
 def centred_correlation(candidate: Candidate, model, data, fit) -> np.ndarray | None:
@@ -170,7 +177,8 @@ def centred_correlation(candidate: Candidate, model, data, fit) -> np.ndarray | 
     k = len(fit.nonlinear_names)
     theta = np.asarray(fit.values[:k], float)
     problem = model.bind(data)
-    q, r = qr(problem.regression_matrix(theta), mode="economic", check_finite=False)
+    phi = problem.regression_matrix(theta)
+    q, r = qr(phi, mode="economic", check_finite=False)
     if np.any(np.abs(np.diag(r)) <= SAME_SPAN_RTOL * np.max(np.abs(np.diag(r)))):
         return None  # dependent regressors: no basis change is defined
 
@@ -182,10 +190,10 @@ def centred_correlation(candidate: Candidate, model, data, fit) -> np.ndarray | 
 
     used = {n for _, text in candidate.regressors for n in symbol_names(text)} & set(data.columns)
     movable = [n for n in sorted(used)
-               if np.ptp(data[n]) > 0 and _basis_change(q, r, centred_phi([n])) is not None]
+               if np.ptp(data[n]) > 0 and _basis_change(phi, q, r, centred_phi([n])) is not None]
     if not movable:
         return None
-    change = _basis_change(q, r, centred_phi(movable))
+    change = _basis_change(phi, q, r, centred_phi(movable))
     if change is None:
         return None
     try:

@@ -24,8 +24,6 @@ from ..engine.stallmodel import StallModel
 from ..engine.statistics import Covariances
 from ..engine.twostep import generated_regressor_covariance
 from .candidate_result import CandidateResult
-from .candidates import Candidate
-from .models import model_with_lift
 
 STEP = 1e-6
 
@@ -68,26 +66,23 @@ def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lif
     return np.column_stack(cols)
 
 
-def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightData, predicted: FlightData,
-                          lift: CandidateResult, lift_candidate: Candidate) -> FitResult:
+def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightData, lift: CandidateResult,
+                          context) -> FitResult:
     """``result`` of ``model`` (a drag or pitch candidate with the lift states fixed) with the two-step
-    covariance. ``train`` is the training data as measured (column CL is the measured lift coefficient),
-    ``predicted`` the same with CL replaced by the lift model's output, as the fit saw it.
+    covariance. ``train`` is the training data as measured; ``context`` the lift model's
+    :class:`~structsearch.search.shared_data.LiftContext` (its Jacobian, residual and covariance basis on
+    ``train``, and the training data with C_L replaced by its output, as the fit saw it).
     """
-    lift_model = model_with_lift(lift_candidate, None)
-    lift_names = lift_model.nonlinear_names + lift_model.linear_names
-    jac1, fitted1 = _jacobian(lift_model, train, lift.params)
-    residual1 = train["CL"] - fitted1
-    basis1 = covariance_basis(jac1, lift_names, lift.not_identifiable, len(lift_model.nonlinear_names))
-
+    predicted = context.train
+    jac1, residual1, basis1 = context.jacobian, context.residual, context.basis
     jac2, _ = _jacobian(model, predicted, result.params)
     basis2 = covariance_basis(jac2, result.names, dict(result.unidentifiable), len(result.nonlinear_names))
-    sensitivity = lift_sensitivity(model, result.params, predicted, jac1, lift_names, lift.params,
-                                   [n for n, keep in zip(lift_names, basis1) if keep])
+    sensitivity = lift_sensitivity(model, result.params, predicted, jac1, context.names, lift.params,
+                                   [n for n, keep in zip(context.names, basis1) if keep])
     cov = np.full((result.n_params, result.n_params), np.nan)
     block, lags, bandwidth, effective_block = generated_regressor_covariance(
         jac2[:, basis2], result.residuals, jac1[:, basis1], residual1, sensitivity, train.bounds,
-        result.covariance_kind)
+        result.covariance_kind, a1_inv=context.jacobian_inverse_factor)
     cov[np.ix_(basis2, basis2)] = block
     effective = np.full(result.n_params, np.nan)
     effective[basis2] = effective_block

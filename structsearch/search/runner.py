@@ -13,6 +13,7 @@ import hashlib
 import json
 import sys
 import time
+from contextlib import ExitStack
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -32,7 +33,8 @@ from ..engine.scores import ManeuverScores
 from ..engine.statistics import DEFAULT_COVARIANCE
 from .candidate_result import JSON_LAYOUT, CandidateResult, SplitScores
 from .generated import with_lift_uncertainty
-from .models import build_model, with_lift_prediction
+from .models import build_model
+from .shared_data import lift_context, resolve_splits, shared_splits
 from .staging import WARM_STARTS, stages, warm_start, waves
 
 # Cross-validation folds over the training maneuvers (fewer when a fold would hold fewer than
@@ -169,9 +171,11 @@ def _derived(coef: str, predicted: np.ndarray, data: FlightData, other: np.ndarr
 
 def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift: CandidateResult | None,
                   lift_candidate: Candidate | None, settings: Settings,
-                  start: dict | None = None, n_starts: int | None = None) -> CandidateResult:
+                  start: dict | None = None, n_starts: int | None = None,
+                  declared_too: bool = False) -> CandidateResult:
     """Fit one candidate on the training maneuvers and score it on both splits; ``start`` (a warm start)
-    is the first of ``n_starts`` starts (default ``settings.n_starts``)."""
+    is the first of ``n_starts`` starts (default ``settings.n_starts``), followed by the declared start
+    with ``declared_too``."""
     t0 = time.perf_counter()
     c = c.with_bounds(settings.bounds)
     try:
@@ -181,10 +185,10 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
             return CandidateResult.failure(
                 name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift, seconds=time.perf_counter() - t0,
                 error=f"not applicable: the campaign has no column {', '.join(missing)}")
-        measured = train
+        measured, context = train, None
         if c.lift and lift_candidate is not None:
-            train = with_lift_prediction(train, lift, lift_candidate)
-            validation = with_lift_prediction(validation, lift, lift_candidate)
+            context = lift_context(train, validation, lift, lift_candidate)
+            train, validation = context.train, context.validation
         warm = {k: v for k, v in (start or {}).items() if k in model.nonlinear_names}
         if warm:  # a warm start inside the bounds (a baseline's estimates for an extended model)
             lo, hi = model.bound_vectors(train)
@@ -192,9 +196,9 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
             warm = {k: float(np.clip(v, *bounds[k])) for k, v in warm.items()}
         starts = settings.n_starts if n_starts is None else n_starts
         result = model.fit(train, start=warm or None, n_starts=starts if model.nonlinear_names else 1,
-                           seed=settings.seed, covariance=settings.covariance)
-        if c.lift and lift_candidate is not None:
-            result = with_lift_uncertainty(result, model, measured, train, lift, lift_candidate)
+                           seed=settings.seed, covariance=settings.covariance, declared_too=declared_too)
+        if context is not None:
+            result = with_lift_uncertainty(result, model, measured, lift, context)
         scores = {}
         folds = maneuver_folds(len(train.starts), settings.cv_folds)
         if folds:
@@ -221,7 +225,8 @@ def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: Ca
                lift_candidate: Candidate | None, settings: Settings, start: dict | None = None) -> CandidateResult:
     """:func:`fit_candidate` from a warm start when one is given, else up ``c``'s own chain of stages
     (:func:`.staging.stages`: every state steady, then quasi-steady): the first stage from
-    ``settings.n_starts`` quasi-random starts, each later one and ``c`` from the stage before."""
+    ``settings.n_starts`` quasi-random starts, each later stage and ``c`` from the stage before and
+    from the declared start (the better of the two is kept; :data:`.staging.WARM_STARTS`)."""
     if start is None:
         for stage in stages(c):
             model = build_model(stage.with_bounds(settings.bounds))
@@ -230,13 +235,13 @@ def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: Ca
                                                 zip(model.nonlinear_names, model.start_vector(), lo, hi)}
             try:
                 params = model.estimate(train, start=begin, n_starts=settings.n_starts if begin is None
-                                        else WARM_STARTS, seed=settings.seed)
+                                        else WARM_STARTS, seed=settings.seed, declared_too=begin is not None)
             except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError):
                 start = None  # a stage that cannot be fitted gives no start: c gets quasi-random starts
                 break
             start = {k: params[k] for k in model.nonlinear_names}
     return fit_candidate(c, train, validation, lift, lift_candidate, settings, start=start,
-                         n_starts=WARM_STARTS if start else None)
+                         n_starts=WARM_STARTS if start else None, declared_too=bool(start))
 
 
 def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, settings: Settings):
@@ -275,32 +280,38 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_
     lift_candidates = lift_candidates or {}
     results: list[CandidateResult | None] = [None] * len(candidates)
     fitted = list(fitted_before)
-    for wave in waves(candidates):
-        todo, paths, starts = [], {}, {}
-        for i in wave:
-            c = candidates[i]
-            lift = lift_results.get(c.lift) if c.lift else None
-            starts[i] = warm_start(c, fitted)
-            paths[i] = cache_path(out, c, data_key, lift.params if lift else None, settings, starts[i])
-            cached = _read_cached(paths[i], say)
-            if cached is not None:
-                results[i] = cached
-            else:
-                todo.append(i)
-        if len(todo) < len(wave):
-            say(f"{len(wave) - len(todo)} of {len(wave)} candidates from the cache")
-        if todo:
-            _fit_wave(todo, candidates, starts, paths, results, train, validation, lift_results, lift_candidates,
-                      settings, n_jobs, backend, say)
-        fitted += [(candidates[i], results[i]) for i in wave]
+    splits = None
+    with ExitStack() as stack:  # the splits are shared with the workers once, when a fit is needed
+        for wave in waves(candidates):
+            todo, paths, starts = [], {}, {}
+            for i in wave:
+                c = candidates[i]
+                lift = lift_results.get(c.lift) if c.lift else None
+                starts[i] = warm_start(c, fitted)
+                paths[i] = cache_path(out, c, data_key, lift.params if lift else None, settings, starts[i])
+                cached = _read_cached(paths[i], say)
+                if cached is not None:
+                    results[i] = cached
+                else:
+                    todo.append(i)
+            if len(todo) < len(wave):
+                say(f"{len(wave) - len(todo)} of {len(wave)} candidates from the cache")
+            if todo:
+                if splits is None:
+                    splits = stack.enter_context(shared_splits(train, validation, backend, n_jobs))
+                _fit_wave(todo, candidates, starts, paths, results, splits, lift_results, lift_candidates,
+                          settings, n_jobs, backend, say)
+            fitted += [(candidates[i], results[i]) for i in wave]
     return results
 
 
-def _fit_wave(todo, candidates, starts, paths, results, train, validation, lift_results, lift_candidates,
+def _fit_wave(todo, candidates, starts, paths, results, splits, lift_results, lift_candidates,
               settings, n_jobs, backend, say) -> None:
-    """Fit the candidates ``todo`` of one wave in parallel, caching each result as soon as it exists."""
+    """Fit the candidates ``todo`` of one wave in parallel, caching each result as soon as it exists;
+    ``splits`` is a handle of :func:`.shared_data.shared_splits`."""
     def task(i):
         c = candidates[i]
+        train, validation = resolve_splits(splits)
         return i, fit_staged(c, train, validation, lift_results.get(c.lift) if c.lift else None,
                              lift_candidates.get(c.lift), settings, start=starts[i])
 

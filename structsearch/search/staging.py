@@ -1,15 +1,16 @@
-"""Staged, warm-started fits: a candidate starts where a simpler candidate nested in it ended.
+"""Staged, warm-started fits: a candidate starts where a simpler candidate ended.
 
-Candidate B is *nested* in A when both model the same coefficient without a lift model, B's
-regressors are a subset of A's and B's separation parameters a subset of A's: a steady state
-(a1, a_star) is nested in the quasi-steady one (+ tau2), which is nested in the unsteady one
-(+ tau1); CL-III is nested in CL-IV, which adds a regressor. A grid is fitted in *waves* of
-increasing size (separation parameters, then regressors), so every candidate finds the candidates
-nested in it already fitted; it starts from the closest one's estimates (the most separation
-parameters, then the lowest training MSE), with the parameters that candidate lacks at their
-declared or default start. Quasi-random starts are kept where nesting gives no start (the first
-wave). A single fit (``structsearch fit``) builds its own chain: the candidate with every state
-steady, then quasi-steady, then as declared.
+Candidate B *feeds* A when both model the same coefficient without a lift model and B's separation
+parameters are a subset of A's (a steady state's a1, a_star are in the quasi-steady one's, which adds
+tau2, and in the unsteady one's, which adds tau1), strictly, or with the same parameters and a strict
+subset of A's regressors (CL-III feeds CL-IV). A grid is fitted in *waves*: a candidate's wave is one
+more than the latest wave of the candidates feeding it, so they are fitted before it. It starts from
+the estimates of the fitted candidate (of this grid or an earlier one) that shares most of its
+separation parameters, the lowest training MSE among equals; the parameters that candidate lacks
+start at their declared or default value. Quasi-random starts are kept where nothing feeds a
+candidate: it climbs its own chain (``structsearch fit`` does the same): every state steady from
+quasi-random starts, then quasi-steady, then as declared, each stage from the stage before and from
+its declared start.
 
 Drag and pitch candidates take their states from the lift model (nothing to stage): one wave.
 """
@@ -21,42 +22,59 @@ from ..engine.separation import SeparationState
 from .candidate_result import CandidateResult
 from .candidates import Candidate
 
-# A warm-started candidate is fitted from its warm start and this many starts in all (the warm start
-# first, then quasi-random points): one, measured by `structsearch bench --staged` (results/bench.md).
+# A warm-started candidate is fitted from its warm start and from its declared start (then from
+# quasi-random points if this is raised above 1). The warm start alone reached the best of 64 random
+# starts on 39 of 50 small campaigns: a steady or quasi-steady stage can swap the roles of the two
+# states; the declared start recovers most of those (`structsearch bench --staged`, results/bench.md).
 WARM_STARTS = 1
 # Kinds in order of nesting: each adds one parameter to the previous one.
 KIND_ORDER = {"S": 0, "Q": 1, "U": 2}
 
 
-def _size(c: Candidate) -> tuple[int, int]:
-    return len(c.state_parameters), len(c.regressors)
+def _stageable(c: Candidate) -> bool:
+    return bool(c.state_parameters) and not c.lift
 
 
-def nested_in(inner: Candidate, outer: Candidate) -> bool:
-    """Whether ``inner``'s fitted parameters are a start for ``outer`` (see the module's docstring)."""
-    if inner.name == outer.name or inner.coefficient != outer.coefficient or inner.lift or outer.lift:
+def _regressors(c: Candidate) -> set[str]:
+    return {text.replace(" ", "") for _, text in c.regressors}
+
+
+def feeds(inner: Candidate, outer: Candidate) -> bool:
+    """Whether ``inner`` is fitted before ``outer`` in a grid (see the module's docstring)."""
+    if inner.name == outer.name or inner.coefficient != outer.coefficient:
         return False
-    if not inner.state_parameters:
+    if not (_stageable(inner) and _stageable(outer)):
         return False
-    regressors = {text.replace(" ", "") for _, text in outer.regressors}
-    return (set(inner.state_parameters) <= set(outer.state_parameters)
-            and all(text.replace(" ", "") in regressors for _, text in inner.regressors))
+    mine, theirs = set(inner.state_parameters), set(outer.state_parameters)
+    if not mine <= theirs:
+        return False
+    return mine != theirs or _regressors(inner) < _regressors(outer)
 
 
 def waves(candidates: Sequence[Candidate]) -> list[list[int]]:
-    """Indices of ``candidates`` in waves of equal size; a candidate's nested ones lie in earlier waves.
-    Candidates with a lift model or without separation parameters form one wave (nothing to stage)."""
-    staged = [i for i, c in enumerate(candidates) if c.state_parameters and not c.lift]
-    plain = [i for i in range(len(candidates)) if i not in set(staged)]
-    sizes = sorted({_size(candidates[i]) for i in staged})
-    out = [[i for i in staged if _size(candidates[i]) == s] for s in sizes]
-    return ([plain] if plain else []) + out
+    """Indices of ``candidates`` in waves: everything feeding a candidate lies in an earlier wave.
+    Candidates with a lift model or without separation parameters form the first wave."""
+    depth: dict[int, int] = {}
+
+    def depth_of(i: int) -> int:
+        if i not in depth:
+            inner = [j for j in range(len(candidates)) if feeds(candidates[j], candidates[i])]
+            depth[i] = 1 + max((depth_of(j) for j in inner), default=-1)
+        return depth[i]
+
+    levels = [depth_of(i) for i in range(len(candidates))]
+    return [[i for i, d in enumerate(levels) if d == level] for level in sorted(set(levels))]
 
 
 def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResult]]) -> dict[str, float] | None:
-    """The estimates of the closest fitted candidate nested in ``c`` for ``c``'s separation parameters
-    (those it lacks are left to ``c``'s own start); None when no fitted candidate is nested in ``c``."""
-    donors = [(d, r) for d, r in fitted if not r.failed and nested_in(d, c)]
+    """Estimates of ``c``'s separation parameters from the fitted candidate that shares most of them (of
+    the same coefficient, without a lift model; the lowest training MSE among equals), for those it has;
+    None when no fitted candidate shares all of its own separation parameters with ``c``."""
+    if not _stageable(c):
+        return None
+    mine = set(c.state_parameters)
+    donors = [(d, r) for d, r in fitted if not r.failed and d.name != c.name and d.coefficient == c.coefficient
+              and _stageable(d) and set(d.state_parameters) <= mine]
     if not donors:
         return None
     donor, result = min(donors, key=lambda dr: (-len(dr[0].state_parameters), dr[1].mse_train))

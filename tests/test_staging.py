@@ -1,0 +1,97 @@
+"""Staged, warm-started fits (issue 17 item 2): waves, donors, the single fit's chain, and that staging
+reaches the optimum that many quasi-random starts find."""
+import numpy as np
+import pytest
+
+from structsearch.search.candidate_result import CandidateResult, R2Summary, SplitScores
+from structsearch.search.candidates import Candidate
+from structsearch.search.runner import Settings, fit_candidate, fit_staged, run
+from structsearch.search.specs import load_grid, resolve_candidate
+from structsearch.search.staging import feeds, stages, warm_start, waves
+
+
+def test_waves_fit_every_candidate_after_the_ones_that_feed_it():
+    grid = load_grid("separation")
+    order = waves(grid.candidates)
+    wave_of = {grid.candidates[i].name: w for w, members in enumerate(order) for i in members}
+    assert sorted(i for members in order for i in members) == list(range(len(grid.candidates)))
+    for a in grid.candidates:
+        for b in grid.candidates:
+            if feeds(b, a):
+                assert wave_of[b.name] < wave_of[a.name], (b.name, a.name)
+    # S -> Q -> U for one state, in parallel with the two-state chain
+    assert wave_of["X S"] == wave_of["X_ss/X_w S/S"] == 0
+    assert wave_of["X Q"] == 1 and wave_of["X U"] == 2 and wave_of["X_ss/X_w U/S"] == 2
+    assert wave_of["X_ss/X_w U/U"] == 4
+    # drag and pitch candidates take the lift model's states: nothing to stage, one wave
+    assert len(waves(load_grid("pitch", load_grid("lift")).candidates)) == 1
+
+
+def test_regressors_order_candidates_with_the_same_parameters():
+    lift = load_grid("lift")
+    assert feeds(lift["CL-III"], lift["CL-IV"]) and not feeds(lift["CL-IV"], lift["CL-V"])
+    assert not feeds(lift["CL-IV"], lift["CL-III"])
+
+
+def _result(c: Candidate, params: dict, mse: float) -> CandidateResult:
+    scores = SplitScores(mse, (mse,), (100,), R2Summary(0.9, 0.9, 0.9))
+    return CandidateResult(c.name, c.grid, c.coefficient, None, 0.0, names=tuple(params), params=dict(params),
+                           train=scores, validation=scores)
+
+
+def test_warm_start_comes_from_the_closest_donor_with_the_lowest_mse():
+    grid = load_grid("separation")
+    us = grid["X_ss/X_w U/S"]
+    qs, ss, sq = grid["X_ss/X_w Q/S"], grid["X_ss/X_w S/S"], grid["X_ss/X_w S/Q"]
+    fitted = [(ss, _result(ss, {"a1_ss": 1.0, "a_star_ss": 0.1, "a1_w": 2.0, "a_star_w": 0.3}, 1.0)),
+              (qs, _result(qs, {"tau2_ss": 0.2, "a1_ss": 3.0, "a_star_ss": 0.15, "a1_w": 4.0, "a_star_w": 0.31},
+                           2.0)),
+              (sq, _result(sq, {"tau2_w": 0.2, "a1_ss": 5.0, "a_star_ss": 0.15, "a1_w": 4.0, "a_star_w": 0.31},
+                           0.5))]
+    # S/Q shares five parameters too but is not a subset of U/S's (tau2_w): Q/S is the donor
+    assert warm_start(us, fitted) == {"tau2_ss": 0.2, "a1_ss": 3.0, "a_star_ss": 0.15, "a1_w": 4.0,
+                                      "a_star_w": 0.31}
+    assert warm_start(ss, fitted[1:]) is None  # nothing with a subset of its parameters
+    assert warm_start(load_grid("pitch", load_grid("lift"))["Cm-I"], fitted) is None
+
+
+def test_a_single_fit_climbs_steady_then_quasi_steady():
+    cl6 = resolve_candidate("CL-VI")
+    chain = stages(cl6)
+    assert [dict(c.states) for c in chain] == [{"ss": "S", "w": "S"}, {"ss": "Q", "w": "S"}]
+    assert stages(load_grid("separation")["X_ss/X_w S/S"]) == []
+    assert [dict(c.states) for c in stages(load_grid("separation")["X_ss/X_w Q/Q"])] == [{"ss": "S", "w": "S"}]
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    from structsearch.data.campaign import read_campaign, write_campaign
+    from structsearch.flight.flighttest import build_campaign
+    path = tmp_path_factory.mktemp("campaign") / "c"
+    write_campaign(build_campaign(seed=3, scale=0.05), path)
+    return read_campaign(path)
+
+
+def test_staged_fit_reaches_the_optimum_of_many_quasi_random_starts(tiny):
+    """CL-VI climbed from the steady stage (4 quasi-random starts there; the stage before and the declared
+    start after) against 16 quasi-random starts of CL-VI itself: the same training MSE."""
+    train, validation = tiny.split("train"), tiny.split("validation")
+    c = resolve_candidate("CL-VI")
+    settings = Settings(cv_folds=0)
+    staged = fit_staged(c, train, validation, None, None, settings)
+    many = fit_candidate(c, train, validation, None, None, Settings(n_starts=16, cv_folds=0))
+    assert staged.n_starts == 2
+    assert staged.mse_train <= many.mse_train * (1 + 1e-7)
+
+
+def test_a_staged_grid_is_served_from_the_cache_on_the_second_run(tiny, tmp_path):
+    grid = load_grid("separation")
+    cands = [grid["X S"], grid["X Q"], grid["X U"]]
+    first = run(cands, tiny, tmp_path)
+    messages = []
+    again = run(cands, tiny, tmp_path, progress=messages.append)
+    assert [r.mse_train for r in again] == [r.mse_train for r in first]
+    assert messages == ["1 of 1 candidates from the cache"] * 3
+    # X U started from X Q's estimates and its declared start, X S from quasi-random starts
+    assert first[2].n_starts == 2 and first[0].n_starts == Settings().n_starts
+    assert np.isfinite(first[2].mse_train)
