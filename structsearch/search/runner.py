@@ -35,7 +35,7 @@ from .candidate_result import JSON_LAYOUT, CandidateResult, SplitScores
 from .generated import with_lift_uncertainty
 from .models import build_model
 from .shared_data import lift_context, resolve_splits, shared_splits
-from .staging import WARM_STARTS, stages, warm_start, waves
+from .staging import STAGE_STARTS, WARM_STARTS, stages, warm_start, waves
 
 # Cross-validation folds over the training maneuvers (fewer when a fold would hold fewer than
 # CV_MIN_MANEUVERS maneuvers; none below two folds).
@@ -223,25 +223,22 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
 
 def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: CandidateResult | None,
                lift_candidate: Candidate | None, settings: Settings, start: dict | None = None) -> CandidateResult:
-    """:func:`fit_candidate` from a warm start when one is given, else up ``c``'s own chain of stages
-    (:func:`.staging.stages`: every state steady, then quasi-steady): the first stage from
-    ``settings.n_starts`` quasi-random starts, each later stage and ``c`` from the stage before and
-    from the declared start (the better of the two is kept; :data:`.staging.WARM_STARTS`)."""
-    if start is None:
-        for stage in stages(c):
-            model = build_model(stage.with_bounds(settings.bounds))
-            lo, hi = model.bound_vectors(train)
-            begin = None if start is None else {k: float(np.clip(start.get(k, v), a, b)) for k, v, a, b in
-                                                zip(model.nonlinear_names, model.start_vector(), lo, hi)}
-            try:
-                params = model.estimate(train, start=begin, n_starts=settings.n_starts if begin is None
-                                        else WARM_STARTS, seed=settings.seed, declared_too=begin is not None)
-            except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError):
-                start = None  # a stage that cannot be fitted gives no start: c gets quasi-random starts
-                break
-            start = {k: params[k] for k in model.nonlinear_names}
+    """:func:`fit_candidate` from a warm start (a donor's estimates) and the declared start when a warm
+    start is given. Else from ``settings.n_starts`` starts (declared and quasi-random) plus, for a
+    candidate with unsteady states, the estimates of its quasi-steady stage (:func:`.staging.stages`,
+    fitted from :data:`.staging.STAGE_STARTS` starts)."""
+    if start is not None:
+        return fit_candidate(c, train, validation, lift, lift_candidate, settings, start=start,
+                             n_starts=WARM_STARTS, declared_too=True)
+    for stage in stages(c):
+        model = build_model(stage.with_bounds(settings.bounds))
+        try:
+            params = model.estimate(train, n_starts=STAGE_STARTS, seed=settings.seed)
+        except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError):
+            break  # a stage that cannot be fitted gives no start: c keeps its usual starts
+        start = {k: params[k] for k in model.nonlinear_names}
     return fit_candidate(c, train, validation, lift, lift_candidate, settings, start=start,
-                         n_starts=WARM_STARTS if start else None, declared_too=bool(start))
+                         declared_too=start is not None)
 
 
 def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, settings: Settings):

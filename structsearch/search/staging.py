@@ -8,9 +8,9 @@ more than the latest wave of the candidates feeding it, so they are fitted befor
 the estimates of the fitted candidate (of this grid or an earlier one) that shares most of its
 separation parameters, the lowest training MSE among equals; the parameters that candidate lacks
 start at their declared or default value. Quasi-random starts are kept where nothing feeds a
-candidate: it climbs its own chain (``structsearch fit`` does the same): every state steady from
-quasi-random starts, then quasi-steady, then as declared, each stage from the stage before and from
-its declared start.
+candidate: it is fitted from the usual starts (declared and quasi-random) plus, when it has unsteady
+states, the estimates of its quasi-steady version (``structsearch fit`` does the same), so it never
+starts from less than the default multistart.
 
 Drag and pitch candidates take their states from the lift model (nothing to stage): one wave.
 """
@@ -22,11 +22,14 @@ from ..engine.separation import SeparationState
 from .candidate_result import CandidateResult
 from .candidates import Candidate
 
-# A warm-started candidate is fitted from its warm start and from its declared start (then from
-# quasi-random points if this is raised above 1). The warm start alone reached the best of 64 random
-# starts on 39 of 50 small campaigns: a steady or quasi-steady stage can swap the roles of the two
-# states; the declared start recovers most of those (`structsearch bench --staged`, results/bench.md).
+# A candidate with a donor is fitted from the donor's estimates and from its declared start (then from
+# quasi-random points if WARM_STARTS is raised above 1); a single fit's stage from its declared start
+# and STAGE_STARTS - 1 quasi-random points. Measured on 50 small campaigns against the best of 64
+# random starts (`structsearch bench --staged`; the choice below in results/bench.md and the README):
+# the warm start alone reached it on 39, a steady then quasi-steady chain with the declared start on 47,
+# the previous default (declared start + 3 quasi-random points) on 48.
 WARM_STARTS = 1
+STAGE_STARTS = 2
 # Kinds in order of nesting: each adds one parameter to the previous one.
 KIND_ORDER = {"S": 0, "Q": 1, "U": 2}
 
@@ -90,13 +93,9 @@ def demoted(c: Candidate, highest: str) -> Candidate:
 
 
 def stages(c: Candidate) -> list[Candidate]:
-    """The chain a single fit of ``c`` climbs before ``c`` itself: every state steady, then at most
-    quasi-steady (stages equal to ``c`` or to each other are left out)."""
-    if c.lift or not c.states:
+    """The chain a single fit of ``c`` climbs before ``c`` itself: ``c`` with every unsteady state made
+    quasi-steady (none when ``c`` has no unsteady state or feeds on a lift model). A steady stage
+    before it was measured and dropped: it cost time and reached the best no more often."""
+    if c.lift or not any(kind == "U" for _, kind in c.states):
         return []
-    out: list[Candidate] = []
-    for highest in ("S", "Q"):
-        stage = demoted(c, highest)
-        if stage.states != c.states and (not out or stage.states != out[-1].states):
-            out.append(stage)
-    return out
+    return [demoted(c, "Q")]
