@@ -95,3 +95,33 @@ def test_a_staged_grid_is_served_from_the_cache_on_the_second_run(tiny, tmp_path
     # X U started from X Q's estimates and its declared start, X S from quasi-random starts
     assert first[2].n_starts == 2 and first[0].n_starts == Settings().n_starts
     assert np.isfinite(first[2].mse_train)
+
+
+def test_rank_test_with_fewer_samples_than_parameters_names_the_null_directions():
+    """Review regression: R of a 2 x 3 Jacobian has two rows; the third direction is a null one."""
+    from structsearch.engine.identifiability import rank_reasons
+    jac = np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]])
+    assert set(rank_reasons(jac, ["a", "b", "c"])) == {"a", "b", "c"}
+
+
+def test_the_state_memo_never_serves_another_theta():
+    from structsearch.flight.synthetic import campaign
+    data = campaign({"dynamic": 2}, duration=10.0, seed=2)
+    model = resolve_candidate("CL-VI")
+    from structsearch.search.models import build_model
+    m = build_model(model)
+    problem = m.bind(data)
+    a, b = m.start_vector(), m.start_vector() * 1.1
+    first = problem.regression_matrix(a)
+    problem.evaluate(b)
+    again = problem.regression_matrix(a)
+    fresh = m.bind(data).regression_matrix(a)
+    assert np.array_equal(first, again) and np.array_equal(again, fresh)
+    assert not np.array_equal(problem.regression_matrix(b), fresh)
+
+
+def test_a_campaign_split_is_read_only(tiny):
+    train = tiny.split("train")
+    assert train is tiny.split("train")
+    with pytest.raises(ValueError):
+        train["alpha"][0] = 0.0

@@ -67,8 +67,8 @@ class Campaign:
         if which not in SPLITS:
             raise DataError(f"unknown split {which!r}; expected one of {SPLITS}")
         # computed once per campaign (a search splits it for every grid and refinement step); the frozen
-        # dataclass keeps the cache in its __dict__, and the arrays are read-only so that no caller can
-        # change what the next one reads
+        # dataclass keeps the cache in its __dict__, and the sample arrays are read-only so that a caller
+        # that writes into one fails instead of changing what the next caller reads
         cache = self.__dict__.setdefault("_split_cache", {})
         if which not in cache:
             idx = [i for i, m in enumerate(self.maneuvers) if m.split == which]

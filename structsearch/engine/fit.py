@@ -9,7 +9,7 @@ from .results import FitResult
 from .identifiability import covariance_basis, rank_reasons
 from .snls import SeparableProblem, model_jacobian, multistart, project
 from .scores import ManeuverScores, slices_of
-from .statistics import COVARIANCE_KINDS, Covariances, inverse_factor, scaled_factor, scaled_condition_number
+from .statistics import COVARIANCE_KINDS, Covariances, scaled_factor, scaled_condition_number
 
 
 
@@ -73,7 +73,7 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
     basis = covariance_basis(jac, names, reasons, k)
     everything = bool(np.all(basis)) and bool(np.all(np.isfinite(jac)))
     estimate = Covariances.on(jac, basis, residual, bounds, covariance, max_lag,
-                              r_inv=inverse_factor(jac, factor) if everything else None).without(
+                              factor=factor if everything else None).without(
         [i for i, n in enumerate(names) if n in reasons])
     return FitResult(
         model=model, coefficient=coefficient, nonlinear_names=tuple(problem.nonlinear_names),

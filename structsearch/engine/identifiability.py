@@ -63,6 +63,8 @@ def rank_reasons(jac: np.ndarray, names: Sequence[str], skip: Sequence[str] = ()
     else:
         r = qr(sub[:, live] / norms[live], mode="r", check_finite=False)[0][:live.size]
     _, s, vt = np.linalg.svd(r)
+    # fewer samples than parameters: the singular values R lacks are zero, their vectors null directions
+    s = np.concatenate([s, np.zeros(vt.shape[0] - len(s))])
     null = vt[s < RANK_RTOL * s[0]]
     if null.size == 0:
         return out

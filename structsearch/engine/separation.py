@@ -236,10 +236,13 @@ def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
         ts, us = t[s:e], u[s:e]
         dt = np.diff(ts)
         a, b0, b1, da, db0, db1 = _lag_coefficients(dt, tau1)
-        if du is None:
-            drive = np.zeros_like(us)
-            drive[1:] = b0 * us[:-1] + b1 * us[1:]
-            x_out[s:e] = linear_recurrence(np.concatenate([[1.0], a]), drive, us[0])
+        if du is None:  # the value alone, by the same branch as below
+            if _is_uniform(dt):
+                x_out[s:e] = lfilter([b1[0], b0[0]], [1.0, -a[0]], us, zi=[(1.0 - b1[0]) * us[0]])[0]
+            else:
+                drive = np.zeros_like(us)
+                drive[1:] = b0 * us[:-1] + b1 * us[1:]
+                x_out[s:e] = linear_recurrence(np.concatenate([[1.0], a]), drive, us[0])
             continue
         dus = du[s:e]
         if _is_uniform(dt):

@@ -222,6 +222,12 @@ class StallProblem(BoundProblem):
         self.__dict__["_last_states"] = (key, sensitivities, out)  # frozen dataclass: a cache, not a field
         return out
 
+    def __getstate__(self):
+        # the memo of the last states is large (X and dX on every sample): never pickled to a worker
+        state = dict(self.__dict__)
+        state.pop("_last_states", None)
+        return state
+
     def regression_matrix(self, theta: np.ndarray, data: FlightData | None = None) -> np.ndarray:
         """Phi(theta) alone, without derivatives (a prediction). ``data`` may replace columns that are
         not state inputs (a centred regressor column); the states come from the bound data."""

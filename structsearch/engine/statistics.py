@@ -350,9 +350,9 @@ class Covariances:
 
     @classmethod
     def on(cls, jac: np.ndarray, keep: np.ndarray, residual: np.ndarray, bounds: np.ndarray, kind: str,
-           max_lag=None, r_inv: np.ndarray | None = None) -> "Covariances":
+           max_lag=None, factor: tuple[np.ndarray, np.ndarray] | None = None) -> "Covariances":
         """Covariances of the parameters selected by ``keep`` (the others held at their estimates);
-        ``r_inv``: :func:`inverse_factor` of ``jac[:, keep]`` when the caller has it."""
+        ``factor``: :func:`scaled_factor` of ``jac[:, keep]`` when the caller has it."""
         p = jac.shape[1]
         full, white = np.full((p, p), np.nan), np.full((p, p), np.nan)
         lags = bandwidth = None
@@ -361,7 +361,7 @@ class Covariances:
         if sub.shape[1] and np.all(np.isfinite(sub)) and np.all(np.isfinite(residual)):
             block = np.ix_(keep, keep)
             try:
-                r_inv = inverse_factor(sub) if r_inv is None else r_inv
+                r_inv = inverse_factor(sub, factor)
                 white[block] = white_covariance(sub, residual, r_inv)
                 if kind == "colored":
                     full[block], lags = colored_covariance(sub, residual, bounds, max_lag, r_inv)

@@ -179,7 +179,9 @@ def centred_correlation(candidate: Candidate, model, data, fit) -> np.ndarray | 
     problem = model.bind(data)
     phi = problem.regression_matrix(theta)
     q, r = qr(phi, mode="economic", check_finite=False)
-    if np.any(np.abs(np.diag(r)) <= SAME_SPAN_RTOL * np.max(np.abs(np.diag(r)))):
+    # |r_jj| is column j's distance from the span of the columns before it: relative to its own norm, a
+    # test of dependence that columns of very different sizes do not fool
+    if np.any(np.abs(np.diag(r)) <= SAME_SPAN_RTOL * np.linalg.norm(phi, axis=0)):
         return None  # dependent regressors: no basis change is defined
 
     def centred_phi(names):

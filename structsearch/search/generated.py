@@ -25,7 +25,6 @@ from ..engine.statistics import Covariances
 from ..engine.twostep import generated_regressor_covariance
 from .candidate_result import CandidateResult
 
-STEP = 1e-6
 
 
 def _jacobian(model, data: FlightData, params) -> tuple[np.ndarray, np.ndarray]:

@@ -234,8 +234,8 @@ def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: Ca
         model = build_model(stage.with_bounds(settings.bounds))
         try:
             params = model.estimate(train, n_starts=STAGE_STARTS, seed=settings.seed)
-        except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError):
-            break  # a stage that cannot be fitted gives no start: c keeps its usual starts
+        except (StructSearchError, np.linalg.LinAlgError, FloatingPointError):
+            break  # a stage the data cannot fit gives no start: c keeps its usual starts
         start = {k: params[k] for k in model.nonlinear_names}
     return fit_candidate(c, train, validation, lift, lift_candidate, settings, start=start,
                          declared_too=start is not None)

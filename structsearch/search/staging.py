@@ -7,10 +7,12 @@ subset of A's regressors (CL-III feeds CL-IV). A grid is fitted in *waves*: a ca
 more than the latest wave of the candidates feeding it, so they are fitted before it. It starts from
 the estimates of the fitted candidate (of this grid or an earlier one) that shares most of its
 separation parameters, the lowest training MSE among equals; the parameters that candidate lacks
-start at their declared or default value. Quasi-random starts are kept where nothing feeds a
-candidate: it is fitted from the usual starts (declared and quasi-random) plus, when it has unsteady
-states, the estimates of its quasi-steady version (``structsearch fit`` does the same), so it never
-starts from less than the default multistart.
+start at their declared or default value; it is fitted from that warm start and from its declared
+start. Which donor a candidate gets depends on the grids searched together (``--grid lift`` alone
+or after the separation grid in ``--grid all``); the cache key holds the warm start, so each is
+cached apart. A candidate no fitted candidate feeds keeps the usual starts (declared and
+quasi-random) and, when it has unsteady states, adds the estimates of its quasi-steady version
+(``structsearch fit`` does the same), so it never starts from less than the default multistart.
 
 Drag and pitch candidates take their states from the lift model (nothing to stage): one wave.
 """
@@ -18,16 +20,16 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import numpy as np
+
 from ..engine.separation import SeparationState
 from .candidate_result import CandidateResult
 from .candidates import Candidate
 
 # A candidate with a donor is fitted from the donor's estimates and from its declared start (then from
-# quasi-random points if WARM_STARTS is raised above 1); a single fit's stage from its declared start
-# and STAGE_STARTS - 1 quasi-random points. Measured on 50 small campaigns against the best of 64
-# random starts (`structsearch bench --staged`; the choice below in results/bench.md and the README):
-# the warm start alone reached it on 39, a steady then quasi-steady chain with the declared start on 47,
-# the previous default (declared start + 3 quasi-random points) on 48.
+# quasi-random points if WARM_STARTS is raised above 1); a single fit's quasi-steady stage from its
+# declared start and STAGE_STARTS - 1 quasi-random points. `structsearch bench --staged` measures the
+# single fit against the best of 64 random starts on 50 small campaigns (results/bench.md).
 WARM_STARTS = 1
 STAGE_STARTS = 2
 # Kinds in order of nesting: each adds one parameter to the previous one.
@@ -77,7 +79,7 @@ def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResult]]
         return None
     mine = set(c.state_parameters)
     donors = [(d, r) for d, r in fitted if not r.failed and d.name != c.name and d.coefficient == c.coefficient
-              and _stageable(d) and set(d.state_parameters) <= mine]
+              and _stageable(d) and set(d.state_parameters) <= mine and np.isfinite(r.mse_train)]
     if not donors:
         return None
     donor, result = min(donors, key=lambda dr: (-len(dr[0].state_parameters), dr[1].mse_train))
