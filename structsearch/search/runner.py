@@ -252,10 +252,12 @@ def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, sett
     return lift, lift_candidate
 
 
-def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings,
-               start: dict | None = None) -> Path:
+def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings) -> Path:
+    """Where the fit of ``c`` on this data, lift model and settings is cached. A warm start is not part of
+    the key: it chooses where the solver begins, not the question (the study and the report are served
+    the search's fits, however they were started)."""
     from .. import __version__
-    blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params, "start": start,
+    blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params,
                        "settings": settings.key(), "version": [__version__, code_fingerprint(), JSON_LAYOUT]},
                       sort_keys=True, default=float)
     key = hashlib.sha256(blob.encode()).hexdigest()[:16]
@@ -285,7 +287,7 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_
                 c = candidates[i]
                 lift = lift_results.get(c.lift) if c.lift else None
                 starts[i] = warm_start(c, fitted)
-                paths[i] = cache_path(out, c, data_key, lift.params if lift else None, settings, starts[i])
+                paths[i] = cache_path(out, c, data_key, lift.params if lift else None, settings)
                 cached = _read_cached(paths[i], say)
                 if cached is not None:
                     results[i] = cached

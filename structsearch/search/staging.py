@@ -9,8 +9,8 @@ the estimates of the fitted candidate (of this grid or an earlier one) that shar
 separation parameters, the lowest training MSE among equals; the parameters that candidate lacks
 start at their declared or default value; it is fitted from that warm start and from its declared
 start. Which donor a candidate gets depends on the grids searched together (``--grid lift`` alone
-or after the separation grid in ``--grid all``); the cache key holds the warm start, so each is
-cached apart. A candidate no fitted candidate feeds keeps the usual starts (declared and
+or after the separation grid in ``--grid all``); the cache key does not hold the warm start (it
+chooses where the solver begins, not the question), so a cached fit serves either. A candidate no fitted candidate feeds keeps the usual starts (declared and
 quasi-random) and, when it has unsteady states, adds the estimates of its quasi-steady version
 (``structsearch fit`` does the same), so it never starts from less than the default multistart.
 
