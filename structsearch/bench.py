@@ -307,7 +307,7 @@ def run_staged(campaigns: int = 50, scale: float = 0.05, random_starts: int = 64
         rng = np.random.default_rng(10_000 + seed)
         points = lower + rng.uniform(size=(random_starts, len(lower))) * (upper - lower)
         random_fits = Parallel(n_jobs=n_jobs)(delayed(solve)(problem, y, p, lower, upper) for p in points)
-        random_rss = [(float(2 * o.cost),) for o in random_fits]
+        random_rss = [float(2 * o.cost) for o in random_fits]
         best_random = min(random_fits, key=lambda o: o.cost)
         span = upper - lower
         on_bound = [name for name, v, lo, hi, w in zip(model.nonlinear_names, best_random.theta, lower, upper, span)
@@ -320,12 +320,12 @@ def run_staged(campaigns: int = 50, scale: float = 0.05, random_starts: int = 64
         t_previous = time.perf_counter() - t0
         staged_rss = float(staged.mse_train * len(y))
         previous_rss = float(np.sum(previous.residuals ** 2))
-        best = min(min(r[0] for r in random_rss), staged_rss, previous_rss)
+        best = min(min(random_rss), staged_rss, previous_rss)
         ok = best * (1 + 1e-6)
         rows.append({"seed": seed, "samples": len(y), "best_rss": best, "best_on_bound": on_bound,
                      "staged_ok": staged_rss <= ok,
                      "previous_ok": previous_rss <= ok,
-                     "random_ok": int(sum(r[0] <= ok for r in random_rss)),
+                     "random_ok": int(sum(r <= ok for r in random_rss)),
                      "staged_s": t_staged, "previous_s": t_previous})
         say(f"campaign {seed}: staged {'reaches' if rows[-1]['staged_ok'] else 'MISSES'} the best; "
             f"{rows[-1]['random_ok']}/{random_starts} random starts do")

@@ -127,6 +127,13 @@ class StallModel:
         pairs = [self.bounds.get(s.parameter_name(p), defaults[p]) for s, p in self._free()]
         return np.array([p[0] for p in pairs], float), np.array([p[1] for p in pairs], float)
 
+    def inside(self, data: FlightData, start: Mapping[str, float]) -> dict[str, float]:
+        """The values of ``start`` that are this model's nonlinear parameters, moved into its box on
+        ``data`` (a warm start from another model or another subset of the maneuvers)."""
+        lower, upper = self.bound_vectors(data)
+        return {name: float(np.clip(start[name], lo, hi))
+                for name, lo, hi in zip(self.nonlinear_names, lower, upper) if name in start}
+
     def bind(self, data: FlightData) -> "StallProblem":
         for col in self.required_columns:
             if col not in data and col not in data.constants:

@@ -100,8 +100,7 @@ def cross_validate(model, train: FlightData, result, folds: list[list[int]]) -> 
         rest = [i for i in everything if i not in held]
         subset = train.select(rest)
         # the subset's default box may be narrower (alpha range flown): start inside it
-        lo, hi = model.bound_vectors(subset)
-        start = {k: float(np.clip(v, a, b)) for (k, v), a, b in zip(warm.items(), lo, hi)}
+        start = model.inside(subset, warm)
         predicted = model.predict(train.select(held), model.estimate(subset, start=start))
         at = 0
         for i in held:
@@ -189,11 +188,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         if c.lift and lift_candidate is not None:
             context = lift_context(train, validation, lift, lift_candidate)
             train, validation = context.train, context.validation
-        warm = {k: v for k, v in (start or {}).items() if k in model.nonlinear_names}
-        if warm:  # a warm start inside the bounds (a baseline's estimates for an extended model)
-            lo, hi = model.bound_vectors(train)
-            bounds = dict(zip(model.nonlinear_names, zip(lo, hi)))
-            warm = {k: float(np.clip(v, *bounds[k])) for k, v in warm.items()}
+        warm = model.inside(train, start or {})  # a donor's or baseline's estimates, inside the bounds
         starts = settings.n_starts if n_starts is None else n_starts
         result = model.fit(train, start=warm or None, n_starts=starts if model.nonlinear_names else 1,
                            seed=settings.seed, covariance=settings.covariance, declared_too=declared_too)
