@@ -5,7 +5,7 @@ import pytest
 from structsearch.flight import aircraft as ac
 from structsearch.flight.aero import WITHHOLDABLE, truth_model
 from structsearch.data.errors import DeclarationError
-from structsearch.flight.flighttest import build_campaign
+from structsearch.flight.flighttest import build_campaign, fly, fly_batch, thesis_plan
 from structsearch.flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH
 from structsearch.flight.aircraft import CITATION
 from structsearch.flight.replay import replay
@@ -138,6 +138,29 @@ def test_replay_with_truth_tracks_and_withheld_lag_drifts(flown):
     # every window starts on the measured state
     g = good[0]
     assert np.allclose(g.simulated["alpha"][g.window_starts], g.measured["alpha"][g.window_starts])
+    # all windows of all maneuvers fly as one batch: a maneuver replays the same alone
+    alone = replay(flown.of_kind("dynamic"), truth_model(), window_s=5.0)
+    together = {r.name: r for r in good}
+    assert alone and all(np.array_equal(r.simulated[s], together[r.name].simulated[s])
+                         for r in alone for s in r.simulated)
+
+
+def test_a_maneuver_flies_the_same_alone_or_in_a_batch_with_longer_ones(model):
+    """Maneuvers of all durations fly in one batch: the shorter is held once it ends, so neither its
+    trajectory nor the longer one's depends on the other."""
+    plan = [p for p in thesis_plan(extras=True) if p.number in (3, 48)]  # a quasi-steady stall, a pullup
+    rng = np.random.default_rng(5)
+    stall, pullup = (fly(model, p, rng, 5600.0, 7.15) for p in plan)
+    assert len(pullup.alpha_ref) < len(stall.alpha_ref)
+    both = fly_batch(model, [pullup, stall])
+    for j, alone in enumerate((fly_batch(model, [pullup]), fly_batch(model, [stall]))):
+        n = len(alone.t)
+        for name in ("V", "alpha", "q", "theta", "de", "CL", "CD", "Cm", "mass"):
+            assert np.array_equal(getattr(both, name)[:n, j], getattr(alone, name)[:, 0]), (j, name)
+        assert all(np.array_equal(both.X[x][:n, j], alone.X[x][:, 0]) for x in alone.X)
+    # the pullup's state is held after its end, finite
+    n = len(pullup.alpha_ref)
+    assert np.all(both.alpha[n:, 0] == both.alpha[n - 1, 0]) and np.all(np.isfinite(both.Cm))
 
 
 def test_default_campaign_standard_deviations_match_the_thesis():

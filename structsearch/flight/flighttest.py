@@ -229,8 +229,13 @@ def reconstruction_error(rng: np.random.Generator, n: int, size: float = 1.0) ->
 
 
 def fly_batch(model: AeroModel, flown: list[Flown], aircraft: Aircraft = CITATION):
-    """Integrate maneuvers of one duration together; returns the truth Trajectory."""
-    stack = lambda attr: np.column_stack([getattr(f, attr) for f in flown])  # noqa: E731
+    """Integrate maneuvers together (of any durations: each is padded with its final inputs and held
+    once it ends); returns the truth Trajectory, (longest duration, maneuvers)."""
+    lengths = np.array([len(f.alpha_ref) for f in flown])
+    n = int(lengths.max())
+
+    def stack(attr):
+        return np.column_stack([np.pad(getattr(f, attr), (0, n - len(f.alpha_ref)), mode="edge") for f in flown])
     pilot = Pilot(stack("alpha_ref"), stack("de_extra"), stack("throttle"),
                   np.array([f.de_trim for f in flown]), np.array([f.gains for f in flown]))
     alpha0 = np.array([f.alpha0 for f in flown])
@@ -243,7 +248,7 @@ def fly_batch(model: AeroModel, flown: list[Flown], aircraft: Aircraft = CITATIO
     # fuel burnt along the maneuver
     burn = np.cumsum(stack("throttle"), axis=0) * DT * aircraft.max_fuel_flow
     mass = masses[None, :] - burn
-    return simulate(model, y0, pilot, mass, np.array([f.condition.x_cg for f in flown]), DT, aircraft)
+    return simulate(model, y0, pilot, mass, np.array([f.condition.x_cg for f in flown]), DT, aircraft, lengths)
 
 
 def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int = 0, slow_errors: float = 1.0,
@@ -272,23 +277,24 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
     error_rng = np.random.default_rng([seed, 1])
     errors = [reconstruction_error(error_rng, len(f.alpha_ref), slow_errors) for f in flown]
     results: list[dict | None] = [None] * len(plan)
-    for duration in sorted({len(f.alpha_ref) for f in flown}):
-        idx = [i for i, f in enumerate(flown) if len(f.alpha_ref) == duration]
-        traj = fly_batch(model, [flown[i] for i in idx], craft)
-        for j, i in enumerate(idx):
-            truth = {name: getattr(traj, name)[:, j] for name in
-                     ("V", "alpha", "q", "theta", "h", "de", "thrust", "qbar", "mass", "x_cg", "CL", "CD", "Cm",
-                      "q_dot")}
-            # a withheld second state is recorded as attached flow
-            symbols = ("X_ss", "X_w") if craft.name == "citation" else tuple(traj.X)
-            truth["states"] = {sym: traj.X[sym][:, j] if sym in traj.X else np.ones(duration) for sym in symbols}
-            if sensor_errors is not None:
-                from .raw import raw_channels
-                columns = raw_channels(rng, traj.t, truth, sensor_errors, craft)
-            else:
-                columns = measure(rng, traj.t, truth, errors[i], SLOW_ERROR_STALL_GAIN, craft,
-                                  vane_lag_s=getattr(anomaly, "vane_lag_s", 0.0), record_alpha=anomaly is not None)
-            results[i] = _cut(plan[i], columns)
+    traj = fly_batch(model, flown, craft)
+    # measured in order of duration, then plan order: the order the noise streams have always been drawn in
+    for i in sorted(range(len(flown)), key=lambda i: (len(flown[i].alpha_ref), i)):
+        duration = len(flown[i].alpha_ref)
+        truth = {name: getattr(traj, name)[:duration, i] for name in
+                 ("V", "alpha", "q", "theta", "h", "de", "thrust", "qbar", "mass", "x_cg", "CL", "CD", "Cm",
+                  "q_dot")}
+        # a withheld second state is recorded as attached flow
+        symbols = ("X_ss", "X_w") if craft.name == "citation" else tuple(traj.X)
+        truth["states"] = {sym: traj.X[sym][:duration, i] if sym in traj.X else np.ones(duration) for sym in symbols}
+        t = traj.t[:duration]
+        if sensor_errors is not None:
+            from .raw import raw_channels
+            columns = raw_channels(rng, t, truth, sensor_errors, craft)
+        else:
+            columns = measure(rng, t, truth, errors[i], SLOW_ERROR_STALL_GAIN, craft,
+                              vane_lag_s=getattr(anomaly, "vane_lag_s", 0.0), record_alpha=anomaly is not None)
+        results[i] = _cut(plan[i], columns)
     return results
 
 

@@ -48,8 +48,8 @@ def replay(data: FlightData, model: AeroModel, window_s: float = 10.0) -> list[R
             raise DataError(f"forward simulation needs this column{hint}", source=data.source, column=col)
     if window_s <= 0:
         raise DataError(f"window length must be positive, not {window_s}")
-    out = []
-    for name, sl in zip(data.names, data.segment_slices()):
+    windows = []  # (position, samples, sample time, window starts, sample indices)
+    for sl in data.segment_slices():
         t = data["t"][sl]
         dt = np.diff(t)
         if not np.allclose(dt, dt[0], rtol=1e-6):
@@ -58,24 +58,37 @@ def replay(data: FlightData, model: AeroModel, window_s: float = 10.0) -> list[R
         n = len(t)
         per = max(2, int(round(window_s / step)))
         starts = np.arange(0, n, per)
-        n_win = len(starts)
-        # (per, n_win) input arrays, the last window padded with its final sample
-        index = np.minimum(starts[None, :] + np.arange(per)[:, None], n - 1)
-        col = lambda c: data[c][sl][index]  # noqa: E731
+        # (per, windows) sample indices, the last window padded with its final sample
+        index = sl.start + np.minimum(starts[None, :] + np.arange(per)[:, None], n - 1)
+        windows.append((len(windows), sl, step, starts, index))
+    # the windows of every maneuver with one sample time fly as one batch: a simulation step costs the
+    # same for one window or hundreds
+    simulated = {}
+    for step in dict.fromkeys(w[2] for w in windows):
+        group = [w for w in windows if w[2] == step]
+        index = np.concatenate([w[4] for w in group], axis=1)
+        first_index = index[0]
+        col = lambda c: data[c][index]  # noqa: E731
+        first = lambda c: data[c][first_index]  # noqa: E731
         qbar = 0.5 * ac.density(col("h")) * col("V") ** 2
         thrust = col("CT") * qbar * craft.S
-        pilot = Pilot(np.zeros((per, n_win)), col("de"), np.zeros((per, n_win)), np.zeros(n_win),
+        n_win = index.shape[1]
+        pilot = Pilot(np.zeros(index.shape), col("de"), np.zeros(index.shape), np.zeros(n_win),
                       np.zeros((n_win, 3)), thrust=thrust)
-        first = lambda c: data[c][sl][starts]  # noqa: E731
         x0 = model.separation_targets(first("alpha"), first("alpha_dot"), first("h"))
         y0 = {s: first(s) for s in STATES}
         y0.update({s.symbol: x0[s.symbol] for s in model.unsteady})
         x_cg = first("x_cg") if "x_cg" in data else np.full(n_win, np.nan)
         traj = simulate(model, y0, pilot, col("mass"), x_cg, step, craft)
-        simulated = {}
-        for s in STATES:
-            flat = getattr(traj, s).T.reshape(-1)[:n]  # window after window
-            simulated[s] = flat
+        column = 0
+        for position, sl, _, starts, _ in group:
+            n = sl.stop - sl.start
+            cols = slice(column, column + len(starts))
+            column += len(starts)
+            # window after window
+            simulated[position] = {s: getattr(traj, s)[:, cols].T.reshape(-1)[:n] for s in STATES}
+    out = []
+    for name, (position, sl, _, starts, _) in zip(data.names, windows):
         measured = {s: data[s][sl] for s in STATES}
-        out.append(Replay(name, t, measured, simulated, starts))
+        out.append(Replay(name, data["t"][sl], measured, simulated[position], starts))
     return out

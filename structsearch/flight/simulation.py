@@ -142,11 +142,15 @@ def _alpha_dot_with_states(model, aircraft, V, alpha, q, theta, h, de, throttle,
 
 
 def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: np.ndarray,
-             dt: float = 0.01, aircraft: Aircraft = CITATION) -> Trajectory:
+             dt: float = 0.01, aircraft: Aircraft = CITATION, lengths: np.ndarray | None = None) -> Trajectory:
     """Integrate all maneuvers of a batch for ``len(pilot.alpha_ref)`` steps.
 
     ``y0`` holds V, alpha, q, theta, h (arrays over maneuvers) and the unsteady
-    separation states by symbol; ``mass`` is (n_steps, n_maneuvers).
+    separation states by symbol; ``mass`` is (n_steps, n_maneuvers). ``lengths`` (samples per
+    maneuver, default all ``n_steps``) lets maneuvers of different durations fly in one batch: a
+    maneuver's state is held at its last sample once it ends, and its inputs should be padded (with
+    their last values, say), so that what follows its end stays finite; the trajectory past a
+    maneuver's length is not part of it.
     """
     lagged_names = [s.symbol for s in model.unsteady]
     n_steps, n_man = pilot.alpha_ref.shape
@@ -172,6 +176,9 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
         gamma = theta - alpha
         return np.vstack([v_dot, alpha_dot, q_dot, q, V * np.sin(gamma), alpha - pilot.alpha_ref[k]] + dx)
 
+    # one batch over time steps: a Python step costs the same for 1 or 50 maneuvers, so the fewer steps
+    # the better; a maneuver that has ended keeps its final state rather than flying on unpiloted
+    ends = np.full(n_man, n_steps) if lengths is None else np.asarray(lengths)
     out = np.empty((n_steps,) + y.shape)
     for k in range(n_steps):
         out[k] = y
@@ -181,7 +188,7 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
         k2 = rhs(k, y + 0.5 * dt * k1)
         k3 = rhs(k, y + 0.5 * dt * k2)
         k4 = rhs(k, y + dt * k3)
-        y = y + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+        y = np.where(k + 1 < ends, y + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4), y)
     # outputs recomputed on the stored states
     V, alpha, q, theta, h = out[:, 0], out[:, 1], out[:, 2], out[:, 3], out[:, 4]
     lagged = {s: out[:, 6 + i] for i, s in enumerate(lagged_names)}
