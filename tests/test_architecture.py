@@ -149,16 +149,77 @@ def test_weighted_mean_and_standard_error():
     assert math.isnan(weighted_mean_se(np.array([2.0]), np.array([5.0]))[1])  # one maneuver: no spread
 
 
+def _third_party_imports() -> tuple[set[str], set[str]]:
+    """Top-level names the package imports from outside itself and the standard library: (at module
+    level, anywhere)."""
+    import ast
+    module_level, anywhere = set(), set()
+    for path in (ROOT / "structsearch").rglob("*.py"):
+        tree = ast.parse(path.read_text())
+        top = set(map(id, tree.body))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names = [a.name.split(".")[0] for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module.split(".")[0]]
+            else:
+                continue
+            names = [n for n in names if n != "structsearch" and n not in sys.stdlib_module_names]
+            anywhere.update(names)
+            if id(node) in top:
+                module_level.update(names)
+    return module_level, anywhere
+
+
+def _requirement_name(text: str) -> tuple[str, str | None]:
+    """(distribution, extra or None) of a Requires-Dist line."""
+    import re
+    name = re.match(r"[A-Za-z0-9_.-]+", text).group(0).lower().replace("_", "-")
+    extra = re.search(r"extra\s*==\s*['\"]([^'\"]+)", text)
+    return name, extra.group(1) if extra else None
+
+
 def test_the_wheel_works_outside_the_checkout(tmp_path):
-    """Build the wheel, install it into a fresh virtual environment and fit a small campaign from elsewhere."""
+    """Build the wheel, install it into a fresh virtual environment and fit a small campaign from elsewhere.
+
+    The wheel's metadata must declare every distribution the package imports: those imported at module
+    level as dependencies, the others (imported where an optional feature needs them) at least in an
+    extra. The fresh environment then borrows those distributions from this one (a path entry after its
+    own site-packages) rather than installing them again from the registry (20 s of unpacking wheels)."""
+    import zipfile
+    from importlib.metadata import packages_distributions
     dist = tmp_path / "dist"
     subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist), str(ROOT)],
                    check=True, cwd=tmp_path)
     wheel = next(dist.glob("structsearch-*.whl"))
+    with zipfile.ZipFile(wheel) as archive:
+        meta = next(n for n in archive.namelist() if n.endswith(".dist-info/METADATA"))
+        lines = archive.read(meta).decode().splitlines()
+    declared = [_requirement_name(line.split(":", 1)[1].strip()) for line in lines
+                if line.startswith("Requires-Dist:")]
+    required = {name for name, extra in declared if extra is None}
+    optional = {name for name, extra in declared if extra is not None}
+    distributions = {k: {d.lower().replace("_", "-") for d in v} for k, v in packages_distributions().items()}
+    module_level, anywhere = _third_party_imports()
+    assert {"numpy", "scipy", "sympy"} <= module_level  # the scan sees imports
+    for name in sorted(anywhere):
+        provided_by = distributions.get(name, set())
+        assert provided_by, f"the package imports {name!r}, which no installed distribution provides"
+        needed = required if name in module_level else required | optional
+        assert provided_by & needed, f"the package imports {name!r} ({', '.join(provided_by)}), which the " \
+                                     f"wheel does not declare{'' if name in module_level else ' in an extra'}"
+
     env_dir = tmp_path / "venv"
-    venv.EnvBuilder(with_pip=True).create(env_dir)
+    venv.EnvBuilder(with_pip=False).create(env_dir)
     python = env_dir / "bin" / "python"
-    subprocess.run([str(python), "-m", "pip", "install", "-q", str(wheel)], check=True, cwd=tmp_path)
+    subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "-q", "--no-deps", str(wheel)],
+                   check=True, cwd=tmp_path)
+    site = subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                          check=True, capture_output=True, text=True).stdout.strip()
+    # a path line adds this environment's site-packages without running its .pth files (the checkout's
+    # editable install among them)
+    here = next(p for p in sys.path if p.endswith("site-packages") and Path(p, "numpy").exists())
+    Path(site, "zz_borrowed_dependencies.pth").write_text(here + "\n")
     clean = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     where = subprocess.run([str(python), "-c", "import structsearch, sys; print(structsearch.__file__)"],
                            check=True, cwd=tmp_path, env=clean, capture_output=True, text=True).stdout
