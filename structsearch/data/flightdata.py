@@ -39,6 +39,16 @@ class FlightData:
     def n_segments(self) -> int:
         return len(self.starts)
 
+    def memo(self, kind: str) -> dict:
+        """A dict of derived arrays kept with this data (what every model bound to it would recompute
+        alike: the separation states for fixed parameters). Never pickled; gone with the data."""
+        return self.__dict__.setdefault("_memo", {}).setdefault(kind, {})  # frozen dataclass: not a field
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state.pop("_memo", None)
+        return state
+
     @property
     def bounds(self) -> np.ndarray:
         """Segment boundaries ``[s0, s1, ..., n]`` (length ``n_segments + 1``)."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..data.errors import DataError, FitError
-from .ols import ols
+from .ols import solved
 from .results import FitResult
 from .identifiability import covariance_basis, rank_reasons
 from .snls import SeparableProblem, model_jacobian, multistart, project
@@ -51,8 +51,10 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
                         f"{' at the start' if k else ''} (maneuver {segment_names[seg]!r}"
                         f"{'; inputs ' + inputs if inputs else ''})", source=source,
                         row=int(bad[0][0] - bounds[seg]))
-    if k == 0:
-        outcome = ols(problem, y)
+    if k == 0:  # the regressors evaluated and projected once serve the estimate and its statistics
+        ev = ev0
+        proj = project(ev.phi, y)
+        outcome = solved(proj)
         n_starts_used, reached = 1, 1
         lower = upper = np.zeros(0)
     else:
@@ -60,8 +62,8 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
         ms = multistart(problem, y, start, lower, upper, n_starts=n_starts, seed=seed,
                         n_jobs=n_jobs, tol=tol, max_nfev=max_nfev, also=also)
         outcome, n_starts_used, reached = ms.best, len(ms.outcomes), ms.n_reached_best
-    ev = problem.evaluate(outcome.theta)
-    proj = project(ev.phi, y)
+        ev = problem.evaluate(outcome.theta)
+        proj = project(ev.phi, y)
     jac = model_jacobian(ev, proj.coef, k)
     residual = proj.residual
     if hasattr(problem, "extended_residual"):
@@ -86,4 +88,5 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
         residuals=residual, segment_names=tuple(segment_names),
         segments=ManeuverScores.of(y, residual, slices_of(bounds)), total_sst=float(np.sum((y - y.mean()) ** 2)),
         nfev=outcome.nfev, njev=outcome.njev, message=outcome.message, success=outcome.success,
-        n_starts=n_starts_used, n_reached_best=reached, start=outcome.start)
+        n_starts=n_starts_used, n_reached_best=reached, start=outcome.start,
+        jacobian_inverse_factor=estimate.inverse_factor)

@@ -58,6 +58,10 @@ class FitResult:
     unidentifiable: Mapping[str, str] = field(default_factory=dict)
     # what the covariance accounts for beyond this fit (drag/pitch: the lift model's estimation error)
     generated_regressors: str | None = None
+    # R^-1 of the thin QR of the column-scaled Jacobian on the parameters with a covariance (scaling folded
+    # back in; statistics.inverse_factor): lets a later covariance estimator on the same Jacobian (the
+    # two-step one) skip the QR of the m x p matrix. None when it could not be formed; never serialised
+    jacobian_inverse_factor: np.ndarray | None = field(default=None, repr=False)
 
     # ----- sizes -------------------------------------------------------------
     @property

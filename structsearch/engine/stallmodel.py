@@ -189,6 +189,11 @@ class StallModel:
         return phi @ np.array([params[p] for p in self.linear_names], float)
 
 
+# Separation states for fixed parameters kept per data set (each one array of the samples): the lift
+# model's states, shared by a grid's drag and pitch candidates, with room for a few lift models
+FIXED_STATES_KEPT = 8
+
+
 @dataclass(frozen=True, eq=False)
 class StallProblem(BoundProblem):
     """A StallModel bound to FlightData: Phi(theta) and its non-zero derivative columns."""
@@ -222,9 +227,22 @@ class StallProblem(BoundProblem):
                       for p in s.base_parameters}
             index = np.array([names.index(s.parameter_name(p)) if s.parameter_name(p) in given else -1
                               for p in s.base_parameters])
-            # a state whose parameters are all fixed (a drag or pitch model's) needs no sensitivities
+            if not np.any(index >= 0):
+                # a state whose parameters are all fixed (a drag or pitch model's, the lift model's) needs
+                # no sensitivities, and every candidate bound to this data computes the same one
+                fixed = d.memo("fixed separation states")
+                key = (s, tuple(sorted(values.items())))
+                if key not in fixed:
+                    if len(fixed) >= FIXED_STATES_KEPT:  # a loop over fixed values must not hoard samples
+                        del fixed[next(iter(fixed))]
+                    x = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step,
+                                       False)[0]
+                    x.setflags(write=False)  # shared by every model bound to this data
+                    fixed[key] = x
+                out[s.symbol] = (index, fixed[key], None)
+                continue
             x, dx = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step,
-                                   sensitivities and bool(np.any(index >= 0)))
+                                   sensitivities)
             out[s.symbol] = (index, x, dx)
         self.__dict__["_last_states"] = (key, sensitivities, out)  # frozen dataclass: a cache, not a field
         return out

@@ -347,6 +347,9 @@ class Covariances:
     bandwidth: float | None = None
     # per parameter, for the per-maneuver kinds (NaN for the others and the non-identifiable ones)
     effective_maneuvers: np.ndarray | None = None
+    # inverse_factor of the Jacobian's kept columns (None when none could be formed): an estimator that
+    # refines this covariance later (the two-step one) reuses it instead of factorising the m x p Jacobian
+    inverse_factor: np.ndarray | None = None
 
     @classmethod
     def on(cls, jac: np.ndarray, keep: np.ndarray, residual: np.ndarray, bounds: np.ndarray, kind: str,
@@ -355,7 +358,7 @@ class Covariances:
         ``factor``: :func:`scaled_factor` of ``jac[:, keep]`` when the caller has it."""
         p = jac.shape[1]
         full, white = np.full((p, p), np.nan), np.full((p, p), np.nan)
-        lags = bandwidth = None
+        lags = bandwidth = r_inv = None
         effective = np.full(p, np.nan)
         sub = jac[:, keep]
         if sub.shape[1] and np.all(np.isfinite(sub)) and np.all(np.isfinite(residual)):
@@ -377,7 +380,8 @@ class Covariances:
             except np.linalg.LinAlgError:
                 # an exactly singular factor despite the basis choice: report "not estimable" (NaN)
                 full[block] = white[block] = np.nan
-        return cls(full, white, lags, bandwidth, effective)
+                r_inv = None
+        return cls(full, white, lags, bandwidth, effective, r_inv)
 
     def without(self, indices) -> "Covariances":
         """The same estimate with the rows and columns of ``indices`` set to NaN (not estimable)."""
@@ -388,4 +392,4 @@ class Covariances:
         effective = None if self.effective_maneuvers is None else self.effective_maneuvers.copy()
         if effective is not None:
             effective[indices] = np.nan
-        return Covariances(cov, white, self.max_lag, self.bandwidth, effective)
+        return Covariances(cov, white, self.max_lag, self.bandwidth, effective, self.inverse_factor)

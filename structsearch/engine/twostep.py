@@ -36,18 +36,20 @@ from .statistics import (HAC_KERNELS, PER_MANEUVER_KINDS, inverse_factor, _sandw
 
 def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1: np.ndarray,
                                    residual1: np.ndarray, sensitivity: np.ndarray, bounds: np.ndarray,
-                                   kind: str, max_lag=None, a1_inv: np.ndarray | None = None):
+                                   kind: str, max_lag=None, a1_inv: np.ndarray | None = None,
+                                   r2_inv: np.ndarray | None = None):
     """Covariance of the second-step parameters including the first step's estimation error.
 
     ``jac1`` (m x p1) and ``jac2`` (m x p2) are the model Jacobians on the identifiable parameters of
     each step, ``sensitivity`` (m x p1) is d f2 / d beta1 on the same first-step parameters. Returns
     (covariance, lags, bandwidth, effective maneuvers per parameter) like the one-step estimators; the
     effective maneuvers (of the corrected scores) are NaN except for the per-maneuver kinds. ``a1_inv``:
-    the first step's inverse factor (``statistics.inverse_factor(jac1)``) when the caller has it.
+    the first step's inverse factor (``statistics.inverse_factor(jac1)``) when the caller has it; ``r2_inv``
+    the second step's (:attr:`FitResult.jacobian_inverse_factor` of its fit).
     """
     m, p2 = jac2.shape
     a1_inv = inverse_factor(jac1) if a1_inv is None else a1_inv
-    r2_inv = inverse_factor(jac2)
+    r2_inv = inverse_factor(jac2) if r2_inv is None else r2_inv
     gain = (jac2.T @ sensitivity) @ (a1_inv @ a1_inv.T)        # K, p2 x p1
     carry = -(jac1 @ gain.T)                                    # multiplies e1 in u_t
     lags = bandwidth = None

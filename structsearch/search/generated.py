@@ -66,12 +66,15 @@ def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lif
 
 
 def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightData, lift: CandidateResult,
-                          context) -> FitResult:
+                          context, kind: str | None = None) -> FitResult:
     """``result`` of ``model`` (a drag or pitch candidate with the lift states fixed) with the two-step
-    covariance. ``train`` is the training data as measured; ``context`` the lift model's
-    :class:`~structsearch.search.shared_data.LiftContext` (its Jacobian, residual and covariance basis on
-    ``train``, and the training data with C_L replaced by its output, as the fit saw it).
+    covariance of ``kind`` (default: the one ``result`` has). ``train`` is the training data as measured;
+    ``context`` the lift model's :class:`~structsearch.search.shared_data.LiftContext` (its Jacobian,
+    residual and covariance basis on ``train``, and the training data with C_L replaced by its output, as
+    the fit saw it). The two-step covariance replaces the fit's own, so the fit may as well have
+    computed the white one only (which is kept).
     """
+    kind = result.covariance_kind if kind is None else kind
     predicted = context.train
     jac1, residual1, basis1 = context.jacobian, context.residual, context.basis
     jac2, _ = _jacobian(model, predicted, result.params)
@@ -81,14 +84,14 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
     cov = np.full((result.n_params, result.n_params), np.nan)
     block, lags, bandwidth, effective_block = generated_regressor_covariance(
         jac2[:, basis2], result.residuals, jac1[:, basis1], residual1, sensitivity, train.bounds,
-        result.covariance_kind, a1_inv=context.jacobian_inverse_factor)
+        kind, a1_inv=context.jacobian_inverse_factor, r2_inv=result.jacobian_inverse_factor)
     cov[np.ix_(basis2, basis2)] = block
     effective = np.full(result.n_params, np.nan)
     effective[basis2] = effective_block
     estimate = Covariances(cov, result.white_covariance, lags, bandwidth, effective).without(
         [i for i, n in enumerate(result.names) if n in result.unidentifiable])
     return dataclasses.replace(
-        result, covariance=estimate.covariance, max_lag=estimate.max_lag, bandwidth=estimate.bandwidth,
+        result, covariance=estimate.covariance, covariance_kind=kind, max_lag=estimate.max_lag, bandwidth=estimate.bandwidth,
         effective_maneuvers=estimate.effective_maneuvers,
         generated_regressors=f"includes the estimation error of the lift model {lift.name} "
                              "(two-step, Murphy-Topel)")

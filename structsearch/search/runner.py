@@ -190,10 +190,12 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
             train, validation = context.train, context.validation
         warm = model.inside(train, start or {})  # a donor's or baseline's estimates, inside the bounds
         starts = settings.n_starts if n_starts is None else n_starts
+        # with a lift model the two-step covariance replaces the fit's own: the fit computes the white one
         result = model.fit(train, start=warm or None, n_starts=starts if model.nonlinear_names else 1,
-                           seed=settings.seed, covariance=settings.covariance, declared_too=declared_too)
+                           seed=settings.seed, covariance="white" if context is not None else settings.covariance,
+                           declared_too=declared_too)
         if context is not None:
-            result = with_lift_uncertainty(result, model, measured, lift, context)
+            result = with_lift_uncertainty(result, model, measured, lift, context, settings.covariance)
         scores = {}
         folds = maneuver_folds(len(train.starts), settings.cv_folds)
         if folds:
