@@ -1,5 +1,7 @@
 """Staged, warm-started fits (issue 17 item 2): waves, donors, the single fit's chain, and that staging
 reaches the optimum that many quasi-random starts find."""
+from dataclasses import replace as dataclasses_replace
+
 import numpy as np
 import pytest
 
@@ -118,6 +120,66 @@ def test_the_state_memo_never_serves_another_theta():
     fresh = m.bind(data).regression_matrix(a)
     assert np.array_equal(first, again) and np.array_equal(again, fresh)
     assert not np.array_equal(problem.regression_matrix(b), fresh)
+
+
+def test_fixed_states_are_shared_per_data_and_keyed_by_their_values():
+    """A grid's drag and pitch candidates read the lift model's states with fixed parameters: computed
+    once per data set, never served for other values or other data, and never pickled."""
+    import dataclasses
+    import pickle
+    from structsearch.engine.stallmodel import FIXED_STATES_KEPT
+    from structsearch.flight.synthetic import campaign
+    from structsearch.search.models import build_model
+    data = campaign({"dynamic": 2}, duration=10.0, seed=2)
+    lift = build_model(resolve_candidate("CL-VI"))
+    fixed = dict(zip(lift.nonlinear_names, lift.start_vector()))
+    pinned = dataclasses.replace(lift, fixed=fixed)   # every separation parameter fixed
+    assert not pinned.nonlinear_names
+    one = pinned.bind(data).state_values(np.zeros(0))
+    two = pinned.bind(data).state_values(np.zeros(0))
+    assert all(one[s][1] is two[s][1] and not one[s][1].flags.writeable for s in one)
+    free = lift.bind(data).state_values(lift.start_vector(), False)
+    assert all(np.array_equal(one[s][1], free[s][1]) for s in one)
+    moved = dataclasses.replace(lift, fixed={**fixed, "a_star_ss": fixed["a_star_ss"] + 0.01})
+    other = moved.bind(data).state_values(np.zeros(0))
+    assert not np.array_equal(other["X_ss"][1], one["X_ss"][1]) and other["X_w"][1] is one["X_w"][1]
+    elsewhere = campaign({"dynamic": 2}, duration=10.0, seed=3)
+    assert not np.array_equal(pinned.bind(elsewhere).state_values(np.zeros(0))["X_ss"][1], one["X_ss"][1])
+    assert "_memo" not in pickle.loads(pickle.dumps(data)).__dict__
+    for i in range(2 * FIXED_STATES_KEPT):  # a loop over fixed values keeps a bounded number
+        dataclasses.replace(lift, fixed={**fixed, "a1_ss": 20.0 + i}).bind(data).state_values(np.zeros(0))
+    assert len(data.memo("fixed separation states")) == FIXED_STATES_KEPT
+
+
+def test_the_two_step_covariance_is_the_same_from_a_white_fit_with_its_factor(tiny):
+    """The search fits a drag or pitch candidate with the white covariance and hands its Jacobian's
+    inverse factor to the two-step estimator, which replaces the covariance: the same as fitting with
+    the requested kind and factorising again."""
+    from structsearch.search.generated import with_lift_uncertainty
+    from structsearch.search.models import build_model
+    from structsearch.search.shared_data import lift_context
+    train, validation = tiny.split("train"), tiny.split("validation")
+    candidate = resolve_candidate("Cm-XXXIIIr")
+    lift_candidate = resolve_candidate(candidate.lift)
+    lift = fit_staged(lift_candidate, train, validation, None, None, Settings())
+    context = lift_context(train, validation, lift, lift_candidate)
+    model = build_model(candidate, lift)
+    white = model.fit(context.train, covariance="white")
+    assert white.jacobian_inverse_factor is not None
+    quick = with_lift_uncertainty(white, model, train, lift, context, "hac-maneuver")
+    full = model.fit(context.train, covariance="hac-maneuver")
+    slow = with_lift_uncertainty(dataclasses_replace(full, jacobian_inverse_factor=None), model, train, lift,
+                                 context)
+    assert quick.covariance_kind == slow.covariance_kind == "hac-maneuver"
+    # equal up to rounding: the two QRs of the same Jacobian may round differently (memory alignment), and
+    # the sandwich amplifies that by the condition number squared
+    assert np.allclose(quick.covariance, slow.covariance, rtol=1e-6, atol=1e-9 * np.nanmax(np.abs(slow.covariance)),
+                       equal_nan=True)
+    assert np.array_equal(np.isnan(quick.covariance), np.isnan(slow.covariance))
+    assert quick.bandwidth == slow.bandwidth
+    assert np.allclose(quick.effective_maneuvers, slow.effective_maneuvers, rtol=1e-6, equal_nan=True)
+    # and it is the two-step covariance, not the white one it replaced
+    assert not np.allclose(quick.covariance, white.covariance, equal_nan=True)
 
 
 def test_a_campaign_split_is_read_only(tiny):
