@@ -194,7 +194,8 @@ def _search(args) -> int:
     from .report.tables import write_tables
     from .calibration import thesis_estimator_fits
     campaign = read_campaign(args.data)
-    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
+    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args),
+                        cv_method=args.cv_method)
     check_bounds(settings.bounds, [c for g in grids_for(args.grid) for c in g.candidates])
     client = _dask_client(args) if args.backend == "dask" else None
     try:
@@ -249,7 +250,9 @@ def _dask_client(args):
 
 
 def _held_out(s) -> str:
-    return f"{s.cv_folds}-fold CV" if s.cv is not None else "validation"
+    if s.cv is None:
+        return "validation"
+    return f"{s.cv_folds}-fold {'one-step ' if s.cv_method == 'one-step' else ''}CV"
 
 
 def _print_winners(result) -> None:
@@ -598,6 +601,11 @@ def build_parser() -> argparse.ArgumentParser:
     _campaign_options(r)
     r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all, or a grid spec file")
     r.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
+    from .search.runner import CV_METHODS
+    r.add_argument("--cv-method", choices=CV_METHODS, default="refit",
+                   help="cross-validation folds of a nonlinear candidate: refit (solved again from the full "
+                        "fit's estimates, exact; default) or one-step (one Gauss-Newton step from them: no "
+                        "solve, linearised; exact for linear candidates)")
     r.add_argument("--backend", default="loky", choices=("loky", "dask"),
                    help="loky: local processes; dask: a dask.distributed cluster")
     r.add_argument("--scheduler", default=None,

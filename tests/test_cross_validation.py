@@ -8,6 +8,9 @@ from structsearch.flight.synthetic import campaign
 from structsearch.search.candidate_result import CandidateResult, R2Summary, SplitScores
 from structsearch.search.ranking import rank
 from structsearch.search.runner import cross_validate, maneuver_folds
+from structsearch.flight.reference import FINAL_LIFT
+
+from conftest import central_difference
 
 
 def test_folds_group_maneuvers_round_robin_and_refuse_tiny_folds():
@@ -75,3 +78,77 @@ def test_scores_that_could_not_be_computed_survive_the_cache_as_nan():
     ranked = rank([c])[0]
     back = CandidateResult.from_json(ranked.to_json())
     assert np.isnan(back.cv.mse_maneuvers[1]) and np.isnan(back.gap_se) and back.cv_folds == 3
+
+
+@pytest.fixture(scope="module")
+def lift_fit(noise_free_lift):
+    """The final lift model fitted to its own output plus seeded noise on six maneuvers."""
+    model, data = noise_free_lift
+    rng = np.random.default_rng(21)
+    y = data["CL"] + 0.01 * rng.standard_normal(data.n_samples)
+    noisy = FlightData({**data.columns, "CL": y}, data.starts, data.names, data.source, data.constants)
+    start = {k: v for k, v in FINAL_LIFT.items() if k in model.nonlinear_names}
+    return model, noisy, model.fit(noisy, start=start, covariance="white")
+
+
+def test_one_step_folds_are_one_gauss_newton_step_from_the_full_fit(lift_fit):
+    """Independent reference: the model's Jacobian in all parameters by central differences of its
+    prediction, and per fold the least-squares step on the other maneuvers (numpy lstsq)."""
+    model, data, full = lift_fit
+    folds = maneuver_folds(6, 5)
+    one_step = cross_validate(model, data, full, folds, "one-step")
+    names = model.nonlinear_names + model.linear_names
+    x0 = np.array([full.params[n] for n in names])
+    jac = central_difference(lambda x: model.predict(data, dict(zip(names, x))), x0)
+    r = data["CL"] - model.predict(data, full.params)
+    sl = data.segment_slices()
+    for fold in folds:
+        rest = np.concatenate([np.arange(sl[i].start, sl[i].stop) for i in range(6) if i not in fold])
+        step, *_ = np.linalg.lstsq(jac[rest], r[rest], rcond=None)
+        for i in fold:
+            expected = r[sl[i]] - jac[sl[i]] @ step
+            assert np.allclose(one_step[sl[i]], expected, rtol=0, atol=1e-6 * np.max(np.abs(r))), (fold, i)
+
+
+def test_one_step_cross_validation_is_close_to_refitting_the_folds(lift_fit):
+    model, data, full = lift_fit
+    folds = maneuver_folds(6, 5)
+    refit = cross_validate(model, data, full, folds, "refit")
+    one_step = cross_validate(model, data, full, folds, "one-step")
+    in_sample = data["CL"] - model.predict(data, full.params)
+    sl = data.segment_slices()
+    for s in sl:
+        mse_refit, mse_step = np.mean(refit[s] ** 2), np.mean(one_step[s] ** 2)
+        assert abs(mse_step / mse_refit - 1) < 0.02, (mse_step, mse_refit)
+    # both are held-out errors: larger than the in-sample one on the whole
+    assert np.mean(one_step ** 2) > np.mean(in_sample ** 2) and np.mean(refit ** 2) > np.mean(in_sample ** 2)
+
+
+def test_linear_folds_are_the_same_by_either_method():
+    base = campaign({"quasi-steady": 3, "dynamic": 3}, duration=20.0, seed=4)
+    rng = np.random.default_rng(3)
+    y = 0.2 + 4.0 * base["alpha"] + 0.01 * rng.standard_normal(base.n_samples)
+    data = FlightData({**base.columns, "CL": y}, base.starts, base.names, base.source, base.constants)
+    model = StallModel.declare("lin", "CL", regressors={"c0": "1", "ca": "alpha"})
+    full = model.fit(data, covariance="white")
+    folds = maneuver_folds(6, 5)
+    assert np.array_equal(cross_validate(model, data, full, folds, "one-step"),
+                          cross_validate(model, data, full, folds, "refit"))
+
+
+def test_candidates_of_different_cross_validation_methods_are_not_compared_by_it():
+    import dataclasses
+    a = _candidate("a", 3, [1.0, 2.0, 3.0], [1.3, 2.6, 3.9])
+    b = dataclasses.replace(_candidate("b", 3, [1.2, 2.4, 3.6], [1.0, 2.0, 3.0]), cv_method="one-step")
+    assert [r.name for r in rank([a, b])] == ["b", "a"]  # by validation: b is better there
+    b_refit = dataclasses.replace(b, cv_method="refit")
+    assert [r.name for r in rank([a, b_refit])] == ["a", "b"]  # same method: by the CV
+    back = CandidateResult.from_json(b.to_json())
+    assert back.cv_method == "one-step"
+
+
+def test_an_unknown_cross_validation_method_is_one_clear_error():
+    from structsearch.data.errors import StructSearchError
+    from structsearch.search.runner import Settings
+    with pytest.raises(StructSearchError, match="one of refit, one-step, not 'jackknife'"):
+        Settings(cv_method="jackknife")

@@ -17,7 +17,7 @@ from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores, R2Summary
 
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
-JSON_LAYOUT = 5
+JSON_LAYOUT = 6
 
 
 def _finite_or_none(v: float | None) -> float | None:
@@ -100,6 +100,7 @@ class CandidateResult:
     validation: SplitScores | None = None
     cv: SplitScores | None = None       # held-out scores of the training maneuvers (cross-validation)
     cv_folds: int = 0
+    cv_method: str = "refit"            # how the folds were fitted (runner.CV_METHODS)
     # --- set by the ranking ---
     admissible: bool | None = None
     reasons: tuple[str, ...] = ()       # why it is not admissible
@@ -113,7 +114,7 @@ class CandidateResult:
     def from_fit(cls, *, name: str, grid: str, coefficient: str, lift: str | None, result: FitResult,
                  train: SplitScores, validation: SplitScores, seconds: float,
                  centred_correlation: np.ndarray | None = None, cv: SplitScores | None = None,
-                 cv_folds: int = 0) -> "CandidateResult":
+                 cv_folds: int = 0, cv_method: str = "refit") -> "CandidateResult":
         return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds,
                    names=tuple(result.names), nonlinear_names=tuple(result.nonlinear_names),
                    params=dict(result.params), stderr=dict(result.stderr), p_values=dict(result.p_values),
@@ -127,7 +128,7 @@ class CandidateResult:
                    converged=bool(result.success), message=result.message, nfev=int(result.nfev),
                    not_identifiable=dict(result.not_identifiable),
                    condition_number=float(result.condition_number),
-                   train=train, validation=validation, cv=cv, cv_folds=cv_folds)
+                   train=train, validation=validation, cv=cv, cv_folds=cv_folds, cv_method=cv_method)
 
     @classmethod
     def failure(cls, *, name: str, grid: str, coefficient: str, lift: str | None, error: str,

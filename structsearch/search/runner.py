@@ -29,6 +29,7 @@ from .admissibility import centred_correlation
 from .candidates import Candidate
 from .specs import load_grid
 from ..engine.ols import held_out_residuals
+from ..engine.snls import model_jacobian
 from ..engine.scores import ManeuverScores
 from ..engine.statistics import DEFAULT_COVARIANCE
 from .candidate_result import JSON_LAYOUT, CandidateResult, SplitScores
@@ -41,6 +42,11 @@ from .staging import STAGE_STARTS, WARM_STARTS, stages, warm_start, waves
 # CV_MIN_MANEUVERS maneuvers; none below two folds).
 CV_FOLDS = 5
 CV_MIN_MANEUVERS = 3
+# How a fold is fitted: "refit" solves it again from the full fit's estimates (exact); "one-step" takes
+# one Gauss-Newton step from them on the fold's maneuvers (linearised: exact for a linear candidate,
+# an approximation of second order in the fold's change of the estimates for a nonlinear one, and no
+# solve at all: the full fit's Jacobian serves every fold).
+CV_METHODS = ("refit", "one-step")
 
 
 @dataclass(frozen=True)
@@ -51,10 +57,17 @@ class Settings:
     covariance: str = DEFAULT_COVARIANCE
     cv_folds: int = CV_FOLDS          # 0: no cross-validation (diagnosis, calibration: they do not rank)
     bounds: tuple[tuple[str, tuple[float, float]], ...] = ()   # --bound NAME=LO:HI, over declared boxes
+    cv_method: str = "refit"          # CV_METHODS
+
+    def __post_init__(self):
+        if self.cv_method not in CV_METHODS:
+            raise StructSearchError(f"cross-validation method must be one of {', '.join(CV_METHODS)}, "
+                                    f"not {self.cv_method!r}")
 
     def key(self) -> dict:
         return {"n_starts": self.n_starts, "seed": self.seed, "covariance": self.covariance,
-                "cv_folds": self.cv_folds, "bounds": [[k, list(v)] for k, v in self.bounds]}
+                "cv_folds": self.cv_folds, "bounds": [[k, list(v)] for k, v in self.bounds],
+                "cv_method": self.cv_method}
 
 
 def check_bounds(bounds, candidates) -> None:
@@ -80,11 +93,14 @@ def maneuver_folds(n_maneuvers: int, folds: int) -> list[list[int]]:
     return [list(range(i, n_maneuvers, k)) for i in range(k)]
 
 
-def cross_validate(model, train: FlightData, result, folds: list[list[int]]) -> np.ndarray:
+def cross_validate(model, train: FlightData, result, folds: list[list[int]], method: str = "refit") -> np.ndarray:
     """Held-out residuals of every training maneuver: each fold refitted on the other maneuvers and
     predicted on its own. A linear model's folds share one factorisation of its regressors
-    (:func:`held_out_residuals`); a nonlinear model's fold is one solve warm started from the full
-    training fit. Folds need estimates only: no statistics are computed for them.
+    (:func:`held_out_residuals`). A nonlinear model's fold is, with ``method`` "refit", one solve warm
+    started from the full training fit; with "one-step", one Gauss-Newton step from it: the same
+    least-squares problem on the full fit's Jacobian [dPhi/dtheta c, Phi] and residual, so that the
+    folds share its factorisation too (for a linear model the step lands on the fold's exact fit).
+    Folds need estimates only: no statistics are computed for them.
 
     Drag and pitch candidates keep the separation states and C_L of the lift model fitted on all
     training maneuvers (held-out ones included): their comparison is conditional on that lift model,
@@ -92,6 +108,12 @@ def cross_validate(model, train: FlightData, result, folds: list[list[int]]) -> 
     y = train[model.coefficient]
     if not model.nonlinear_names:
         return held_out_residuals(model.bind(train).regression_matrix(np.zeros(0)), y, train.bounds, folds)
+    if method == "one-step":
+        theta = np.array([result.params[k] for k in model.nonlinear_names], float)
+        coef = np.array([result.params[k] for k in model.linear_names], float)
+        ev = model.bind(train).evaluate(theta)
+        jac = model_jacobian(ev, coef, len(theta))
+        return held_out_residuals(jac, y - ev.phi @ coef, train.bounds, folds)
     residual = np.empty_like(y)
     slices = train.segment_slices()
     warm = {k: result.params[k] for k in model.nonlinear_names}
@@ -200,7 +222,8 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         folds = maneuver_folds(len(train.starts), settings.cv_folds)
         if folds:
             y = train[c.coefficient]
-            scores["cv"] = SplitScores.of(ManeuverScores.of(y, cross_validate(model, train, result, folds),
+            scores["cv"] = SplitScores.of(ManeuverScores.of(y, cross_validate(model, train, result, folds,
+                                                                              settings.cv_method),
                                                             train.segment_slices()), None)
         for split, data in (("train", train), ("validation", validation)):
             y = data[c.coefficient]
@@ -211,6 +234,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         return CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                         result=result, train=scores["train"], validation=scores["validation"],
                                         cv=scores.get("cv"), cv_folds=len(folds),
+                                        cv_method=settings.cv_method,  # a linear candidate's is exact either way
                                         seconds=time.perf_counter() - t0,
                                         centred_correlation=centred_correlation(c, model, train, result))
     except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
