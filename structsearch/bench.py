@@ -259,12 +259,39 @@ def run_search(n_jobs: int = 2, seed: int = 0, progress=None) -> dict:
         workers = _children(os.getpid())
         worker_peaks = [_peak_rss_mb(p) for p in workers]
     winners = {g: next((s.name for s in r if not s.failed), None) for g, r in result.grids.items()}
+    main_peak = _peak_rss_mb(os.getpid())
+    with tempfile.TemporaryDirectory() as tmp:
+        say("search --grid all --cv-method one-step from an empty cache")
+        t0 = time.perf_counter()
+        one_step = search(campaign, "all", Path(tmp), n_jobs=n_jobs, settings=Settings(cv_method="one-step"))
+        write_tables(one_step.grids, Path(tmp))
+        total_one_step = time.perf_counter() - t0
     return {"samples": campaign.data.n_samples, "simulate_s": t_sim, "search_s": total,
             "cl_vi_start_s": unit, "search_in_cl_vi_starts": total / unit,
             "by_grid_s": result.seconds, "candidates": {g: len(r) for g, r in result.grids.items()},
             "failed": {g: sum(s.failed for s in r) for g, r in result.grids.items()},
-            "winners": winners, "n_jobs": n_jobs, "main_peak_rss_mb": _peak_rss_mb(os.getpid()),
-            "worker_peak_rss_mb": worker_peaks}
+            "winners": winners, "n_jobs": n_jobs, "main_peak_rss_mb": main_peak,
+            "worker_peak_rss_mb": worker_peaks,
+            "one_step": {"search_s": total_one_step, "search_in_cl_vi_starts": total_one_step / unit,
+                         "by_grid_s": one_step.seconds, **ranking_agreement(result.grids, one_step.grids)}}
+
+
+def ranking_agreement(refit: dict, one_step: dict) -> dict:
+    """How the rankings of two searches of the same grids agree: the same first candidate and the same
+    admissible ones per grid, the candidates whose rank moved, the largest relative CV MSE difference."""
+    out = {"same_first": {}, "same_admissible": {}, "moved": {}, "max_rel_cv_difference": {}}
+    for g, ranked in refit.items():
+        a = {s.name: s for s in ranked if not s.failed}
+        b = {s.name: s for s in one_step[g] if not s.failed}
+        first = lambda r: next((s.name for s in r if not s.failed), None)  # noqa: E731
+        out["same_first"][g] = first(ranked) == first(one_step[g])
+        out["same_admissible"][g] = {n for n, s in a.items() if s.admissible} == \
+            {n for n, s in b.items() if s.admissible}
+        out["moved"][g] = sorted(n for n in a if n in b and a[n].rank != b[n].rank)
+        diffs = [abs(b[n].cv.mse / a[n].cv.mse - 1) for n in a
+                 if n in b and a[n].cv is not None and b[n].cv is not None]
+        out["max_rel_cv_difference"][g] = max(diffs) if diffs else float("nan")
+    return out
 
 
 def one_start_unit(campaign, repeats: int = 3) -> float:
@@ -376,6 +403,20 @@ def search_markdown(s: dict) -> str:
               f"Peak resident memory: main process {s['main_peak_rss_mb']:.0f} MB, workers "
               + ", ".join(f"{w:.0f} MB" for w in s["worker_peak_rss_mb"]) +
               f" (sum {s['main_peak_rss_mb'] + sum(s['worker_peak_rss_mb']):.0f} MB).", ""]
+    o = s.get("one_step")
+    if o:
+        lines += ["### The same search with `--cv-method one-step`", "",
+                  "Each cross-validation fold of a nonlinear candidate by one Gauss-Newton step from the full "
+                  "fit instead of a solve (linear candidates: exact either way).", "",
+                  "| grid | wall time [s] | same first | same admissible | candidates whose rank moved | "
+                  "largest relative CV MSE difference |", "|---|---|---|---|---|---|"]
+        for g, sec in o["by_grid_s"].items():
+            moved = ", ".join(o["moved"][g]) or "none"
+            lines.append(f"| {g} | {sec:.1f} | {'yes' if o['same_first'][g] else 'NO'} | "
+                         f"{'yes' if o['same_admissible'][g] else 'NO'} | {moved} | "
+                         f"{o['max_rel_cv_difference'][g]:.2%} |")
+        lines += [f"| **all** | **{o['search_s']:.1f}** | | | | |", "",
+                  f"That is **{o['search_in_cl_vi_starts']:.0f} CL-VI starts' worth** of wall time.", ""]
     return "\n".join(lines)
 
 

@@ -152,3 +152,20 @@ def test_an_unknown_cross_validation_method_is_one_clear_error():
     from structsearch.search.runner import Settings
     with pytest.raises(StructSearchError, match="one of refit, one-step, not 'jackknife'"):
         Settings(cv_method="jackknife")
+
+
+def test_the_bench_compares_two_rankings_candidate_by_candidate():
+    import dataclasses
+    from structsearch.bench import ranking_agreement
+    a = rank([_candidate("a", 3, [1.0, 2.0, 3.0], [1.0, 2.0, 3.0]),
+              _candidate("b", 3, [1.5, 3.0, 4.5], [1.0, 2.0, 3.0])])
+    b = rank([_candidate("a", 3, [1.6, 3.2, 4.8], [1.0, 2.0, 3.0]),
+              _candidate("b", 3, [1.5, 3.0, 4.5], [1.0, 2.0, 3.0])])
+    a = [dataclasses.replace(s, admissible=True) for s in a]
+    b = [dataclasses.replace(s, admissible=s.name == "b") for s in b]
+    out = ranking_agreement({"g": a}, {"g": b})
+    assert out["same_first"] == {"g": False} and out["same_admissible"] == {"g": False}
+    assert out["moved"] == {"g": ["a", "b"]}
+    assert out["max_rel_cv_difference"]["g"] == pytest.approx(0.6)
+    same = ranking_agreement({"g": a}, {"g": a})
+    assert same["same_first"]["g"] and same["moved"]["g"] == [] and same["max_rel_cv_difference"]["g"] == 0
