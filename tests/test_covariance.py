@@ -304,3 +304,26 @@ def test_effective_maneuvers_count_the_maneuvers_that_inform_a_parameter():
         assert effective[1] == pytest.approx(1.0, rel=1e-9)
     # column 0 alone: every maneuver carries the same share
     assert effective_maneuvers(jac[:, :1], scores[:, :1], bounds, "cluster")[0] == pytest.approx(g)
+
+
+def test_the_scaled_factor_from_a_pivoted_projection_is_the_direct_one():
+    """An OLS fit takes the column-scaled factor from its pivoted QR (p x p work): R^-1 R^-T, singular values
+    and the covariance equal those of a direct QR of the scaled regressors, for columns of very different
+    sizes and a nearly collinear pair."""
+    from scipy.linalg import qr as direct_qr
+    from structsearch.engine.snls import project
+    from structsearch.engine.statistics import inverse_factor, scaled_factor_from_qr
+    rng = np.random.default_rng(8)
+    base = rng.standard_normal((4000, 5))
+    phi = np.column_stack([base[:, 0] * 1e3, base[:, 1], base[:, 1] + 1e-3 * base[:, 2], base[:, 3] * 1e-4,
+                           np.ones(4000)])
+    proj = project(phi, rng.standard_normal(4000))
+    assert proj.rank == 5 and not np.array_equal(proj.columns, np.arange(5))  # pivoting reordered
+    r, scale = scaled_factor_from_qr(phi, proj.r, proj.columns)
+    norms = np.linalg.norm(phi, axis=0)
+    direct = direct_qr(phi / norms, mode="r")[0][:5]
+    assert np.allclose(scale, norms, rtol=1e-14)
+    assert np.allclose(np.abs(r), np.abs(direct), rtol=1e-9, atol=1e-12)
+    a, b = inverse_factor(phi, (r, scale)), inverse_factor(phi)
+    assert np.allclose(a @ a.T, b @ b.T, rtol=1e-9)
+    assert np.allclose(np.linalg.svd(r, compute_uv=False), np.linalg.svd(direct, compute_uv=False), rtol=1e-10)

@@ -9,7 +9,8 @@ from .results import FitResult
 from .identifiability import covariance_basis, rank_reasons
 from .snls import SeparableProblem, model_jacobian, multistart, project
 from .scores import ManeuverScores, slices_of
-from .statistics import COVARIANCE_KINDS, Covariances, scaled_factor, scaled_condition_number
+from .statistics import (COVARIANCE_KINDS, Covariances, scaled_condition_number, scaled_factor,
+                         scaled_factor_from_qr)
 
 
 
@@ -70,7 +71,10 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
         residual = problem.extended_residual(outcome.theta, proj.coef, y)
     names = tuple(problem.nonlinear_names) + tuple(problem.linear_names)
     reasons = dict(problem.identifiability(outcome.theta)) if hasattr(problem, "identifiability") else {}
-    factor = scaled_factor(jac)  # one QR of the m x p Jacobian serves the rank test, condition and covariance
+    # one QR of the m x p Jacobian serves the rank test, condition and covariance; an OLS Jacobian is Phi,
+    # whose projection factorised it already
+    factor = scaled_factor_from_qr(jac, proj.r, proj.columns) if k == 0 and proj.rank == jac.shape[1] \
+        else scaled_factor(jac)
     reasons.update(rank_reasons(jac, names, skip=tuple(reasons), factor=factor[0]))
     basis = covariance_basis(jac, names, reasons, k)
     everything = bool(np.all(basis)) and bool(np.all(np.isfinite(jac)))

@@ -137,6 +137,18 @@ def scaled_factor(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return qr(jac / scale, mode="r", check_finite=False)[0][: jac.shape[1]], scale
 
 
+def scaled_factor_from_qr(jac: np.ndarray, r: np.ndarray, columns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`scaled_factor` of ``jac`` from a pivoted thin QR of it that kept every column
+    (``jac[:, columns] = Q r``): jac D^-1 = Q (r P^T D^-1), so the QR of that p x p matrix has the same
+    triangular factor up to the signs of its rows, which no estimator here sees (they use R^-1 R^-T,
+    singular values and right singular vectors). p x p work instead of m x p."""
+    scale = np.sqrt(np.sum(jac * jac, axis=0))
+    scale[scale == 0] = 1.0
+    unpivoted = np.empty_like(r)
+    unpivoted[:, columns] = r
+    return qr(unpivoted / scale, mode="r", check_finite=False)[0], scale
+
+
 def inverse_factor(jac: np.ndarray, factor: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """R^-1 of the thin QR of the column-scaled Jacobian, with the scaling folded back in; ``factor``:
     (R, column norms) of :func:`scaled_factor` when the caller has it."""
