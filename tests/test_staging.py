@@ -93,7 +93,7 @@ def test_a_staged_grid_is_served_from_the_cache_on_the_second_run(tiny, tmp_path
     messages = []
     again = run(cands, tiny, tmp_path, progress=messages.append)
     assert [r.mse_train for r in again] == [r.mse_train for r in first]
-    assert messages == ["1 of 1 candidates from the cache"] * 3
+    assert messages == ["3 of 3 candidates from the cache"]
     # X U started from X Q's estimates and its declared start, X S from quasi-random starts
     assert first[2].n_starts == 2 and first[0].n_starts == Settings().n_starts
     assert np.isfinite(first[2].mse_train)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import sys
 import time
 from contextlib import ExitStack
@@ -35,8 +36,8 @@ from ..engine.statistics import DEFAULT_COVARIANCE
 from .candidate_result import JSON_LAYOUT, CandidateResult, SplitScores
 from .generated import with_lift_uncertainty
 from .models import build_model
-from .shared_data import lift_context, resolve_splits, shared_splits
-from .staging import STAGE_STARTS, WARM_STARTS, stages, warm_start, waves
+from .shared_data import LOCAL_PROCESS_BACKENDS, lift_context, resolve_splits, shared_splits
+from .staging import STAGE_STARTS, WARM_STARTS, may_donate, stages, warm_start, waves
 
 # Cross-validation folds over the training maneuvers (fewer when a fold would hold fewer than
 # CV_MIN_MANEUVERS maneuvers; none below two folds).
@@ -290,65 +291,115 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_
         lift_candidates: dict | None = None, settings: Settings = Settings(), n_jobs: int = 1,
         backend: str = "loky", progress: Callable[[str], None] | None = None,
         fitted_before: Sequence[tuple[Candidate, CandidateResult]] = ()) -> list[CandidateResult]:
-    """Fit candidates (cached, in parallel) in staged waves (:mod:`.staging`): a candidate starts from the
-    estimates of a candidate nested in it, fitted in an earlier wave or in ``fitted_before``. Results
-    come in the order of ``candidates``."""
+    """Fit candidates (cached, in parallel), staged (:mod:`.staging`): a candidate starts from the
+    estimates of a candidate nested in it, fitted before it in this grid (an earlier wave) or in
+    ``fitted_before``. Local worker processes take a candidate as soon as the candidates it may start
+    from are fitted; other backends fit wave after wave. Either way a candidate's donors are the same
+    (those of earlier waves), so the results do not depend on the backend or the number of jobs.
+    Results come in the order of ``candidates``."""
     say = progress or (lambda msg: None)
     train, validation = campaign.split("train"), campaign.split("validation")
     data_key = campaign_fingerprint(campaign)
     lift_results = lift_results or {}
     lift_candidates = lift_candidates or {}
     results: list[CandidateResult | None] = [None] * len(candidates)
-    fitted = list(fitted_before)
-    splits = None
-    with ExitStack() as stack:  # the splits are shared with the workers once, when a fit is needed
-        for wave in waves(candidates):
-            todo, paths, starts = [], {}, {}
-            for i in wave:
-                c = candidates[i]
-                lift = lift_results.get(c.lift) if c.lift else None
-                starts[i] = warm_start(c, fitted)
-                paths[i] = cache_path(out, c, data_key, lift.params if lift else None, settings)
-                cached = _read_cached(paths[i], say)
-                if cached is not None:
-                    results[i] = cached
-                else:
-                    todo.append(i)
-            if len(todo) < len(wave):
-                say(f"{len(wave) - len(todo)} of {len(wave)} candidates from the cache")
-            if todo:
-                if splits is None:
-                    splits = stack.enter_context(shared_splits(train, validation, backend, n_jobs))
-                _fit_wave(todo, candidates, starts, paths, results, splits, lift_results, lift_candidates,
-                          settings, n_jobs, backend, say)
-            fitted += [(candidates[i], results[i]) for i in wave]
+    order = waves(candidates)
+    wave_of = {i: w for w, members in enumerate(order) for i in members}
+    # the candidates of earlier waves a candidate may start from: it waits for them
+    needs = {i: [j for j in wave_of if wave_of[j] < wave_of[i] and may_donate(candidates[j], candidates[i])]
+             for i in wave_of}
+    paths = {}
+    for i, c in enumerate(candidates):
+        lift = lift_results.get(c.lift) if c.lift else None
+        paths[i] = cache_path(out, c, data_key, lift.params if lift else None, settings)
+        results[i] = _read_cached(paths[i], say)
+    cached = sum(r is not None for r in results)
+    if cached:
+        say(f"{cached} of {len(candidates)} candidates from the cache")
+    todo = [i for i in range(len(candidates)) if results[i] is None]
+    if not todo:
+        return results
+
+    def start_of(i):
+        return warm_start(candidates[i], list(fitted_before) + [(candidates[j], results[j]) for j in needs[i]])
+
+    def done(i, summary, finished, t0, warm):
+        if not summary.failed or summary.error.startswith(CACHED_FAILURES):
+            write_json(paths[i], summary.to_json(), indent=1)
+        results[i] = summary
+        status = "failed: " + summary.error if summary.failed else f"{summary.seconds:.1f} s"
+        say(f"[{finished}/{len(todo)}] {candidates[i].grid} {candidates[i].name}{' (warm start)' if warm else ''}: "
+            f"{status} ({time.perf_counter() - t0:.0f} s elapsed)")
+
+    with ExitStack() as stack:  # the splits are shared with the workers once
+        splits = stack.enter_context(shared_splits(train, validation, backend, n_jobs))
+        task = _Task(candidates, splits, lift_results, lift_candidates, settings)
+        t0 = time.perf_counter()
+        if backend in LOCAL_PROCESS_BACKENDS and n_jobs > 1:
+            _fit_as_ready(todo, needs, start_of, task, n_jobs, lambda i, s, k, w: done(i, s, k, t0, w))
+        else:
+            finished = 0
+            for wave in order:
+                mine = [i for i in wave if i in set(todo)]
+                starts = {i: start_of(i) for i in mine}
+                from joblib import Parallel, delayed, parallel_config
+                with parallel_config(backend=backend, n_jobs=n_jobs):
+                    # unordered: each result is cached as soon as it exists (a crash loses only running fits)
+                    for i, summary in Parallel(return_as="generator_unordered")(
+                            delayed(task)(i, starts[i]) for i in mine):
+                        finished += 1
+                        done(i, summary, finished, t0, starts[i])
     return results
 
 
-def _fit_wave(todo, candidates, starts, paths, results, splits, lift_results, lift_candidates,
-              settings, n_jobs, backend, say) -> None:
-    """Fit the candidates ``todo`` of one wave in parallel, caching each result as soon as it exists;
-    ``splits`` is a handle of :func:`.shared_data.shared_splits`."""
-    def task(i):
-        c = candidates[i]
-        train, validation = resolve_splits(splits)
-        return i, fit_staged(c, train, validation, lift_results.get(c.lift) if c.lift else None,
-                             lift_candidates.get(c.lift), settings, start=starts[i])
+# Thread pools of numerical libraries a worker process must not multiply by the number of workers.
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
+                    "VECLIB_MAXIMUM_THREADS", "NUMBA_NUM_THREADS", "NUMEXPR_NUM_THREADS")
 
-    from joblib import Parallel, delayed, parallel_config
-    done = 0
-    t0 = time.perf_counter()
-    with parallel_config(backend=backend, n_jobs=n_jobs):
-        # unordered: each result is cached as soon as it exists (a crash loses only running fits)
-        for i, summary in Parallel(return_as="generator_unordered")(delayed(task)(i) for i in todo):
-            if not summary.failed or summary.error.startswith(CACHED_FAILURES):
-                write_json(paths[i], summary.to_json(), indent=1)
-            results[i] = summary
-            done += 1
-            status = "failed: " + summary.error if summary.failed else f"{summary.seconds:.1f} s"
-            warm = " (warm start)" if starts[i] else ""
-            say(f"[{done}/{len(todo)}] {candidates[i].grid} {candidates[i].name}{warm}: {status} "
-                f"({time.perf_counter() - t0:.0f} s elapsed)")
+
+class _Task:
+    """One candidate's fit in a worker: the splits come from the shared handle."""
+
+    def __init__(self, candidates, splits, lift_results, lift_candidates, settings):
+        self.candidates, self.splits, self.settings = candidates, splits, settings
+        self.lift_results, self.lift_candidates = lift_results, lift_candidates
+
+    def __call__(self, i, start):
+        c = self.candidates[i]
+        train, validation = resolve_splits(self.splits)
+        return i, fit_staged(c, train, validation, self.lift_results.get(c.lift) if c.lift else None,
+                             self.lift_candidates.get(c.lift), self.settings, start=start)
+
+
+def _fit_as_ready(todo, needs, start_of, task, n_jobs, done) -> None:
+    """Fit ``todo`` on local worker processes, each candidate as soon as the ones it ``needs`` are fitted
+    (joblib's reusable loky executor: the same workers and per-process memos as joblib's Parallel)."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+    from joblib.executor import get_memmapping_executor
+    # the executor joblib's Parallel would use (the same arguments: a search and joblib calls around it
+    # share the worker processes): the workers' thread pools share the cores, unless the caller said
+    threads = str(max((os.cpu_count() or 1) // n_jobs, 1))
+    env = {var: os.environ.get(var, threads) for var in THREAD_VARIABLES}
+    if "ENABLE_IPC" not in os.environ:  # TBB's schedulers coordinate across processes, as joblib sets it
+        env["ENABLE_IPC"] = "1"
+    executor = get_memmapping_executor(n_jobs, timeout=300, env=env)
+    waiting, running, finished = set(todo), {}, 0
+    fitted = set(needs) - set(todo)   # the cached ones
+    while waiting or running:
+        for i in sorted(waiting):
+            if all(j in fitted for j in needs[i]):
+                start = start_of(i)
+                running[executor.submit(task, i, start)] = (i, start)
+                waiting.discard(i)
+        if not running:  # cannot happen: needs only point to earlier waves
+            raise RuntimeError(f"candidates {sorted(waiting)} wait for candidates that never finish")
+        complete, _ = wait(running, return_when=FIRST_COMPLETED)
+        for future in complete:
+            i, start = running.pop(future)
+            _, summary = future.result()
+            fitted.add(i)
+            finished += 1
+            done(i, summary, finished, start)
 
 
 def _read_cached(path: Path, say) -> CandidateResult | None:

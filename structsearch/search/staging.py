@@ -71,15 +71,19 @@ def waves(candidates: Sequence[Candidate]) -> list[list[int]]:
     return [[i for i, d in enumerate(levels) if d == level] for level in sorted(set(levels))]
 
 
+def may_donate(d: Candidate, c: Candidate) -> bool:
+    """Whether ``d``, once fitted, may give ``c`` its warm start (see :func:`warm_start`)."""
+    return d.name != c.name and d.coefficient == c.coefficient and _stageable(d) and _stageable(c) \
+        and set(d.state_parameters) <= set(c.state_parameters)
+
+
 def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResult]]) -> dict[str, float] | None:
     """Estimates of ``c``'s separation parameters from the fitted candidate that shares most of them (of
     the same coefficient, without a lift model; the lowest training MSE among equals), for those it has;
     None when no fitted candidate shares all of its own separation parameters with ``c``."""
     if not _stageable(c):
         return None
-    mine = set(c.state_parameters)
-    donors = [(d, r) for d, r in fitted if not r.failed and d.name != c.name and d.coefficient == c.coefficient
-              and _stageable(d) and set(d.state_parameters) <= mine and np.isfinite(r.mse_train)]
+    donors = [(d, r) for d, r in fitted if may_donate(d, c) and not r.failed and np.isfinite(r.mse_train)]
     if not donors:
         return None
     donor, result = min(donors, key=lambda dr: (-len(dr[0].state_parameters), dr[1].mse_train))
