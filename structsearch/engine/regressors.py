@@ -124,22 +124,25 @@ NAMED_EXPRESSIONS = {"qstar": reduced_pitch_rate, "spline": van_ingen_spline}
 
 def parse(text: str, *, known: Iterable[str], context: str = "") -> sp.Expr:
     """Parse a regressor or basis expression; every name becomes a real symbol."""
-    return _parse(text, tuple(known), context)
+    try:
+        return _parse(text, tuple(known))
+    except DeclarationError as exc:
+        raise DeclarationError(f"{context}: {exc}" if context else str(exc)) from None
 
 
 @lru_cache(maxsize=4096)
-def _parse(text: str, known: tuple[str, ...], context: str) -> sp.Expr:
-    """Cached: a search declares the same expressions thousands of times (sympy expressions are immutable)."""
+def _parse(text: str, known: tuple[str, ...]) -> sp.Expr:
+    """Cached: a search declares the same expressions thousands of times (sympy expressions are immutable);
+    the context of an error message is not part of the key (it names the candidate)."""
     local: dict = {name: _real(name) for name in known}
     local.update(HELPERS)
     local.update({name: make() for name, make in NAMED_EXPRESSIONS.items()})
-    where = f"{context}: " if context else ""
     try:
         expr = sp.sympify(text, locals=local)
     except (sp.SympifyError, SyntaxError, TypeError, AttributeError) as exc:
-        raise DeclarationError(f"{where}cannot parse expression {text!r}: {exc}") from None
+        raise DeclarationError(f"cannot parse expression {text!r}: {exc}") from None
     if not isinstance(expr, sp.Expr):
-        raise DeclarationError(f"{where}expression {text!r} is not a scalar expression")
+        raise DeclarationError(f"expression {text!r} is not a scalar expression")
     # names the user did not declare came back as plain (non-real) symbols: make them real
     expr = expr.xreplace({s: _real(s.name) for s in expr.free_symbols if not s.is_real})
     return expr
@@ -195,13 +198,19 @@ class Regressor:
         """d value / d (data column ``column``): zero when the regressor does not read it."""
         if column not in self.columns:
             return np.zeros(n)
-        expr = sp.diff(self.expr, _real(column))
-        out = compile_expression(expr, self.argnames)(*self._arguments(data, state_values))
+        out = compile_expression(_derivative(self.expr, column), self.argnames)(*self._arguments(data, state_values))
         return np.broadcast_to(np.asarray(out, dtype=float), (n,))
 
     def derivative(self, state: str, data, state_values, n: int) -> np.ndarray:
         out = compile_expression(self.derivatives[state], self.argnames)(*self._arguments(data, state_values))
         return np.broadcast_to(np.asarray(out, dtype=float), (n,))
+
+
+@lru_cache(maxsize=4096)
+def _derivative(expr: sp.Expr, name: str) -> sp.Expr:
+    """d expr / d name, cached like the parsed expressions (every candidate of a grid declares its
+    regressors again)."""
+    return sp.diff(expr, _real(name))
 
 
 def _is_state_name(name: str) -> bool:
@@ -231,7 +240,7 @@ def declare(name: str, text: str | sp.Expr, *, states: Iterable[str],
             f"{', '.join(columns)}; constants: {', '.join(constants)}; separation states: "
             f"{', '.join(states) or '(none declared)'}")
     used_states = tuple(s for s in states if s in names)
-    derivs = {s: sp.diff(expr, _real(s)) for s in used_states}
+    derivs = {s: _derivative(expr, s) for s in used_states}
     return Regressor(name=name, expr=expr,
                      columns=tuple(c for c in columns if c in names),
                      constants=tuple(c for c in constants if c in names),

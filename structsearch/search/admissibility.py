@@ -16,6 +16,7 @@ what the data can separate; the thesis' C_m,K0 / C_m,cg pair (-1.00 in its Table
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import sympy
@@ -120,20 +121,29 @@ def _physics_reasons(result: CandidateResult, candidate: Candidate, rules: Admis
 def _pitch_slopes(candidate: Candidate, params: dict, rules: AdmissibilityRules) -> list[float] | None:
     """dC_m/dC_L at attached flow (every X = 1) with the cg at either end of the envelope, or None when
     the slope depends on more than x_cg and cbar (it cannot be judged from the envelope alone)."""
-    attached = {SeparationState(n, k).symbol for n, k in candidate.states} | {"X", "X_ss", "X_w"}
+    attached = frozenset({SeparationState(n, k).symbol for n, k in candidate.states} | {"X", "X_ss", "X_w"})
     total = sympy.Integer(0)
     for name, text in candidate.regressors:
-        expr = _expr(text)
-        cl = next((sym for sym in expr.free_symbols if sym.name == "CL"), None)
-        if name in params and cl is not None:
-            total += params[name] * sympy.diff(expr, cl)
-    fixed = {sym: 1 for sym in total.free_symbols if sym.name in attached}
-    fixed.update({sym: rules.cbar for sym in total.free_symbols if sym.name == "cbar"})
-    total = total.subs(fixed)
+        if name in params:
+            total += params[name] * _attached_cl_slope(text, attached, rules.cbar)
     if {sym.name for sym in total.free_symbols} - {"x_cg"}:
         return None
     x_cg = next(iter(total.free_symbols), None)
     return [float(total.subs(x_cg, x)) if x_cg is not None else float(total) for x in rules.cg_range]
+
+
+@lru_cache(maxsize=1024)
+def _attached_cl_slope(text: str, attached: frozenset, cbar: float) -> sympy.Expr:
+    """d(regressor)/dC_L with every state in ``attached`` at 1 and cbar at its value (0 without C_L);
+    cached: every pitch candidate of a grid repeats the same regressors."""
+    expr = _expr(text)
+    cl = next((sym for sym in expr.free_symbols if sym.name == "CL"), None)
+    if cl is None:
+        return sympy.Integer(0)
+    slope = sympy.diff(expr, cl)
+    fixed = {sym: 1 for sym in slope.free_symbols if sym.name in attached}
+    fixed.update({sym: cbar for sym in slope.free_symbols if sym.name == "cbar"})
+    return slope.subs(fixed)
 
 
 # ----- correlations free of the data columns' datums -----------------------------------------------
