@@ -18,7 +18,7 @@ STEMS = ("legacy_vs_snls", "legacy_vs_snls_parameters", "final_vs_van_ingen", "f
 def studied(tmp_path_factory):
     root = tmp_path_factory.mktemp("study")
     data, search_out, study_out = root / "campaign", root / "search", root / "study"
-    assert main(["simulate", "--scale", "0.15", "--seed", "3", "--out", str(data)]) == 0
+    assert main(["simulate", "--scale", "0.1", "--seed", "3", "--out", str(data)]) == 0
     for grid in ("separation", "lift"):
         assert main(["search", "--data", str(data), "--grid", grid, "--out", str(search_out), "--jobs", "2",
                      "--quiet"]) == 0

@@ -13,7 +13,7 @@ from structsearch.flight.transport import TRANSPORT, TRANSPORT_DRAG, TRANSPORT_L
 
 @pytest.fixture(scope="module")
 def transport():
-    return build_campaign(seed=5, scale=0.5, extras=True, aircraft="transport")
+    return build_campaign(seed=5, scale=0.3, extras=True, aircraft="transport")
 
 
 def test_transport_campaign_is_another_aircraft(transport):

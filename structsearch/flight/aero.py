@@ -130,12 +130,13 @@ class AeroModel:
     def unsteady(self) -> tuple[StateSpec, ...]:
         return tuple(s for s in self.states if s.kind == "U")
 
-    def separation_targets(self, alpha, alpha_dot, h=None) -> dict[str, np.ndarray]:
-        """X0(alpha - tau2 alpha_dot) of every state (the value a lagged state relaxes to); an anomaly's
-        targets may depend on the altitude ``h`` too."""
+    def separation_targets(self, alpha, alpha_dot, h=None, states=None) -> dict[str, np.ndarray]:
+        """X0(alpha - tau2 alpha_dot) of every state (the value a lagged state relaxes to), or of the
+        StateSpecs ``states``; an anomaly's targets may depend on the altitude ``h`` too."""
+        states = self.states if states is None else states
         if self.anomaly is None:
-            return {s.symbol: steady_target(s, alpha, alpha_dot) for s in self.states}
-        return {s.symbol: self.anomaly.separation_target(s, alpha, alpha_dot, h) for s in self.states}
+            return {s.symbol: steady_target(s, alpha, alpha_dot) for s in states}
+        return {s.symbol: self.anomaly.separation_target(s, alpha, alpha_dot, h) for s in states}
 
     def _evaluate(self, expr: sp.Expr, args: tuple[str, ...], values: Mapping[str, np.ndarray], what: str):
         try:

@@ -52,9 +52,10 @@ class Aircraft:
         """Pitch inertia [kg m^2] at ``mass``."""
         return self.iyy_empty + self.iyy_per_kg * (np.asarray(mass) - self.empty_mass)
 
-    def max_thrust(self, h):
-        """Available thrust [N] of all engines at altitude (density lapse^0.75)."""
-        return self.max_thrust_sl * (density(h) / RHO0) ** 0.75
+    def max_thrust(self, h, rho=None):
+        """Available thrust [N] of all engines at altitude (density lapse^0.75); ``rho``: density(h), when
+        the caller has it."""
+        return self.max_thrust_sl * ((density(h) if rho is None else rho) / RHO0) ** 0.75
 
     def manifest(self, mass: float) -> dict:
         """The [aircraft] table of campaign.toml (interfaces.md 5.1) for a campaign flown at about ``mass``:

@@ -44,7 +44,7 @@ def _forces(model: AeroModel, aircraft: Aircraft, V, alpha, q, h, de, throttle, 
     rho = ac.density(h)
     qbar = 0.5 * rho * V * V
     if thrust is None:
-        thrust = throttle * aircraft.max_thrust(h)
+        thrust = throttle * aircraft.max_thrust(h, rho)
     ct = thrust / (qbar * aircraft.S)
     values = {"alpha": alpha, "q": q, "V": V, "de": de, "CT": ct, "x_cg": x_cg, "cbar": aircraft.cbar,
               "S": aircraft.S, "b": aircraft.b, "h": h}
@@ -67,7 +67,7 @@ def _rates(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg, X, 
 def algebraic_states(model: AeroModel, alpha, alpha_dot, lagged: dict, h=None) -> dict:
     """Separation states: lagged ones from the state vector, the others from alpha (and alpha_dot; the
     altitude ``h`` for a truth with an anomaly that depends on it)."""
-    targets = model.separation_targets(alpha, alpha_dot, h)
+    targets = model.separation_targets(alpha, alpha_dot, h, [s for s in model.states if s.kind != "U"])
     # a lagged state integrated with a time constant near the step may overshoot [0, 1] by a hair; sqrt(X)
     # in K_L must not see it
     return {s.symbol: (np.clip(lagged[s.symbol], 0.0, 1.0) if s.kind == "U" else targets[s.symbol])
@@ -128,13 +128,17 @@ class Trajectory:
     x_cg: np.ndarray
 
 
-def _alpha_dot_with_states(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg, lagged, thrust=None):
+def _iterations(model) -> int:
+    """Fixed-point iterations for alpha_dot: 1 unless an algebraic state depends on alpha_dot."""
+    rate_dependent = getattr(model.anomaly, "rate_states", ())  # an anomaly may make a steady state depend on it
+    return 4 if any(s.kind == "Q" or (s.kind == "S" and s.symbol in rate_dependent) for s in model.states) else 1
+
+
+def _alpha_dot_with_states(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg, lagged, thrust=None,
+                           iterations=None):
     """alpha_dot and the separation states consistently (quasi-steady states depend on alpha_dot)."""
     alpha_dot = np.zeros_like(alpha)
-    rate_dependent = getattr(model.anomaly, "rate_states", ())  # an anomaly may make a steady state depend on it
-    iterations = 4 if any(s.kind == "Q" or (s.kind == "S" and s.symbol in rate_dependent) for s in model.states) \
-        else 1
-    for _ in range(iterations):
+    for _ in range(_iterations(model) if iterations is None else iterations):
         X = algebraic_states(model, alpha, alpha_dot, lagged, h)
         v_dot, alpha_dot, q_dot, extra = _rates(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg,
                                                 X, thrust)
@@ -157,6 +161,8 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
     y = np.vstack([y0["V"], y0["alpha"], y0["q"], y0["theta"], y0["h"], np.zeros(n_man)]
                   + [y0[s] for s in lagged_names]).astype(float)
     taus = {s.symbol: s.tau1 for s in model.unsteady}
+    unsteady = model.unsteady
+    iterations = _iterations(model)
     kp, ki, kd = pilot.gains.T
 
     def elevator(k, y):
@@ -170,11 +176,15 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
         de = elevator(k, y)
         X, v_dot, alpha_dot, q_dot, extra = _alpha_dot_with_states(
             model, aircraft, V, alpha, q, theta, h, de, pilot.throttle[k], mass[k], x_cg, lagged,
-            None if pilot.thrust is None else pilot.thrust[k])
-        targets = model.separation_targets(alpha, alpha_dot, h)
-        dx = [(targets[s] - lagged[s]) / taus[s] for s in lagged_names]
+            None if pilot.thrust is None else pilot.thrust[k], iterations)
+        targets = model.separation_targets(alpha, alpha_dot, h, unsteady)
         gamma = theta - alpha
-        return np.vstack([v_dot, alpha_dot, q_dot, q, V * np.sin(gamma), alpha - pilot.alpha_ref[k]] + dx)
+        out = np.empty_like(y)
+        out[0], out[1], out[2], out[3], out[4], out[5] = v_dot, alpha_dot, q_dot, q, V * np.sin(gamma), \
+            alpha - pilot.alpha_ref[k]
+        for i, s in enumerate(lagged_names):
+            out[6 + i] = (targets[s] - lagged[s]) / taus[s]
+        return out
 
     # one batch over time steps: a Python step costs the same for 1 or 50 maneuvers, so the fewer steps
     # the better; a maneuver that has ended keeps its final state rather than flying on unpiloted
