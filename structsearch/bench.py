@@ -289,8 +289,9 @@ def ranking_agreement(refit: dict, one_step: dict) -> dict:
             {n for n, s in b.items() if s.admissible}
         out["moved"][g] = sorted(n for n in a if n in b and a[n].rank != b[n].rank)
         diffs = [abs(b[n].cv.mse / a[n].cv.mse - 1) for n in a
-                 if n in b and a[n].cv is not None and b[n].cv is not None]
-        out["max_rel_cv_difference"][g] = max(diffs) if diffs else float("nan")
+                 if n in b and a[n].cv is not None and b[n].cv is not None and a[n].cv.mse > 0]
+        out["max_rel_cv_difference"][g] = float(np.nanmax(diffs)) if diffs and not np.all(np.isnan(diffs)) \
+            else float("nan")
     return out
 
 

@@ -200,6 +200,13 @@ def test_the_wheel_works_outside_the_checkout(tmp_path):
     required = {name for name, extra in declared if extra is None}
     optional = {name for name, extra in declared if extra is not None}
     distributions = {k: {d.lower().replace("_", "-") for d in v} for k, v in packages_distributions().items()}
+    # the borrowed distributions must satisfy the wheel's version constraints
+    from importlib.metadata import version
+    from packaging.requirements import Requirement
+    for line in lines:
+        if line.startswith("Requires-Dist:") and "extra ==" not in line:
+            req = Requirement(line.split(":", 1)[1].strip())
+            assert req.specifier.contains(version(req.name), prereleases=True), (str(req), version(req.name))
     module_level, anywhere = _third_party_imports()
     assert {"numpy", "scipy", "sympy"} <= module_level  # the scan sees imports
     for name in sorted(anywhere):
@@ -218,7 +225,7 @@ def test_the_wheel_works_outside_the_checkout(tmp_path):
                           check=True, capture_output=True, text=True).stdout.strip()
     # a path line adds this environment's site-packages without running its .pth files (the checkout's
     # editable install among them)
-    here = next(p for p in sys.path if p.endswith("site-packages") and Path(p, "numpy").exists())
+    here = str(Path(np.__file__).resolve().parent.parent)   # where this environment's packages live
     Path(site, "zz_borrowed_dependencies.pth").write_text(here + "\n")
     clean = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     where = subprocess.run([str(python), "-c", "import structsearch, sys; print(structsearch.__file__)"],

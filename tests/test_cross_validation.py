@@ -124,27 +124,63 @@ def test_one_step_cross_validation_is_close_to_refitting_the_folds(lift_fit):
     assert np.mean(one_step ** 2) > np.mean(in_sample ** 2) and np.mean(refit ** 2) > np.mean(in_sample ** 2)
 
 
-def test_linear_folds_are_the_same_by_either_method():
+def test_a_gauss_newton_step_on_a_linear_model_lands_on_the_folds_exact_fits():
+    """Why a linear candidate's folds are exact with either method: the one-step form (the least-squares
+    step on the full fit's Jacobian and residual) equals refitting each fold (numpy lstsq)."""
+    from structsearch.engine.ols import held_out_residuals
     base = campaign({"quasi-steady": 3, "dynamic": 3}, duration=20.0, seed=4)
     rng = np.random.default_rng(3)
     y = 0.2 + 4.0 * base["alpha"] + 0.01 * rng.standard_normal(base.n_samples)
-    data = FlightData({**base.columns, "CL": y}, base.starts, base.names, base.source, base.constants)
-    model = StallModel.declare("lin", "CL", regressors={"c0": "1", "ca": "alpha"})
-    full = model.fit(data, covariance="white")
+    phi = np.column_stack([np.ones(base.n_samples), base["alpha"], base["alpha"] ** 2])
+    coef, *_ = np.linalg.lstsq(phi, y, rcond=None)
     folds = maneuver_folds(6, 5)
-    assert np.array_equal(cross_validate(model, data, full, folds, "one-step"),
-                          cross_validate(model, data, full, folds, "refit"))
+    one_step = held_out_residuals(phi, y - phi @ coef, base.bounds, folds)
+    sl = base.segment_slices()
+    for fold in folds:
+        rest = np.concatenate([np.arange(sl[i].start, sl[i].stop) for i in range(6) if i not in fold])
+        fold_coef, *_ = np.linalg.lstsq(phi[rest], y[rest], rcond=None)
+        for i in fold:
+            assert np.allclose(one_step[sl[i]], y[sl[i]] - phi[sl[i]] @ fold_coef, rtol=0, atol=1e-10)
+
+
+def test_one_step_folds_keep_a_parameter_on_its_bound_where_the_fit_left_it(lift_fit):
+    """A parameter the full fit left on a bound (or could not identify) is not stepped: a refit of the
+    fold could not move it past the bound either. Reference: the least-squares step without its column."""
+    import dataclasses
+    model, data, full = lift_fit
+    name = model.nonlinear_names[0]
+    pinned = dataclasses.replace(full, lower=np.where(np.arange(len(full.lower)) == 0, full.values[0],
+                                                      full.lower))
+    assert pinned.at_bound == {name: "lower"}
+    folds = maneuver_folds(6, 5)
+    one_step = cross_validate(model, data, pinned, folds, "one-step")
+    names = model.nonlinear_names + model.linear_names
+    x0 = np.array([full.params[n] for n in names])
+    jac = central_difference(lambda x: model.predict(data, dict(zip(names, x))), x0)[:, 1:]
+    r = data["CL"] - model.predict(data, full.params)
+    sl = data.segment_slices()
+    for fold in folds:
+        rest = np.concatenate([np.arange(sl[i].start, sl[i].stop) for i in range(6) if i not in fold])
+        step, *_ = np.linalg.lstsq(jac[rest], r[rest], rcond=None)
+        for i in fold:
+            assert np.allclose(one_step[sl[i]], r[sl[i]] - jac[sl[i]] @ step, rtol=0, atol=1e-6 * np.max(np.abs(r)))
+    # and it differs from stepping every parameter
+    assert not np.allclose(one_step, cross_validate(model, data, full, folds, "one-step"), rtol=0, atol=1e-9)
 
 
 def test_candidates_of_different_cross_validation_methods_are_not_compared_by_it():
     import dataclasses
-    a = _candidate("a", 3, [1.0, 2.0, 3.0], [1.3, 2.6, 3.9])
-    b = dataclasses.replace(_candidate("b", 3, [1.2, 2.4, 3.6], [1.0, 2.0, 3.0]), cv_method="one-step")
+    nonlinear = dict(nonlinear_names=("p0",))
+    a = dataclasses.replace(_candidate("a", 3, [1.0, 2.0, 3.0], [1.3, 2.6, 3.9]), **nonlinear)
+    b = dataclasses.replace(_candidate("b", 3, [1.2, 2.4, 3.6], [1.0, 2.0, 3.0]), cv_method="one-step", **nonlinear)
     assert [r.name for r in rank([a, b])] == ["b", "a"]  # by validation: b is better there
     b_refit = dataclasses.replace(b, cv_method="refit")
     assert [r.name for r in rank([a, b_refit])] == ["a", "b"]  # same method: by the CV
     back = CandidateResult.from_json(b.to_json())
     assert back.cv_method == "one-step"
+    # a linear candidate's folds are exact fits whatever the method: it is compared by the CV with either
+    linear = dataclasses.replace(b, nonlinear_names=())
+    assert [r.name for r in rank([a, linear])] == ["a", "b"]
 
 
 def test_an_unknown_cross_validation_method_is_one_clear_error():

@@ -146,6 +146,12 @@ def test_fixed_states_are_shared_per_data_and_keyed_by_their_values():
     elsewhere = campaign({"dynamic": 2}, duration=10.0, seed=3)
     assert not np.array_equal(pinned.bind(elsewhere).state_values(np.zeros(0))["X_ss"][1], one["X_ss"][1])
     assert "_memo" not in pickle.loads(pickle.dumps(data)).__dict__
+    # the problem's memo of its last states still serves a model with some parameters fixed (review: a
+    # shadowed key made it miss)
+    partly = dataclasses.replace(lift, fixed={k: v for k, v in fixed.items() if k.endswith("_w")})
+    problem = partly.bind(data)
+    theta = partly.start_vector()
+    assert problem.state_values(theta) is problem.state_values(theta)
     for i in range(2 * FIXED_STATES_KEPT):  # a loop over fixed values keeps a bounded number
         dataclasses.replace(lift, fixed={**fixed, "a1_ss": 20.0 + i}).bind(data).state_values(np.zeros(0))
     assert len(data.memo("fixed separation states")) == FIXED_STATES_KEPT
@@ -168,8 +174,8 @@ def test_the_two_step_covariance_is_the_same_from_a_white_fit_with_its_factor(ti
     assert white.jacobian_inverse_factor is not None
     quick = with_lift_uncertainty(white, model, train, lift, context, "hac-maneuver")
     full = model.fit(context.train, covariance="hac-maneuver")
-    slow = with_lift_uncertainty(dataclasses_replace(full, jacobian_inverse_factor=None), model, train, lift,
-                                 context)
+    slow = with_lift_uncertainty(dataclasses_replace(full, covariance_basis=None, jacobian_inverse_factor=None),
+                                 model, train, lift, context)
     assert quick.covariance_kind == slow.covariance_kind == "hac-maneuver"
     # equal up to rounding: the two QRs of the same Jacobian may round differently (memory alignment), and
     # the sandwich amplifies that by the condition number squared

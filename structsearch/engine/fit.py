@@ -93,4 +93,4 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
         segments=ManeuverScores.of(y, residual, slices_of(bounds)), total_sst=float(np.sum((y - y.mean()) ** 2)),
         nfev=outcome.nfev, njev=outcome.njev, message=outcome.message, success=outcome.success,
         n_starts=n_starts_used, n_reached_best=reached, start=outcome.start,
-        jacobian_inverse_factor=estimate.inverse_factor)
+        covariance_basis=basis, jacobian_inverse_factor=estimate.inverse_factor)

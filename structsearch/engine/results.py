@@ -58,9 +58,11 @@ class FitResult:
     unidentifiable: Mapping[str, str] = field(default_factory=dict)
     # what the covariance accounts for beyond this fit (drag/pitch: the lift model's estimation error)
     generated_regressors: str | None = None
-    # R^-1 of the thin QR of the column-scaled Jacobian on the parameters with a covariance (scaling folded
-    # back in; statistics.inverse_factor): lets a later covariance estimator on the same Jacobian (the
-    # two-step one) skip the QR of the m x p matrix. None when it could not be formed; never serialised
+    # the parameters the covariance was computed on (identifiability.covariance_basis), and R^-1 of the thin
+    # QR of the column-scaled Jacobian on them (scaling folded back in; statistics.inverse_factor): a later
+    # covariance estimator on the same Jacobian (the two-step one) reuses both instead of factorising the
+    # m x p matrix again. The factor is None when it could not be formed; neither is serialised
+    covariance_basis: np.ndarray | None = field(default=None, repr=False)
     jacobian_inverse_factor: np.ndarray | None = field(default=None, repr=False)
 
     # ----- sizes -------------------------------------------------------------

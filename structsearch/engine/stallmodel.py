@@ -28,7 +28,7 @@ from .results import FitResult
 from .separation import (DEFAULT_BOUNDS, DEFAULT_START, SeparationState, common_step, data_bounds,
                          evaluate_state)
 from .ols import ols
-from .snls import BoundProblem, Evaluation, multistart
+from .snls import BoundProblem, Evaluation, model_jacobian, multistart
 from .statistics import DEFAULT_COVARIANCE
 
 
@@ -180,6 +180,14 @@ class StallModel:
             outcome = ols(problem, y)
         return dict(zip(self.nonlinear_names + self.linear_names, np.concatenate([outcome.theta, outcome.coef])))
 
+    def jacobian(self, data: FlightData, params: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        """The model's Jacobian in every parameter, nonlinear then linear ([dPhi/dtheta c, Phi]), at ``params``
+        on ``data``, and the model output Phi c."""
+        theta = np.array([params[p] for p in self.nonlinear_names], float)
+        coef = np.array([params[p] for p in self.linear_names], float)
+        ev = self.bind(data).evaluate(theta)
+        return model_jacobian(ev, coef, len(theta)), ev.phi @ coef
+
     def predict(self, data: FlightData, params: Mapping[str, float]) -> np.ndarray:
         """Model output for given parameter values (nonlinear and linear)."""
         missing = [p for p in self.nonlinear_names + self.linear_names if p not in params]
@@ -231,15 +239,16 @@ class StallProblem(BoundProblem):
                 # a state whose parameters are all fixed (a drag or pitch model's, the lift model's) needs
                 # no sensitivities, and every candidate bound to this data computes the same one
                 fixed = d.memo("fixed separation states")
-                key = (s, tuple(sorted(values.items())))
-                if key not in fixed:
+                memo_key = (s, tuple(sorted(values.items())))
+                x = fixed.get(memo_key)
+                if x is None:
                     if len(fixed) >= FIXED_STATES_KEPT:  # a loop over fixed values must not hoard samples
-                        del fixed[next(iter(fixed))]
+                        fixed.pop(next(iter(fixed)), None)
                     x = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step,
                                        False)[0]
                     x.setflags(write=False)  # shared by every model bound to this data
-                    fixed[key] = x
-                out[s.symbol] = (index, fixed[key], None)
+                    fixed[memo_key] = x
+                out[s.symbol] = (index, x, None)
                 continue
             x, dx = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step,
                                    sensitivities)
@@ -253,15 +262,22 @@ class StallProblem(BoundProblem):
         state.pop("_last_states", None)
         return state
 
-    def regression_matrix(self, theta: np.ndarray, data: FlightData | None = None) -> np.ndarray:
+    def regression_matrix(self, theta: np.ndarray, data: FlightData | None = None,
+                          changed: tuple[np.ndarray, set[str]] | None = None) -> np.ndarray:
         """Phi(theta) alone, without derivatives (a prediction). ``data`` may replace columns that are
-        not state inputs (a centred regressor column); the states come from the bound data."""
+        not state inputs (a centred regressor column); the states come from the bound data. ``changed``,
+        (Phi on the bound data, the names of the columns ``data`` replaces): only the regressors that read
+        one of them are evaluated again."""
         m = self.data.n_samples
         x_values = {sym: v[1] for sym, v in self.state_values(np.asarray(theta, float), False).items()}
         data = self.data if data is None else data
-        phi = np.empty((m, len(self.model.regressors)), order="F")
+        if changed is None:
+            phi = np.empty((m, len(self.model.regressors)), order="F")
+        else:
+            phi = changed[0].copy(order="F")
         for i, reg in enumerate(self.model.regressors):
-            phi[:, i] = reg.value(data, x_values, m)
+            if changed is None or set(reg.columns) & changed[1]:
+                phi[:, i] = reg.value(data, x_values, m)
         return phi
 
     def evaluate(self, theta: np.ndarray) -> Evaluation:

@@ -194,18 +194,11 @@ def centred_correlation(candidate: Candidate, model, data, fit) -> np.ndarray | 
     if np.any(np.abs(np.diag(r)) <= SAME_SPAN_RTOL * np.linalg.norm(phi, axis=0)):
         return None  # dependent regressors: no basis change is defined
 
-    x_values = {sym: v[1] for sym, v in problem.state_values(theta, False).items()}
-
     def centred_phi(names):
         # the states are computed once unless a state input (alpha, alpha_dot, t) is centred
         if set(model.state_inputs) & set(names):
             return model.bind(_centred(data, names)).regression_matrix(theta)
-        # only the regressors that read a centred column change
-        centred, out = _centred(data, names), phi.copy(order="F")
-        for i, reg in enumerate(model.regressors):
-            if set(reg.columns) & set(names):
-                out[:, i] = reg.value(centred, x_values, data.n_samples)
-        return out
+        return problem.regression_matrix(theta, _centred(data, names), changed=(phi, set(names)))
 
     used = {n for _, text in candidate.regressors for n in symbol_names(text)} & set(data.columns)
     movable = [n for n in sorted(used)

@@ -27,14 +27,6 @@ from .candidate_result import CandidateResult
 
 
 
-def _jacobian(model, data: FlightData, params) -> tuple[np.ndarray, np.ndarray]:
-    """Model Jacobian [DPhi c, Phi] and output of a StallModel at ``params`` on ``data``."""
-    theta = np.array([params[n] for n in model.nonlinear_names], float)
-    coef = np.array([params[n] for n in model.linear_names], float)
-    ev = model.bind(data).evaluate(theta)
-    return model_jacobian(ev, coef, len(theta)), ev.phi @ coef
-
-
 def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lift_jacobian: np.ndarray,
                      lift_names, lift_params: dict, names) -> np.ndarray:
     """d (candidate output) / d (lift parameter), one column per name in ``names``.
@@ -77,14 +69,18 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
     kind = result.covariance_kind if kind is None else kind
     predicted = context.train
     jac1, residual1, basis1 = context.jacobian, context.residual, context.basis
-    jac2, _ = _jacobian(model, predicted, result.params)
-    basis2 = covariance_basis(jac2, result.names, dict(result.unidentifiable), len(result.nonlinear_names))
+    jac2, _ = model.jacobian(predicted, result.params)
+    # the fit's own basis and factor when it kept them (the same Jacobian: it was fitted on ``predicted``)
+    basis2, r2_inv = result.covariance_basis, result.jacobian_inverse_factor
+    if basis2 is None:
+        basis2 = covariance_basis(jac2, result.names, dict(result.unidentifiable), len(result.nonlinear_names))
+        r2_inv = None
     sensitivity = lift_sensitivity(model, result.params, predicted, jac1, context.names, lift.params,
                                    [n for n, keep in zip(context.names, basis1) if keep])
     cov = np.full((result.n_params, result.n_params), np.nan)
     block, lags, bandwidth, effective_block = generated_regressor_covariance(
         jac2[:, basis2], result.residuals, jac1[:, basis1], residual1, sensitivity, train.bounds,
-        kind, a1_inv=context.jacobian_inverse_factor, r2_inv=result.jacobian_inverse_factor)
+        kind, a1_inv=context.jacobian_inverse_factor, r2_inv=r2_inv)
     cov[np.ix_(basis2, basis2)] = block
     effective = np.full(result.n_params, np.nan)
     effective[basis2] = effective_block

@@ -52,9 +52,10 @@ def _paired_gap(a: CandidateResult, best: CandidateResult, use_cv: bool) -> tupl
 
 
 def _use_cv(group: list[CandidateResult]) -> bool:
-    """Compare by cross-validation when every candidate of the group has it (same folds, same method)."""
-    return bool(group) and all(s.cv is not None for s in group) and len({(s.cv_folds, s.cv_method)
-                                                                         for s in group}) == 1
+    """Compare by cross-validation when every candidate of the group has it: the same folds and, among the
+    candidates with nonlinear parameters, the same method (a linear candidate's folds are exact fits)."""
+    return bool(group) and all(s.cv is not None for s in group) and len({s.cv_folds for s in group}) == 1 \
+        and len({s.cv_method for s in group if s.nonlinear_names}) <= 1
 
 
 def _placed(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult]:

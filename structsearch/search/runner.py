@@ -30,7 +30,6 @@ from .admissibility import centred_correlation
 from .candidates import Candidate
 from .specs import load_grid
 from ..engine.ols import held_out_residuals
-from ..engine.snls import model_jacobian
 from ..engine.scores import ManeuverScores
 from ..engine.statistics import DEFAULT_COVARIANCE
 from .candidate_result import JSON_LAYOUT, CandidateResult, SplitScores
@@ -65,10 +64,14 @@ class Settings:
             raise StructSearchError(f"cross-validation method must be one of {', '.join(CV_METHODS)}, "
                                     f"not {self.cv_method!r}")
 
-    def key(self) -> dict:
-        return {"n_starts": self.n_starts, "seed": self.seed, "covariance": self.covariance,
-                "cv_folds": self.cv_folds, "bounds": [[k, list(v)] for k, v in self.bounds],
-                "cv_method": self.cv_method}
+    def key(self, nonlinear: bool = True) -> dict:
+        """What a fit's result depends on; the cross-validation method only for a ``nonlinear`` candidate
+        (a linear one's folds are exact either way, so its cached fit serves both methods)."""
+        key = {"n_starts": self.n_starts, "seed": self.seed, "covariance": self.covariance,
+               "cv_folds": self.cv_folds, "bounds": [[k, list(v)] for k, v in self.bounds]}
+        if nonlinear and self.cv_folds:
+            key["cv_method"] = self.cv_method
+        return key
 
 
 def check_bounds(bounds, candidates) -> None:
@@ -110,11 +113,11 @@ def cross_validate(model, train: FlightData, result, folds: list[list[int]], met
     if not model.nonlinear_names:
         return held_out_residuals(model.bind(train).regression_matrix(np.zeros(0)), y, train.bounds, folds)
     if method == "one-step":
-        theta = np.array([result.params[k] for k in model.nonlinear_names], float)
-        coef = np.array([result.params[k] for k in model.linear_names], float)
-        ev = model.bind(train).evaluate(theta)
-        jac = model_jacobian(ev, coef, len(theta))
-        return held_out_residuals(jac, y - ev.phi @ coef, train.bounds, folds)
+        jac, output = model.jacobian(train, result.params)
+        # a parameter on a bound or not identifiable stays where the full fit left it: a fold's refit
+        # could not move it past the bound either, and a step along a null direction is arbitrary
+        free = [i for i, n in enumerate(result.names) if n not in result.at_bound and n not in result.unidentifiable]
+        return held_out_residuals(jac[:, free], y - output, train.bounds, folds)
     residual = np.empty_like(y)
     slices = train.segment_slices()
     warm = {k: result.params[k] for k in model.nonlinear_names}
@@ -235,7 +238,8 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         return CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                         result=result, train=scores["train"], validation=scores["validation"],
                                         cv=scores.get("cv"), cv_folds=len(folds),
-                                        cv_method=settings.cv_method,  # a linear candidate's is exact either way
+                                        # a linear candidate's folds are exact fits whichever method is asked
+                                        cv_method=settings.cv_method if model.nonlinear_names else "refit",
                                         seconds=time.perf_counter() - t0,
                                         centred_correlation=centred_correlation(c, model, train, result))
     except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
@@ -274,13 +278,21 @@ def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, sett
     return lift, lift_candidate
 
 
+def may_be_nonlinear(c: Candidate, lift_params: dict | None) -> bool:
+    """Whether ``c`` may have nonlinear parameters: separation parameters its lift model does not fix (a
+    drag or pitch candidate's states are usually all the lift model's)."""
+    return bool(set(c.state_parameters) - set(lift_params or {}))
+
+
 def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, settings: Settings) -> Path:
     """Where the fit of ``c`` on this data, lift model and settings is cached. A warm start is not part of
     the key: it chooses where the solver begins, not the question (the study and the report are served
-    the search's fits, however they were started)."""
+    the search's fits, however they were started). The cross-validation method is, for a candidate that
+    may have nonlinear parameters: the study and the report use "refit", so after a search with
+    ``--cv-method one-step`` they fit those candidates again (the linear ones they are served)."""
     from .. import __version__
     blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params,
-                       "settings": settings.key(), "version": [__version__, code_fingerprint(), JSON_LAYOUT]},
+                       "settings": settings.key(may_be_nonlinear(c, lift_params)), "version": [__version__, code_fingerprint(), JSON_LAYOUT]},
                       sort_keys=True, default=float)
     key = hashlib.sha256(blob.encode()).hexdigest()[:16]
     safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in c.name)
@@ -373,33 +385,41 @@ class _Task:
 
 def _fit_as_ready(todo, needs, start_of, task, n_jobs, done) -> None:
     """Fit ``todo`` on local worker processes, each candidate as soon as the ones it ``needs`` are fitted
-    (joblib's reusable loky executor: the same workers and per-process memos as joblib's Parallel)."""
+    (joblib's reusable memmapping executor; its workers survive between the grids of a search)."""
     from concurrent.futures import FIRST_COMPLETED, wait
+    from joblib import cpu_count
     from joblib.executor import get_memmapping_executor
-    # the executor joblib's Parallel would use (the same arguments: a search and joblib calls around it
-    # share the worker processes): the workers' thread pools share the cores, unless the caller said
-    threads = str(max((os.cpu_count() or 1) // n_jobs, 1))
+    # the workers' thread pools share the cores, as joblib's Parallel arranges, unless the caller said
+    threads = str(max(cpu_count() // n_jobs, 1))
     env = {var: os.environ.get(var, threads) for var in THREAD_VARIABLES}
     if "ENABLE_IPC" not in os.environ:  # TBB's schedulers coordinate across processes, as joblib sets it
         env["ENABLE_IPC"] = "1"
     executor = get_memmapping_executor(n_jobs, timeout=300, env=env)
     waiting, running, finished = set(todo), {}, 0
     fitted = set(needs) - set(todo)   # the cached ones
-    while waiting or running:
-        for i in sorted(waiting):
-            if all(j in fitted for j in needs[i]):
-                start = start_of(i)
-                running[executor.submit(task, i, start)] = (i, start)
-                waiting.discard(i)
-        if not running:  # cannot happen: needs only point to earlier waves
-            raise RuntimeError(f"candidates {sorted(waiting)} wait for candidates that never finish")
-        complete, _ = wait(running, return_when=FIRST_COMPLETED)
-        for future in complete:
-            i, start = running.pop(future)
-            _, summary = future.result()
-            fitted.add(i)
-            finished += 1
-            done(i, summary, finished, start)
+    try:
+        while waiting or running:
+            for i in sorted(waiting):
+                if all(j in fitted for j in needs[i]):
+                    start = start_of(i)
+                    running[executor.submit(task, i, start)] = (i, start)
+                    waiting.discard(i)
+            if not running:  # cannot happen: needs only point to earlier waves
+                raise RuntimeError(f"candidates {sorted(waiting)} wait for candidates that never finish")
+            complete, _ = wait(running, return_when=FIRST_COMPLETED)
+            for future in complete:
+                i, start = running.pop(future)
+                _, summary = future.result()
+                fitted.add(i)
+                finished += 1
+                done(i, summary, finished, start)
+    except BaseException:
+        # a failed task or an interrupt: nothing more starts; the caller then removes the shared splits,
+        # so wait for the fits already running rather than pull their data from under them
+        for future in running:
+            future.cancel()
+        wait(running)
+        raise
 
 
 def _read_cached(path: Path, say) -> CandidateResult | None:

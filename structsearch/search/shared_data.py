@@ -23,7 +23,6 @@ import numpy as np
 
 from ..data.flightdata import FlightData
 from ..engine.identifiability import covariance_basis
-from ..engine.snls import model_jacobian
 from ..engine.statistics import inverse_factor
 from ..engine.stallmodel import StallModel
 from .candidate_result import CandidateResult
@@ -93,11 +92,8 @@ def lift_context(train: FlightData, validation: FlightData, lift: CandidateResul
         if len(_LIFT) >= 4:  # a search has few lift models; keep the memory bounded all the same
             _LIFT.pop(next(iter(_LIFT)))
         model = model_with_lift(lift_candidate, None)
-        theta = np.array([lift.params[n] for n in model.nonlinear_names], float)
-        coef = np.array([lift.params[n] for n in model.linear_names], float)
-        ev = model.bind(train).evaluate(theta)
-        jacobian = model_jacobian(ev, coef, len(theta))
-        residual = train["CL"] - ev.phi @ coef
+        jacobian, output = model.jacobian(train, lift.params)
+        residual = train["CL"] - output
         names = model.nonlinear_names + model.linear_names
         basis = covariance_basis(jacobian, names, lift.not_identifiable, len(model.nonlinear_names))
         # the key holds the splits' ids: keep them alive with the entry so that no id is reused

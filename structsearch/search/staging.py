@@ -46,14 +46,9 @@ def _regressors(c: Candidate) -> set[str]:
 
 def feeds(inner: Candidate, outer: Candidate) -> bool:
     """Whether ``inner`` is fitted before ``outer`` in a grid (see the module's docstring)."""
-    if inner.name == outer.name or inner.coefficient != outer.coefficient:
+    if not may_donate(inner, outer):
         return False
-    if not (_stageable(inner) and _stageable(outer)):
-        return False
-    mine, theirs = set(inner.state_parameters), set(outer.state_parameters)
-    if not mine <= theirs:
-        return False
-    return mine != theirs or _regressors(inner) < _regressors(outer)
+    return set(inner.state_parameters) != set(outer.state_parameters) or _regressors(inner) < _regressors(outer)
 
 
 def waves(candidates: Sequence[Candidate]) -> list[list[int]]:
