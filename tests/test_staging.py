@@ -193,3 +193,22 @@ def test_a_campaign_split_is_read_only(tiny):
     assert train is tiny.split("train")
     with pytest.raises(ValueError):
         train["alpha"][0] = 0.0
+
+
+def test_a_candidate_that_is_an_earlier_grids_model_is_served_its_fit(tiny, tmp_path):
+    """The lift grid's CL-VI is the separation grid's X_ss/X_w U/S under another name: --grid all fits it
+    once. Another search box is another question: fitted anew."""
+    import dataclasses
+    from structsearch.search.runner import same_model_fitted
+    us = load_grid("separation")["X_ss/X_w U/S"]
+    cl_vi = load_grid("lift")["CL-VI"]
+    first = run([us], tiny, tmp_path, settings=Settings(cv_folds=0))[0]
+    said = []
+    served = run([cl_vi], tiny, tmp_path, settings=Settings(cv_folds=0), fitted_before=[(us, first)],
+                 progress=said.append)[0]
+    assert served.name == "CL-VI" and served.grid == "lift" and served.params == first.params
+    assert any("the same model as separation X_ss/X_w U/S" in m for m in said)
+    boxed = dataclasses.replace(cl_vi, bounds=(("tau1_ss", (0.0, 1.0)),))
+    assert same_model_fitted([cl_vi, boxed], [(us, first)]).keys() == {0}
+    failed = dataclasses.replace(first, error="FitError: x", params=None)
+    assert same_model_fitted([cl_vi], [(us, failed)]) == {}

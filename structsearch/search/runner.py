@@ -9,6 +9,7 @@ any number of jobs: each fit is seeded and runs on one process.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -278,6 +279,18 @@ def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, sett
     return lift, lift_candidate
 
 
+def same_model_fitted(candidates: Sequence[Candidate], fitted: Sequence[tuple[Candidate, CandidateResult]]
+                      ) -> dict[int, tuple[Candidate, CandidateResult]]:
+    """Candidates (by index) that are, apart from their name and grid, a candidate fitted already (of an
+    earlier grid), with that candidate and its result: the same coefficient, regressors (names and
+    expressions), states, lift model and search boxes ask the same question of the same data."""
+    def model_of(c):
+        d = c.to_dict()
+        return json.dumps({k: v for k, v in d.items() if k not in ("name", "grid", "note")}, sort_keys=True)
+    done = {model_of(c): (c, r) for c, r in fitted if not r.failed}
+    return {i: done[model_of(c)] for i, c in enumerate(candidates) if model_of(c) in done}
+
+
 def may_be_nonlinear(c: Candidate, lift_params: dict | None) -> bool:
     """Whether ``c`` may have nonlinear parameters: separation parameters its lift model does not fix (a
     drag or pitch candidate's states are usually all the lift model's)."""
@@ -328,6 +341,12 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_
     cached = sum(r is not None for r in results)
     if cached:
         say(f"{cached} of {len(candidates)} candidates from the cache")
+    for i, (twin, fitted) in same_model_fitted(candidates, fitted_before).items():
+        if results[i] is None:  # the lift grid's CL-VI is the separation grid's X_ss/X_w U/S
+            results[i] = dataclasses.replace(fitted, name=candidates[i].name, grid=candidates[i].grid)
+            write_json(paths[i], results[i].to_json(), indent=1)
+            say(f"{candidates[i].grid} {candidates[i].name}: the same model as {twin.grid} {twin.name}, "
+                "fitted already")
     todo = [i for i in range(len(candidates)) if results[i] is None]
     if not todo:
         return results
