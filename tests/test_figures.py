@@ -26,7 +26,7 @@ FIGURES = ("separation_static", "lift_static", "drag_polar", "pitch_static", "ce
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
     path = tmp_path_factory.mktemp("campaign") / "c"
-    write_campaign(build_campaign(seed=3, scale=0.08), path)
+    write_campaign(build_campaign(seed=3, scale=0.05), path)
     return read_campaign(path)
 
 
