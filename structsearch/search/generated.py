@@ -87,7 +87,8 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
     estimate = Covariances(cov, result.white_covariance, lags, bandwidth, effective).without(
         [i for i, n in enumerate(result.names) if n in result.unidentifiable])
     return dataclasses.replace(
-        result, covariance=estimate.covariance, covariance_kind=kind, max_lag=estimate.max_lag, bandwidth=estimate.bandwidth,
+        result, covariance=estimate.covariance, covariance_kind=kind, max_lag=estimate.max_lag,
+        bandwidth=estimate.bandwidth,
         effective_maneuvers=estimate.effective_maneuvers,
         generated_regressors=f"includes the estimation error of the lift model {lift.name} "
                              "(two-step, Murphy-Topel)")

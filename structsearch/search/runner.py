@@ -305,7 +305,8 @@ def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None,
     ``--cv-method one-step`` they fit those candidates again (the linear ones they are served)."""
     from .. import __version__
     blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params,
-                       "settings": settings.key(may_be_nonlinear(c, lift_params)), "version": [__version__, code_fingerprint(), JSON_LAYOUT]},
+                       "settings": settings.key(may_be_nonlinear(c, lift_params)),
+                       "version": [__version__, code_fingerprint(), JSON_LAYOUT]},
                       sort_keys=True, default=float)
     key = hashlib.sha256(blob.encode()).hexdigest()[:16]
     safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in c.name)
@@ -369,11 +370,11 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_
         if backend in LOCAL_PROCESS_BACKENDS and n_jobs > 1:
             _fit_as_ready(todo, needs, start_of, task, n_jobs, lambda i, s, k, w: done(i, s, k, t0, w))
         else:
+            from joblib import Parallel, delayed, parallel_config
             finished = 0
             for wave in order:
                 mine = [i for i in wave if i in set(todo)]
                 starts = {i: start_of(i) for i in mine}
-                from joblib import Parallel, delayed, parallel_config
                 with parallel_config(backend=backend, n_jobs=n_jobs):
                     # unordered: each result is cached as soon as it exists (a crash loses only running fits)
                     for i, summary in Parallel(return_as="generator_unordered")(
