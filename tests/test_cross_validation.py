@@ -101,7 +101,7 @@ def _gauss_newton_folds(model, data, params, folds, frozen=()):
     jac = jac[:, [i for i, n in enumerate(names) if n not in frozen]]
     r = data["CL"] - model.predict(data, params)
     sl = data.segment_slices()
-    out = np.empty_like(r)
+    out = np.full_like(r, np.nan)
     for fold in folds:
         rest = np.concatenate([np.arange(sl[i].start, sl[i].stop) for i in range(len(sl)) if i not in fold])
         step, *_ = np.linalg.lstsq(jac[rest], r[rest], rcond=None)
@@ -164,6 +164,12 @@ def test_one_step_folds_keep_a_parameter_on_its_bound_where_the_fit_left_it(lift
     one_step = cross_validate(model, data, pinned, folds, "one-step")
     expected = _gauss_newton_folds(model, data, full.params, folds, frozen=(name,))
     assert np.allclose(one_step, expected, rtol=0, atol=1e-6 * np.max(np.abs(expected)))
+    # a parameter the data cannot identify is held the same way
+    other = model.nonlinear_names[1]
+    unidentified = dataclasses.replace(full, unidentifiable={other: "for the test"})
+    expected = _gauss_newton_folds(model, data, full.params, folds, frozen=(other,))
+    assert np.allclose(cross_validate(model, data, unidentified, folds, "one-step"), expected, rtol=0,
+                       atol=1e-6 * np.max(np.abs(expected)))
     # and it differs from stepping every parameter
     assert not np.allclose(one_step, cross_validate(model, data, full, folds, "one-step"), rtol=0, atol=1e-9)
 

@@ -1,6 +1,7 @@
 """Staged, warm-started fits (issue 17 item 2): waves, donors, the single fit's chain, and that staging
 reaches the optimum that many quasi-random starts find."""
 from dataclasses import replace as dataclasses_replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -207,8 +208,30 @@ def test_a_candidate_that_is_an_earlier_grids_model_is_served_its_fit(tiny, tmp_
     served = run([cl_vi], tiny, tmp_path, settings=Settings(cv_folds=0), fitted_before=[(us, first)],
                  progress=said.append)[0]
     assert served.name == "CL-VI" and served.grid == "lift" and served.params == first.params
+    assert served.rank is None and served.admissible is None  # the ranking judges it afresh
     assert any("the same model as separation X_ss/X_w U/S" in m for m in said)
+    assert len(list((tmp_path / "cache" / "lift").glob("CL-VI-*.json"))) == 1  # cached under its own name
+    # a twin fitted elsewhere (not in this run's cache) is not served: fitted anew
+    said.clear()
+    run([cl_vi], tiny, tmp_path / "elsewhere", settings=Settings(cv_folds=0), fitted_before=[(us, first)],
+        progress=said.append)
+    assert not any("the same model" in m for m in said)
     boxed = dataclasses.replace(cl_vi, bounds=(("tau1_ss", (0.0, 1.0)),))
     assert same_model_fitted([cl_vi, boxed], [(us, first)]).keys() == {0}
     failed = dataclasses.replace(first, error="FitError: x", params=None)
     assert same_model_fitted([cl_vi], [(us, failed)]) == {}
+
+
+def test_the_cross_validation_method_keys_only_candidates_that_may_be_nonlinear(tiny):
+    """A linear candidate's folds are exact with either method: one cache entry serves both; a nonlinear
+    candidate's are not; without folds the method is moot."""
+    from structsearch.search.runner import cache_path, campaign_fingerprint
+    key = campaign_fingerprint(tiny)
+    refit, one_step = Settings(), Settings(cv_method="one-step")
+    cl_vi, cd_i = resolve_candidate("CL-VI"), resolve_candidate("CD-I")
+    lift = {"tau1": 0.3, "tau2": 0.1, "a1": 30.0, "a_star": 0.2, "CL0": 0.1}   # CD-I's lift model, CL-I
+    assert cache_path(Path("o"), cl_vi, key, None, refit) != cache_path(Path("o"), cl_vi, key, None, one_step)
+    assert cache_path(Path("o"), cd_i, key, lift, refit) == cache_path(Path("o"), cd_i, key, lift, one_step)
+    no_folds = Settings(cv_folds=0)
+    assert cache_path(Path("o"), cl_vi, key, None, no_folds) == \
+        cache_path(Path("o"), cl_vi, key, None, Settings(cv_folds=0, cv_method="one-step"))

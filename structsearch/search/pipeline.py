@@ -87,7 +87,8 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, se
         needed = sorted({c.lift for c in grid.candidates if c.lift})
         ensure_lift(needed)
         say(f"grid {grid.name}: {len(grid.candidates)} candidates")
-        # earlier grids' candidates are warm starts too (the lift grid's CL-VI is the separation grid's U/S)
+        # earlier grids' candidates are warm starts too, and a candidate that is one of them under another
+        # name is served its fit (the lift grid's CL-VI is the separation grid's U/S)
         earlier = [(c, r) for g in grids[:grids.index(grid)] for c, r in zip(g.candidates, by_grid_results[g.name])]
         results = run(grid.candidates, campaign, out, lift_results=lift_results, lift_candidates=lift_candidates,
                       settings=settings, n_jobs=n_jobs, backend=backend, progress=say, fitted_before=earlier)

@@ -104,7 +104,8 @@ def cross_validate(model, train: FlightData, result, folds: list[list[int]], met
     (:func:`held_out_residuals`). A nonlinear model's fold is, with ``method`` "refit", one solve warm
     started from the full training fit; with "one-step", one Gauss-Newton step from it: the same
     least-squares problem on the full fit's Jacobian [dPhi/dtheta c, Phi] and residual, so that the
-    folds share its factorisation too (for a linear model the step lands on the fold's exact fit).
+    folds share its factorisation too (for a linear model the step lands on the fold's exact fit);
+    parameters on a bound or not identifiable are held at the full fit's values.
     Folds need estimates only: no statistics are computed for them.
 
     Drag and pitch candidates keep the separation states and C_L of the lift model fitted on all
@@ -115,8 +116,8 @@ def cross_validate(model, train: FlightData, result, folds: list[list[int]], met
         return held_out_residuals(model.bind(train).regression_matrix(np.zeros(0)), y, train.bounds, folds)
     if method == "one-step":
         jac, output = model.jacobian(train, result.params)
-        # a parameter on a bound or not identifiable stays where the full fit left it: a fold's refit
-        # could not move it past the bound either, and a step along a null direction is arbitrary
+        # a parameter on a bound or not identifiable stays where the full fit left it (an approximation: a
+        # fold's refit could move it inward, never past the bound; a step along a null direction is arbitrary)
         free = [i for i, n in enumerate(result.names) if n not in result.at_bound and n not in result.unidentifiable]
         return held_out_residuals(jac[:, free], y - output, train.bounds, folds)
     residual = np.empty_like(y)
@@ -240,7 +241,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
                                         result=result, train=scores["train"], validation=scores["validation"],
                                         cv=scores.get("cv"), cv_folds=len(folds),
                                         # a linear candidate's folds are exact fits whichever method is asked
-                                        cv_method=settings.cv_method if model.nonlinear_names else "refit",
+                                        cv_method=settings.cv_method if model.nonlinear_names and folds else "refit",
                                         seconds=time.perf_counter() - t0,
                                         centred_correlation=centred_correlation(c, model, train, result))
     except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
@@ -319,10 +320,12 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_
         fitted_before: Sequence[tuple[Candidate, CandidateResult]] = ()) -> list[CandidateResult]:
     """Fit candidates (cached, in parallel), staged (:mod:`.staging`): a candidate starts from the
     estimates of a candidate nested in it, fitted before it in this grid (an earlier wave) or in
-    ``fitted_before``. Local worker processes take a candidate as soon as the candidates it may start
-    from are fitted; other backends fit wave after wave. Either way a candidate's donors are the same
-    (those of earlier waves), so the results do not depend on the backend or the number of jobs.
-    Results come in the order of ``candidates``."""
+    ``fitted_before`` (earlier grids of the same search). A candidate that is one of ``fitted_before``
+    under another name is served that fit from this run's cache (when it has none of its own: a cache
+    written by an earlier run serves first, as for every candidate). Local worker processes take a
+    candidate as soon as the candidates it may start from are fitted; other backends fit wave after
+    wave. Either way a candidate's donors are the same (those of earlier waves), so the results do not
+    depend on the backend or the number of jobs. Results come in the order of ``candidates``."""
     say = progress or (lambda msg: None)
     train, validation = campaign.split("train"), campaign.split("validation")
     data_key = campaign_fingerprint(campaign)
@@ -342,8 +345,15 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lift_
     cached = sum(r is not None for r in results)
     if cached:
         say(f"{cached} of {len(candidates)} candidates from the cache")
-    for i, (twin, fitted) in same_model_fitted(candidates, fitted_before).items():
-        if results[i] is None:  # the lift grid's CL-VI is the separation grid's X_ss/X_w U/S
+    for i, (twin, _) in same_model_fitted(candidates, fitted_before).items():
+        if results[i] is not None:
+            continue
+        # the lift grid's CL-VI is the separation grid's X_ss/X_w U/S: served the twin's fit as cached
+        # under this run's key (the same data, settings, lift model and code), never an object from elsewhere
+        twin_lift = lift_results.get(twin.lift) if twin.lift else None
+        fitted = _read_cached(cache_path(out, twin, data_key, twin_lift.params if twin_lift else None, settings),
+                              say)
+        if fitted is not None and not fitted.failed:
             results[i] = dataclasses.replace(fitted, name=candidates[i].name, grid=candidates[i].grid)
             write_json(paths[i], results[i].to_json(), indent=1)
             say(f"{candidates[i].grid} {candidates[i].name}: the same model as {twin.grid} {twin.name}, "
@@ -427,15 +437,23 @@ def _fit_as_ready(todo, needs, start_of, task, n_jobs, done) -> None:
             if not running:  # cannot happen: needs only point to earlier waves
                 raise RuntimeError(f"candidates {sorted(waiting)} wait for candidates that never finish")
             complete, _ = wait(running, return_when=FIRST_COMPLETED)
-            for future in complete:
+            failure = None
+            for future in complete:  # every finished fit is kept (cached) before a failure is raised
                 i, start = running.pop(future)
-                _, summary = future.result()
+                try:
+                    _, summary = future.result()
+                except BaseException as exc:
+                    failure = failure or exc
+                    continue
                 fitted.add(i)
                 finished += 1
                 done(i, summary, finished, start)
+            if failure is not None:
+                raise failure
     except BaseException:
         # a failed task or an interrupt: nothing more starts; the caller then removes the shared splits,
-        # so wait for the fits already running rather than pull their data from under them
+        # so wait for the fits already running (an interrupt waits for them to end) rather than pull
+        # their data from under them
         for future in running:
             future.cancel()
         wait(running)
