@@ -130,10 +130,16 @@ def toeplitz_product(matrix: np.ndarray, lam: np.ndarray, bounds: np.ndarray) ->
     return shifted_product(matrix, np.concatenate([lam[:0:-1], lam]), bounds)
 
 
-def scaled_factor(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """R of the thin QR of the Jacobian with unit-norm columns, and the column norms."""
+def _column_scale(jac: np.ndarray) -> np.ndarray:
+    """Column norms of the Jacobian, 1 for a zero column (it stays zero, and is named elsewhere)."""
     scale = np.sqrt(np.sum(jac * jac, axis=0))
     scale[scale == 0] = 1.0
+    return scale
+
+
+def scaled_factor(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R of the thin QR of the Jacobian with unit-norm columns, and the column norms."""
+    scale = _column_scale(jac)
     return qr(jac / scale, mode="r", check_finite=False)[0][: jac.shape[1]], scale
 
 
@@ -142,8 +148,7 @@ def scaled_factor_from_qr(jac: np.ndarray, r: np.ndarray, columns: np.ndarray) -
     (``jac[:, columns] = Q r``): jac D^-1 = Q (r P^T D^-1), so the QR of that p x p matrix has the same
     triangular factor up to the signs of its rows, which no estimator here sees (they use R^-1 R^-T,
     singular values and right singular vectors). p x p work instead of m x p."""
-    scale = np.sqrt(np.sum(jac * jac, axis=0))
-    scale[scale == 0] = 1.0
+    scale = _column_scale(jac)
     unpivoted = np.empty_like(r)
     unpivoted[:, columns] = r
     return qr(unpivoted / scale, mode="r", check_finite=False)[0], scale

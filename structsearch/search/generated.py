@@ -26,7 +26,6 @@ from ..engine.twostep import generated_regressor_covariance
 from .candidate_result import CandidateResult
 
 
-
 def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lift_jacobian: np.ndarray,
                      lift_names, lift_params: dict, names) -> np.ndarray:
     """d (candidate output) / d (lift parameter), one column per name in ``names``.
