@@ -14,9 +14,9 @@ from pathlib import Path  # noqa: E402
 
 
 def _calibration(args) -> int:
-    from .calibration import run
+    from .experiments.calibration import run
     from .data.atomic import write_json, write_text
-    from .report.calibration_doc import calibration_dict, calibration_markdown
+    from .experiments.calibration_doc import calibration_dict, calibration_markdown
     say = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=_jobs(args), progress=say)
     out = Path(args.out)
@@ -39,16 +39,16 @@ def _calibration(args) -> int:
 def _bench(args) -> int:
     if args.calibration:
         return _calibration(args)
-    from .bench import BenchConfig, run, write
+    from .experiments.bench import BenchConfig, run, write
     config = BenchConfig(samples=args.samples, repeats=args.repeats, random_starts=args.starts,
                          seed=args.seed, n_jobs=_jobs(args))
     say = lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True)  # noqa: E731
     fig = run(config, progress=say)
     if not args.no_search:
-        from .bench import run_search
+        from .experiments.bench import run_search
         fig["search"] = run_search(n_jobs=_jobs(args), progress=say)
     if args.staged:
-        from .bench import run_staged
+        from .experiments.bench import run_staged
         fig["staged"] = run_staged(campaigns=args.staged, n_jobs=_jobs(args), progress=say)
     md, js = write(fig, Path(args.out))
     o, r = fig["one_start"], fig["random_starts"]
@@ -138,14 +138,14 @@ def _preprocess(args) -> int:
 
 def _study(args) -> int:
     from .data.campaign import read_campaign
-    from .search.runner import Settings, stderr_progress
+    from .fitting.options import FitOptions
     from .study.study import run_study
     from .report import figures
     from .report.study_doc import write
     campaign = read_campaign(args.data)
     out = Path(args.out)
     cache = Path(args.cache) if args.cache else out
-    study = run_study(campaign, cache, Settings(n_starts=args.starts), n_jobs=_jobs(args),
+    study = run_study(campaign, cache, FitOptions(n_starts=args.starts), n_jobs=_jobs(args),
                       progress=None if args.quiet else stderr_progress)
     command = (f"structsearch study --data {args.data} --out {args.out}" + (f" --cache {args.cache}" if args.cache
                                                                             else "")
@@ -156,6 +156,10 @@ def _study(args) -> int:
     return 0
 
 
+def stderr_progress(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
 def raise_error(message: str):
     from .data.errors import DeclarationError
     raise DeclarationError(message)
@@ -164,17 +168,18 @@ def raise_error(message: str):
 def _fit(args) -> int:
     from .data.campaign import read_campaign
     from .data.atomic import write_json, write_text
-    from .search.runner import Settings, check_bounds, fit_lift_model, fit_staged
-    from .search.specs import resolve_candidate
+    from .fitting.options import check_box_names, FitOptions
+    from .fitting.candidate_fit import fit_lift_model, fit_staged
+    from .fitting.specs import resolve_candidate
     from .report.documents import fit_document
     from .report.tables import parameter_table
     campaign = read_campaign(args.data)
     candidate = resolve_candidate(args.model)
-    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
-    check_bounds(settings.bounds, [candidate])
+    options = FitOptions(n_starts=args.starts, seed=args.seed, covariance=args.covariance, parameter_boxes=_bounds(args))
+    check_box_names(options.parameter_boxes, [candidate])
     train, validation = campaign.split("train"), campaign.split("validation")
-    lift, lift_candidate = fit_lift_model(candidate, train, validation, settings)
-    summary = fit_staged(candidate, train, validation, lift, lift_candidate, settings)
+    lift = fit_lift_model(candidate, train, validation, options)
+    summary = fit_staged(candidate, train, validation, lift, options)
     if summary.failed:
         raise_error(summary.error)
     out = Path(args.out)
@@ -189,17 +194,17 @@ def _fit(args) -> int:
 
 def _search(args) -> int:
     from .data.campaign import read_campaign
-    from .search.runner import Settings, check_bounds, stderr_progress
+    from .fitting.options import check_box_names, FitOptions
     from .search.pipeline import grids_for, search
     from .report.tables import write_tables
-    from .calibration import thesis_estimator_fits
+    from .study.thesis_estimator import thesis_estimator_fits
     campaign = read_campaign(args.data)
-    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args),
+    options = FitOptions(n_starts=args.starts, seed=args.seed, covariance=args.covariance, parameter_boxes=_bounds(args),
                         cv_method=args.cv_method)
-    check_bounds(settings.bounds, [c for g in grids_for(args.grid) for c in g.candidates])
+    check_box_names(options.parameter_boxes, [c for g in grids_for(args.grid) for c in g.candidates])
     client = _dask_client(args) if args.backend == "dask" else None
     try:
-        result = search(campaign, args.grid, Path(args.out), n_jobs=_jobs(args), settings=settings,
+        result = search(campaign, args.grid, Path(args.out), n_jobs=_jobs(args), options=options,
                         backend=args.backend, max_correlation=_max_correlation(args),
                         progress=None if args.quiet else stderr_progress)
     finally:
@@ -298,10 +303,10 @@ def _demo(args) -> int:
     import time
     from .data.campaign import read_campaign, write_campaign
     from .flight.flighttest import build_campaign
-    from .search.runner import Settings, stderr_progress
+    from .fitting.options import FitOptions
     from .search.pipeline import search
     from .report.tables import write_tables
-    from .calibration import thesis_estimator_fits
+    from .study.thesis_estimator import thesis_estimator_fits
     out = Path(args.out)
     t0 = time.perf_counter()
     camp_dir = out / "campaign"
@@ -319,7 +324,7 @@ def _demo(args) -> int:
         campaign = read_campaign(camp_dir)
     t_sim = time.perf_counter() - t0
     jobs = _jobs(args)
-    result = search(campaign, "all", out, n_jobs=jobs, settings=Settings(n_starts=args.starts),
+    result = search(campaign, "all", out, n_jobs=jobs, options=FitOptions(n_starts=args.starts),
                     max_correlation=_max_correlation(args), progress=None if args.quiet else stderr_progress)
     write_tables(result.grids, out, thesis_estimator_fits(result.grids, campaign))
     total = time.perf_counter() - t0
@@ -343,7 +348,7 @@ def _demo(args) -> int:
     from .report import figures
     from .report.study_doc import write as write_study
     t2 = time.perf_counter()
-    study = run_study(campaign, out, Settings(n_starts=args.starts), n_jobs=jobs,
+    study = run_study(campaign, out, FitOptions(n_starts=args.starts), n_jobs=jobs,
                       progress=None if args.quiet else stderr_progress)
     written = write_study(study, out / "study", f"structsearch study --data {camp_dir} --out {out / 'study'} "
                           f"--cache {out}" + (f" --starts {args.starts}" if args.starts != 4 else ""),
@@ -353,7 +358,7 @@ def _demo(args) -> int:
         print("no figures: the report needs matplotlib (pip install 'structsearch[figures]')")
         return 0
     from .report.page import build
-    _print_report(build(campaign, out, settings=Settings(n_starts=args.starts), n_jobs=jobs, story=story["lines"],
+    _print_report(build(campaign, out, options=FitOptions(n_starts=args.starts), n_jobs=jobs, story=story["lines"],
                         progress=None if args.quiet else stderr_progress))
     return 0
 
@@ -362,11 +367,11 @@ def _report(args) -> int:
     from .data.campaign import read_campaign
     from .report.page import build
     from .search.pipeline import grids_for
-    from .search.runner import Settings, check_bounds
+    from .fitting.options import check_box_names, FitOptions
     campaign = read_campaign(args.data)
-    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
-    check_bounds(settings.bounds, [c for g in grids_for("all") for c in g.candidates])
-    res = build(campaign, Path(args.out), settings=settings, n_jobs=_jobs(args),
+    options = FitOptions(n_starts=args.starts, seed=args.seed, covariance=args.covariance, parameter_boxes=_bounds(args))
+    check_box_names(options.parameter_boxes, [c for g in grids_for("all") for c in g.candidates])
+    res = build(campaign, Path(args.out), options=options, n_jobs=_jobs(args),
                 diagnose_coefficient=None if args.diagnose == "none" else args.diagnose, models=tuple(args.model or ()),
                 progress=None if args.quiet else lambda m: print(m, file=sys.stderr, flush=True))
     _print_report(res)
@@ -386,11 +391,11 @@ def _diagnose(args) -> int:
     out = Path(args.out)
     if args.benchmark:
         from .diagnosis import withheld
-        from .search.runner import Settings
+        from .fitting.options import FitOptions
         from .engine.statistics import DEFAULT_COVARIANCE
-        settings = Settings(n_starts=args.starts, covariance=args.covariance, bounds=_bounds(args), cv_folds=0)
+        options = FitOptions(n_starts=args.starts, covariance=args.covariance, parameter_boxes=_bounds(args), cv_folds=0)
         res = withheld.run(seed=args.seed, scale=args.scale, null_seeds=tuple(range(args.null_seeds)),
-                           n_jobs=_jobs(args), settings=settings,
+                           n_jobs=_jobs(args), options=options,
                            progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr,
                                                                            flush=True))
         command = " ".join(["structsearch diagnose --benchmark --out", str(out)]
@@ -414,14 +419,14 @@ def _diagnose(args) -> int:
         raise_error("diagnose needs --data and --model (or --benchmark)")
     from .data.campaign import read_campaign
     from .diagnosis.diagnose import diagnose
-    from .search.specs import resolve_candidate
+    from .fitting.specs import resolve_candidate
     from .report.diagnosis_doc import write
-    from .search.runner import Settings, check_bounds
+    from .fitting.options import check_box_names, FitOptions
     campaign = read_campaign(args.data)
     baseline = resolve_candidate(args.model, args.coefficient)
-    settings = Settings(n_starts=args.starts, seed=args.seed, covariance=args.covariance, bounds=_bounds(args))
-    check_bounds(settings.bounds, [baseline])
-    doc = diagnose(campaign, baseline, settings=settings, n_jobs=_jobs(args), seed=args.seed,
+    options = FitOptions(n_starts=args.starts, seed=args.seed, covariance=args.covariance, parameter_boxes=_bounds(args))
+    check_box_names(options.parameter_boxes, [baseline])
+    doc = diagnose(campaign, baseline, options=options, n_jobs=_jobs(args), seed=args.seed,
                    progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr, flush=True))
     js, md = write(doc, out)
     best = next((e for e in doc["effects"] if "error" not in e), None)
@@ -561,10 +566,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scale of the slow reconstruction errors of a standard campaign (1, the default: realistic; "
                         "0: only sensor noise, buffet and residual biases, like a raw campaign's channels)")
     s.add_argument("--raw", action="store_true",
-                   help="write the raw sensor channels (interfaces.md 5.2) with the injected sensor errors recorded")
+                   help="write the raw sensor channels (docs/interfaces.md 5.2) with the injected sensor errors recorded")
     s.set_defaults(func=_simulate)
 
-    pp = sub.add_parser("preprocess", help="turn a raw flight-test campaign (interfaces.md 5.2) into a standard one: "
+    pp = sub.add_parser("preprocess", help="turn a raw flight-test campaign (docs/interfaces.md 5.2) into a standard one: "
                                            "spectra, pre-filter, flight-path reconstruction, coefficients")
     pp.add_argument("--raw", required=True, help="raw campaign directory (format = \"raw\")")
     pp.add_argument("--out", required=True, help="standard campaign directory to write, with preprocess.md")
@@ -601,7 +606,7 @@ def build_parser() -> argparse.ArgumentParser:
     _campaign_options(r)
     r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all, or a grid spec file")
     r.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
-    from .search.runner import CV_METHODS
+    from .fitting.options import CV_METHODS
     r.add_argument("--cv-method", choices=CV_METHODS, default="refit",
                    help="cross-validation folds of a nonlinear candidate: refit (solved again from the full "
                         "fit's estimates, exact; default) or one-step (one Gauss-Newton step from them: no "

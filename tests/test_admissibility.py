@@ -6,9 +6,10 @@ import pytest
 from structsearch.data.flightdata import FlightData
 from structsearch.flight.synthetic import campaign
 from structsearch.engine.stallmodel import StallModel
-from structsearch.search.admissibility import AdmissibilityRules, centred_correlation, reasons
-from structsearch.search.candidate_result import CandidateResult, R2Summary, SplitScores
-from structsearch.search.candidates import Candidate
+from structsearch.search.admissibility import AdmissibilityRules, reasons
+from structsearch.fitting.centred_correlation import centred_correlation
+from structsearch.fitting.candidate_result import CandidateResult, R2Summary, SplitScores
+from structsearch.fitting.candidates import Candidate
 from structsearch.search.ranking import passed_over, rank
 
 LIFT = Candidate("L", "g", "CL", (("CL0", "1"), ("CL_KL", "K_L(X)"), ("CL_a", "alpha")), states=(("", "U"),))

@@ -16,8 +16,8 @@ import sympy as sp
 from structsearch.engine.regressors import declare
 from structsearch.engine.scores import ManeuverScores, R2Summary, weighted_mean_se
 from structsearch.flight import reference
-from structsearch.search.candidate_result import CandidateResult, SplitScores
-from structsearch.search.specs import find_candidate
+from structsearch.fitting.candidate_result import CandidateResult, SplitScores
+from structsearch.fitting.specs import find_candidate
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from structsearch.calibration import TRUTH, CampaignDraw, summarise
+from structsearch.experiments.calibration import TRUTH, CampaignDraw, summarise
 from structsearch.flight.reference import FINAL_MODEL_NAMES
 
 

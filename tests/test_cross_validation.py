@@ -5,9 +5,9 @@ import pytest
 from structsearch.data.flightdata import FlightData
 from structsearch.engine.stallmodel import StallModel
 from structsearch.flight.synthetic import campaign
-from structsearch.search.candidate_result import CandidateResult, R2Summary, SplitScores
+from structsearch.fitting.candidate_result import CandidateResult, R2Summary, SplitScores
 from structsearch.search.ranking import rank
-from structsearch.search.runner import cross_validate, maneuver_folds
+from structsearch.fitting.cross_validation import cross_validate, maneuver_folds
 from structsearch.flight.reference import FINAL_LIFT
 
 from conftest import central_difference
@@ -191,14 +191,14 @@ def test_candidates_of_different_cross_validation_methods_are_not_compared_by_it
 
 def test_an_unknown_cross_validation_method_is_one_clear_error():
     from structsearch.data.errors import StructSearchError
-    from structsearch.search.runner import Settings
+    from structsearch.fitting.options import FitOptions
     with pytest.raises(StructSearchError, match="one of refit, one-step, not 'jackknife'"):
-        Settings(cv_method="jackknife")
+        FitOptions(cv_method="jackknife")
 
 
 def test_the_bench_compares_two_rankings_candidate_by_candidate():
     import dataclasses
-    from structsearch.bench import ranking_agreement
+    from structsearch.experiments.bench import ranking_agreement
     a = rank([_candidate("a", 3, [1.0, 2.0, 3.0], [1.0, 2.0, 3.0]),
               _candidate("b", 3, [1.5, 3.0, 4.5], [1.0, 2.0, 3.0])])
     b = rank([_candidate("a", 3, [1.6, 3.2, 4.8], [1.0, 2.0, 3.0]),

@@ -10,13 +10,14 @@ from structsearch.diagnosis.diagnose import diagnose
 from structsearch.data.errors import DataError, DeclarationError
 from structsearch.flight.flighttest import build_campaign
 from structsearch.flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH
-from structsearch.search.runner import Settings, fit_candidate, fit_lift_model
-from structsearch.search.specs import find_candidate
+from structsearch.fitting.options import FitOptions
+from structsearch.fitting.candidate_fit import fit_candidate, fit_lift_model
+from structsearch.fitting.specs import find_candidate
 from structsearch.diagnosis.withheld import WITHHELD, baseline_without
 
 from test_report_cli import run_cli
 
-SETTINGS = Settings(n_starts=1)
+OPTIONS = FitOptions(n_starts=1)
 
 
 @pytest.fixture(scope="module")
@@ -72,14 +73,14 @@ def test_refit_with_the_effect_recovers_its_parameter(campaign, effect, paramete
     base = baseline_without(effect)
     model = fx.LIBRARY[effect].apply(base)
     train, val = campaign.split("train"), campaign.split("validation")
-    lift, lift_c = fit_lift_model(model, train, val, SETTINGS)
-    s = fit_candidate(model, train, val, lift, lift_c, SETTINGS)
+    lift = fit_lift_model(model, train, val, OPTIONS)
+    s = fit_candidate(model, train, val, lift, OPTIONS)
     assert abs(s.params[parameter] - truth) < 3 * s.stderr[parameter] + 0.05 * abs(truth), s.params
 
 
 @pytest.fixture(scope="module")
 def withheld_elevator(campaign):
-    return diagnose(campaign, baseline_without("elevator"), settings=SETTINGS, max_rounds=2)
+    return diagnose(campaign, baseline_without("elevator"), options=OPTIONS, max_rounds=2)
 
 
 def test_withheld_effect_ranked_first_and_gap_closed(withheld_elevator):
@@ -100,8 +101,8 @@ def test_final_model_is_the_model_after_the_adopted_effects_and_shrinks_stay_in_
     final = fx.LIBRARY["elevator"].apply(baseline_without("elevator"))
     assert final.name == d["final_model"]
     train_, val_ = campaign.split("train"), campaign.split("validation")
-    lift_, lift_c_ = fit_lift_model(final, train_, val_, SETTINGS)
-    refit = fit_candidate(final, train_, val_, lift_, lift_c_, SETTINGS)
+    lift_ = fit_lift_model(final, train_, val_, OPTIONS)
+    refit = fit_candidate(final, train_, val_, lift_, OPTIONS)
     assert d["final_mse"] == pytest.approx(refit.mse_validation, rel=1e-6)
     # every gap ratio computed from the document's MSEs, unclamped, lies in [0, 1] for improving effects
     for r in d["rounds"]:
@@ -114,8 +115,8 @@ def test_final_model_is_the_model_after_the_adopted_effects_and_shrinks_stay_in_
     from structsearch.diagnosis.diagnose import saturated
     base = baseline_without("elevator")
     train, val = campaign.split("train"), campaign.split("validation")
-    lift, lift_c = fit_lift_model(base, train, val, SETTINGS)
-    sat = fit_candidate(saturated(base, fx.applicable(base))[0], train, val, lift, lift_c, SETTINGS)
+    lift = fit_lift_model(base, train, val, OPTIONS)
+    sat = fit_candidate(saturated(base, fx.applicable(base))[0], train, val, lift, OPTIONS)
     assert d["noise_floor"] <= sat.mse_validation * (1 + 1e-9)
     # explained: nothing left for the library-free floor either
     assert d["explained"] and d["unexplained"]["signals"] == []
@@ -124,7 +125,7 @@ def test_final_model_is_the_model_after_the_adopted_effects_and_shrinks_stay_in_
 def test_state_level_error_shrinks_with_the_effect(withheld_elevator, campaign):
     sl = withheld_elevator["state_level"]
     assert set(sl["before"]) == {"alpha", "q", "V", "theta"}
-    d = diagnose(campaign, baseline_without("cp_shift"), settings=SETTINGS, max_rounds=1)
+    d = diagnose(campaign, baseline_without("cp_shift"), options=OPTIONS, max_rounds=1)
     assert d["state_level"]["reduction"]["alpha"] > 0.5  # the replayed pitch dynamics follow the data
 
 
@@ -143,15 +144,15 @@ def test_where_bins_partition_the_validation_samples(withheld_elevator, campaign
     # the per-maneuver bins against the baseline fitted here, outside the diagnosis
     base = baseline_without("elevator")
     train, val = campaign.split("train"), campaign.split("validation")
-    lift, lift_c = fit_lift_model(base, train, val, SETTINGS)
-    fit = fit_candidate(base, train, val, lift, lift_c, SETTINGS)
+    lift = fit_lift_model(base, train, val, OPTIONS)
+    fit = fit_candidate(base, train, val, lift, OPTIONS)
     by_bin = {r["bin"]: r["mse"] for r in d["where"] if r["dimension"] == "maneuver"}
     assert list(by_bin) == list(val.names)
     assert np.allclose([by_bin[n] for n in val.names], fit.validation.mse_maneuvers, rtol=1e-4)
 
 
 def test_final_model_is_explained(campaign):
-    d = diagnose(campaign, find_candidate("Cm-XXXIIIr"), settings=SETTINGS, max_rounds=1)
+    d = diagnose(campaign, find_candidate("Cm-XXXIIIr"), options=OPTIONS, max_rounds=1)
     assert d["gap_explained_by_baseline"] and d["explained"]
     # checked outside the diagnosis: the saturated model, fitted here, predicts the validation maneuvers
     # no better than 1 % below the final model
@@ -159,15 +160,15 @@ def test_final_model_is_explained(campaign):
     from structsearch.diagnosis.diagnose import saturated
     final = find_candidate("Cm-XXXIIIr")
     train, val = campaign.split("train"), campaign.split("validation")
-    lift, lift_c = fit_lift_model(final, train, val, SETTINGS)
-    sat = fit_candidate(saturated(final, fx.applicable(final))[0], train, val, lift, lift_c, SETTINGS)
+    lift = fit_lift_model(final, train, val, OPTIONS)
+    sat = fit_candidate(saturated(final, fx.applicable(final))[0], train, val, lift, OPTIONS)
     assert sat.mse_validation >= 0.99 * d["mse"]["validation"], (sat.mse_validation, d["mse"])
 
 
 def test_deterministic(campaign):
-    a = diagnose(campaign, baseline_without("induced_drag"), settings=SETTINGS, max_rounds=1)
+    a = diagnose(campaign, baseline_without("induced_drag"), options=OPTIONS, max_rounds=1)
     # the effects fitted on two processes give the same document as on one
-    b = diagnose(campaign, baseline_without("induced_drag"), settings=SETTINGS, max_rounds=1, n_jobs=2)
+    b = diagnose(campaign, baseline_without("induced_drag"), options=OPTIONS, max_rounds=1, n_jobs=2)
     a.pop("seconds"), b.pop("seconds")
     assert json.dumps(a, default=float, sort_keys=True) == json.dumps(b, default=float, sort_keys=True)
     assert a["effects"][0]["name"] == "induced_drag"
@@ -179,7 +180,7 @@ def test_campaign_without_validation_maneuvers(campaign):
                                [{k: v[sl] for k, v in campaign.data.columns.items()}
                                 for sl in campaign.data.segment_slices()])
     with pytest.raises(DataError, match="no validation maneuvers"):
-        diagnose(train_only, find_candidate("CL-V"), settings=SETTINGS)
+        diagnose(train_only, find_candidate("CL-V"), options=OPTIONS)
 
 
 def test_baselines_of_the_benchmark_are_final_minus_one():
@@ -212,7 +213,7 @@ def test_a_gap_outside_the_library_is_not_explained_and_follows_its_signal():
     """Issue 14: lift slopes that grow with airspeed (no library term uses V). The truth structure CL-VI is
     not at the library-free floor even after what the library adds, and the remainder follows V."""
     camp = build_campaign(seed=5, scale=0.1, slow_errors=0.0, anomaly="compressibility")
-    d = diagnose(camp, find_candidate("CL-VI"), settings=SETTINGS, max_rounds=2, states=False)
+    d = diagnose(camp, find_candidate("CL-VI"), options=OPTIONS, max_rounds=2, states=False)
     assert not d["gap_explained_by_baseline"] and not d["explained"]
     u = d["unexplained"]
     assert u["gap_signals"][0]["name"] == "V" and u["gap_signals"][0]["importance"] > 0.3
@@ -223,7 +224,7 @@ def test_a_gap_outside_the_library_is_not_explained_and_follows_its_signal():
     assert [p["name"] for p in u["partial_dependence"]] == [s["name"] for s in u["signals"][:3]]
     # the same campaign without the anomaly: the truth structure is at the floor, nothing unexplained
     clean = diagnose(build_campaign(seed=5, scale=0.1, slow_errors=0.0), find_candidate("CL-VI"),
-                     settings=SETTINGS, max_rounds=1, states=False)
+                     options=OPTIONS, max_rounds=1, states=False)
     assert clean["explained"] and clean["unexplained"]["signals"] == []
 
 

@@ -10,7 +10,7 @@ import pytest
 from structsearch.report import figure_data as rd
 from structsearch.data.campaign import read_campaign, write_campaign
 from structsearch.flight.flighttest import build_campaign
-from structsearch.search.runner import Settings
+from structsearch.fitting.options import FitOptions
 from structsearch.flight.reference import FINAL_MODEL_NAMES
 from structsearch.engine.separation import static_separation
 
@@ -40,7 +40,7 @@ def report_run(small, tmp_path_factory):
 @pytest.fixture(scope="module")
 def model_set(small, report_run):
     # the report's cache serves these fits
-    return rd.fit_model_set("identified", FINAL_MODEL_NAMES, small, report_run[1], Settings(n_starts=2))
+    return rd.fit_model_set("identified", FINAL_MODEL_NAMES, small, report_run[1], FitOptions(n_starts=2))
 
 
 def test_report_writes_every_figure_with_content(report_run):

@@ -45,9 +45,9 @@ def test_the_study_table_reports_the_decorrelation(campaign):
     """Issue 16 (replacing issue 3's strict xfail on |rho| < 0.3): the study's Tables 10.1-10.3 counterpart,
     on the same maneuvers, shows the dynamic stalls cutting |rho(tau1_ss, tau2_ss)| by at least 0.3; the
     thesis' 0.06 is not what this simulated plan gives (README)."""
-    from structsearch.search.runner import Settings
+    from structsearch.fitting.options import FitOptions
     from structsearch.study.dynamic_stalls import dynamic_stall_study
-    study = dynamic_stall_study(campaign, settings=Settings(n_starts=2))
+    study = dynamic_stall_study(campaign, options=FitOptions(n_starts=2))
     (a, b, quasi, full), _ = study.called_out()
     assert (a, b) == ("tau1_ss", "tau2_ss")
     assert abs(full) <= abs(quasi) - 0.3, (quasi, full)

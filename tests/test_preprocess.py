@@ -13,7 +13,7 @@ from structsearch.cli import main
 from structsearch.data.campaign import _parse_cutoffs, read_campaign, write_campaign
 from structsearch.data.errors import DataError, DeclarationError, FitError
 from structsearch.data.reduction import G
-from structsearch.data.spectra import rigid_body_bandwidth
+from structsearch.preprocess.spectra import rigid_body_bandwidth
 from structsearch.flight.flighttest import build_campaign
 from structsearch.preprocess.kalman import filter_smooth
 from structsearch.preprocess.kinematics import SENSOR_ERRORS

@@ -9,14 +9,14 @@ from structsearch.data.campaign import read_campaign, write_campaign
 from structsearch.data.flightdata import FlightData
 from structsearch.engine.scores import R2Summary
 from structsearch.report.tables import write_tables
-from structsearch.search.candidate_result import CandidateResult, SplitScores
-from structsearch.search.stepwise import stepwise
+from structsearch.fitting.candidate_result import CandidateResult, SplitScores
 from structsearch.flight.flighttest import build_campaign
 from structsearch.search.ranking import rank
 from structsearch.search.runner import run
+from structsearch.fitting.lift_fit import LiftFit
 from structsearch.search.pipeline import search
-from structsearch.search.specs import load_grid
-from structsearch.search.candidates import roman
+from structsearch.fitting.specs import load_grid
+from structsearch.fitting.candidates import roman
 
 from test_report_cli import run_cli
 
@@ -94,17 +94,6 @@ def test_separation_and_lift_grids():
     assert set(dict(lift["CL-IV"].regressors)) == {"CL0", "CL_KL_ss", "CL_KL_w", "CL_qstar"}
 
 
-def test_stepwise_finds_the_true_regressors():
-    rng = np.random.default_rng(3)
-    n = 2000
-    pool = {f"x{i}": rng.standard_normal(n) for i in range(8)}
-    pool["one"] = np.ones(n)
-    y = 1.0 + 2.0 * pool["x1"] - 0.5 * pool["x4"] + 0.3 * pool["x6"] + 0.1 * rng.standard_normal(n)
-    result = stepwise(pool, y, forced=["one"])
-    assert set(result.selected) == {"one", "x1", "x4", "x6"}
-    assert result.history[0][:2] == ("add", "x1")
-
-
 def test_ranking_rule_prefers_the_smaller_model_within_noise():
     def summary(name, n, per):
         scores = SplitScores(float(np.mean(per)), tuple(per), (100,) * len(per), R2Summary(0.9, 0.8, 1.0))
@@ -139,8 +128,7 @@ def test_interrupted_search_resumes(tiny, tmp_path):
     grid = load_grid("pitch")
     lift = load_grid("lift")
     lift_fit = run([lift["CL-VI"], lift["CL-I"]], tiny, tmp_path)
-    context = dict(lift_results={"CL-VI": lift_fit[0], "CL-I": lift_fit[1]},
-                   lift_candidates={"CL-VI": lift["CL-VI"], "CL-I": lift["CL-I"]})
+    context = dict(lifts={"CL-VI": LiftFit(lift["CL-VI"], lift_fit[0]), "CL-I": LiftFit(lift["CL-I"], lift_fit[1])})
     seen = []
 
     def stop_after_five(message):
@@ -277,7 +265,7 @@ def test_cli_bound_sets_the_box_and_rejects_unknown_names(tiny, tmp_path):
 def test_default_boxes_follow_the_data():
     """alpha* widened to the alpha range flown (2 deg margin), never narrowed; time constants scaled by
     cbar/V when the aircraft is larger or slower than the Citation (2.5 x cbar at the Citation's speed)."""
-    from structsearch.engine.separation import DEFAULT_BOUNDS, data_bounds
+    from structsearch.data.default_boxes import DEFAULT_BOUNDS, data_bounds
     from structsearch.flight.synthetic import campaign
     base = campaign({"quasi-steady": 1}, duration=10.0, seed=2)
     alpha = np.linspace(0.0, 0.5, base.n_samples)
@@ -297,19 +285,20 @@ def test_default_boxes_follow_the_data():
 def test_a_candidate_needing_a_missing_column_is_not_applicable(tiny):
     """A campaign without x_cg: the pitch candidates with x_cg terms are listed as not applicable (with the
     column named), the others fit."""
-    from structsearch.search.runner import Settings, fit_candidate, fit_lift_model
-    from structsearch.search.specs import find_candidate
+    from structsearch.fitting.options import FitOptions
+    from structsearch.fitting.candidate_fit import fit_candidate, fit_lift_model
+    from structsearch.fitting.specs import find_candidate
 
     def without_xcg(d):
         return FlightData({k: v for k, v in d.columns.items() if k != "x_cg"}, d.starts, d.names, d.source,
                           d.constants)
     train, val = without_xcg(tiny.split("train")), without_xcg(tiny.split("validation"))
-    settings = Settings(n_starts=1, cv_folds=0)
+    options = FitOptions(n_starts=1, cv_folds=0)
     needs, free = find_candidate("Cm-II"), find_candidate("Cm-III")
-    lift, lift_candidate = fit_lift_model(needs, train, val, settings)
-    out = fit_candidate(needs, train, val, lift, lift_candidate, settings)
+    lift = fit_lift_model(needs, train, val, options)
+    out = fit_candidate(needs, train, val, lift, options)
     assert out.failed and out.error == "not applicable: the campaign has no column x_cg"
-    assert not fit_candidate(free, train, val, lift, lift_candidate, settings).failed
+    assert not fit_candidate(free, train, val, lift, options).failed
 
 
 def test_cache_never_serves_a_changed_input_and_survives_a_truncated_file(tiny, tmp_path):
@@ -317,21 +306,21 @@ def test_cache_never_serves_a_changed_input_and_survives_a_truncated_file(tiny, 
     refitted with a message, not a traceback."""
     import dataclasses
     from structsearch.data.campaign import Campaign
-    from structsearch.search.runner import cache_path, campaign_fingerprint, Settings
+    from structsearch.search.runner import cache_path, campaign_fingerprint
+    from structsearch.fitting.options import FitOptions
     grid = load_grid("drag")
     cand = [grid["CD-IXr"]]
-    lift = run([load_grid("lift")["CL-VI"]], tiny, tmp_path, settings=Settings(n_starts=1, cv_folds=0))[0]
-    settings = Settings(n_starts=1, cv_folds=0)
+    lift = run([load_grid("lift")["CL-VI"]], tiny, tmp_path, options=FitOptions(n_starts=1, cv_folds=0))[0]
+    options = FitOptions(n_starts=1, cv_folds=0)
     key = campaign_fingerprint(tiny)
     wider = Campaign(tiny.name, {**tiny.aircraft, "cbar": 2.5}, tiny.maneuvers, tiny.data, tiny.directory)
     flipped = dataclasses.replace(tiny.maneuvers[0], split="validation" if tiny.maneuvers[0].split == "train"
                                   else "train")
     swapped = Campaign(tiny.name, tiny.aircraft, (flipped,) + tiny.maneuvers[1:], tiny.data, tiny.directory)
     assert len({key, campaign_fingerprint(wider), campaign_fingerprint(swapped)}) == 3
-    kwargs = dict(lift_results={"CL-VI": lift}, lift_candidates={"CL-VI": load_grid("lift")["CL-VI"]},
-                  settings=settings)
+    kwargs = dict(lifts={"CL-VI": LiftFit(load_grid("lift")["CL-VI"], lift)}, options=options)
     first = run(cand, tiny, tmp_path, **kwargs)[0]
-    path = cache_path(tmp_path, cand[0], key, lift.params, settings)
+    path = cache_path(tmp_path, cand[0], key, lift.params, options)
     assert path.exists()
     path.write_text(path.read_text()[:100])          # a crash in the middle of a write elsewhere
     said = []
@@ -363,16 +352,17 @@ def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
     """Issue 13: a failure that may be a programming error (a bare ValueError) is retried next run; a
     failure that is a property of the data (not applicable, DataError, ...) is cached."""
     import structsearch.search.runner as runner
-    from structsearch.search.runner import Settings, cache_path, campaign_fingerprint
+    from structsearch.fitting.options import FitOptions
+    from structsearch.search.runner import cache_path, campaign_fingerprint
     cand = load_grid("lift")["CL-I"]
-    settings = Settings(n_starts=1, cv_folds=0)
-    path = cache_path(tmp_path, cand, campaign_fingerprint(tiny), None, settings)
+    options = FitOptions(n_starts=1, cv_folds=0)
+    path = cache_path(tmp_path, cand, campaign_fingerprint(tiny), None, options)
     for error, cached in (("ValueError: boom", False), ("DataError: m01.csv, column 'V': bad", True)):
         def failing(c, *args, error=error, **kwargs):
             return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                            error=error, seconds=0.0)
         monkeypatch.setattr(runner, "fit_candidate", failing)
-        out = run([cand], tiny, tmp_path, settings=settings, backend="threading")[0]
+        out = run([cand], tiny, tmp_path, options=options, backend="threading")[0]
         assert out.failed and path.exists() == cached, error
 
 

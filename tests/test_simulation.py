@@ -168,15 +168,15 @@ def test_default_campaign_standard_deviations_match_the_thesis():
     default campaign those of thesis Tables 11, 13 and 15 within a factor of 2 (the thesis' real
     flight data), with the thesis' own covariance estimator, and the laboratory-clean campaign does not
     (so the test can fail)."""
-    from structsearch.calibration import THESIS_COVARIANCE, fit_final_models
+    from structsearch.study.thesis_estimator import THESIS_COVARIANCE, fit_final_models
     from structsearch.flight.reference import THESIS_STDERR
     from structsearch.report.tables import thesis_stderr_rows
-    from structsearch.search.runner import Settings
+    from structsearch.fitting.options import FitOptions
     truth = {"CL": FINAL_LIFT, "CD": FINAL_DRAG, "Cm": FINAL_PITCH}
 
     def ratios(campaign):
         finals = fit_final_models(campaign.split("train"), campaign.split("validation"),
-                                  Settings(n_starts=1, covariance=THESIS_COVARIANCE, cv_folds=0), truth)
+                                  FitOptions(n_starts=1, covariance=THESIS_COVARIANCE, cv_folds=0), truth)
         fits = {cand.name: [fit] for cand, fit in finals.values()}
         rows = thesis_stderr_rows(fits)
         assert {r[1] for r in rows} == set(THESIS_STDERR)

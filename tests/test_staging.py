@@ -6,11 +6,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from structsearch.search.candidate_result import CandidateResult, R2Summary, SplitScores
-from structsearch.search.candidates import Candidate
-from structsearch.search.runner import Settings, fit_candidate, fit_staged, run
-from structsearch.search.specs import load_grid, resolve_candidate
-from structsearch.search.staging import feeds, stages, warm_start, waves
+from structsearch.fitting.candidate_result import CandidateResult, R2Summary, SplitScores
+from structsearch.fitting.candidates import Candidate
+from structsearch.fitting.options import FitOptions
+from structsearch.fitting.candidate_fit import fit_candidate, fit_staged
+from structsearch.search.runner import run
+from structsearch.fitting.specs import load_grid, resolve_candidate
+from structsearch.fitting.staging import feeds, stages, warm_start, waves
 
 
 def test_waves_fit_every_candidate_after_the_ones_that_feed_it():
@@ -80,10 +82,10 @@ def test_staged_fit_reaches_the_optimum_of_many_quasi_random_starts(tiny):
     starts of CL-VI itself: the same training MSE."""
     train, validation = tiny.split("train"), tiny.split("validation")
     c = resolve_candidate("CL-VI")
-    settings = Settings(cv_folds=0)
-    staged = fit_staged(c, train, validation, None, None, settings)
-    many = fit_candidate(c, train, validation, None, None, Settings(n_starts=16, cv_folds=0))
-    assert staged.n_starts == 1 + Settings().n_starts  # the stage's estimates, declared, quasi-random
+    options = FitOptions(cv_folds=0)
+    staged = fit_staged(c, train, validation, None, options)
+    many = fit_candidate(c, train, validation, None, FitOptions(n_starts=16, cv_folds=0))
+    assert staged.n_starts == 1 + FitOptions().n_starts  # the stage's estimates, declared, quasi-random
     assert staged.mse_train <= many.mse_train * (1 + 1e-7)
 
 
@@ -96,7 +98,7 @@ def test_a_staged_grid_is_served_from_the_cache_on_the_second_run(tiny, tmp_path
     assert [r.mse_train for r in again] == [r.mse_train for r in first]
     assert messages == ["3 of 3 candidates from the cache"]
     # X U started from X Q's estimates and its declared start, X S from quasi-random starts
-    assert first[2].n_starts == 2 and first[0].n_starts == Settings().n_starts
+    assert first[2].n_starts == 2 and first[0].n_starts == FitOptions().n_starts
     assert np.isfinite(first[2].mse_train)
 
 
@@ -111,7 +113,7 @@ def test_the_state_memo_never_serves_another_theta():
     from structsearch.flight.synthetic import campaign
     data = campaign({"dynamic": 2}, duration=10.0, seed=2)
     model = resolve_candidate("CL-VI")
-    from structsearch.search.models import build_model
+    from structsearch.fitting.models import build_model
     m = build_model(model)
     problem = m.bind(data)
     a, b = m.start_vector(), m.start_vector() * 1.1
@@ -130,7 +132,7 @@ def test_fixed_states_are_shared_per_data_and_keyed_by_their_values():
     import pickle
     from structsearch.engine.stallmodel import FIXED_STATES_KEPT
     from structsearch.flight.synthetic import campaign
-    from structsearch.search.models import build_model
+    from structsearch.fitting.models import build_model
     data = campaign({"dynamic": 2}, duration=10.0, seed=2)
     lift = build_model(resolve_candidate("CL-VI"))
     fixed = dict(zip(lift.nonlinear_names, lift.start_vector()))
@@ -162,14 +164,14 @@ def test_the_two_step_covariance_is_the_same_from_a_white_fit_with_its_factor(ti
     """The search fits a drag or pitch candidate with the white covariance and hands its Jacobian's
     inverse factor to the two-step estimator, which replaces the covariance: the same as fitting with
     the requested kind and factorising again."""
-    from structsearch.search.generated import with_lift_uncertainty
-    from structsearch.search.models import build_model
-    from structsearch.search.shared_data import lift_context
+    from structsearch.fitting.lift_uncertainty import with_lift_uncertainty
+    from structsearch.fitting.models import build_model
+    from structsearch.fitting.lift_fit import LiftFit, lift_context
     train, validation = tiny.split("train"), tiny.split("validation")
     candidate = resolve_candidate("Cm-XXXIIIr")
     lift_candidate = resolve_candidate(candidate.lift)
-    lift = fit_staged(lift_candidate, train, validation, None, None, Settings())
-    context = lift_context(train, validation, lift, lift_candidate)
+    lift = LiftFit(lift_candidate, fit_staged(lift_candidate, train, validation, None, FitOptions()))
+    context = lift_context(train, validation, lift)
     model = build_model(candidate, lift)
     white = model.fit(context.train, covariance="white")
     assert white.jacobian_inverse_factor is not None
@@ -203,9 +205,9 @@ def test_a_candidate_that_is_an_earlier_grids_model_is_served_its_fit(tiny, tmp_
     from structsearch.search.runner import same_model_fitted
     us = load_grid("separation")["X_ss/X_w U/S"]
     cl_vi = load_grid("lift")["CL-VI"]
-    first = run([us], tiny, tmp_path, settings=Settings(cv_folds=0))[0]
+    first = run([us], tiny, tmp_path, options=FitOptions(cv_folds=0))[0]
     said = []
-    served = run([cl_vi], tiny, tmp_path, settings=Settings(cv_folds=0), fitted_before=[(us, first)],
+    served = run([cl_vi], tiny, tmp_path, options=FitOptions(cv_folds=0), fitted_before=[(us, first)],
                  progress=said.append)[0]
     assert served.name == "CL-VI" and served.grid == "lift" and served.params == first.params
     assert served.rank is None and served.admissible is None  # the ranking judges it afresh
@@ -213,7 +215,7 @@ def test_a_candidate_that_is_an_earlier_grids_model_is_served_its_fit(tiny, tmp_
     assert len(list((tmp_path / "cache" / "lift").glob("CL-VI-*.json"))) == 1  # cached under its own name
     # a twin fitted elsewhere (not in this run's cache) is not served: fitted anew
     said.clear()
-    run([cl_vi], tiny, tmp_path / "elsewhere", settings=Settings(cv_folds=0), fitted_before=[(us, first)],
+    run([cl_vi], tiny, tmp_path / "elsewhere", options=FitOptions(cv_folds=0), fitted_before=[(us, first)],
         progress=said.append)
     assert not any("the same model" in m for m in said)
     boxed = dataclasses.replace(cl_vi, bounds=(("tau1_ss", (0.0, 1.0)),))
@@ -227,11 +229,11 @@ def test_the_cross_validation_method_keys_only_candidates_that_may_be_nonlinear(
     candidate's are not; without folds the method is moot."""
     from structsearch.search.runner import cache_path, campaign_fingerprint
     key = campaign_fingerprint(tiny)
-    refit, one_step = Settings(), Settings(cv_method="one-step")
+    refit, one_step = FitOptions(), FitOptions(cv_method="one-step")
     cl_vi, cd_i = resolve_candidate("CL-VI"), resolve_candidate("CD-I")
     lift = {"tau1": 0.3, "tau2": 0.1, "a1": 30.0, "a_star": 0.2, "CL0": 0.1}   # CD-I's lift model, CL-I
     assert cache_path(Path("o"), cl_vi, key, None, refit) != cache_path(Path("o"), cl_vi, key, None, one_step)
     assert cache_path(Path("o"), cd_i, key, lift, refit) == cache_path(Path("o"), cd_i, key, lift, one_step)
-    no_folds = Settings(cv_folds=0)
+    no_folds = FitOptions(cv_folds=0)
     assert cache_path(Path("o"), cl_vi, key, None, no_folds) == \
-        cache_path(Path("o"), cl_vi, key, None, Settings(cv_folds=0, cv_method="one-step"))
+        cache_path(Path("o"), cl_vi, key, None, FitOptions(cv_folds=0, cv_method="one-step"))

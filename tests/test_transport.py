@@ -142,11 +142,11 @@ def test_transport_searches_rank_an_admissible_one_state_structure_first(transpo
     is not significant) rank first and are admissible; the two-state ones are listed with their reasons; no
     standard deviation is 0."""
     from structsearch.search.pipeline import search
-    from structsearch.search.runner import Settings
+    from structsearch.fitting.options import FitOptions
     for grid, text in GRIDS.items():
         spec = tmp_path / f"{grid}.toml"
         spec.write_text(text)
-        ranked = search(transport, str(spec), tmp_path / "out", n_jobs=2, settings=Settings(n_starts=2)
+        ranked = search(transport, str(spec), tmp_path / "out", n_jobs=2, options=FitOptions(n_starts=2)
                         ).grids[grid]
         first = ranked[0]
         assert first.admissible and not first.reasons, (grid, first.name, first.reasons)

@@ -119,7 +119,7 @@ def test_lift_sensitivity_matches_central_differences():
     from structsearch.data.flightdata import FlightData
     from structsearch.engine.stallmodel import StallModel
     from structsearch.flight.synthetic import campaign
-    from structsearch.search.generated import lift_sensitivity
+    from structsearch.fitting.lift_uncertainty import lift_sensitivity
     data = campaign({"quasi-steady": 1, "dynamic": 2}, duration=20.0, seed=3)
     lift = StallModel.declare("L", "CL", states={"ss": "U", "w": "S"},
                               regressors={"CL0": "1", "CL_KL_ss": "K_L(X_ss)", "CL_KL_w": "K_L(X_w)",

@@ -1,4 +1,4 @@
-"""Flight-test campaigns on disk (interfaces.md section 1): ``campaign.toml`` plus one file per maneuver.
+"""Flight-test campaigns on disk (docs/interfaces.md section 1): ``campaign.toml`` plus one file per maneuver.
 
 Maneuver files are CSV, Parquet (optional ``pyarrow``) or MATLAB ``.mat``
 (variables or one struct whose fields are the columns). Reading validates
@@ -26,7 +26,7 @@ KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugo
 SPLITS = ("train", "validation")
 REQUIRED = ("t", "alpha", "q", "V", "de")
 ANGLES = ("alpha", "de", "theta")
-# Raw flight-test campaigns (interfaces.md 5.2, ``format = "raw"``): the channels as recorded.
+# Raw flight-test campaigns (docs/interfaces.md 5.2, ``format = "raw"``): the channels as recorded.
 RAW_REQUIRED = ("t", "ax", "ay", "az", "p", "q", "r", "phi", "theta", "V", "alpha", "h", "de", "thrust")
 RAW_ANGLES = ("alpha", "de", "theta", "phi", "beta", "da", "dr")
 FORMATS = ("standard", "raw")
@@ -36,7 +36,7 @@ MAX_ANGLE_RAD = 1.2
 MIN_DURATION_S = 2.0
 MIN_SAMPLES = 20
 AIRCRAFT_KEYS = ("S", "cbar", "b")
-# optional aircraft data (interfaces.md 5.1): positive scalars, signed scalars, and vectors of a length
+# optional aircraft data (docs/interfaces.md 5.1): positive scalars, signed scalars, and vectors of a length
 OPTIONAL_POSITIVE = ("mass", "Ixx", "Iyy", "Izz")
 OPTIONAL_SIGNED = ("Ixz", "thrust_line_z")
 OPTIONAL_VECTORS = {"x_cg_range": 2, "accelerometer": 3}
@@ -55,7 +55,7 @@ class Campaign:
     """A campaign: its manifest and all samples (maneuvers in manifest order)."""
 
     name: str
-    aircraft: Mapping[str, object]     # S, cbar, b and the optional data of interfaces.md 5.1
+    aircraft: Mapping[str, object]     # S, cbar, b and the optional data of docs/interfaces.md 5.1
     maneuvers: tuple[Maneuver, ...]
     data: FlightData
     directory: Path | None = None
@@ -139,7 +139,7 @@ def _number(v) -> bool:
 
 
 def _parse_aircraft(aircraft: dict, toml: str) -> dict:
-    """The [aircraft] table: S, cbar, b required; the optional data of interfaces.md 5.1 checked."""
+    """The [aircraft] table: S, cbar, b required; the optional data of docs/interfaces.md 5.1 checked."""
     out: dict = {}
     for key in AIRCRAFT_KEYS:
         if not _number(aircraft.get(key)) or aircraft[key] <= 0:
@@ -307,7 +307,7 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
 
 
 def read_campaign(directory: Path | str, fmt: str = "standard") -> Campaign:
-    """Read and validate a campaign directory: a standard one (interfaces.md section 1), or with ``fmt="raw"``
+    """Read and validate a campaign directory: a standard one (docs/interfaces.md section 1), or with ``fmt="raw"``
     a raw flight-test campaign (section 5.2). Top-level keys other than the name and format are kept in
     ``Campaign.extra``."""
     directory = Path(directory)
@@ -348,7 +348,7 @@ def read_campaign(directory: Path | str, fmt: str = "standard") -> Campaign:
 
 
 def _parse_cutoffs(table, toml: str) -> dict[str, float]:
-    """``[cutoffs]``: pre-filter cut-offs [Hz] by channel that override the defaults (interfaces.md 5.2)."""
+    """``[cutoffs]``: pre-filter cut-offs [Hz] by channel that override the defaults (docs/interfaces.md 5.2)."""
     if not isinstance(table, dict):
         raise DataError("[cutoffs] must be a table of channel = frequency in Hz", source=toml, column="cutoffs")
     for key, value in table.items():

@@ -1,6 +1,6 @@
 """Pre-filter of the measured signals: 4th-order Butterworth low-pass applied forward and backward.
 
-Cut-off frequencies of thesis Table 5 (catalogue section 8). Derivatives are
+Cut-off frequencies of thesis Table 5 (docs/catalogue.md section 8). Derivatives are
 taken of the filtered signal, i.e. at the cut-off of their signal.
 """
 from __future__ import annotations

@@ -15,7 +15,7 @@ reported beside them for comparison.
 
 "At the floor": the per-maneuver relative MSE excess over the floor model is on average within one
 standard error (or below 1 %). The diagnosis adopts the best effect while it is significant (Wald test,
-the settings' covariance, 1 %) and closes part of the gap; ``explained`` is true only when the model
+the options' covariance, 1 %) and closes part of the gap; ``explained`` is true only when the model
 after the adopted effects is at the floor. What it leaves is the ``unexplained`` block: its share of
 the gap and the signals it follows.
 
@@ -38,13 +38,15 @@ from . import floor as fl
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
-from ..search.models import build_model, predict_candidate
-from ..search.runner import Settings, fit_candidate, fit_lift_model
+from ..fitting.models import build_model, predict_candidate
+from ..fitting.options import FitOptions
+from ..fitting.candidate_fit import fit_candidate, fit_lift_model
+from ..fitting.lift_fit import LiftFit
 from ..engine.regressors import declare, symbol_names
 from ..engine.separation import static_separation
-from ..search.candidates import Candidate
-from ..search.specs import find_candidate
-from ..search.candidate_result import CandidateResult
+from ..fitting.candidates import Candidate
+from ..fitting.specs import find_candidate
+from ..fitting.candidate_result import CandidateResult
 from ..engine.scores import maneuver_mse, sizes_of, weighted_mean_se
 from ..flight.reference import FINAL_LIFT, FINAL_MODEL_NAMES
 
@@ -66,28 +68,28 @@ class Fitted:
     train_residual: np.ndarray  # training residual
 
 
-def _fit(c: Candidate, train: FlightData, val: FlightData, lift, lift_c, settings, start=None) -> Fitted:
-    summary = fit_candidate(c, train, val, lift, lift_c, settings, start=start)
+def _fit(c: Candidate, train: FlightData, val: FlightData, lift, options, start=None) -> Fitted:
+    summary = fit_candidate(c, train, val, lift, options, start=start)
     if summary.failed:
         raise DeclarationError(f"fitting {c.name} failed: {summary.error}")
-    pred = predict_candidate(c, summary.params, val, lift, lift_c)
-    pred_train = predict_candidate(c, summary.params, train, lift, lift_c)
+    pred = predict_candidate(c, summary.params, val, lift)
+    pred_train = predict_candidate(c, summary.params, train, lift)
     return Fitted(c, summary, val[c.coefficient] - pred, train[c.coefficient] - pred_train)
 
 
-def _fit_or_error(c: Candidate, train, val, lift, lift_c, settings, start) -> Fitted | str:
+def _fit_or_error(c: Candidate, train, val, lift, options, start) -> Fitted | str:
     try:
-        return _fit(c, train, val, lift, lift_c, settings, start=start)
+        return _fit(c, train, val, lift, options, start=start)
     except DeclarationError as exc:
         return str(exc)
 
 
-def _fit_all(models, train, val, lift, lift_c, settings, start, n_jobs: int) -> list[Fitted | str]:
+def _fit_all(models, train, val, lift, options, start, n_jobs: int) -> list[Fitted | str]:
     """:func:`_fit` of every model (the error text where one fails), in order, on ``n_jobs`` processes."""
     if n_jobs == 1 or len(models) < 2:
-        return [_fit_or_error(c, train, val, lift, lift_c, settings, start) for c in models]
+        return [_fit_or_error(c, train, val, lift, options, start) for c in models]
     from joblib import Parallel, delayed
-    return Parallel(n_jobs=n_jobs)(delayed(_fit_or_error)(c, train, val, lift, lift_c, settings, start)
+    return Parallel(n_jobs=n_jobs)(delayed(_fit_or_error)(c, train, val, lift, options, start)
                                    for c in models)
 
 
@@ -284,24 +286,24 @@ def _rank_key(r: dict):
     return (not (p is not None and p < 0.01), -(r["shrink"] or 0.0), p if p is not None else np.inf)
 
 
-def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Settings(n_starts=2, cv_folds=0),
+def diagnose(campaign: Campaign, baseline: Candidate, *, options: FitOptions = FitOptions(n_starts=2, cv_folds=0),
              max_rounds: int = 3, progress: Callable[[str], None] | None = None, seed: int = 0,
              states: bool = True, n_jobs: int = 1) -> dict:
-    """Diagnose one coefficient; returns the JSON document of interfaces.md sections 3 and 5.4. The fits of
+    """Diagnose one coefficient; returns the JSON document of docs/interfaces.md sections 3 and 5.4. The fits of
     each round's effects run on ``n_jobs`` processes."""
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     if max_rounds < 1:
         raise DeclarationError(f"a diagnosis needs at least one round, not {max_rounds}")
     # the diagnosis compares fits on the validation maneuvers itself: no cross-validation folds
-    settings = dataclasses.replace(settings, cv_folds=0)
+    options = dataclasses.replace(options, cv_folds=0)
     train, val = campaign.split("train"), campaign.split("validation")
     if baseline.coefficient not in val:
         raise DataError("the campaign has no column for the diagnosed coefficient", source=str(campaign.directory),
                         column=baseline.coefficient)
     if baseline.lift:
         say(f"fitting the lift model {baseline.lift}")
-    lift, lift_c = fit_lift_model(baseline, train, val, settings)
+    lift = fit_lift_model(baseline, train, val, options)
     if not fx.applicable(baseline):
         raise DeclarationError(f"no effect of the library applies to {baseline.name} that it does not contain")
     warnings = []
@@ -309,7 +311,7 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
         warnings.append(f"only {len(val.names)} validation maneuvers: no spread of the per-maneuver excess, so "
                         "'at the floor' uses the 1 % tolerance alone and standard errors are n/a")
     rounds, current = [], baseline
-    base_fit = _fit(current, train, val, lift, lift_c, settings)
+    base_fit = _fit(current, train, val, lift, options)
     baseline_fit, first_best = base_fit, None
     floors: list[_Floor] = []   # every floor estimate of every round
     flexible = None
@@ -322,7 +324,7 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
         if rnd == 0:
             first_floor = (base_fit, flexible, sig_train, sig_val)
         saturated_c, added = saturated(current, library)
-        sat_fit = _fit(saturated_c, train, val, lift, lift_c, settings, start=base_fit.summary.params)
+        sat_fit = _fit(saturated_c, train, val, lift, options, start=base_fit.summary.params)
 
         def remaining_p(skip: str | None) -> float:
             """Wald p-value of what the saturated model adds beyond the baseline (and effect ``skip``)."""
@@ -330,7 +332,7 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
             return wald_p_value(sat_fit.summary, names)
         mse_base, se_base = _mse_se(base_fit.residual, val)
         changed_models = [e.apply(current) for e in library]
-        fits = _fit_all(changed_models, train, val, lift, lift_c, settings, base_fit.summary.params, n_jobs)
+        fits = _fit_all(changed_models, train, val, lift, options, base_fit.summary.params, n_jobs)
         candidates = list(zip(library, changed_models, fits))
         # the floor: the lowest validation MSE of the saturated model, the library-free flexible model and
         # every model fitted here, so that no shrink leaves [0, 1]
@@ -408,7 +410,7 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, settings: Settings = Se
     if states and first_best is not None:
         say("state level: replaying the validation maneuvers before and after")
         try:
-            doc["state_level"] = state_level(campaign, baseline_fit, first_best, lift, lift_c, settings)
+            doc["state_level"] = state_level(campaign, baseline_fit, first_best, lift, options)
         except (DeclarationError, DataError) as exc:
             doc["state_level"] = {"error": str(exc)}
     doc["seconds"] = time.perf_counter() - t0
@@ -433,7 +435,7 @@ def _signal_ranking(train_residual: np.ndarray, residual: np.ndarray, flex: fl.F
     delta_e even where V alone explains little, and a signal that only travels with the responsible one, such
     as the time in a maneuver that bleeds off speed, does not), ties by a one-signal fit; each with the share
     of the gap a function of it alone, fitted on the training maneuvers, removes on the validation maneuvers
-    (interfaces.md 5.4)."""
+    (docs/interfaces.md 5.4)."""
     fits = {f.name: f for f in fl.ranked_signals(train_residual, sig_train, residual, sig_val)}
     importance = fl.permutation_importance(flex, residual, sig_val, seed)
     mse = float(np.mean(residual ** 2))
@@ -446,7 +448,7 @@ def _signal_ranking(train_residual: np.ndarray, residual: np.ndarray, flex: fl.F
 def _unexplained(mse_base: float, final: Fitted, flexible: fl.FlexibleFit, library_free: float,
                  val: FlightData, sig_train: dict, sig_val: dict, x_val: np.ndarray, explained: bool,
                  seed: int, first=None) -> dict:
-    """The interfaces.md 5.4 ``unexplained`` block: the share of the gap (baseline validation MSE minus the
+    """The docs/interfaces.md 5.4 ``unexplained`` block: the share of the gap (baseline validation MSE minus the
     library-free floor) left after the adopted library effects, the signals the rest follows, where it sits.
     ``flexible`` is the library-free model of the final model's residual. ``first`` (the baseline's fit, its
     flexible model and signals) adds ``gap_signals``: the signals the whole gap followed before any effect."""
@@ -478,7 +480,7 @@ def _unexplained(mse_base: float, final: Fitted, flexible: fl.FlexibleFit, libra
     return out
 
 
-def _state_for_phases(c: Candidate, summary: CandidateResult, lift: CandidateResult | None,
+def _state_for_phases(c: Candidate, summary: CandidateResult, lift: LiftFit | None,
                       data: FlightData) -> np.ndarray:
     """The separation state that defines flight phases: the model's first state, or a static stall-strip
     curve from the lift fit; without any, the thesis' stall-strip curve."""
@@ -490,7 +492,7 @@ def _state_for_phases(c: Candidate, summary: CandidateResult, lift: CandidateRes
     return static_separation(data["alpha"], FINAL_LIFT["a1_ss"], FINAL_LIFT["a_star_ss"])
 
 
-def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, lift_c, settings: Settings,
+def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options: FitOptions,
                 window_s: float = 5.0) -> dict:
     """Forward-simulated state error on the validation maneuvers with the model before and after.
 
@@ -504,10 +506,9 @@ def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, lift_c,
     coef = before.candidate.coefficient
 
     def aero(fitted: Fitted) -> AeroModel:
-        if coef == "CL":
-            lift_cand, lift_fit = fitted.candidate, fitted.summary
-        else:
-            lift_cand, lift_fit = lift_c, lift
+        # the simulator's lift model: the diagnosed one, or the lift model the drag or pitch candidate names
+        lift_fit = LiftFit(fitted.candidate, fitted.summary) if coef == "CL" else lift
+        lift_cand = lift_fit.candidate
         models, params = {}, dict(lift_fit.params)
         models["CL"] = build_model(lift_cand)
         for other in ("CD", "Cm"):
@@ -530,11 +531,11 @@ def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, lift_c,
                     kept.append((name, text))
             structure = Candidate(structure.name, structure.grid, structure.coefficient, tuple(kept),
                                   lift_cand.states, lift_cand.name, structure.note, lift_cand.bounds)
-            s = fit_candidate(structure, train, val, lift_fit, lift_cand, settings)
+            s = fit_candidate(structure, train, val, lift_fit, options)
             if s.failed:
                 raise DeclarationError(f"state-level comparison: {s.error}")
             models[other] = build_model(structure, lift_fit)
-            params.update({k: v for k, v in s.params.items() if k not in lift_fit.nonlinear_names})
+            params.update({k: v for k, v in s.params.items() if k not in lift_fit.result.nonlinear_names})
         return AeroModel(models["CL"], models["CD"], models["Cm"], params, name=fitted.candidate.name)
 
     out = {}

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from ..data.errors import DeclarationError
-from ..search.candidates import Candidate
+from ..fitting.candidates import Candidate
 
 ALL = ("CL", "CD", "Cm")
 

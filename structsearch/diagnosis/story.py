@@ -11,21 +11,21 @@ import numpy as np
 from .diagnose import diagnose
 from ..data.campaign import Campaign
 from ..flight.reference import VAN_INGEN_MODEL_NAMES
-from ..search.runner import Settings
-from ..search.specs import find_candidate
+from ..fitting.options import FitOptions
+from ..fitting.specs import find_candidate
 
 # Rounds enough for Van Ingen's lift to gain the second state, q* and delta_e of the final model.
 STORY_ROUNDS = 4
 
 
-def van_ingen_story(campaign: Campaign, settings: Settings = Settings(n_starts=2, cv_folds=0),
+def van_ingen_story(campaign: Campaign, options: FitOptions = FitOptions(n_starts=2, cv_folds=0),
                     progress: Callable[[str], None] | None = None, n_jobs: int = 1) -> dict:
     """Diagnose each Van Ingen structure (as many rounds as effects keep closing its gap)."""
     say = progress or (lambda m: None)
     docs = {}
     for coef, name in VAN_INGEN_MODEL_NAMES.items():
         say(f"story: diagnosing the Van Ingen {coef} model {name}")
-        docs[coef] = diagnose(campaign, find_candidate(name), settings=settings, max_rounds=STORY_ROUNDS,
+        docs[coef] = diagnose(campaign, find_candidate(name), options=options, max_rounds=STORY_ROUNDS,
                               progress=lambda m, c=coef: say(f"story {c}: {m}"), n_jobs=n_jobs)
     return {"diagnoses": docs, "lines": story_lines(docs)}
 

@@ -31,9 +31,9 @@ from ..flight.reference import FINAL_LIFT
 from ..flight.anomalies import ANOMALIES, truth_difference
 from ..flight.flighttest import build_campaign
 from ..flight.reference import FINAL_MODEL_NAMES
-from ..search.candidates import Candidate
-from ..search.runner import Settings
-from ..search.specs import find_candidate
+from ..fitting.candidates import Candidate
+from ..fitting.options import FitOptions
+from ..fitting.specs import find_candidate
 
 # effect -> (coefficient, regressors to drop, state kind changes)
 WITHHELD = {
@@ -91,9 +91,9 @@ def _closed_by_library(doc: dict) -> float:
     return float((doc["mse"]["validation"] - doc["final_mse"]) / gap) if gap > 0 else float("nan")
 
 
-def withheld_row(campaign, effect: str, settings: Settings, n_jobs: int) -> dict:
+def withheld_row(campaign, effect: str, options: FitOptions, n_jobs: int) -> dict:
     base = baseline_without(effect)
-    doc = diagnose(campaign, base, settings=settings, max_rounds=1, n_jobs=n_jobs)
+    doc = diagnose(campaign, base, options=options, max_rounds=1, n_jobs=n_jobs)
     first = doc["effects"][0]
     reported = next((e for e in doc["effects"] if e["name"] == effect), None)
     truth = truth_location(campaign, effect)
@@ -115,11 +115,11 @@ def withheld_row(campaign, effect: str, settings: Settings, n_jobs: int) -> dict
             "seconds": doc["seconds"]}
 
 
-def anomaly_row(name: str, seed: int, scale: float, settings: Settings, n_jobs: int) -> dict:
+def anomaly_row(name: str, seed: int, scale: float, options: FitOptions, n_jobs: int) -> dict:
     anomaly = ANOMALIES[name]
     campaign = build_campaign(seed=seed, scale=scale, anomaly=name)
     base = find_candidate(FINAL_MODEL_NAMES[anomaly.coefficient])
-    doc = diagnose(campaign, base, settings=settings, max_rounds=2, states=False, n_jobs=n_jobs)
+    doc = diagnose(campaign, base, options=options, max_rounds=2, states=False, n_jobs=n_jobs)
     truth = truth_location(campaign, name)
     top = _top(doc)
     closed = _closed_by_library(doc)
@@ -146,7 +146,7 @@ def anomaly_row(name: str, seed: int, scale: float, settings: Settings, n_jobs: 
 
 
 def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, anomalies=None,
-        progress: Callable[[str], None] | None = None, settings: Settings = Settings(n_starts=2, cv_folds=0),
+        progress: Callable[[str], None] | None = None, options: FitOptions = FitOptions(n_starts=2, cv_folds=0),
         n_jobs: int = 1) -> dict:
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
@@ -154,17 +154,17 @@ def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, a
     rows = []
     for effect in WITHHELD if effects is None else effects:
         say(f"withheld {effect}")
-        rows.append(withheld_row(campaign, effect, settings, n_jobs))
+        rows.append(withheld_row(campaign, effect, options, n_jobs))
     outside = []
     for name in ANOMALIES if anomalies is None else anomalies:
         say(f"out of the library: {name}")
-        outside.append(anomaly_row(name, seed, scale, settings, n_jobs))
+        outside.append(anomaly_row(name, seed, scale, options, n_jobs))
     null = []
     for s in null_seeds:
         camp = campaign if s == seed else build_campaign(seed=s, scale=scale)
         for coef, name in FINAL_MODEL_NAMES.items():
             say(f"null case seed {s} {name}")
-            doc = diagnose(camp, find_candidate(name), settings=settings, max_rounds=1, states=False, n_jobs=n_jobs)
+            doc = diagnose(camp, find_candidate(name), options=options, max_rounds=1, states=False, n_jobs=n_jobs)
             p = doc["rounds"][0]["gap_p_value"]
             null.append({"seed": s, "model": name, "explained": doc["explained"], "gap_p_value": p,
                          "alarm_test": None if p is None else bool(p < 0.01), "alarm_combined": not doc["explained"],

@@ -17,7 +17,7 @@ import sympy as sp
 
 from ..data.errors import DataError, DeclarationError
 
-# Columns of the campaign format (interfaces.md section 1) plus usual extras.
+# Columns of the campaign format (docs/interfaces.md section 1) plus usual extras.
 DATA_COLUMNS = ("t", "alpha", "q", "V", "de", "CL", "CD", "Cm", "alpha_dot", "CT", "x_cg",
                 "theta", "h", "CX", "CZ", "beta", "p", "r", "da", "dr")
 AIRCRAFT_CONSTANTS = ("cbar", "S", "b")
@@ -77,7 +77,7 @@ HELPERS = {
 }
 
 
-# The building blocks of catalogue sections 2 and 5, declared once. "{X}" stands for the
+# The building blocks of docs/catalogue.md sections 2 and 5, declared once. "{X}" stands for the
 # separation state a block is instantiated with (X, X_ss, X_w, ...).
 BUILDING_BLOCKS = {
     "one": "1",

@@ -61,7 +61,7 @@ class _BasisProblem(BoundProblem):
 
 
 class SeparableModel:
-    """A model linear in some coefficients and nonlinear in the rest (interfaces.md section 4)."""
+    """A model linear in some coefficients and nonlinear in the rest (docs/interfaces.md section 4)."""
 
     def __init__(self, basis: Mapping[str, str], variables: Sequence[str], name: str = "separable"):
         if not basis:

@@ -196,7 +196,7 @@ class Outcome:
     error: str | None = None
 
 
-def check_bounds(names, start, lower, upper) -> None:
+def check_start_in_box(names, start, lower, upper) -> None:
     for name, s, lo, hi in zip(names, start, lower, upper):
         if not lo < hi:
             raise FitError(f"parameter {name!r}: lower bound {lo} is not below upper bound {hi}")
@@ -211,7 +211,7 @@ def solve(problem: SeparableProblem, y: np.ndarray, start, lower, upper, *,
     """One local variable-projection solve (trust-region reflective, bounds honoured)."""
     start = np.asarray(start, float)
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-    check_bounds(problem.nonlinear_names, start, lower, upper)
+    check_start_in_box(problem.nonlinear_names, start, lower, upper)
     objective = _Objective(problem, y)
     # least_squares needs the start strictly inside finite bounds
     span = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
@@ -274,10 +274,10 @@ def multistart(problem: SeparableProblem, y: np.ndarray, start, lower, upper, *,
                max_nfev: int | None = None, also=()) -> MultistartOutcome:
     """Solve from several starts (in parallel with joblib); keep the lowest cost. The starts are ``start``,
     the points in ``also`` (inside the bounds) and ``n_starts`` - 1 scrambled Sobol points."""
-    check_bounds(problem.nonlinear_names, np.asarray(start, float), np.asarray(lower, float),
+    check_start_in_box(problem.nonlinear_names, np.asarray(start, float), np.asarray(lower, float),
                  np.asarray(upper, float))
     for point in also:
-        check_bounds(problem.nonlinear_names, np.asarray(point, float), np.asarray(lower, float),
+        check_start_in_box(problem.nonlinear_names, np.asarray(point, float), np.asarray(lower, float),
                      np.asarray(upper, float))
     points = start_points(start, lower, upper, n_starts, seed)
     if len(also):

@@ -25,8 +25,8 @@ from .fit import fit_problem
 from .identifiability import SATURATION, collinear_with, join_names
 from .regressors import X_FLOOR, Regressor, declare
 from .results import FitResult
-from .separation import (DEFAULT_BOUNDS, DEFAULT_START, SeparationState, common_step, data_bounds,
-                         evaluate_state)
+from ..data.default_boxes import DEFAULT_BOUNDS, DEFAULT_START, data_bounds
+from .separation import SeparationState, common_step, evaluate_state
 from .ols import ols
 from .snls import BoundProblem, Evaluation, model_jacobian, multistart
 from .statistics import DEFAULT_COVARIANCE

@@ -22,7 +22,7 @@ from ..engine.stallmodel import StallModel
 from .transport import (TRANSPORT_DRAG, TRANSPORT_LIFT, TRANSPORT_PITCH, TRANSPORT_ZEROED, transport_drag_model,
                         transport_lift_model, transport_pitch_model)
 
-# Effects of interfaces.md section 3 that the final model contains, and what withholding does.
+# Effects of docs/interfaces.md section 3 that the final model contains, and what withholding does.
 WITHHOLDABLE = {
     "unsteady_lag": "X_ss without its lag: tau1_ss = 0 (U -> Q)",
     "separation_delay": "X_ss without its delay: tau2_ss = 0",

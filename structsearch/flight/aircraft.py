@@ -1,8 +1,8 @@
 """Aircraft the simulator can fly: geometry, mass, pitch inertia, engines; the ISA atmosphere (SI units).
 
-An :class:`Aircraft` is plain data. The Citation II (PH-LAB) numbers come from the thesis and the
-catalogue (section 6); the twin-jet transport of :mod:`structsearch.flight.transport` is ours. A
-campaign of another aircraft carries its own data in campaign.toml (interfaces.md 5.1), from which
+An :class:`Aircraft` is plain data. The Citation II (PH-LAB) numbers come from the thesis and
+docs/catalogue.md (section 6); the twin-jet transport of :mod:`structsearch.flight.transport` is ours. A
+campaign of another aircraft carries its own data in campaign.toml (docs/interfaces.md 5.1), from which
 :func:`aircraft_of_campaign` builds what the forward simulation needs.
 """
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import Mapping
 import numpy as np
 
 from ..data.errors import DataError
-from ..data.reduction import G, RHO0, isa_density
+from ..data.reduction import G, RHO0, isa_density  # noqa: F401  (G: the simulator reads ac.G)
 from .reference import AIRCRAFT, EMPTY_MASS, IYY
 
 FT = 0.3048
@@ -58,7 +58,7 @@ class Aircraft:
         return self.max_thrust_sl * ((density(h) if rho is None else rho) / RHO0) ** 0.75
 
     def manifest(self, mass: float) -> dict:
-        """The [aircraft] table of campaign.toml (interfaces.md 5.1) for a campaign flown at about ``mass``:
+        """The [aircraft] table of campaign.toml (docs/interfaces.md 5.1) for a campaign flown at about ``mass``:
         one pitch inertia, as a flight-test engineer states it for the test weight."""
         out = {"S": self.S, "cbar": self.cbar, "b": self.b, "Iyy": round(float(self.inertia(mass)), 1)}
         if self.x_cg_range is not None:
@@ -67,7 +67,7 @@ class Aircraft:
 
 
 # Two Pratt & Whitney JT15D-4, about 11.1 kN static sea-level thrust each; 0.16 kg/s of fuel at full
-# throttle; cg envelope 276-286 in from the datum 15 in ahead of the nose (catalogue section 6).
+# throttle; cg envelope 276-286 in from the datum 15 in ahead of the nose (docs/catalogue.md section 6).
 CITATION = Aircraft(
     name="citation", label="Citation II", S=AIRCRAFT["S"], cbar=AIRCRAFT["cbar"], b=AIRCRAFT["b"],
     empty_mass=EMPTY_MASS, crew_mass=3 * 85.0, iyy_empty=IYY, iyy_per_kg=0.9,
@@ -76,7 +76,7 @@ CITATION = Aircraft(
 
 def aircraft_of_campaign(constants: Mapping[str, float], source: str = "") -> Aircraft:
     """The aircraft of a campaign for the forward simulation: S and cbar from [aircraft], the pitch
-    inertia ``Iyy`` (interfaces.md 5.1) constant over the campaign. Engines and mass come from the data
+    inertia ``Iyy`` (docs/interfaces.md 5.1) constant over the campaign. Engines and mass come from the data
     (CT and the mass column), so they are not needed here."""
     missing = [k for k in ("S", "cbar", "Iyy") if k not in constants]
     if missing:

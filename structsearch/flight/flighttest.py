@@ -318,7 +318,7 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     (a name of :data:`.anomalies.ANOMALIES`, Citation only, not with ``withhold``) flies a truth with an
     effect outside the diagnosis' library; the same seed flies the same profiles and draws the same
     errors as without it. Such a campaign also carries the truth alpha (``alpha_true``) and its manifest
-    the key ``anomaly``. ``raw`` records the raw channels of interfaces.md 5.2 instead (``format = "raw"``,
+    the key ``anomaly``. ``raw`` records the raw channels of docs/interfaces.md 5.2 instead (``format = "raw"``,
     the injected sensor errors as ``injected_*`` keys; no slow reconstruction errors: there is no
     reconstruction yet)."""
     from .aero import truth_model
@@ -354,7 +354,7 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
         extra.update(sensor_errors.manifest(), format="raw")
     name = f"simulated {proc.aircraft.label} stall campaign (seed {seed}" \
         + (f", anomaly {chosen.name})" if chosen is not None else ")")
-    # the aircraft data of interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope
+    # the aircraft data of docs/interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope
     mass = proc.aircraft.empty_mass + proc.aircraft.crew_mass + float(np.mean(proc.fuel))
     manifest = proc.aircraft.manifest(mass)
     if raw:  # where the accelerometer sits; the simulated thrust acts through the cg

@@ -1,4 +1,4 @@
-"""Raw flight-test channels (interfaces.md 5.2): what the sensors record before any processing.
+"""Raw flight-test channels (docs/interfaces.md 5.2): what the sensors record before any processing.
 
 The simulator's truth histories are measured as the instrumentation would: specific forces at the
 accelerometer (not at the cg: the rigid-body lever-arm terms are in), body rates, attitude, true

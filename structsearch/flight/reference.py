@@ -1,4 +1,4 @@
-"""Reference values of the thesis (catalogue section 6): the simulator's truth.
+"""Reference values of the thesis (docs/catalogue.md section 6): the simulator's truth.
 
 Only the identified Citation II numbers live here; candidate grids are declared
 in ``model_specs/``.

@@ -34,7 +34,7 @@ TRANSPORT_PITCH = {
     "Cm0": 0.03, "Cm_CT": 0.12, "Cm_qstar": -12.0, "Cm_de": -0.9, "Cm_CL": -0.12,
     "Cm_1mXCL": -0.08, "Cm_Xde": -0.4,
 }
-# What withholding an effect of interfaces.md section 3 zeroes in this truth model.
+# What withholding an effect of docs/interfaces.md section 3 zeroes in this truth model.
 TRANSPORT_ZEROED = {
     "pitch_rate": ("CL_qstar",),
     "elevator": ("CL_de", "CD_de"),

@@ -16,7 +16,7 @@ from ..data.errors import DataError, DeclarationError
 from ..data.prefilter import CUTOFF_HZ, derivative, lowpass
 from ..data.reduction import (body_force_coefficients, isa_density, lift_drag, pitch_moment_coefficient,
                               specific_force_at_cg)
-from ..data.spectra import SEGMENT_S, ChannelSpectrum, channel_spectrum, noise_floor
+from .spectra import SEGMENT_S, ChannelSpectrum, channel_spectrum, noise_floor
 from .reconstruction import Reconstruction, reconstruct
 
 # Channels whose spectra the record shows, by figure.

@@ -12,7 +12,7 @@ from ..diagnosis.story import unexplained_sentence
 
 
 def public(doc: dict) -> dict:
-    """The interfaces.md section 3 document (extra fields kept); what could not be estimated is null."""
+    """The docs/interfaces.md section 3 document (extra fields kept); what could not be estimated is null."""
     return json_ready(json.loads(json.dumps(doc, default=float)))
 
 

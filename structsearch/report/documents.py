@@ -1,11 +1,12 @@
-"""JSON documents the commands write: ``fit.json`` (interfaces.md section 2, plus ``converged``, ``identifiable``,
+"""JSON documents the commands write: ``fit.json`` (docs/interfaces.md section 2, plus ``converged``, ``identifiable``,
 ``not_identifiable`` and ``condition_number`` of 5.4)."""
 from __future__ import annotations
 
-from ..search.candidate_result import CandidateResult
+from ..fitting.candidate_result import CandidateResult
+from ..fitting.lift_fit import LiftFit
 
 
-def fit_document(fit: CandidateResult, lift: CandidateResult | None) -> dict:
+def fit_document(fit: CandidateResult, lift: LiftFit | None) -> dict:
     """``fit.json`` of one fitted candidate (and the lift model whose states it uses); written with
     :func:`structsearch.data.atomic.write_json`, which turns what could not be estimated into null."""
     return {

@@ -19,7 +19,8 @@ import numpy as np
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.errors import DeclarationError
-from ..search.runner import Settings, run
+from ..fitting.options import FitOptions
+from ..search.runner import run
 from ..engine.scores import ManeuverScores
 from ..engine.separation import static_separation
 
@@ -157,14 +158,13 @@ def alpha_bands(alpha: np.ndarray) -> np.ndarray:
 
 
 def with_effect(ms: ModelSet, coef: str, effect: str, campaign: Campaign, out: Path,
-                settings: Settings) -> dict:
+                options: FitOptions) -> dict:
     """Validation residuals of the set's ``coef`` model before and after adding a library effect."""
     from ..diagnosis import effects as fx
     baseline = ms.candidates[coef]
     changed = fx.get(effect, coef).apply(baseline)
-    lift_kw = {} if coef == "CL" else {"lift_results": {ms.candidates["CL"].name: ms.lift_summary},
-                                       "lift_candidates": {ms.candidates["CL"].name: ms.candidates["CL"]}}
-    summary = run([changed], campaign, out, settings=settings, **lift_kw)[0]
+    lifts = None if coef == "CL" else {ms.lift.name: ms.lift}
+    summary = run([changed], campaign, out, options=options, lifts=lifts)[0]
     if summary.failed:
         raise DeclarationError(f"report: fitting {changed.name} failed: {summary.error}")
     val = campaign.split("validation")

@@ -26,8 +26,8 @@ from ..data.atomic import write_text
 from .tables import parameter_table, render_table
 from .diagnosis_doc import unexplained_sentence
 from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_MODEL_NAMES
-from ..search.runner import Settings
-from ..search.specs import find_candidate
+from ..fitting.options import FitOptions
+from ..fitting.specs import find_candidate
 
 GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
 
@@ -85,7 +85,7 @@ def missing_columns(candidate, campaign: Campaign) -> list[str]:
 def applicable_models(names: dict[str, str], campaign: Campaign) -> tuple[dict[str, str], list[str]]:
     """``names`` with every model that needs a column the campaign lacks replaced by the first structure of
     its grid that needs none (and takes its states from the same lift model), with a note each."""
-    from ..search.specs import load_grid
+    from ..fitting.specs import load_grid
     out, notes = dict(names), []
     for coef, name in names.items():
         missing = missing_columns(find_candidate(name), campaign)
@@ -110,7 +110,7 @@ def _best_effect(doc: dict) -> str | None:
     return ok[0]["name"] if ok else None
 
 
-def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_jobs: int = 1,
+def build(campaign: Campaign, out: Path, *, options: FitOptions = FitOptions(), n_jobs: int = 1,
           diagnose_coefficient: str | None = "Cm", models: tuple[str, ...] = (), story: list[str] | None = None,
           progress: Callable[[str], None] | None = None) -> dict:
     """Write ``out/figures/*.png`` and ``out/report.html``; returns what was written and the notes."""
@@ -122,9 +122,9 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
     names, more = applicable_models(names, campaign)
     notes += more
     say(f"report: fitting {', '.join(names.values())} and the Van Ingen structures")
-    ms = rd.fit_model_set("identified", names, campaign, out, settings, n_jobs=n_jobs)
+    ms = rd.fit_model_set("identified", names, campaign, out, options, n_jobs=n_jobs)
     try:
-        vi = rd.fit_model_set("Van Ingen", VAN_INGEN_MODEL_NAMES, campaign, out, settings, n_jobs=n_jobs)
+        vi = rd.fit_model_set("Van Ingen", VAN_INGEN_MODEL_NAMES, campaign, out, options, n_jobs=n_jobs)
     except (DeclarationError, DataError) as exc:  # e.g. a column the campaign lacks
         vi = None
         notes.append(f"The Van Ingen comparison is left out: {exc}")
@@ -194,16 +194,16 @@ def build(campaign: Campaign, out: Path, *, settings: Settings = Settings(), n_j
          f"C_L against alpha during maneuver {hyst['maneuver']} ({hyst['kind']}, {hyst['split']}): the separation "
          "lag makes lift overshoot the static curve while alpha rises and fall below it while alpha falls.")
     emit(fg.correlations(ms.summaries), "correlations.png", "Parameter correlations",
-         f"Correlation matrices of the estimates ({settings.covariance} covariance); '!' marks |rho| > 0.9.")
+         f"Correlation matrices of the estimates ({options.covariance} covariance); '!' marks |rho| > 0.9.")
     diagnosis = None
     if diagnose_coefficient:
         from ..diagnosis.diagnose import diagnose
         say(f"report: diagnosing {names[diagnose_coefficient]}")
-        diagnosis = diagnose(campaign, ms.candidates[diagnose_coefficient], settings=settings, max_rounds=1,
+        diagnosis = diagnose(campaign, ms.candidates[diagnose_coefficient], options=options, max_rounds=1,
                              states=False, n_jobs=n_jobs)
         best = _best_effect(diagnosis)
         if best is not None:
-            g = rd.with_effect(ms, diagnose_coefficient, best, campaign, out, settings)
+            g = rd.with_effect(ms, diagnose_coefficient, best, campaign, out, options)
             shrink = next(e["shrink"] for e in diagnosis["effects"] if e["name"] == best)
             verdict = ("the baseline is at the noise floor, so little changes"
                        if diagnosis["gap_explained_by_baseline"] or shrink is None

@@ -2,7 +2,7 @@
 
 Parameter and correlation tables accept anything that reads like a fit: a
 :class:`~structsearch.engine.results.FitResult` or a search's
-:class:`~structsearch.search.candidate_result.CandidateResult` (``names``,
+:class:`~structsearch.fitting.candidate_result.CandidateResult` (``names``,
 ``nonlinear_names``, ``params``, ``stderr``, ``p_values``, ``significant``,
 ``at_bound``, ``high_correlations``, ``correlation``).
 """
@@ -18,7 +18,7 @@ from tabulate import tabulate
 
 from ..data.atomic import write_text
 from ..engine.results import HIGH_CORRELATION
-from ..search.candidate_result import CandidateResult
+from ..fitting.candidate_result import CandidateResult
 
 FORMATS = ("text", "markdown", "latex", "html", "csv")
 TABLEFMT = {"text": "simple", "markdown": "github", "md": "github", "latex": "latex_booktabs",

@@ -7,14 +7,16 @@ from pathlib import Path
 from typing import Callable
 
 from ..data.campaign import Campaign
-from .candidate_result import CandidateResult
+from ..fitting.candidate_result import CandidateResult
 from .admissibility import AdmissibilityRules, MAX_CORRELATION, reasons
 from .ranking import rank
 from .ranking import near_best
 from .refinement import Refinement, refine, structure_key
-from .runner import Settings, run
-from .candidates import Candidate, Grid
-from .specs import load_grid
+from ..fitting.lift_fit import LiftFit
+from ..fitting.options import FitOptions
+from .runner import run
+from ..fitting.candidates import Grid
+from ..fitting.specs import load_grid
 
 
 @dataclass(frozen=True)
@@ -59,7 +61,7 @@ def rules_for(campaign: Campaign, max_correlation: float = MAX_CORRELATION) -> A
                               cbar=float(campaign.aircraft["cbar"]))
 
 
-def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, settings: Settings = Settings(),
+def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, options: FitOptions = FitOptions(),
            backend: str = "loky", progress: Callable[[str], None] | None = None,
            do_refine: bool = True, max_correlation: float = MAX_CORRELATION) -> SearchResult:
     """Fit and rank the grids of ``grid_spec``, refining each grid's best; ``out`` holds the cache."""
@@ -68,19 +70,18 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, se
     grids = grids_for(grid_spec)
     ranked_by_grid, seconds = {}, {}
     refinements: dict[str, list[Refinement]] = {}
-    lift_results: dict[str, CandidateResult] = {}
-    lift_candidates: dict[str, Candidate] = {}
+    lifts: dict[str, LiftFit] = {}
     by_grid_results: dict[str, list[CandidateResult]] = {}
 
     def ensure_lift(names):
-        missing = [n for n in names if n not in lift_results]
+        missing = [n for n in names if n not in lifts]
         if not missing:
             return
         lift_grid = load_grid("lift")
         cands = [lift_grid[n] for n in missing]
-        for c, s in zip(cands, run(cands, campaign, out, settings=settings, n_jobs=n_jobs, backend=backend,
+        for c, s in zip(cands, run(cands, campaign, out, options=options, n_jobs=n_jobs, backend=backend,
                                    progress=say)):
-            lift_results[c.name], lift_candidates[c.name] = s, c
+            lifts[c.name] = LiftFit(c, s)
 
     for grid in grids:
         t0 = time.perf_counter()
@@ -90,12 +91,12 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, se
         # earlier grids' candidates are warm starts too, and a candidate that is one of them under another
         # name is served its fit (the lift grid's CL-VI is the separation grid's U/S)
         earlier = [(c, r) for g in grids[:grids.index(grid)] for c, r in zip(g.candidates, by_grid_results[g.name])]
-        results = run(grid.candidates, campaign, out, lift_results=lift_results, lift_candidates=lift_candidates,
-                      settings=settings, n_jobs=n_jobs, backend=backend, progress=say, fitted_before=earlier)
+        results = run(grid.candidates, campaign, out, lifts=lifts, options=options, n_jobs=n_jobs, backend=backend,
+                      progress=say, fitted_before=earlier)
         by_grid_results[grid.name] = results
         if grid.name == "lift":
             for c, s in zip(grid.candidates, results):
-                lift_results[c.name], lift_candidates[c.name] = s, c
+                lifts[c.name] = LiftFit(c, s)
         by_name = {c.name: c for c in grid.candidates}
 
         def judge(result, by_name=by_name):
@@ -106,8 +107,7 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, se
             known = {structure_key(c): (c, r) for c, r in zip(grid.candidates, results) if not r.failed}
 
             def fit_one(c):
-                return run([c], campaign, out, lift_results=lift_results, lift_candidates=lift_candidates,
-                           settings=settings, n_jobs=1, backend=backend)[0]
+                return run([c], campaign, out, lifts=lifts, options=options, n_jobs=1, backend=backend)[0]
 
             extra = []
             for start in refinement_starts(ranked):

@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 
 from ..engine.scores import weighted_mean_se
-from .candidate_result import CandidateResult
+from ..fitting.candidate_result import CandidateResult
 
 # A relative excess below this is never a reason to prefer a larger model.
 PRACTICAL_TOLERANCE = 0.01

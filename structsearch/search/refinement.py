@@ -20,8 +20,8 @@ import numpy as np
 
 from ..engine.regressors import symbol_names
 from ..engine.separation import SeparationState
-from .candidate_result import CandidateResult
-from .candidates import Candidate
+from ..fitting.candidate_result import CandidateResult
+from ..fitting.candidates import Candidate
 
 # Correlated pairs above this are candidates for removal during refinement (thesis: 0.8).
 REFINE_CORRELATION = 0.8

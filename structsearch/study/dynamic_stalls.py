@@ -11,12 +11,12 @@ import numpy as np
 from ..data.campaign import Campaign
 from ..data.errors import DeclarationError
 from ..engine.results import FitResult
-from ..search.models import build_model
-from ..search.runner import Settings
-from ..search.specs import find_candidate
+from ..fitting.models import build_model
+from ..fitting.options import FitOptions
+from ..fitting.specs import find_candidate
 
 # The thesis' figures for the tau1-tau2 correlation of X_ss: quasi-steady stalls only, and with the dynamic
-# stalls (Tables 10.2 and 10.3; catalogue section 7).
+# stalls (Tables 10.2 and 10.3; docs/catalogue.md section 7).
 THESIS_TAU_CORRELATION = {"quasi-steady only": 0.73, "full training set": 0.06}
 CALLED_OUT = (("tau1_ss", "tau2_ss"), ("tau1_ss", "CL_qstar"))
 
@@ -60,7 +60,7 @@ def _identification(label: str, result: FitResult, names_of_maneuvers) -> Identi
                           tuple(tuple(float(x) for x in row) for row in corr))
 
 
-def dynamic_stall_study(campaign: Campaign, model_name: str = "CL-VI", settings: Settings = Settings()
+def dynamic_stall_study(campaign: Campaign, model_name: str = "CL-VI", options: FitOptions = FitOptions()
                         ) -> DynamicStallStudy:
     """Fit ``model_name`` on the quasi-steady training stalls only and on the whole training set."""
     candidate = find_candidate(model_name)
@@ -73,6 +73,6 @@ def dynamic_stall_study(campaign: Campaign, model_name: str = "CL-VI", settings:
                                f"campaign's training set has {len(quasi)} quasi-steady of {len(kinds)}")
     fits = {}
     for label, data in (("quasi-steady only", train.select(quasi)), ("full training set", train)):
-        result = model.fit(data, n_starts=settings.n_starts, seed=settings.seed, covariance=settings.covariance)
+        result = model.fit(data, n_starts=options.n_starts, seed=options.seed, covariance=options.covariance)
         fits[label] = _identification(label, result, data.names)
     return DynamicStallStudy(model_name, fits["quasi-steady only"], fits["full training set"])

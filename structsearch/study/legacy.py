@@ -23,8 +23,8 @@ from ..data.flightdata import FlightData
 from ..engine.fullnls import full_nls
 from ..engine.snls import multistart, project, start_points
 from ..engine.stallmodel import StallModel
-from ..search.models import build_model, model_with_lift, with_lift_prediction
-from ..search.specs import find_candidate
+from ..fitting.models import build_model, model_with_lift, with_lift_prediction
+from ..fitting.specs import find_candidate
 from .comparison import CoefficientScores, score_set
 
 LEGACY = "legacy (per maneuver, averaged)"

@@ -14,11 +14,13 @@ from ..data.campaign import Campaign
 from ..data.errors import DeclarationError
 from ..data.flightdata import FlightData
 from ..flight.aero import AeroModel
-from ..search.candidate_result import CandidateResult
-from ..search.candidates import Candidate
-from ..search.models import build_model, predict_candidate
-from ..search.runner import Settings, run
-from ..search.specs import find_candidate
+from ..fitting.candidate_result import CandidateResult
+from ..fitting.candidates import Candidate
+from ..fitting.lift_fit import LiftFit
+from ..fitting.models import build_model, predict_candidate
+from ..fitting.options import FitOptions
+from ..search.runner import run
+from ..fitting.specs import find_candidate
 
 COEFFICIENTS = ("CL", "CD", "Cm")
 
@@ -36,16 +38,20 @@ class ModelSet:
     def lift_summary(self) -> CandidateResult:
         return self.summaries["CL"]
 
+    @property
+    def lift(self) -> LiftFit:
+        """The set's lift model, as its drag and pitch models use it."""
+        return LiftFit(self.candidates["CL"], self.summaries["CL"])
+
     def predict(self, coef: str, data: FlightData, candidate: Candidate | None = None,
                 params: dict | None = None) -> np.ndarray:
         """Output of the set's ``coef`` model (or of ``candidate`` with ``params`` in its place) on ``data``."""
         c = candidate or self.candidates[coef]
-        lift = None if coef == "CL" else self.lift_summary
-        return predict_candidate(c, params or self.summaries[coef].params, data, lift,
-                                 None if coef == "CL" else self.candidates["CL"])
+        return predict_candidate(c, params or self.summaries[coef].params, data,
+                                 None if coef == "CL" else self.lift)
 
 
-def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out: Path, settings: Settings,
+def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out: Path, options: FitOptions,
                   n_jobs: int = 1, progress=None) -> ModelSet:
     """Fit the named lift, drag and pitch structures (cached under ``out/cache``)."""
     cands = {coef: find_candidate(names[coef]) for coef in COEFFICIENTS}
@@ -53,10 +59,9 @@ def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out:
         if cands[coef].lift != cands["CL"].name:
             raise DeclarationError(f"{cands[coef].name} takes its separation states from {cands[coef].lift}, "
                                    f"not from the lift model {cands['CL'].name} of the same model set")
-    lift = run([cands["CL"]], campaign, out, settings=settings, progress=progress)[0]
-    others = run([cands["CD"], cands["Cm"]], campaign, out, lift_results={cands["CL"].name: lift},
-                 lift_candidates={cands["CL"].name: cands["CL"]}, settings=settings, n_jobs=n_jobs,
-                 progress=progress)
+    lift = run([cands["CL"]], campaign, out, options=options, progress=progress)[0]
+    others = run([cands["CD"], cands["Cm"]], campaign, out, lifts={cands["CL"].name: LiftFit(cands["CL"], lift)},
+                 options=options, n_jobs=n_jobs, progress=progress)
     summaries = {"CL": lift, "CD": others[0], "Cm": others[1]}
     for coef, s in summaries.items():
         if s.failed:
@@ -64,6 +69,7 @@ def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out:
     params = dict(lift.params)
     for coef in ("CD", "Cm"):
         params.update({k: v for k, v in summaries[coef].params.items() if k not in lift.params})
-    aero = AeroModel(build_model(cands["CL"]), build_model(cands["CD"], lift), build_model(cands["Cm"], lift),
+    lift_fit = LiftFit(cands["CL"], lift)
+    aero = AeroModel(build_model(cands["CL"]), build_model(cands["CD"], lift_fit), build_model(cands["Cm"], lift_fit),
                      params, name=label)
     return ModelSet(label, cands, summaries, aero)

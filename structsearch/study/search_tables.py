@@ -8,8 +8,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..search.candidate_result import CandidateResult
-from ..search.candidates import Candidate
+from ..fitting.candidate_result import CandidateResult
+from ..fitting.candidates import Candidate
 from .comparison import percent_difference
 
 @dataclass(frozen=True)

@@ -11,9 +11,10 @@ from typing import Callable, Mapping
 
 from ..data.campaign import Campaign
 from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_LIFT, VAN_INGEN_MODEL_NAMES, van_ingen_lift_model
-from ..search.models import build_model
-from ..search.runner import Settings, run
-from ..search.specs import load_grid
+from ..fitting.models import build_model
+from ..fitting.options import FitOptions
+from ..search.runner import run
+from ..fitting.specs import load_grid
 from .comparison import CoefficientScores, score_set
 from .derived import Collinearity, DerivedQuantity, collinearity, physical_quantities, separation_matrix
 from .dynamic_stalls import DynamicStallStudy, dynamic_stall_study
@@ -39,24 +40,24 @@ class Study:
     search_tables: tuple[ThesisTable, ...]
 
 
-def run_study(campaign: Campaign, cache: Path, settings: Settings = Settings(), n_jobs: int = 1,
+def run_study(campaign: Campaign, cache: Path, options: FitOptions = FitOptions(), n_jobs: int = 1,
               progress: Callable[[str], None] | None = None) -> Study:
     """Everything the study tables hold; fits go through the search's cache under ``cache`` (a search of the
-    same campaign with the same settings makes them instant)."""
+    same campaign with the same options makes them instant)."""
     say = progress or (lambda m: None)
     say("study: the final model set")
-    final = fit_model_set(FINAL, FINAL_MODEL_NAMES, campaign, cache, settings, n_jobs=n_jobs, progress=progress)
+    final = fit_model_set(FINAL, FINAL_MODEL_NAMES, campaign, cache, options, n_jobs=n_jobs, progress=progress)
     say("study: Van Ingen's structures refitted")
-    refitted = fit_model_set(VAN_INGEN_REFITTED, VAN_INGEN_MODEL_NAMES, campaign, cache, settings, n_jobs=n_jobs,
+    refitted = fit_model_set(VAN_INGEN_REFITTED, VAN_INGEN_MODEL_NAMES, campaign, cache, options, n_jobs=n_jobs,
                              progress=progress)
     published = van_ingen_lift_model()
     scores = (score_set(FINAL, lambda c, d: final.predict(c, d), campaign)
               + score_set(VAN_INGEN_REFITTED, lambda c, d: refitted.predict(c, d), campaign)
-              # only the lift model's values are published (catalogue section 6)
+              # only the lift model's values are published (docs/catalogue.md section 6)
               + score_set(VAN_INGEN_PUBLISHED,
                           lambda c, d: published.predict(d, VAN_INGEN_LIFT) if c == "CL" else None, campaign))
     say("study: the separation grid")
-    separation = run(load_grid("separation").candidates, campaign, cache, settings=settings, n_jobs=n_jobs,
+    separation = run(load_grid("separation").candidates, campaign, cache, options=options, n_jobs=n_jobs,
                      progress=progress)
     kinds, matrix = separation_matrix(separation)
     say("study: the lift, drag and pitch grids in the thesis' layout")
@@ -65,21 +66,19 @@ def run_study(campaign: Campaign, cache: Path, settings: Settings = Settings(), 
     for name in ("lift", "drag", "pitch"):
         grid = lift_grid if name == "lift" else load_grid(name, lift_grid)
         # the grid's candidates take the final lift model's states, Van Ingen's drag and pitch his lift's
-        lifts = {ms.candidates["CL"].name: ms.summaries["CL"] for ms in (final, refitted)}
-        lift_candidates = {ms.candidates["CL"].name: ms.candidates["CL"] for ms in (final, refitted)}
-        results = run(grid.candidates, campaign, cache, lift_results=lifts if name != "lift" else None,
-                      lift_candidates=lift_candidates if name != "lift" else None, settings=settings,
+        lifts = {ms.candidates["CL"].name: ms.lift for ms in (final, refitted)}
+        results = run(grid.candidates, campaign, cache, lifts=lifts if name != "lift" else None, options=options,
                       n_jobs=n_jobs, progress=progress)
         coefficient = grid.candidates[0].coefficient
         tables.append(thesis_table(name, grid.candidates, results, refitted.summaries[coefficient]))
     say("study: CL-VI with and without the dynamic stalls")
-    dynamic = dynamic_stall_study(campaign, FINAL_MODEL_NAMES["CL"], settings)
+    dynamic = dynamic_stall_study(campaign, FINAL_MODEL_NAMES["CL"], options)
     train = campaign.split("train")
     lift = final.summaries["CL"]
     derived = physical_quantities(dict(lift.params), train)
     coll = collinearity(build_model(final.candidates["CL"]), dict(lift.params), train)
-    estimators = compare_estimators(campaign, dict(VAN_INGEN_MODEL_NAMES), n_starts=settings.n_starts,
-                                    seed=settings.seed, progress=progress)
+    estimators = compare_estimators(campaign, dict(VAN_INGEN_MODEL_NAMES), n_starts=options.n_starts,
+                                    seed=options.seed, progress=progress)
     models = {FINAL: dict(FINAL_MODEL_NAMES), VAN_INGEN_REFITTED: dict(VAN_INGEN_MODEL_NAMES),
               VAN_INGEN_PUBLISHED: {"CL": VAN_INGEN_MODEL_NAMES["CL"]}}
     return Study(models, tuple(scores), dynamic, kinds, matrix, tuple(derived), coll, estimators, tuple(tables))

@@ -25,7 +25,7 @@ def _blocks(doc: dict, names: Sequence[str], where: str) -> list[tuple[str, str]
 
 
 def expand(doc: dict, source: str) -> Grid:
-    """Expand a grid document (see :mod:`structsearch.search.specs`) into its candidates, in order."""
+    """Expand a grid document (see :mod:`structsearch.fitting.specs`) into its candidates, in order."""
     for key in ("name", "coefficient", "entry"):
         if key not in doc:
             raise DeclarationError(f"{source}: missing {key!r}")

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from tabulate import tabulate
 
-from ..calibration import (COVERAGE_FLOOR, COVERAGE_RANGE, GAP_LEVEL, REJECTION_CEILING, Calibration,
+from .calibration import (COVERAGE_FLOOR, COVERAGE_RANGE, GAP_LEVEL, REJECTION_CEILING, Calibration,
                            KindCalibration)
 
 

@@ -1,7 +1,7 @@
 """Standard errors of drag and pitch candidates that include the lift model's estimation error.
 
 A drag or pitch candidate is fitted with the lift model's separation parameters
-held fixed and with C_L replaced by the lift model's output (``runner``). Its
+held fixed and with C_L replaced by the lift model's output (:mod:`.candidate_fit`). Its
 one-step covariance is therefore conditional on the lift estimates. This module
 replaces it by the two-step covariance of :mod:`structsearch.engine.twostep`,
 which needs three things at the estimates: the lift model's Jacobian and residual
@@ -13,6 +13,7 @@ chain rule through the shared separation states and through the C_L column, see
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,7 +24,9 @@ from ..engine.snls import model_jacobian
 from ..engine.stallmodel import StallModel
 from ..engine.statistics import Covariances
 from ..engine.twostep import generated_regressor_covariance
-from .candidate_result import CandidateResult
+
+if TYPE_CHECKING:
+    from .lift_fit import LiftContext, LiftFit
 
 
 def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lift_jacobian: np.ndarray,
@@ -56,11 +59,11 @@ def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lif
     return np.column_stack(cols)
 
 
-def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightData, lift: CandidateResult,
-                          context, kind: str | None = None) -> FitResult:
+def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightData, lift: "LiftFit",
+                          context: "LiftContext", kind: str | None = None) -> FitResult:
     """``result`` of ``model`` (a drag or pitch candidate with the lift states fixed) with the two-step
     covariance of ``kind`` (default: the one ``result`` has). ``train`` is the training data as measured;
-    ``context`` the lift model's :class:`~structsearch.search.shared_data.LiftContext` (its Jacobian,
+    ``context`` the lift model's :class:`~structsearch.fitting.lift_fit.LiftContext` (its Jacobian,
     residual and covariance basis on ``train``, and the training data with C_L replaced by its output, as
     the fit saw it). The two-step covariance replaces the fit's own, so the fit may as well have
     computed the white one only (which is kept).

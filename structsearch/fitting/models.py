@@ -1,7 +1,7 @@
 """A candidate as a StallModel: drag and pitch candidates take the lift model's states and output."""
 from __future__ import annotations
 
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
@@ -10,11 +10,13 @@ from ..data.flightdata import FlightData
 from ..engine.regressors import declare
 from ..engine.separation import SeparationState
 from ..engine.stallmodel import StallModel
-from .candidate_result import CandidateResult
 from .candidates import Candidate
 
+if TYPE_CHECKING:  # lift_fit builds on this module
+    from .lift_fit import LiftFit
 
-def build_model(c: Candidate, lift: CandidateResult | None = None) -> StallModel:
+
+def build_model(c: Candidate, lift: "LiftFit | None" = None) -> StallModel:
     """The StallModel of a candidate; ``lift`` is the fitted lift model it names."""
     if c.lift and (lift is None or lift.failed):
         raise StructSearchError(f"candidate {c.name} needs the fitted lift model {c.lift}")
@@ -41,21 +43,19 @@ def model_with_lift(c: Candidate, lift_params: Mapping[str, float] | None) -> St
                               bounds=free_bounds)
 
 
-def with_lift_prediction(data: FlightData, lift: CandidateResult | Mapping[str, float],
-                         lift_candidate: Candidate) -> FlightData:
-    """``data`` with column CL replaced by the lift model's output (the thesis feeds the lift model to
-    drag and pitch; the measured C_L carries buffet noise that would bias them as errors in variables).
-    ``lift`` is the fitted lift model or its parameter values."""
-    params = lift.params if isinstance(lift, CandidateResult) else lift
+def with_lift_prediction(data: FlightData, lift_params: Mapping[str, float], lift_candidate: Candidate) -> FlightData:
+    """``data`` with column CL replaced by the output of the lift model ``lift_candidate`` with ``lift_params``
+    (the thesis feeds the lift model to drag and pitch; the measured C_L carries buffet noise that would
+    bias them as errors in variables); the measured C_L is kept as CL_measured."""
     cols = dict(data.columns)
     cols["CL_measured"] = data["CL_measured"] if "CL_measured" in data else data["CL"]
-    cols["CL"] = model_with_lift(lift_candidate, None).predict(data, params)
+    cols["CL"] = model_with_lift(lift_candidate, None).predict(data, lift_params)
     return FlightData(cols, data.starts, data.names, data.source, dict(data.constants))
 
 
-def predict_candidate(c: Candidate, params: dict, data: FlightData, lift: CandidateResult | None = None,
-                      lift_candidate: Candidate | None = None) -> np.ndarray:
+def predict_candidate(c: Candidate, params: Mapping[str, float], data: FlightData,
+                      lift: "LiftFit | None" = None) -> np.ndarray:
     """A fitted candidate's output on ``data``; drag and pitch candidates get the lift model's C_L."""
-    if c.lift and lift_candidate is not None:
-        data = with_lift_prediction(data, lift, lift_candidate)
+    if c.lift and lift is not None:
+        data = lift.predict_on(data)
     return build_model(c, lift).predict(data, params)

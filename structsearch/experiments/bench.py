@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .flight.reference import FINAL_LIFT, final_lift_model
-from .engine.fullnls import full_nls
-from .engine.snls import solve
-from .flight.synthetic import campaign, with_coefficient
+from ..flight.reference import FINAL_LIFT, final_lift_model
+from ..engine.fullnls import full_nls
+from ..engine.snls import solve
+from ..flight.synthetic import campaign, with_coefficient
 
 
 @dataclass(frozen=True)
@@ -239,10 +239,10 @@ def _children(pid: int) -> list[int]:
 def run_search(n_jobs: int = 2, seed: int = 0, progress=None) -> dict:
     """``search --grid all`` on the default simulated campaign, from an empty cache."""
     import tempfile
-    from .flight.flighttest import build_campaign
-    from .search.runner import Settings
-    from .search.pipeline import search
-    from .report.tables import write_tables
+    from ..flight.flighttest import build_campaign
+    from ..fitting.options import FitOptions
+    from ..search.pipeline import search
+    from ..report.tables import write_tables
     say = progress or (lambda m: None)
     say("simulating the default campaign for the search benchmark")
     t0 = time.perf_counter()
@@ -253,7 +253,7 @@ def run_search(n_jobs: int = 2, seed: int = 0, progress=None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         say("search --grid all from an empty cache")
         t0 = time.perf_counter()
-        result = search(campaign, "all", Path(tmp), n_jobs=n_jobs, settings=Settings())
+        result = search(campaign, "all", Path(tmp), n_jobs=n_jobs, options=FitOptions())
         write_tables(result.grids, Path(tmp))
         total = time.perf_counter() - t0
         workers = _children(os.getpid())
@@ -263,7 +263,7 @@ def run_search(n_jobs: int = 2, seed: int = 0, progress=None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         say("search --grid all --cv-method one-step from an empty cache")
         t0 = time.perf_counter()
-        one_step = search(campaign, "all", Path(tmp), n_jobs=n_jobs, settings=Settings(cv_method="one-step"))
+        one_step = search(campaign, "all", Path(tmp), n_jobs=n_jobs, options=FitOptions(cv_method="one-step"))
         write_tables(one_step.grids, Path(tmp))
         total_one_step = time.perf_counter() - t0
     return {"samples": campaign.data.n_samples, "simulate_s": t_sim, "search_s": total,
@@ -299,8 +299,8 @@ def one_start_unit(campaign, repeats: int = 3) -> float:
     """Median wall time of one CL-VI fit from its declared start on the campaign's training maneuvers,
     with the default covariance (what ``structsearch fit --model CL-VI --starts 1`` computes, without
     cross-validation and I/O): the machine-independent unit the search is measured in."""
-    from .search.models import build_model
-    from .search.specs import resolve_candidate
+    from ..fitting.models import build_model
+    from ..fitting.specs import resolve_candidate
     model = build_model(resolve_candidate("CL-VI"))
     train = campaign.split("train")
     times = []
@@ -319,10 +319,11 @@ def run_staged(campaigns: int = 50, scale: float = 0.05, random_starts: int = 64
     then CL-VI from those estimates, its declared start and three quasi-random points) against the
     previous default (declared start plus three quasi-random points) and a single random start."""
     from joblib import Parallel, delayed
-    from .flight.flighttest import build_campaign
-    from .search.models import build_model
-    from .search.runner import Settings, fit_staged
-    from .search.specs import resolve_candidate
+    from ..flight.flighttest import build_campaign
+    from ..fitting.models import build_model
+    from ..fitting.options import FitOptions
+    from ..fitting.candidate_fit import fit_staged
+    from ..fitting.specs import resolve_candidate
     say = progress or (lambda m: None)
     candidate = resolve_candidate("CL-VI")
     model = build_model(candidate)
@@ -341,7 +342,7 @@ def run_staged(campaigns: int = 50, scale: float = 0.05, random_starts: int = 64
         on_bound = [name for name, v, lo, hi, w in zip(model.nonlinear_names, best_random.theta, lower, upper, span)
                     if min(v - lo, hi - v) <= 1e-6 * w]
         t0 = time.perf_counter()
-        staged = fit_staged(candidate, train, validation, None, None, Settings(cv_folds=0))
+        staged = fit_staged(candidate, train, validation, None, FitOptions(cv_folds=0))
         t_staged = time.perf_counter() - t0
         t0 = time.perf_counter()
         previous = model.fit(train, n_starts=4, seed=0)
@@ -484,7 +485,7 @@ def to_markdown(fig: dict) -> str:
 
 
 def write(fig: dict, out: Path) -> tuple[Path, Path]:
-    from .data.atomic import write_text
+    from ..data.atomic import write_text
     out.mkdir(parents=True, exist_ok=True)
     md, js = out / "bench.md", out / "bench.json"
     write_text(md, to_markdown(fig))

@@ -25,13 +25,15 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 from scipy import stats
 
-from .diagnosis import effects as fx
-from .diagnosis.diagnose import saturated, wald_p_value
-from .engine.statistics import COVARIANCE_KINDS
-from .flight.flighttest import build_campaign
-from .flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_MODEL_NAMES, FINAL_PITCH
-from .search.runner import Settings, fit_candidate
-from .search.specs import find_candidate
+from ..diagnosis import effects as fx
+from ..diagnosis.diagnose import saturated, wald_p_value
+from ..engine.statistics import COVARIANCE_KINDS
+from ..flight.flighttest import build_campaign
+from ..flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_MODEL_NAMES, FINAL_PITCH
+from ..fitting.options import FitOptions
+from ..fitting.candidate_fit import fit_candidate
+from ..fitting.lift_fit import LiftFit
+from ..study.thesis_estimator import fit_final_models
 
 TRUTH = {"CL": FINAL_LIFT, "CD": FINAL_DRAG, "Cm": FINAL_PITCH}
 LARGE_DOF = 10 ** 9  # a draw without dof: the normal quantiles
@@ -54,31 +56,17 @@ class CampaignDraw:
     dof: Mapping[str, Mapping[str, Mapping[str, float]]] = field(default_factory=dict)  # kind -> model -> param -> t dof
 
 
-def fit_final_models(train, val, settings: Settings, starts: Mapping[str, Mapping[str, float]]) -> dict:
-    """The thesis' three final models fitted from ``starts`` (coefficient -> parameters), drag and pitch on
-    the fitted lift model's states: {coefficient: (candidate, result)}."""
-    lift_candidate, lift, out = find_candidate(FINAL_MODEL_NAMES["CL"]), None, {}
-    for coef, name in FINAL_MODEL_NAMES.items():
-        cand = find_candidate(name)
-        fit = fit_candidate(cand, train, val, lift, lift_candidate if cand.lift else None, settings,
-                            start=dict(starts[coef]))
-        lift = fit if coef == "CL" else lift
-        out[coef] = (cand, fit)
-    return out
-
-
 def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
     """Simulate one campaign and fit the final models with every covariance kind."""
     campaign = build_campaign(seed=seed, scale=scale)
     train, val = campaign.split("train"), campaign.split("validation")
-    lift_candidate = find_candidate(FINAL_MODEL_NAMES["CL"])
     estimates, stderr, gap, dof = {}, {}, {}, {}
     starts = {coef: dict(TRUTH[coef]) for coef in TRUTH}
     for kind in kinds:
-        settings = Settings(n_starts=1, covariance=kind, cv_folds=0)
+        options = FitOptions(n_starts=1, covariance=kind, cv_folds=0)
         stderr[kind], gap[kind], dof[kind] = {}, {}, {}
-        finals = fit_final_models(train, val, settings, starts)
-        lift = finals["CL"][1]
+        finals = fit_final_models(train, val, options, starts)
+        lift = LiftFit(*finals["CL"])
         for coef, (cand, fit) in finals.items():
             if fit.failed:
                 raise RuntimeError(f"seed {seed}: {cand.name} failed: {fit.error}")
@@ -87,8 +75,7 @@ def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
             stderr[kind][cand.name] = dict(fit.stderr)
             dof[kind][cand.name] = dict(fit.reference_dof)
             sat_cand, added = saturated(cand, fx.applicable(cand))
-            sat = fit_candidate(sat_cand, train, val, lift, lift_candidate if cand.lift else None, settings,
-                                start=fit.params)
+            sat = fit_candidate(sat_cand, train, val, lift if cand.lift else None, options, start=fit.params)
             names = [p for ps in added.values() for p in ps]
             gap[kind][cand.name] = float("nan") if sat.failed else wald_p_value(sat, names)
     return CampaignDraw(seed, train.n_samples, estimates, stderr, gap, dof)
@@ -241,21 +228,3 @@ def run(n_campaigns: int = 50, scale: float = 0.1, kinds: Sequence[str] = COVARI
         draws.append(d)
         say(f"calibration: campaign {i + 1}/{n_campaigns} ({time.perf_counter() - t0:.0f} s)")
     return summarise(draws, scale, time.perf_counter() - t0)
-
-
-# The thesis' standard deviations (Tables 11, 13, 15) come from its coloured Toeplitz sandwich
-# (Eqs. 19, 22): the simulator's realism is judged with the same estimator, whatever the default.
-THESIS_COVARIANCE = "colored"
-
-
-def thesis_estimator_fits(grids: Mapping[str, Sequence], campaign) -> dict[str, list]:
-    """The thesis' final models of a search refitted with the thesis' covariance estimator (starting at
-    their estimates, so only the covariance changes), as {model name: [result]}; {} unless the
-    search fitted all three (a campaign of the Citation with the thesis' grids)."""
-    found = {s.name: s for ranked in grids.values() for s in ranked if not s.failed}
-    if not all(name in found for name in FINAL_MODEL_NAMES.values()):
-        return {}
-    settings = Settings(n_starts=1, covariance=THESIS_COVARIANCE, cv_folds=0)
-    starts = {coef: found[name].params for coef, name in FINAL_MODEL_NAMES.items()}
-    finals = fit_final_models(campaign.split("train"), campaign.split("validation"), settings, starts)
-    return {cand.name: [fit] for cand, fit in finals.values()}
