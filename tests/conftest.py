@@ -1,4 +1,7 @@
+import functools
 import os
+import subprocess
+import sys
 
 # one BLAS thread, as the CLI uses; keeps timings of the suite stable on small machines
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -8,6 +11,57 @@ import pytest  # noqa: E402
 
 from structsearch.flight.reference import FINAL_LIFT, final_lift_model  # noqa: E402
 from structsearch.flight.synthetic import campaign, with_coefficient  # noqa: E402
+
+
+def pytest_configure(config):
+    # `-m "not slow"` leaves out the end-to-end runs of whole commands on simulated campaigns (the README's
+    # test command runs everything)
+    config.addinivalue_line("markers", "slow: a heavy end-to-end run (a whole command on a simulated campaign)")
+
+
+def run_cli(*args, cwd=None, timeout=600, extra=()):
+    """``structsearch ARGS`` in a fresh interpreter (as a user runs it): the completed process."""
+    return subprocess.run([sys.executable, *extra, "-m", "structsearch", *map(str, args)], capture_output=True,
+                          text=True, cwd=cwd, timeout=timeout)
+
+
+@pytest.fixture(name="run_cli", scope="session")
+def run_cli_fixture():
+    """:func:`run_cli` for tests that take it as a fixture."""
+    return run_cli
+
+
+@functools.lru_cache(maxsize=8)
+def _simulated(seed: int, scale: float, options: tuple):
+    from structsearch.flight.flighttest import build_campaign
+    return build_campaign(seed=seed, scale=scale, **dict(options))
+
+
+@pytest.fixture(scope="session")
+def simulated_campaign():
+    """``simulated_campaign(seed, scale, **build_campaign options)``: a seeded simulated campaign, flown once
+    per test process and shared (campaigns are immutable: their columns are read-only)."""
+    def make(seed: int = 0, scale: float = 0.05, **options):
+        return _simulated(seed, scale, tuple(sorted((k, tuple(v) if isinstance(v, list) else v)
+                                                    for k, v in options.items())))
+    return make
+
+
+@pytest.fixture(scope="session")
+def campaign_on_disk(tmp_path_factory, simulated_campaign):
+    """``campaign_on_disk(seed, scale, **options)``: the same campaign written once per test process to a
+    directory and read back (the command line's view of it: ``campaign.directory``)."""
+    from structsearch.data.campaign import read_campaign, write_campaign
+    written = {}
+
+    def make(seed: int = 0, scale: float = 0.05, **options):
+        key = (seed, scale, tuple(sorted(options.items())))
+        if key not in written:
+            path = tmp_path_factory.mktemp("campaign") / "c"
+            write_campaign(simulated_campaign(seed, scale, **options), path)
+            written[key] = read_campaign(path)
+        return written[key]
+    return make
 
 
 @pytest.fixture(scope="session")

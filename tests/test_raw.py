@@ -11,8 +11,8 @@ from structsearch.flight.raw import ACCELEROMETER, specific_force_at
 
 
 @pytest.fixture(scope="module")
-def raw():
-    return build_campaign(seed=4, scale=0.05, raw=True)
+def raw(simulated_campaign):
+    return simulated_campaign(seed=4, scale=0.05, raw=True)
 
 
 def test_lever_arm_terms_equal_the_rigid_body_cross_products():

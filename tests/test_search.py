@@ -5,12 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from structsearch.data.campaign import read_campaign, write_campaign
 from structsearch.data.flightdata import FlightData
 from structsearch.engine.scores import R2Summary
 from structsearch.report.tables import write_tables
 from structsearch.fitting.candidate_result import CandidateResult, SplitScores
-from structsearch.flight.flighttest import build_campaign
 from structsearch.search.ranking import rank
 from structsearch.search.runner import run
 from structsearch.fitting.lift_fit import LiftFit
@@ -18,7 +16,7 @@ from structsearch.search.pipeline import search
 from structsearch.fitting.specs import load_grid
 from structsearch.fitting.candidates import roman
 
-from test_report_cli import run_cli
+from conftest import run_cli
 
 # Catalogue section 5, written out independently of model_specs/pitch.toml.
 BLOCK_REGRESSORS = {
@@ -108,12 +106,10 @@ def test_ranking_rule_prefers_the_smaller_model_within_noise():
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    path = tmp_path_factory.mktemp("campaign") / "c"
+def tiny(campaign_on_disk):
     # the search's mechanics on a laboratory-clean campaign (no slow reconstruction errors): at 5 % of
     # the maneuvers the realistic errors leave little significant for the refinement tests to drop
-    write_campaign(build_campaign(seed=1, scale=0.05, slow_errors=0.0), path)
-    return read_campaign(path)
+    return campaign_on_disk(seed=1, scale=0.05, slow_errors=0.0)
 
 
 def test_jobs_do_not_change_results(tiny, tmp_path):
@@ -351,7 +347,7 @@ def test_grid_bounds_for_a_parameter_no_candidate_has_are_errors(tmp_path, bound
 def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
     """Issue 13: a failure that may be a programming error (a bare ValueError) is retried next run; a
     failure that is a property of the data (not applicable, DataError, ...) is cached."""
-    import structsearch.search.runner as runner
+    import structsearch.fitting.candidate_fit as candidate_fit
     from structsearch.fitting.options import FitOptions
     from structsearch.search.runner import cache_path, campaign_fingerprint
     cand = load_grid("lift")["CL-I"]
@@ -361,7 +357,7 @@ def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
         def failing(c, *args, error=error, **kwargs):
             return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                            error=error, seconds=0.0)
-        monkeypatch.setattr(runner, "fit_candidate", failing)
+        monkeypatch.setattr(candidate_fit, "fit_candidate", failing)
         out = run([cand], tiny, tmp_path, options=options, backend="threading")[0]
         assert out.failed and path.exists() == cached, error
 

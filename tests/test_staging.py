@@ -166,7 +166,8 @@ def test_the_two_step_covariance_is_the_same_from_a_white_fit_with_its_factor(ti
     the requested kind and factorising again."""
     from structsearch.fitting.lift_uncertainty import with_lift_uncertainty
     from structsearch.fitting.models import build_model
-    from structsearch.fitting.lift_fit import LiftFit, lift_context
+    from structsearch.fitting.lift_context import lift_context
+    from structsearch.fitting.lift_fit import LiftFit
     train, validation = tiny.split("train"), tiny.split("validation")
     candidate = resolve_candidate("Cm-XXXIIIr")
     lift_candidate = resolve_candidate(candidate.lift)

@@ -15,7 +15,8 @@ from .candidate_result import CandidateResult, SplitScores
 from .candidates import Candidate
 from .centred_correlation import centred_correlation
 from .cross_validation import cross_validate, maneuver_folds
-from .lift_fit import LiftFit, lift_context
+from .lift_context import lift_context
+from .lift_fit import LiftFit
 from .lift_uncertainty import with_lift_uncertainty
 from .models import build_model
 from .options import FitOptions

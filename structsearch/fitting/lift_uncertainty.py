@@ -26,7 +26,8 @@ from ..engine.statistics import Covariances
 from ..engine.twostep import generated_regressor_covariance
 
 if TYPE_CHECKING:
-    from .lift_fit import LiftContext, LiftFit
+    from .lift_context import LiftContext
+    from .lift_fit import LiftFit
 
 
 def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lift_jacobian: np.ndarray,
@@ -63,7 +64,7 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
                           context: "LiftContext", kind: str | None = None) -> FitResult:
     """``result`` of ``model`` (a drag or pitch candidate with the lift states fixed) with the two-step
     covariance of ``kind`` (default: the one ``result`` has). ``train`` is the training data as measured;
-    ``context`` the lift model's :class:`~structsearch.fitting.lift_fit.LiftContext` (its Jacobian,
+    ``context`` the lift model's :class:`~structsearch.fitting.lift_context.LiftContext` (its Jacobian,
     residual and covariance basis on ``train``, and the training data with C_L replaced by its output, as
     the fit saw it). The two-step covariance replaces the fit's own, so the fit may as well have
     computed the white one only (which is kept).

@@ -1,7 +1,7 @@
 """A candidate as a StallModel: drag and pitch candidates take the lift model's states and output."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Mapping
+from typing import Mapping
 
 import numpy as np
 
@@ -11,12 +11,10 @@ from ..engine.regressors import declare
 from ..engine.separation import SeparationState
 from ..engine.stallmodel import StallModel
 from .candidates import Candidate
-
-if TYPE_CHECKING:  # lift_fit builds on this module
-    from .lift_fit import LiftFit
+from .lift_fit import LiftFit
 
 
-def build_model(c: Candidate, lift: "LiftFit | None" = None) -> StallModel:
+def build_model(c: Candidate, lift: LiftFit | None = None) -> StallModel:
     """The StallModel of a candidate; ``lift`` is the fitted lift model it names."""
     if c.lift and (lift is None or lift.failed):
         raise StructSearchError(f"candidate {c.name} needs the fitted lift model {c.lift}")
@@ -54,8 +52,8 @@ def with_lift_prediction(data: FlightData, lift_params: Mapping[str, float], lif
 
 
 def predict_candidate(c: Candidate, params: Mapping[str, float], data: FlightData,
-                      lift: "LiftFit | None" = None) -> np.ndarray:
+                      lift: LiftFit | None = None) -> np.ndarray:
     """A fitted candidate's output on ``data``; drag and pitch candidates get the lift model's C_L."""
     if c.lift and lift is not None:
-        data = lift.predict_on(data)
+        data = with_lift_prediction(data, lift.params, lift.candidate)
     return build_model(c, lift).predict(data, params)

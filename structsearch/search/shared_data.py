@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..data.flightdata import FlightData
-from ..fitting.lift_fit import forget_lift_contexts
+from ..fitting.lift_context import forget_lift_contexts
 
 # Backends whose workers are processes on this machine (a dask cluster's may not see this disk).
 LOCAL_PROCESS_BACKENDS = ("loky", "multiprocessing")
