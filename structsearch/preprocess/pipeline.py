@@ -10,7 +10,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..data.campaign import Campaign, make_campaign
 from ..data.errors import DataError, DeclarationError
 from ..data.prefilter import CUTOFF_HZ, derivative, lowpass

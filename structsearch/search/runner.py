@@ -98,7 +98,7 @@ def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None,
     the search's fits, however they were started). The cross-validation method is, for a candidate that
     may have nonlinear parameters: the study and the report use "refit", so after a search with
     ``--cv-method one-step`` they fit those candidates again (the linear ones they are served)."""
-    from .. import __version__
+    from .._version import __version__
     blob = json.dumps({"candidate": c.to_dict(), "data": data_key, "lift": lift_params,
                        "options": options.key(may_be_nonlinear(c, lift_params)),
                        "version": [__version__, code_fingerprint(), JSON_LAYOUT]},
