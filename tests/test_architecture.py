@@ -243,3 +243,74 @@ def test_the_wheel_works_outside_the_checkout(tmp_path):
     doc = json.loads((tmp_path / "fit" / "fit.json").read_text())
     assert doc["model"] == "CD-IXr" and doc["lift"]["model"] == "CL-VI"
     assert doc["params"].keys() == doc["stderr"].keys() and isinstance(doc["converged"], bool)
+
+
+# ----- one result vocabulary (issue 27): a candidate's result composes the fit's estimates ------------
+def _fitted_candidate():
+    from structsearch import SeparableModel
+    rng = np.random.default_rng(3)
+    x = np.linspace(0.0, 4.0, 240)
+    y = 2.0 * np.exp(-1.3 * x) + 0.5 + 0.01 * rng.standard_normal(len(x))
+    fit = SeparableModel({"b1": "exp(-b2*x)", "b0": "1"}, variables=["x"]).fit(
+        {"x": x}, y, start={"b2": 1.0}, bounds={"b2": (0.1, 5.0)}, covariance="hac-maneuver",
+        segments=[60, 120, 180])
+    scores = SplitScores(fit.mse, tuple(fit.mse_segments.values()), tuple(map(int, fit.segments.counts)),
+                         fit.segments.r2_summary())
+    return fit, CandidateResult.from_fit(name="E", grid="g", coefficient="y", lift=None, result=fit, train=scores,
+                                         validation=scores, seconds=0.5)
+
+
+def test_a_candidate_result_keeps_the_fits_estimates_and_covariance():
+    fit, cand = _fitted_candidate()
+    assert cand.estimates is fit.estimates and cand.converged is fit.converged
+    for name in ("names", "nonlinear_names", "params", "stderr", "p_values", "at_bound", "reference_dof",
+                 "not_identifiable", "significant", "condition_number", "significance", "max_lag"):
+        assert getattr(cand, name) == getattr(fit, name), name
+    assert cand.high_correlations == tuple(fit.high_correlations)
+    np.testing.assert_array_equal(cand.correlation_matrix, fit.correlation)
+    np.testing.assert_array_equal(cand.cov_params().to_numpy(), fit.covariance)
+    assert cand.wald_test(["b0", "b1"]) == fit.wald_test(["b0", "b1"])
+    assert cand.conf_int().equals(fit.conf_int())
+    from structsearch.report.fit_report import fit_report
+    assert "covariance" in fit_report(cand) and fit_report(cand, "html") == cand.summary().as_html()
+    assert fit_report(cand, "csv") == fit_report(fit, "csv")
+
+
+def test_a_candidate_results_json_round_trip_is_exact():
+    _, cand = _fitted_candidate()
+    back = CandidateResult.from_json(json.loads(json.dumps(cand.to_json(), allow_nan=False)))
+    assert back == cand
+    np.testing.assert_array_equal(back.estimates.covariance, cand.estimates.covariance)
+    np.testing.assert_array_equal(back.estimates.white_covariance, cand.estimates.white_covariance)
+    np.testing.assert_array_equal(back.estimates.effective_maneuvers, cand.estimates.effective_maneuvers)
+    assert back.p_values == cand.p_values and back.stderr == cand.stderr and back.to_json() == cand.to_json()
+
+
+def test_a_failed_candidate_has_no_statistics():
+    failed = _result("FitError: boom")
+    assert failed.estimates is None and failed.params is None and failed.names == ()
+    with pytest.raises(ValueError, match="no estimates: FitError: boom"):
+        failed.wald_test(["a"])
+
+
+def test_replacing_a_fit_results_covariance_replaces_its_statistics():
+    import dataclasses
+    fit, _ = _fitted_candidate()
+    doubled = dataclasses.replace(fit, covariance=4.0 * fit.covariance, covariance_kind="white")
+    assert doubled.covariance_kind == "white" and fit.covariance_kind == "hac-maneuver"
+    assert doubled.stderr["b2"] == pytest.approx(2.0 * fit.stderr["b2"], rel=1e-12)
+    assert doubled.params == fit.params and doubled.rss == fit.rss
+    with pytest.raises(TypeError, match="unexpected keyword argument 'colour'"):
+        dataclasses.replace(fit, colour="red")
+
+
+def test_a_wald_test_of_a_parameter_that_is_not_identifiable_is_nan_with_the_reason():
+    import dataclasses
+    fit, _ = _fitted_candidate()
+    cov = fit.covariance.copy()
+    cov[0, :] = cov[:, 0] = np.nan
+    broken = dataclasses.replace(fit, covariance=cov, unidentifiable={"b2": "for the test"})
+    test = broken.wald_test(["b2", "b0"])
+    assert np.isnan(test.p_value) and test.reason == "b2 is not identifiable: for the test"
+    assert not np.isnan(broken.wald_test(["b0"]).p_value)
+    assert broken.conf_int().loc["b2"].isna().all() and not broken.conf_int().loc["b0"].isna().any()

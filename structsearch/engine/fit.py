@@ -5,53 +5,55 @@ import numpy as np
 
 from ..data.errors import DataError, FitError
 from .ols import solved
+from .estimates import ParameterEstimates
 from .results import FitResult
 from .identifiability import covariance_basis, rank_reasons
 from .snls import SeparableProblem, model_jacobian, multistart, project
 from .scores import ManeuverScores, slices_of
+from .defaults import SEPARABLE_DEFAULTS, STALL_DEFAULTS
 from .statistics import (COVARIANCE_KINDS, Covariances, scaled_condition_number, scaled_factor,
                          scaled_factor_from_qr)
 
 
-
-def check_observed(y: np.ndarray, bounds: np.ndarray, names, source: str, column: str) -> np.ndarray:
+def check_observed(y: np.ndarray, boundaries: np.ndarray, names, source: str, column: str) -> np.ndarray:
     y = np.asarray(y, dtype=float)
-    if y.ndim != 1 or len(y) != int(bounds[-1]):
-        raise DataError(f"observations have shape {y.shape}, expected ({int(bounds[-1])},)",
+    if y.ndim != 1 or len(y) != int(boundaries[-1]):
+        raise DataError(f"observations have shape {y.shape}, expected ({int(boundaries[-1])},)",
                         source=source, column=column)
     bad = np.flatnonzero(~np.isfinite(y))
     if bad.size:
-        seg = int(np.searchsorted(bounds, bad[0], side="right") - 1)
+        seg = int(np.searchsorted(boundaries, bad[0], side="right") - 1)
         raise DataError(f"value is NaN or infinite (maneuver {names[seg]!r})", source=source,
-                        column=column, row=int(bad[0] - bounds[seg]))
+                        column=column, row=int(bad[0] - boundaries[seg]))
     return y
 
 
-def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
+def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndarray,
                 segment_names, start=None, lower=None, upper=None, n_starts: int = 1,
-                seed: int = 0, n_jobs: int = 1, covariance: str = "colored", max_lag=None,
-                tol: float = 1e-10, max_nfev: int | None = None, also=(), model: str = "model",
+                seed: int = 0, n_jobs: int = 1, covariance: str = SEPARABLE_DEFAULTS.covariance, max_lag=None,
+                tol: float = STALL_DEFAULTS.tol, max_nfev: int | None = None, also=(), model: str = "model",
                 coefficient: str | None = None, source: str = "<memory>") -> FitResult:
     """Estimate all parameters and their statistics.
 
-    ``bounds`` are the maneuver boundaries ``[0, ..., m]``; they delimit the
-    residual autocorrelation and the per-maneuver R^2.
+    ``boundaries`` are the maneuver boundaries ``[0, ..., m]``; they delimit the
+    residual autocorrelation and the per-maneuver R^2. ``lower``/``upper`` are the box of the nonlinear
+    parameters. The models pass their own defaults (:mod:`.defaults`).
     """
     if covariance not in COVARIANCE_KINDS:
         raise FitError(f"covariance must be one of {COVARIANCE_KINDS}, not {covariance!r}")
-    y = check_observed(y, bounds, segment_names, source, coefficient or "y")
+    y = check_observed(y, boundaries, segment_names, source, coefficient or "y")
     k = len(problem.nonlinear_names)
     with np.errstate(all="ignore"):
         ev0 = problem.evaluate(np.asarray(start if k else np.zeros(0), float))
     bad = np.argwhere(~np.isfinite(ev0.phi))
     if bad.size:
-        seg = int(np.searchsorted(bounds, bad[0][0], side="right") - 1)
+        seg = int(np.searchsorted(boundaries, bad[0][0], side="right") - 1)
         inputs = (problem.regressor_inputs(int(bad[0][1]), int(bad[0][0]))
                   if hasattr(problem, "regressor_inputs") else "")
         raise DataError(f"regressor {problem.linear_names[bad[0][1]]!r} is NaN or infinite"
                         f"{' at the start' if k else ''} (maneuver {segment_names[seg]!r}"
                         f"{'; inputs ' + inputs if inputs else ''})", source=source,
-                        row=int(bad[0][0] - bounds[seg]))
+                        row=int(bad[0][0] - boundaries[seg]))
     if k == 0:  # the regressors evaluated and projected once serve the estimate and its statistics
         ev = ev0
         proj = project(ev.phi, y)
@@ -78,19 +80,21 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, bounds: np.ndarray,
     reasons.update(rank_reasons(jac, names, skip=tuple(reasons), factor=factor[0]))
     basis = covariance_basis(jac, names, reasons, k)
     everything = bool(np.all(basis)) and bool(np.all(np.isfinite(jac)))
-    estimate = Covariances.on(jac, basis, residual, bounds, covariance, max_lag,
+    estimate = Covariances.on(jac, basis, residual, boundaries, covariance, max_lag,
                               factor=factor if everything else None).without(
         [i for i, n in enumerate(names) if n in reasons])
-    return FitResult(
-        model=model, coefficient=coefficient, nonlinear_names=tuple(problem.nonlinear_names),
-        linear_names=tuple(problem.linear_names),
+    segments = ManeuverScores.of(y, residual, slices_of(boundaries))
+    estimates = ParameterEstimates(
+        nonlinear_names=tuple(problem.nonlinear_names), linear_names=tuple(problem.linear_names),
         values=np.concatenate([outcome.theta, proj.coef]), lower=lower, upper=upper,
-        covariance=estimate.covariance, white_covariance=estimate.white, covariance_kind=covariance,
-        max_lag=estimate.max_lag, bandwidth=estimate.bandwidth, effective_maneuvers=estimate.effective_maneuvers,
-        condition_number=scaled_condition_number(jac, factor[0]),
-        unidentifiable=reasons,
+        covariance=estimate.covariance, covariance_kind=covariance, n_samples=int(segments.counts.sum()),
+        n_maneuvers=len(segment_names), white_covariance=estimate.white, max_lag=estimate.max_lag,
+        bandwidth=estimate.bandwidth, effective_maneuvers=estimate.effective_maneuvers,
+        condition_number=scaled_condition_number(jac, factor[0]), unidentifiable=reasons)
+    return FitResult(
+        model=model, coefficient=coefficient, estimates=estimates,
         residuals=residual, segment_names=tuple(segment_names),
-        segments=ManeuverScores.of(y, residual, slices_of(bounds)), total_sst=float(np.sum((y - y.mean()) ** 2)),
-        nfev=outcome.nfev, njev=outcome.njev, message=outcome.message, success=outcome.success,
+        segments=segments, total_sst=float(np.sum((y - y.mean()) ** 2)),
+        nfev=outcome.nfev, njev=outcome.njev, message=outcome.message, converged=outcome.success,
         n_starts=n_starts_used, n_reached_best=reached, start=outcome.start,
         covariance_basis=basis, jacobian_inverse_factor=estimate.inverse_factor)

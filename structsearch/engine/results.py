@@ -1,201 +1,140 @@
-"""The immutable result of a fit; named statistics are derived lazily from stored arrays."""
+"""The immutable result of a fit: the parameters' estimates and statistics (:class:`ParameterEstimates`,
+``result.estimates``), the residuals and the optimizer's account. Every statistic of the estimates is
+reachable on the result under the same name (``result.params``, ``result.stderr``, ``result.p_values``,
+``result.cov_params()``, ...)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import dataclasses
+from dataclasses import dataclass
 from functools import cached_property
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
-from scipy import stats
 
+from .estimates import AT_BOUND_RTOL, HIGH_CORRELATION, ParameterEstimates, WaldTest  # noqa: F401  (re-exported)
 from .scores import ManeuverScores
-from .statistics import reference_dof
 
-HIGH_CORRELATION = 0.9
-# A parameter closer than this fraction of its bound interval to a bound is "at the bound". The
-# trust-region solver stops short of an active bound by ~1e-7..1e-6 of the range (it keeps iterates
-# strictly inside), so 1e-5 catches those stops without touching an interior optimum.
-AT_BOUND_RTOL = 1e-5
+if TYPE_CHECKING:
+    import pandas
+
+    from .summary import FitSummary
+
+_ESTIMATE_FIELDS = frozenset(f.name for f in dataclasses.fields(ParameterEstimates))
 
 
-@dataclass(frozen=True, eq=False)
+def _delegate(name: str):
+    def get(self):
+        return getattr(self.estimates, name)
+    get.__name__ = name
+    get.__doc__ = f"``estimates.{name}`` (:class:`~structsearch.engine.estimates.ParameterEstimates`)."
+    return property(get)
+
+
+@dataclass(frozen=True, eq=False, init=False)
 class FitResult:
     """Estimates, covariance and fit statistics of one model on one data set.
 
-    Parameters are ordered nonlinear first, then linear. ``covariance`` is the
-    one requested (``covariance_kind``); ``white_covariance`` is always kept for
-    comparison.
+    Parameters are ordered nonlinear first, then linear. ``estimates`` holds them with their covariance
+    (the one requested, ``covariance_kind``; the white one is kept for comparison). A copy with other
+    estimates is ``dataclasses.replace(result, covariance=..., covariance_kind=...)``: any field of
+    :class:`ParameterEstimates` may be given and replaces that of ``estimates``.
     """
 
     model: str
     coefficient: str | None
-    nonlinear_names: tuple[str, ...]
-    linear_names: tuple[str, ...]
-    values: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
-    covariance: np.ndarray
-    white_covariance: np.ndarray
-    covariance_kind: str
-    max_lag: int | None
+    estimates: ParameterEstimates
     residuals: np.ndarray
     segment_names: tuple[str, ...]
     segments: ManeuverScores
-    total_sst: float = float("nan")
-    nfev: int = 0
-    njev: int = 0
-    message: str = ""
-    success: bool = True
-    n_starts: int = 1
-    n_reached_best: int = 1
-    start: np.ndarray | None = None
-    significance: float = 0.05
-    bandwidth: float | None = None   # HAC kernel bandwidth in samples (covariance "hac"/"hac-qs"/"hac-maneuver")
-    # per parameter, for the per-maneuver covariances: how many maneuvers its variance rests on
-    effective_maneuvers: np.ndarray | None = None
-    condition_number: float = float("nan")  # of the column-scaled Jacobian at the solution
-    # parameters the data cannot identify at the solution -> why (their covariance rows are NaN)
-    unidentifiable: Mapping[str, str] = field(default_factory=dict)
-    # what the covariance accounts for beyond this fit (drag/pitch: the lift model's estimation error)
-    generated_regressors: str | None = None
+    total_sst: float
+    nfev: int
+    njev: int
+    message: str
+    converged: bool                   # the optimizer's own verdict on the best start
+    n_starts: int
+    n_reached_best: int
+    start: np.ndarray | None
     # the parameters the covariance was computed on (identifiability.covariance_basis), and R^-1 of the thin
     # QR of the column-scaled Jacobian on them (scaling folded back in; statistics.inverse_factor): a later
     # covariance estimator on the same Jacobian (the two-step one) reuses both instead of factorising the
     # m x p matrix again. The factor is None when it could not be formed; neither is serialised
-    covariance_basis: np.ndarray | None = field(default=None, repr=False)
-    jacobian_inverse_factor: np.ndarray | None = field(default=None, repr=False)
+    covariance_basis: np.ndarray | None
+    jacobian_inverse_factor: np.ndarray | None
+
+    def __init__(self, model: str, coefficient: str | None, estimates: ParameterEstimates, residuals: np.ndarray,
+                 segment_names: Sequence[str], segments: ManeuverScores, total_sst: float = float("nan"),
+                 nfev: int = 0, njev: int = 0, message: str = "", converged: bool = True, n_starts: int = 1,
+                 n_reached_best: int = 1, start: np.ndarray | None = None,
+                 covariance_basis: np.ndarray | None = None, jacobian_inverse_factor: np.ndarray | None = None,
+                 **estimate_changes: Any):
+        unknown = set(estimate_changes) - _ESTIMATE_FIELDS
+        if unknown:
+            raise TypeError(f"FitResult() got an unexpected keyword argument {sorted(unknown)[0]!r}")
+        if estimate_changes:
+            estimates = dataclasses.replace(estimates, **estimate_changes)
+        for name, value in (("model", model), ("coefficient", coefficient), ("estimates", estimates),
+                            ("residuals", residuals), ("segment_names", tuple(segment_names)),
+                            ("segments", segments), ("total_sst", total_sst), ("nfev", nfev), ("njev", njev),
+                            ("message", message), ("converged", converged), ("n_starts", n_starts),
+                            ("n_reached_best", n_reached_best), ("start", start),
+                            ("covariance_basis", covariance_basis),
+                            ("jacobian_inverse_factor", jacobian_inverse_factor)):
+            object.__setattr__(self, name, value)
+
+    @property
+    def success(self) -> bool:
+        """The name scipy gives :attr:`converged` (and ``to_dict()["optimizer"]["success"]``)."""
+        return self.converged
+
+    # ----- the estimates (ParameterEstimates) ----------------------------------
+    nonlinear_names = _delegate("nonlinear_names")
+    linear_names = _delegate("linear_names")
+    names = _delegate("names")
+    values = _delegate("values")
+    lower = _delegate("lower")
+    upper = _delegate("upper")
+    covariance = _delegate("covariance")
+    white_covariance = _delegate("white_covariance")
+    covariance_kind = _delegate("covariance_kind")
+    max_lag = _delegate("max_lag")
+    bandwidth = _delegate("bandwidth")
+    effective_maneuvers = _delegate("effective_maneuvers")
+    significance = _delegate("significance")
+    unidentifiable = _delegate("unidentifiable")
+    condition_number = _delegate("condition_number")
+    generated_regressors = _delegate("generated_regressors")
+    n_params = _delegate("n_params")
+    params = _delegate("params")
+    stderr = _delegate("stderr")
+    white_stderr = _delegate("white_stderr")
+    t_values = _delegate("t_values")
+    p_values = _delegate("p_values")
+    reference_dof = _delegate("reference_dof")
+    correlation = _delegate("correlation")
+    at_bound = _delegate("at_bound")
+    high_correlations = _delegate("high_correlations")
+    not_identifiable = _delegate("not_identifiable")
+    identifiable = _delegate("identifiable")
+    covariance_psd = _delegate("covariance_psd")
+    significant = _delegate("significant")
+
+    def cov_params(self) -> "pandas.DataFrame":
+        return self.estimates.cov_params()
+
+    def conf_int(self, level: float = 0.95) -> "pandas.DataFrame":
+        return self.estimates.conf_int(level)
+
+    def wald_test(self, names: Sequence[str]) -> WaldTest:
+        return self.estimates.wald_test(names)
 
     # ----- sizes -------------------------------------------------------------
-    @property
-    def names(self) -> tuple[str, ...]:
-        return self.nonlinear_names + self.linear_names
-
     @property
     def n_samples(self) -> int:
         return int(self.segments.counts.sum())
 
     @property
-    def n_params(self) -> int:
-        return len(self.values)
-
-    @property
     def dof(self) -> int:
         return self.n_samples - self.n_params
-
-    @cached_property
-    def reference_dof(self) -> dict[str, float]:
-        """Degrees of freedom of each parameter's t-test and interval: its effective number of maneuvers
-        minus 1 for the per-maneuver covariances (``hac-maneuver``, ``cluster``), m - p otherwise."""
-        effective = (self.effective_maneuvers if self.effective_maneuvers is not None
-                     else np.full(self.n_params, float(len(self.segment_names))))
-        return {n: reference_dof(self.covariance_kind, self.n_samples, self.n_params, float(g))
-                for n, g in zip(self.names, effective)}
-
-    # ----- estimates ---------------------------------------------------------
-    @cached_property
-    def params(self) -> dict[str, float]:
-        return dict(zip(self.names, map(float, self.values)))
-
-    @cached_property
-    def stderr(self) -> dict[str, float]:
-        return dict(zip(self.names, map(float, self._stderr)))
-
-    @cached_property
-    def _stderr(self) -> np.ndarray:
-        return _standard_deviations(self.covariance)
-
-    @cached_property
-    def white_stderr(self) -> dict[str, float]:
-        return dict(zip(self.names, map(float, _standard_deviations(self.white_covariance))))
-
-    @cached_property
-    def not_identifiable(self) -> dict[str, str]:
-        """Parameters whose standard deviation cannot be estimated, with the reason (never reported as 0)."""
-        out = dict(self.unidentifiable)
-        for name, v in zip(self.names, np.diag(self.covariance)):
-            if name in out:
-                continue
-            if not np.isfinite(v) and self.covariance_kind == "cluster" and len(self.segment_names) <= self.n_params:
-                out[name] = (f"the maneuver-clustered covariance needs more maneuvers ({len(self.segment_names)}) "
-                             f"than parameters + 1 ({self.n_params + 1})")
-            elif not np.isfinite(v):
-                out[name] = "its variance estimate is not finite: the data cannot identify it"
-            elif v <= 0:
-                out[name] = (f"its {self.covariance_kind} variance estimate is {'zero' if v == 0 else 'negative'} "
-                             f"({v:.3g}): the data cannot identify it")
-        return out
-
-    @property
-    def identifiable(self) -> bool:
-        return not self.not_identifiable
-
-    @cached_property
-    def covariance_psd(self) -> bool:
-        """Whether the estimated covariance of the identifiable parameters is positive semi-definite.
-
-        Judged on the correlation scale (eigenvalues above -1e-10); an indefinite estimate is
-        reported as such, never repaired by clipping.
-        """
-        finite = np.all(np.isfinite(self.covariance), axis=0)
-        block = self.covariance[np.ix_(finite, finite)]
-        if block.size == 0:
-            return True
-        d = np.sqrt(np.abs(np.diag(block)))
-        d[d == 0] = 1.0
-        return bool(np.linalg.eigvalsh(block / np.outer(d, d)).min() > -1e-10)
-
-    @cached_property
-    def correlation(self) -> np.ndarray:
-        s = self._stderr
-        with np.errstate(divide="ignore", invalid="ignore"):
-            corr = self.covariance / np.outer(s, s)  # NaN for a parameter without a standard deviation
-        np.fill_diagonal(corr, 1.0)
-        return corr
-
-    @cached_property
-    def t_values(self) -> dict[str, float]:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = self.values / self._stderr
-        return dict(zip(self.names, map(float, t)))
-
-    @cached_property
-    def p_values(self) -> dict[str, float]:
-        """Two-sided t-test of H0: parameter = 0 with the parameter's ``reference_dof``."""
-        t = np.array(list(self.t_values.values()))
-        dof = np.array(list(self.reference_dof.values()))
-        return dict(zip(self.names, map(float, 2.0 * stats.t.sf(np.abs(t), dof))))
-
-    def confidence_intervals(self, level: float = 0.95) -> dict[str, tuple[float, float]]:
-        """estimate -+ t_{dof} quantile x standard deviation (NaN where no standard deviation exists)."""
-        half = stats.t.ppf(0.5 + level / 2, np.array(list(self.reference_dof.values()))) * self._stderr
-        return {n: (float(v - h), float(v + h)) for n, v, h in zip(self.names, self.values, half)}
-
-    @cached_property
-    def significant(self) -> dict[str, bool]:
-        return {n: p < self.significance for n, p in self.p_values.items()}
-
-    @cached_property
-    def at_bound(self) -> dict[str, str]:
-        """Nonlinear parameters that ended on a bound: name -> "lower" or "upper"."""
-        flags = {}
-        for name, v, lo, hi in zip(self.nonlinear_names, self.values, self.lower, self.upper):
-            span = hi - lo if np.isfinite(hi - lo) else max(abs(v), 1.0)
-            if np.isfinite(lo) and v - lo <= AT_BOUND_RTOL * span:
-                flags[name] = "lower"
-            elif np.isfinite(hi) and hi - v <= AT_BOUND_RTOL * span:
-                flags[name] = "upper"
-        return flags
-
-    @cached_property
-    def high_correlations(self) -> list[tuple[str, str, float]]:
-        """Pairs with |correlation| above 0.9, strongest first."""
-        pairs = []
-        c = self.correlation
-        for i in range(self.n_params):
-            for j in range(i + 1, self.n_params):
-                if abs(c[i, j]) > HIGH_CORRELATION:
-                    pairs.append((self.names[i], self.names[j], float(c[i, j])))
-        return sorted(pairs, key=lambda x: -abs(x[2]))
 
     # ----- goodness of fit ---------------------------------------------------
     @property
@@ -205,10 +144,6 @@ class FitResult:
     @property
     def mse(self) -> float:
         return self.rss / self.n_samples
-
-    @property
-    def rmse(self) -> float:
-        return float(np.sqrt(self.mse))
 
     @property
     def r2(self) -> float:
@@ -235,7 +170,28 @@ class FitResult:
     def bic(self) -> float:
         return float(self.n_samples * np.log(self.mse) + self.n_params * np.log(self.n_samples))
 
-    # ----- serialisation -----------------------------------------------------
+    # ----- presentation and serialisation --------------------------------------
+    def summary(self) -> "FitSummary":
+        """Goodness of fit, parameters with tests and flags, strong correlations (text, Markdown, HTML, LaTeX)."""
+        from .summary import FitSummary, covariance_head, covariance_line
+        r2 = self.r2_summary
+        head = (
+            ("model", self.model),
+            ("coefficient", self.coefficient or "-"),
+            ("samples / maneuvers", f"{self.n_samples} / {len(self.segment_names)}"),
+            ("parameters (nonlinear + linear)", f"{len(self.nonlinear_names)} + {len(self.linear_names)}"),
+            ("RSS", f"{self.rss:.6g}"),
+            ("MSE", f"{self.mse:.6g}"),
+            ("R^2 (all samples)", f"{self.r2:.6f}"),
+            ("R^2 per maneuver mean / min / max", f"{r2['mean']:.4f} / {r2['min']:.4f} / {r2['max']:.4f}"),
+            ("covariance", covariance_line(self.covariance_kind, self.max_lag, self.bandwidth)),
+            ("optimizer", f"{'converged' if self.converged else 'NOT CONVERGED'}: {self.message} "
+                          f"({self.nfev} evaluations)"),
+            ("starts reaching the best cost", f"{self.n_reached_best} of {self.n_starts}"),
+            *covariance_head(self.estimates),
+        )
+        return FitSummary(self.estimates, head)
+
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready dict (no arrays of samples)."""
         return {
@@ -272,13 +228,6 @@ class FitResult:
             "aic": self.aic,
             "bic": self.bic,
             "optimizer": {"nfev": self.nfev, "njev": self.njev, "message": self.message,
-                          "success": self.success, "n_starts": self.n_starts,
+                          "success": self.converged, "n_starts": self.n_starts,
                           "n_reached_best": self.n_reached_best},
         }
-
-
-def _standard_deviations(covariance: np.ndarray) -> np.ndarray:
-    """sqrt of the diagonal; NaN where a variance is zero, negative or not finite (never clipped to 0)."""
-    v = np.diag(covariance)
-    with np.errstate(invalid="ignore"):
-        return np.where(np.isfinite(v) & (v > 0), np.sqrt(np.abs(v)), np.nan)

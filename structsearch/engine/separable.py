@@ -17,6 +17,7 @@ import numpy as np
 import sympy as sp
 
 from ..data.errors import DataError, DeclarationError
+from .defaults import SEPARABLE_DEFAULTS
 from .fit import fit_problem
 from .regressors import compile_expression, parse
 from .results import FitResult
@@ -63,7 +64,10 @@ class _BasisProblem(BoundProblem):
 class SeparableModel:
     """A model linear in some coefficients and nonlinear in the rest (docs/interfaces.md section 4)."""
 
-    def __init__(self, basis: Mapping[str, str], variables: Sequence[str], name: str = "separable"):
+    def __init__(self, basis: Mapping[str, str], variables: Sequence[str], name: str = "separable",
+                 bounds: Mapping[str, tuple[float, float]] | None = None):
+        """``bounds``: the box of nonlinear parameters, ``{"b2": (lo, hi)}``; ``fit(bounds=...)`` may give it
+        instead, and a parameter's box given there wins over the declared one."""
         if not basis:
             raise DeclarationError("a separable model needs at least one basis function")
         self.name = name
@@ -97,6 +101,15 @@ class SeparableModel:
                 if sym in e.free_symbols:
                     derivs.append((i, j, sp.diff(e, sym)))
         self.derivatives = tuple(derivs)
+        self.bounds = self._checked_bounds(bounds)
+
+    def _checked_bounds(self, bounds) -> dict[str, tuple[float, float]]:
+        bounds = {k: (float(lo), float(hi)) for k, (lo, hi) in dict(bounds or {}).items()}
+        for key in bounds:
+            if key not in self.nonlinear_names:
+                raise DeclarationError(f"{key!r} is not a nonlinear parameter of this model "
+                                       f"(nonlinear parameters: {', '.join(self.nonlinear_names) or 'none'})")
+        return bounds
 
     def __repr__(self):
         body = ", ".join(f"{c}: {e}" for c, e in zip(self.linear_names, self.expressions))
@@ -120,20 +133,23 @@ class SeparableModel:
         return _BasisProblem(self, tuple(values), int(n))
 
     def fit(self, data: Mapping[str, np.ndarray], y, start: Mapping[str, float] | None = None,
-            bounds: Mapping[str, tuple[float, float]] | None = None, *, covariance: str = "colored",
-            n_starts: int = 1, seed: int = 0, n_jobs: int = 1, max_lag=None, tol: float = 1e-15,
+            bounds: Mapping[str, tuple[float, float]] | None = None, *,
+            covariance: str = SEPARABLE_DEFAULTS.covariance, n_starts: int = 1, seed: int = 0, n_jobs: int = 1,
+            max_lag=None, tol: float = SEPARABLE_DEFAULTS.tol,
             max_nfev: int | None = None, segments: Sequence[int] | None = None) -> FitResult:
         """Fit by variable projection.
 
-        The default tolerance drives small problems to the last digit (NIST
-        Lanczos1/3 and MGH09 need it); it costs a few iterations at most.
+        The defaults (:data:`~.defaults.SEPARABLE_DEFAULTS`: covariance ``colored``, tolerance 1e-15) suit
+        a generic problem without maneuvers; the tolerance drives small problems to the last digit (NIST
+        Lanczos1/3 and MGH09 need it); it costs a few iterations at most. ``bounds`` is the box of nonlinear
+        parameters; a parameter's box given here wins over the one given at declaration.
 
         ``segments`` optionally gives the first sample index of every independent
         record after the first (residual autocorrelations never cross them).
         """
         start = dict(start or {})
-        bounds = dict(bounds or {})
-        for key in list(start) + list(bounds):
+        bounds = {**self.bounds, **self._checked_bounds(bounds)}
+        for key in start:
             if key not in self.nonlinear_names:
                 raise DeclarationError(f"{key!r} is not a nonlinear parameter of this model "
                                        f"(nonlinear parameters: {', '.join(self.nonlinear_names) or 'none'})")
@@ -148,7 +164,7 @@ class SeparableModel:
         names = tuple(f"segment{i}" for i in range(len(seg_bounds) - 1))
         lower = np.array([bounds.get(p, (-np.inf, np.inf))[0] for p in self.nonlinear_names], float)
         upper = np.array([bounds.get(p, (-np.inf, np.inf))[1] for p in self.nonlinear_names], float)
-        return fit_problem(problem, y, bounds=seg_bounds, segment_names=names,
+        return fit_problem(problem, y, boundaries=seg_bounds, segment_names=names,
                            start=np.array([start[p] for p in self.nonlinear_names], float),
                            lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
                            covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev,

@@ -29,7 +29,7 @@ from ..data.default_boxes import DEFAULT_BOUNDS, DEFAULT_START, data_bounds
 from .separation import SeparationState, common_step, evaluate_state
 from .ols import ols
 from .snls import BoundProblem, Evaluation, model_jacobian, multistart
-from .statistics import DEFAULT_COVARIANCE
+from .defaults import STALL_DEFAULTS
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,19 +158,21 @@ class StallModel:
         return problem, data[self.coefficient], theta0, lower, upper, also
 
     def fit(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
-            seed: int = 0, n_jobs: int = 1, covariance: str = DEFAULT_COVARIANCE, max_lag=None,
-            tol: float = 1e-10, max_nfev: int | None = None, declared_too: bool = False) -> FitResult:
+            seed: int = 0, n_jobs: int = 1, covariance: str = STALL_DEFAULTS.covariance, max_lag=None,
+            tol: float = STALL_DEFAULTS.tol, max_nfev: int | None = None, declared_too: bool = False) -> FitResult:
         """Fit the coefficient column of ``data``: SNLS when there are separation states, else OLS.
-        The covariance defaults to the project's best-calibrated one (per-maneuver HAC). With
+        The covariance defaults to the project's best-calibrated one (per-maneuver HAC), the tolerance to
+        1e-10 (:data:`~.defaults.STALL_DEFAULTS`, which says why they differ from a SeparableModel's). The box
+        is the declared one (``declare(bounds=...)``), else the default box of each parameter kind. With
         ``declared_too`` the declared start is tried after a given ``start``."""
         problem, y, theta0, lower, upper, also = self._prepared(data, start, declared_too)
-        return fit_problem(problem, y, bounds=data.bounds, segment_names=data.names, start=theta0,
+        return fit_problem(problem, y, boundaries=data.bounds, segment_names=data.names, start=theta0,
                            lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
                            covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev, also=also,
                            model=self.name, coefficient=self.coefficient, source=data.source)
 
     def estimate(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
-                 seed: int = 0, tol: float = 1e-10, declared_too: bool = False) -> dict[str, float]:
+                 seed: int = 0, tol: float = STALL_DEFAULTS.tol, declared_too: bool = False) -> dict[str, float]:
         """The parameter estimates alone, without statistics (what a cross-validation fold needs)."""
         problem, y, theta0, lower, upper, also = self._prepared(data, start, declared_too)
         if self.nonlinear_names:

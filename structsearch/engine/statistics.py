@@ -1,4 +1,7 @@
-"""Parameter covariance and goodness of fit.
+"""The covariance kinds: a registry of named estimators (:data:`KINDS`; :data:`COVARIANCE_KINDS` their names in
+the order the command line offers them). Each kind has a one-line description, how its covariance is
+computed (the functions of :mod:`.sandwich`), its rule for the reference degrees of freedom of t-tests and
+intervals, and the reason it gives when it cannot be estimated; :class:`Covariances` computes one on a fit.
 
 ``hac-maneuver`` (below) is the default: it is the one estimate that met the calibration goals of
 issue 11 on the flight simulator (``structsearch bench --calibration``, results/calibration.md).
@@ -51,305 +54,99 @@ under-reports intercept-like parameters (CL0, Cm0: 0.75 of the Monte Carlo sprea
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
-from scipy.linalg import qr, solve_triangular
-from scipy.signal import fftconvolve
+
+from .sandwich import (HAC_KERNELS, _sandwich, andrews_bandwidth, autocovariance,  # noqa: F401  (re-exported)
+                       bartlett_maneuver_sums, choose_max_lag, cluster_covariance, cluster_estimable, cluster_meat,
+                       colored_covariance, cross_covariance, effective_maneuvers, hac_covariance, hac_meat,
+                       inverse_factor, kernel_weights, lag_weights, scaled_condition_number, scaled_factor,
+                       scaled_factor_from_qr, shifted_product, toeplitz_product, white_covariance)
+
+# What an estimator returns besides the covariance: the lags of a Toeplitz estimate, the kernel bandwidth
+Estimate = tuple[np.ndarray, "int | None", "float | None"]
 
 
-def cross_covariance(ra: np.ndarray, rb: np.ndarray, bounds: np.ndarray, max_lag: int) -> np.ndarray:
-    """gamma(k) = (1/m) sum_t ra(t) rb(t + k) for k = -max_lag..max_lag, pooled over maneuvers and never
-    across a boundary (biased, 1/m)."""
-    out = np.zeros(2 * max_lag + 1)
-    for i in range(len(bounds) - 1):
-        a, b = ra[int(bounds[i]):int(bounds[i + 1])], rb[int(bounds[i]):int(bounds[i + 1])]
-        n = len(a)
-        nfft = 1 << int(np.ceil(np.log2(2 * n)))
-        full = np.fft.irfft(np.conj(np.fft.rfft(a, nfft)) * np.fft.rfft(b, nfft), nfft)
-        upto = min(max_lag, n - 1)
-        out[max_lag:max_lag + upto + 1] += full[:upto + 1]                 # k >= 0
-        if upto:
-            out[max_lag - upto:max_lag] += full[nfft - upto:]              # k < 0
-    return out / len(ra)
+@dataclass(frozen=True)
+class CovarianceKind:
+    """One named covariance estimator: what it is, how it is computed, which t reference it implies and
+    when it cannot be estimated. ``estimate(jac, residual, boundaries, max_lag, r_inv)`` returns
+    (covariance, lags, bandwidth) on the Jacobian's columns."""
+
+    name: str
+    description: str
+    estimate: Callable[..., Estimate]
+    # the estimate has the precision of a few numbers per maneuver: Student's t with (effective maneuvers
+    # - 1) degrees of freedom, and the effective maneuvers are computed; m - p otherwise
+    per_maneuver: bool = False
+    # the sandwich's meat has rank <= G - 1 (maneuver sums): not estimable with fewer than p + 1 maneuvers
+    needs_maneuvers: bool = False
+
+    def reference_dof(self, n_samples: int, n_params: int, n_maneuvers: float) -> float:
+        """Degrees of freedom of the Student-t reference of a t-test or interval with this covariance."""
+        if self.per_maneuver:
+            return float(max(n_maneuvers - 1.0, 1.0)) if np.isfinite(n_maneuvers) else float("nan")
+        return float(max(n_samples - n_params, 1))
+
+    def not_estimable(self, n_maneuvers: int, n_params: int) -> str | None:
+        """Why this estimate cannot exist for a fit of this size (None when it can)."""
+        if self.needs_maneuvers and n_maneuvers <= n_params:
+            return (f"the maneuver-clustered covariance needs more maneuvers ({n_maneuvers}) "
+                    f"than parameters + 1 ({n_params + 1})")
+        return None
 
 
-def autocovariance(residual: np.ndarray, bounds: np.ndarray, max_lag: int) -> np.ndarray:
-    """lambda_0..lambda_max_lag, pooled over maneuvers, never across a boundary (biased, 1/m)."""
-    return cross_covariance(residual, residual, bounds, max_lag)[max_lag:]
+def _colored(jac, residual, boundaries, max_lag, r_inv) -> Estimate:
+    cov, lags = colored_covariance(jac, residual, boundaries, max_lag, r_inv)
+    return cov, lags, None
 
 
-def choose_max_lag(residual: np.ndarray, bounds: np.ndarray, max_lag) -> int:
-    """Resolve the ``max_lag`` option to a number of lags.
-
-    Automatic rule: the first lag tau from which |rho| stays inside the
-    +-2/sqrt(m) white-noise band over [tau, 2 tau] (an envelope, so oscillating
-    residuals such as buffet are not cut at their first zero crossing), times four.
-    """
-    longest = int(np.max(np.diff(bounds))) - 1
-    if max_lag == "full":
-        return longest
-    if max_lag is not None:
-        return int(min(int(max_lag), longest))
-    m = len(residual)
-    lam = autocovariance(residual, bounds, longest)
-    if lam[0] <= 0:
-        return 0
-    magnitude = np.abs(lam / lam[0])
-    band = 2.0 / np.sqrt(m)
-    # envelope[tau] = max |rho| over [tau, 2 tau]
-    for tau in range(1, longest // 2 + 1):
-        if magnitude[tau:2 * tau + 1].max() < band:
-            return int(min(4 * tau, longest))
-    return longest
+def _white(jac, residual, boundaries, max_lag, r_inv) -> Estimate:
+    return white_covariance(jac, residual, r_inv), None, None
 
 
-def lag_weights(lags: int, max_lag) -> np.ndarray:
-    """Bartlett taper 1 - k/(L+1), which keeps the estimate positive semi-definite; none for "full"."""
-    if max_lag == "full":
-        return np.ones(lags + 1)
-    return 1.0 - np.arange(lags + 1) / (lags + 1.0)
+def _hac(kind: str):
+    def estimate(jac, residual, boundaries, max_lag, r_inv) -> Estimate:
+        cov, bandwidth = hac_covariance(jac, residual, boundaries, kind, r_inv=r_inv)
+        return cov, None, bandwidth
+    return estimate
 
 
-def shifted_product(matrix: np.ndarray, gamma: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """out_t = sum_k gamma(k) matrix_{t+k} within each maneuver (FFT convolution); ``gamma`` holds
-    k = -L..L. With a symmetric gamma this is Lambda @ matrix for the block-diagonal Toeplitz Lambda."""
-    lags = (len(gamma) - 1) // 2
-    out = np.empty_like(matrix)
-    for i in range(len(bounds) - 1):
-        s, e = int(bounds[i]), int(bounds[i + 1])
-        use = min(lags, e - s - 1)
-        if use == 0:
-            out[s:e] = gamma[lags] * matrix[s:e]
-        else:  # convolution flips its kernel: hand it gamma reversed
-            out[s:e] = fftconvolve(matrix[s:e], gamma[lags - use:lags + use + 1][::-1, None], mode="same", axes=0)
-    return out
+def _cluster(jac, residual, boundaries, max_lag, r_inv) -> Estimate:
+    return cluster_covariance(jac, residual, boundaries, r_inv), None, None
 
 
-def toeplitz_product(matrix: np.ndarray, lam: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """Lambda @ matrix for the block-diagonal symmetric Toeplitz Lambda built from ``lam`` (lags 0..L)."""
-    return shifted_product(matrix, np.concatenate([lam[:0:-1], lam]), bounds)
-
-
-def _column_scale(jac: np.ndarray) -> np.ndarray:
-    """Column norms of the Jacobian, 1 for a zero column (it stays zero, and is named elsewhere)."""
-    scale = np.sqrt(np.sum(jac * jac, axis=0))
-    scale[scale == 0] = 1.0
-    return scale
-
-
-def scaled_factor(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """R of the thin QR of the Jacobian with unit-norm columns, and the column norms."""
-    scale = _column_scale(jac)
-    return qr(jac / scale, mode="r", check_finite=False)[0][: jac.shape[1]], scale
-
-
-def scaled_factor_from_qr(jac: np.ndarray, r: np.ndarray, columns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`scaled_factor` of ``jac`` from a pivoted thin QR of it that kept every column
-    (``jac[:, columns] = Q r``): jac D^-1 = Q (r P^T D^-1), so the QR of that p x p matrix has the same
-    triangular factor up to the signs of its rows, which no estimator here sees (they use R^-1 R^-T,
-    singular values and right singular vectors). p x p work instead of m x p."""
-    scale = _column_scale(jac)
-    unpivoted = np.empty_like(r)
-    unpivoted[:, columns] = r
-    return qr(unpivoted / scale, mode="r", check_finite=False)[0], scale
-
-
-def inverse_factor(jac: np.ndarray, factor: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """R^-1 of the thin QR of the column-scaled Jacobian, with the scaling folded back in; ``factor``:
-    (R, column norms) of :func:`scaled_factor` when the caller has it."""
-    r, scale = scaled_factor(jac) if factor is None else factor
-    r_inv = solve_triangular(r, np.eye(r.shape[0]), check_finite=False)
-    return r_inv / scale[:, None]
-
-
-def _sandwich(jac: np.ndarray, meat: np.ndarray, r_inv: np.ndarray | None = None) -> np.ndarray:
-    """(F^T F)^-1 meat (F^T F)^-1, with the meat symmetrised. ``r_inv``: :func:`inverse_factor` of
-    ``jac`` when the caller has it (one QR of an m x p Jacobian serves every estimator)."""
-    r_inv = inverse_factor(jac) if r_inv is None else r_inv
-    a_inv = r_inv @ r_inv.T
-    return a_inv @ (0.5 * (meat + meat.T)) @ a_inv
-
-
-def scaled_condition_number(jac: np.ndarray, factor: np.ndarray | None = None) -> float:
-    """Condition number of the Jacobian with unit-norm columns (its thin-QR factor has the same one);
-    ``factor``: that factor when the caller has it."""
-    s = np.linalg.svd(scaled_factor(jac)[0] if factor is None else factor, compute_uv=False)
-    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
-
-
-def white_covariance(jac: np.ndarray, residual: np.ndarray, r_inv: np.ndarray | None = None) -> np.ndarray:
-    m, p = jac.shape
-    r_inv = inverse_factor(jac) if r_inv is None else r_inv
-    s2 = float(residual @ residual) / max(m - p, 1)
-    return s2 * (r_inv @ r_inv.T)
-
-
-def colored_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, max_lag=None,
-                       r_inv: np.ndarray | None = None):
-    """Toeplitz-autocorrelation sandwich; returns (covariance, number of lags used)."""
-    lags = choose_max_lag(residual, bounds, max_lag)
-    lam = autocovariance(residual, bounds, lags) * lag_weights(lags, max_lag)
-    return _sandwich(jac, jac.T @ toeplitz_product(jac, lam, bounds), r_inv), lags
-
-
-# ----- heteroscedasticity- and autocorrelation-consistent (HAC) sandwich --------------------------
-HAC_KERNELS = {"hac": "bartlett", "hac-qs": "quadratic-spectral", "hac-maneuver": "bartlett"}
-
-
-def kernel_weights(kernel: str, bandwidth: float, n_lags: int) -> np.ndarray:
-    """w(j / b) for lags j = 0..n_lags: Bartlett 1 - x on [0, 1], or the quadratic-spectral kernel."""
-    x = np.arange(n_lags + 1) / bandwidth
-    if kernel == "bartlett":
-        return np.clip(1.0 - x, 0.0, None)
-    if kernel == "quadratic-spectral":
-        z = 6.0 * np.pi * x[1:] / 5.0
-        return np.concatenate([[1.0], 3.0 / z ** 2 * (np.sin(z) / z - np.cos(z))])
-    raise ValueError(f"unknown HAC kernel {kernel!r}")
-
-
-def andrews_bandwidth(scores: np.ndarray, bounds: np.ndarray, kernel: str) -> float:
-    """Andrews' (1991) AR(1) plug-in bandwidth for the score columns, pooled within maneuvers.
-
-    Columns are standardised first (the rule is not scale invariant across columns), AR(1)
-    coefficients are estimated from pairs inside each maneuver only, and the sample size is
-    the mean maneuver length, because every maneuver is its own series.
-    """
-    inside = np.ones(len(scores), bool)
-    inside[np.asarray(bounds[:-1], int)] = False  # a maneuver's first sample has no predecessor in it
-    num = den = 0.0
-    for g in scores.T:
-        sd = g.std()
-        if not np.isfinite(sd) or sd == 0:
-            continue
-        g = g / sd
-        cur, prev = g[1:][inside[1:]], g[:-1][inside[1:]]
-        rho = float(np.clip(cur @ prev / (prev @ prev), -0.999, 0.999))
-        s4 = float(np.mean((cur - rho * prev) ** 2)) ** 2
-        if kernel == "bartlett":
-            num += 4 * rho ** 2 * s4 / ((1 - rho) ** 6 * (1 + rho) ** 2)
-        else:
-            num += 4 * rho ** 2 * s4 / (1 - rho) ** 8
-        den += s4 / (1 - rho) ** 4
-    if den == 0:
-        return 1.0
-    n = len(scores) / (len(bounds) - 1)
-    if kernel == "bartlett":
-        return float(max(1.1447 * (num / den * n) ** (1 / 3), 1.0))
-    return float(max(1.3221 * (num / den * n) ** (1 / 5), 1.0))
-
-
-def bartlett_maneuver_sums(scores: np.ndarray, bounds: np.ndarray, bandwidth: float,
-                           diagonal: bool = False) -> np.ndarray:
-    """Per maneuver, sum_t sum_s (1 - |t-s|/b) g_t g_s^T for a Bartlett bandwidth b at least as long as
-    the maneuver (every lag inside it carries weight): (G, p, p), or its diagonals (G, p).
-
-    With S = sum_t g_t and E_t = sum_{s<t} (t-s) g_s (a double running sum), the double sum is
-    S S^T - (G^T E + E^T G)/b: O(n p^2) per maneuver instead of a convolution per column.
-    """
-    b = float(bandwidth)
-    p = scores.shape[1]
-    out = np.empty((len(bounds) - 1, p) if diagonal else (len(bounds) - 1, p, p))
-    for i in range(len(bounds) - 1):
-        g = scores[int(bounds[i]):int(bounds[i + 1])]
-        if len(g) - 1 > b:
-            raise ValueError(f"bandwidth {b} is shorter than maneuver {i} ({len(g)} samples)")
-        running = np.cumsum(g, axis=0)
-        lagged = np.zeros_like(g)          # E_t = E_{t-1} + sum_{s<t} g_s
-        np.cumsum(running[:-1], axis=0, out=lagged[1:])
-        total = running[-1]
-        if diagonal:
-            out[i] = total * total - 2.0 * np.einsum("tj,tj->j", g, lagged) / b
-        else:
-            cross = g.T @ lagged
-            out[i] = np.outer(total, total) - (cross + cross.T) / b
-    return out
-
-
-def hac_meat(scores: np.ndarray, bounds: np.ndarray, kind: str = "hac",
-             bandwidth: float | None = None) -> tuple[np.ndarray, float]:
-    """sum over maneuvers of sum_t sum_s w(|t-s|/b) g_t g_s^T; returns (meat, bandwidth b)."""
-    kernel = HAC_KERNELS[kind]
-    if bandwidth is not None:
-        b = float(bandwidth)
-    elif kind == "hac-maneuver":  # every lag inside the longest maneuver carries weight
-        b = float(np.max(np.diff(bounds)))
-    else:
-        b = andrews_bandwidth(scores, bounds, kernel)
-    longest = int(np.max(np.diff(bounds))) - 1
-    if kernel == "bartlett" and b >= longest:  # every lag of every maneuver: running sums, no convolution
-        return bartlett_maneuver_sums(scores, bounds, b).sum(axis=0), b
-    n_lags = min(int(np.ceil(b)), longest) if kernel == "bartlett" else longest
-    return scores.T @ toeplitz_product(scores, kernel_weights(kernel, b, n_lags), bounds), b
-
-
-def hac_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray, kind: str = "hac",
-                   bandwidth: float | None = None, r_inv: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """HAC sandwich A^-1 (sum_maneuvers G^T W G) A^-1 * m/(m-p); returns (covariance, bandwidth)."""
-    m, p = jac.shape
-    meat, b = hac_meat(jac * residual[:, None], bounds, kind, bandwidth)
-    return _sandwich(jac, meat, r_inv) * (m / max(m - p, 1)), b
-
-
-def cluster_meat(scores: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """sum over maneuvers of (sum of the maneuver's scores)(...)^T, times G/(G-1) (CR1)."""
-    sums = np.add.reduceat(scores, np.asarray(bounds[:-1], int), axis=0)
-    g = len(sums)
-    return sums.T @ sums * (g / (g - 1) if g > 1 else float("nan"))
-
-
-def cluster_estimable(bounds: np.ndarray, n_params: int) -> bool:
-    """The clustered meat has rank <= G - 1: with G - 1 < p some combinations would get variance 0."""
-    return len(bounds) - 2 >= n_params
-
-
-def cluster_covariance(jac: np.ndarray, residual: np.ndarray, bounds: np.ndarray,
-                       r_inv: np.ndarray | None = None) -> np.ndarray:
-    """Maneuver-clustered sandwich (Liang-Zeger; CR1 small-sample factor): any correlation and any
-    change of variance inside a maneuver, independence between maneuvers. Its meat has rank at most
-    G - 1 for G maneuvers, so with fewer than p + 1 maneuvers it is not estimable (NaN, never a
-    variance of 0); it needs many more maneuvers than parameters to be accurate."""
-    m, p = jac.shape
-    if not cluster_estimable(bounds, p):
-        return np.full((p, p), np.nan)
-    return _sandwich(jac, cluster_meat(jac * residual[:, None], bounds), r_inv) * ((m - 1) / max(m - p, 1))
-
-
-COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs", "hac-maneuver", "cluster")
+# The registry, in the order the command line offers the kinds and the calibration runs them.
+KINDS: dict[str, CovarianceKind] = {k.name: k for k in (
+    CovarianceKind("colored", "Toeplitz-autocorrelation sandwich of stationary residuals (the thesis' Eqs. 19, 22)",
+                   _colored),
+    CovarianceKind("white", "s^2 (J^T J)^-1: independent residuals of constant variance", _white),
+    CovarianceKind("hac", "Bartlett-kernel HAC sandwich, Andrews' plug-in bandwidth", _hac("hac")),
+    CovarianceKind("hac-qs", "quadratic-spectral-kernel HAC sandwich, Andrews' plug-in bandwidth", _hac("hac-qs")),
+    CovarianceKind("hac-maneuver", "Bartlett HAC sandwich with the whole maneuver as bandwidth (fixed-b)",
+                   _hac("hac-maneuver"), per_maneuver=True),
+    CovarianceKind("cluster", "maneuver-clustered sandwich (Liang-Zeger, CR1)", _cluster, per_maneuver=True,
+                   needs_maneuvers=True),
+)}
+COVARIANCE_KINDS = tuple(KINDS)
 # kinds whose estimate has the precision of a few numbers per maneuver: t references with few dof
-PER_MANEUVER_KINDS = ("hac-maneuver", "cluster")
+PER_MANEUVER_KINDS = tuple(k.name for k in KINDS.values() if k.per_maneuver)
 
 
-def effective_maneuvers(jac: np.ndarray, scores: np.ndarray, bounds: np.ndarray, kind: str,
-                        bandwidth: float | None = None, r_inv: np.ndarray | None = None) -> np.ndarray:
-    """Effective number of maneuvers behind each parameter's variance (Satterthwaite 1946; the
-    "effective number of clusters" of Carter, Schnepel & Steigerwald 2017): (sum_g c_g)^2 / sum_g c_g^2,
-    with c_g >= 0 maneuver g's share of the sandwich's diagonal. G when every maneuver informs a
-    parameter equally, about 1 when one maneuver does (a deep-stall term seen in one maneuver)."""
-    r_inv = inverse_factor(jac) if r_inv is None else r_inv
-    u = scores @ (r_inv @ r_inv.T)                  # (A^-1 g_t)^T per sample
-    starts = np.asarray(bounds[:-1], int)
-    if kind == "cluster":
-        share = np.add.reduceat(u, starts, axis=0) ** 2
-    else:  # a positive semi-definite kernel inside each maneuver: every share is >= 0
-        b = float(np.max(np.diff(bounds))) if bandwidth is None else float(bandwidth)
-        longest = int(np.max(np.diff(bounds))) - 1
-        if b >= longest:
-            share = bartlett_maneuver_sums(u, bounds, b, diagonal=True)
-        else:
-            lags = min(int(np.ceil(b)), longest)
-            share = np.add.reduceat(u * toeplitz_product(u, kernel_weights("bartlett", b, lags), bounds), starts,
-                                    axis=0)
-    total, square = share.sum(axis=0), (share ** 2).sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(square > 0, total ** 2 / square, np.nan)
+def covariance_kind(name: str) -> CovarianceKind:
+    try:
+        return KINDS[name]
+    except KeyError:
+        raise ValueError(f"covariance must be one of {COVARIANCE_KINDS}, not {name!r}") from None
 
 
 def reference_dof(kind: str, n_samples: int, n_params: int, n_maneuvers: float) -> float:
     """Degrees of freedom of the Student-t reference for t-tests and intervals with this covariance:
     (effective) maneuvers - 1 for the per-maneuver kinds, m - p otherwise."""
-    if kind in PER_MANEUVER_KINDS:
-        return float(max(n_maneuvers - 1.0, 1.0)) if np.isfinite(n_maneuvers) else float("nan")
-    return float(max(n_samples - n_params, 1))
+    return covariance_kind(kind).reference_dof(n_samples, n_params, n_maneuvers)
+
+
 # Chosen by the Monte Carlo calibration on the flight simulator (structsearch bench --calibration).
 DEFAULT_COVARIANCE = "hac-maneuver"
 
@@ -369,10 +166,12 @@ class Covariances:
     inverse_factor: np.ndarray | None = None
 
     @classmethod
-    def on(cls, jac: np.ndarray, keep: np.ndarray, residual: np.ndarray, bounds: np.ndarray, kind: str,
+    def on(cls, jac: np.ndarray, keep: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, kind: str,
            max_lag=None, factor: tuple[np.ndarray, np.ndarray] | None = None) -> "Covariances":
         """Covariances of the parameters selected by ``keep`` (the others held at their estimates);
-        ``factor``: :func:`scaled_factor` of ``jac[:, keep]`` when the caller has it."""
+        ``boundaries``: the maneuvers' ``[0, ..., m]``; ``factor``: :func:`scaled_factor` of ``jac[:, keep]``
+        when the caller has it."""
+        estimator = covariance_kind(kind)
         p = jac.shape[1]
         full, white = np.full((p, p), np.nan), np.full((p, p), np.nan)
         lags = bandwidth = r_inv = None
@@ -383,17 +182,13 @@ class Covariances:
             try:
                 r_inv = inverse_factor(sub, factor)
                 white[block] = white_covariance(sub, residual, r_inv)
-                if kind == "colored":
-                    full[block], lags = colored_covariance(sub, residual, bounds, max_lag, r_inv)
-                elif kind in HAC_KERNELS:
-                    full[block], bandwidth = hac_covariance(sub, residual, bounds, kind, r_inv=r_inv)
-                elif kind == "cluster":
-                    full[block] = cluster_covariance(sub, residual, bounds, r_inv)
-                else:
+                if kind == "white":  # the same numbers: computed once
                     full[block] = white[block]
-                if kind in PER_MANEUVER_KINDS:
-                    effective[keep] = effective_maneuvers(sub, sub * residual[:, None], bounds, kind, bandwidth,
-                                                          r_inv)
+                else:
+                    full[block], lags, bandwidth = estimator.estimate(sub, residual, boundaries, max_lag, r_inv)
+                if estimator.per_maneuver:
+                    effective[keep] = effective_maneuvers(sub, sub * residual[:, None], boundaries, kind,
+                                                          bandwidth, r_inv)
             except np.linalg.LinAlgError:
                 # an exactly singular factor despite the basis choice: report "not estimable" (NaN)
                 full[block] = white[block] = np.nan

@@ -35,7 +35,7 @@ from .statistics import (HAC_KERNELS, PER_MANEUVER_KINDS, inverse_factor, _sandw
 
 
 def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1: np.ndarray,
-                                   residual1: np.ndarray, sensitivity: np.ndarray, bounds: np.ndarray,
+                                   residual1: np.ndarray, sensitivity: np.ndarray, boundaries: np.ndarray,
                                    kind: str, max_lag=None, a1_inv: np.ndarray | None = None,
                                    r2_inv: np.ndarray | None = None):
     """Covariance of the second-step parameters including the first step's estimation error.
@@ -55,12 +55,12 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
     lags = bandwidth = None
     scores = jac2 * residual2[:, None] + carry * residual1[:, None]   # u_t
     if kind in HAC_KERNELS:
-        meat, bandwidth = hac_meat(scores, bounds, kind)
+        meat, bandwidth = hac_meat(scores, boundaries, kind)
         meat *= m / max(m - p2, 1)
     elif kind == "cluster":
-        if not cluster_estimable(bounds, p2):
+        if not cluster_estimable(boundaries, p2):
             return np.full((p2, p2), np.nan), lags, bandwidth, np.full(p2, np.nan)
-        meat = cluster_meat(scores, bounds) * ((m - 1) / max(m - p2, 1))
+        meat = cluster_meat(scores, boundaries) * ((m - 1) / max(m - p2, 1))
     elif kind == "white":
         s22 = float(residual2 @ residual2) / max(m - p2, 1)
         s11 = float(residual1 @ residual1) / max(m - jac1.shape[1], 1)
@@ -68,19 +68,19 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
         cross = jac2.T @ carry
         meat = s22 * (jac2.T @ jac2) + s11 * (carry.T @ carry) + s12 * (cross + cross.T)
     elif kind == "colored":
-        lags = max(choose_max_lag(residual2, bounds, max_lag), choose_max_lag(residual1, bounds, max_lag))
+        lags = max(choose_max_lag(residual2, boundaries, max_lag), choose_max_lag(residual1, boundaries, max_lag))
         taper = lag_weights(lags, max_lag)
         two_sided = np.concatenate([taper[:0:-1], taper])
-        lam22 = autocovariance(residual2, bounds, lags) * taper
-        lam11 = autocovariance(residual1, bounds, lags) * taper
-        gamma12 = cross_covariance(residual1, residual2, bounds, lags) * two_sided  # E e1(t) e2(t+k)
+        lam22 = autocovariance(residual2, boundaries, lags) * taper
+        lam11 = autocovariance(residual1, boundaries, lags) * taper
+        gamma12 = cross_covariance(residual1, residual2, boundaries, lags) * two_sided  # E e1(t) e2(t+k)
         # sum_ts A_t' E[e_a(t) e_b(s)] B_s for (a, b) in {2, 1}^2; gamma21(k) = gamma12(-k)
-        meat = (jac2.T @ toeplitz_product(jac2, lam22, bounds)
-                + carry.T @ toeplitz_product(carry, lam11, bounds)
-                + carry.T @ shifted_product(jac2, gamma12, bounds)
-                + jac2.T @ shifted_product(carry, gamma12[::-1], bounds))
+        meat = (jac2.T @ toeplitz_product(jac2, lam22, boundaries)
+                + carry.T @ toeplitz_product(carry, lam11, boundaries)
+                + carry.T @ shifted_product(jac2, gamma12, boundaries)
+                + jac2.T @ shifted_product(carry, gamma12[::-1], boundaries))
     else:
         raise ValueError(f"unknown covariance kind {kind!r}")
-    effective = (effective_maneuvers(jac2, scores, bounds, kind, bandwidth, r2_inv) if kind in PER_MANEUVER_KINDS
+    effective = (effective_maneuvers(jac2, scores, boundaries, kind, bandwidth, r2_inv) if kind in PER_MANEUVER_KINDS
                  else np.full(p2, np.nan))
     return _sandwich(jac2, meat, r2_inv), lags, bandwidth, effective

@@ -97,22 +97,26 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
 
 
 def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: LiftFit | None,
-               options: FitOptions, start: Mapping[str, float] | None = None) -> CandidateResult:
+               options: FitOptions, start: Mapping[str, float] | None = None, *,
+               stage_starts: int = STAGE_STARTS, declared_too: bool = True) -> CandidateResult:
     """:func:`fit_candidate` from a warm start (a donor's estimates) and the declared start when a warm
     start is given. Else from ``options.n_starts`` starts (declared and quasi-random) plus, for a
     candidate with unsteady states, the estimates of its quasi-steady stage (:func:`.staging.stages`,
-    fitted from :data:`.staging.STAGE_STARTS` starts)."""
+    fitted from ``stage_starts`` starts: :data:`.staging.STAGE_STARTS` unless a caller asks for fewer).
+    Without ``declared_too`` the declared start does not follow a warm start or the stage's estimates
+    (a single fit that trusts its stage; the search always keeps it)."""
     if start is not None:
         return fit_candidate(c, train, validation, lift, options, start=start, n_starts=WARM_STARTS,
-                             declared_too=True)
+                             declared_too=declared_too)
     for stage in stages(c):
         model = build_model(stage.with_bounds(options.parameter_boxes))
         try:
-            params = model.estimate(train, n_starts=STAGE_STARTS, seed=options.seed)
+            params = model.estimate(train, n_starts=stage_starts, seed=options.seed)
         except (StructSearchError, np.linalg.LinAlgError, FloatingPointError):
             break  # a stage the data cannot fit gives no start: c keeps its usual starts
         start = {k: params[k] for k in model.nonlinear_names}
-    return fit_candidate(c, train, validation, lift, options, start=start, declared_too=start is not None)
+    return fit_candidate(c, train, validation, lift, options, start=start,
+                         declared_too=declared_too and start is not None)
 
 
 def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, options: FitOptions) -> LiftFit | None:

@@ -2,26 +2,31 @@
 
 The runner caches it as JSON (``to_json``/``from_json``), the ranking orders it, and the
 tables, ``fit.json`` and ``ranking.csv`` read it; a failed candidate carries its reason
-in ``error`` and no estimates.
+in ``error`` and no estimates. Its parameters' estimates and statistics are the engine's
+:class:`~structsearch.engine.estimates.ParameterEstimates`, the object a ``FitResult`` composes,
+covariance included; the statistics are reached under the same names (``params``, ``stderr``,
+``p_values``, ``cov_params()``, ``wald_test()``, ...).
 """
 from __future__ import annotations
 
-import math
-from dataclasses import asdict, dataclass, fields, replace
-from typing import Any
+from dataclasses import dataclass, fields, replace
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
 from ..data.atomic import json_ready
+from ..engine.estimates import ParameterEstimates, WaldTest
 from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores, R2Summary
 
+if TYPE_CHECKING:
+    import pandas
+
+    from ..engine.summary import FitSummary
+
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
-JSON_LAYOUT = 6
-
-
-def _finite_or_none(v: float | None) -> float | None:
-    return None if v is None or not math.isfinite(v) else float(v)
+# 7: the parameters' estimates and covariance as one object (ParameterEstimates.to_dict)
+JSON_LAYOUT = 7
 
 
 def _nan_if_none(v) -> float:
@@ -58,13 +63,35 @@ class SplitScores:
                    doc.get("mse_cx"), doc.get("mse_cz"))
 
 
-@dataclass(frozen=True)
+# Keywords a CandidateResult also accepts (and ``dataclasses.replace`` passes on): the statistics a result
+# built by hand states (a test's, a summary's), which replace those of ``estimates``.
+STATED_KEYWORDS = ("names", "nonlinear_names", "params", "stderr", "p_values", "at_bound", "high_correlations",
+                   "correlation", "significance", "reference_dof", "max_lag", "not_identifiable", "condition_number")
+
+
+def _delegate(name: str, failed: Any = None, convert=None):
+    def get(self):
+        if self.estimates is None:
+            return failed
+        value = getattr(self.estimates, name)
+        return convert(value) if convert is not None else value
+    get.__name__ = name
+    get.__doc__ = f"``estimates.{name}`` ({failed!r} for a failed candidate)."
+    return property(get)
+
+
+def _rows(matrix) -> tuple[tuple[float, ...], ...]:
+    return tuple(tuple(map(float, row)) for row in np.asarray(matrix, float))
+
+
+@dataclass(frozen=True, init=False)
 class CandidateResult:
     """One candidate of a grid after fitting (or failing) and, once ranked, its place.
 
     Parameter tables read ``names``, ``nonlinear_names``, ``params``, ``stderr``,
     ``p_values``, ``significant``, ``at_bound``, ``high_correlations`` and
-    ``correlation`` as they read a :class:`~structsearch.engine.results.FitResult`.
+    ``correlation`` as they read a :class:`~structsearch.engine.results.FitResult`: both
+    delegate to the same :class:`~structsearch.engine.estimates.ParameterEstimates`.
     """
 
     name: str
@@ -74,26 +101,14 @@ class CandidateResult:
     seconds: float
     error: str | None = None
     # --- the fit (None when it failed) ---
-    names: tuple[str, ...] = ()
-    nonlinear_names: tuple[str, ...] = ()
-    params: dict[str, float] | None = None
-    stderr: dict[str, float] | None = None
-    p_values: dict[str, float] | None = None
-    at_bound: dict[str, str] | None = None
-    high_correlations: tuple[tuple[str, str, float], ...] = ()
-    correlation: tuple[tuple[float, ...], ...] = ()
-    # the same with the data columns centred that can be (what admissibility judges; () when none can)
+    estimates: ParameterEstimates | None = None
+    # the correlation with the data columns centred that can be (what admissibility judges; () when none can)
     centred_correlation: tuple[tuple[float, ...], ...] = ()
-    significance: float = 0.05
-    reference_dof: dict[str, float] | None = None  # dof of each p-value's t reference
     n_starts: int = 0
     n_reached_best: int = 0
     aic: float | None = None
     bic: float | None = None
-    max_lag: int | None = None
     converged: bool | None = None      # the optimizer's own verdict on the best start
-    not_identifiable: dict[str, str] | None = None  # parameter -> why its standard deviation is NaN
-    condition_number: float | None = None  # of the column-scaled Jacobian at the solution
     message: str = ""                  # and its words
     nfev: int = 0                      # residual evaluations of the best start
     train: SplitScores | None = None
@@ -109,6 +124,29 @@ class CandidateResult:
     gap: float | None = None            # mean per-maneuver relative held-out MSE excess over the best
     gap_se: float | None = None         # its standard error
 
+    def __init__(self, name: str, grid: str, coefficient: str, lift: str | None, seconds: float,
+                 error: str | None = None, estimates: ParameterEstimates | None = None,
+                 centred_correlation=(), n_starts: int = 0, n_reached_best: int = 0, aic: float | None = None,
+                 bic: float | None = None, converged: bool | None = None, message: str = "", nfev: int = 0,
+                 train: SplitScores | None = None, validation: SplitScores | None = None,
+                 cv: SplitScores | None = None, cv_folds: int = 0, cv_method: str = "refit",
+                 admissible: bool | None = None, reasons: tuple[str, ...] = (), rank: int | None = None,
+                 within_noise: bool | None = None, gap: float | None = None, gap_se: float | None = None,
+                 **stated: Any):
+        """The fields above; ``stated`` (names in :data:`STATED_KEYWORDS`) build or amend ``estimates`` from
+        statistics given rather than fitted (``params=None`` means no fit)."""
+        unknown = set(stated) - set(STATED_KEYWORDS)
+        if unknown:
+            raise TypeError(f"CandidateResult() got an unexpected keyword argument {sorted(unknown)[0]!r}")
+        if stated:
+            estimates = (None if "params" in stated and stated["params"] is None
+                         else _restated(estimates, stated, train))
+        values = dict(locals())
+        for f in fields(self):
+            object.__setattr__(self, f.name, values[f.name])
+        object.__setattr__(self, "centred_correlation", _rows(centred_correlation) if len(centred_correlation) else ())
+        object.__setattr__(self, "reasons", tuple(reasons))
+
     # ----- construction ---------------------------------------------------------------
     @classmethod
     def from_fit(cls, *, name: str, grid: str, coefficient: str, lift: str | None, result: FitResult,
@@ -116,18 +154,10 @@ class CandidateResult:
                  centred_correlation: np.ndarray | None = None, cv: SplitScores | None = None,
                  cv_folds: int = 0, cv_method: str = "refit") -> "CandidateResult":
         return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds,
-                   names=tuple(result.names), nonlinear_names=tuple(result.nonlinear_names),
-                   params=dict(result.params), stderr=dict(result.stderr), p_values=dict(result.p_values),
-                   at_bound=dict(result.at_bound),
-                   high_correlations=tuple((a, b, float(c)) for a, b, c in result.high_correlations),
-                   correlation=tuple(tuple(map(float, row)) for row in np.asarray(result.correlation)),
-                   centred_correlation=(() if centred_correlation is None else
-                                        tuple(tuple(map(float, row)) for row in centred_correlation)),
-                   significance=result.significance, reference_dof=dict(result.reference_dof), n_starts=result.n_starts,
-                   n_reached_best=result.n_reached_best, aic=result.aic, bic=result.bic, max_lag=result.max_lag,
-                   converged=bool(result.success), message=result.message, nfev=int(result.nfev),
-                   not_identifiable=dict(result.not_identifiable),
-                   condition_number=float(result.condition_number),
+                   estimates=result.estimates,
+                   centred_correlation=() if centred_correlation is None else centred_correlation,
+                   n_starts=result.n_starts, n_reached_best=result.n_reached_best, aic=result.aic, bic=result.bic,
+                   converged=bool(result.converged), message=result.message, nfev=int(result.nfev),
                    train=train, validation=validation, cv=cv, cv_folds=cv_folds, cv_method=cv_method)
 
     @classmethod
@@ -140,7 +170,25 @@ class CandidateResult:
         ``gap_se``) set."""
         return replace(self, **placing)
 
-    # ----- derived ----------------------------------------------------------------------
+    # ----- the estimates --------------------------------------------------------------
+    names = _delegate("names", ())
+    nonlinear_names = _delegate("nonlinear_names", ())
+    linear_names = _delegate("linear_names", ())
+    params = _delegate("params")
+    stderr = _delegate("stderr")
+    p_values = _delegate("p_values")
+    t_values = _delegate("t_values")
+    at_bound = _delegate("at_bound")
+    reference_dof = _delegate("reference_dof")
+    not_identifiable = _delegate("not_identifiable")
+    significant = _delegate("significant")
+    significance = _delegate("significance", 0.05)
+    max_lag = _delegate("max_lag")
+    condition_number = _delegate("condition_number")
+    covariance_kind = _delegate("covariance_kind")
+    high_correlations = _delegate("high_correlations", (), lambda pairs: tuple((a, b, float(c)) for a, b, c in pairs))
+    correlation = _delegate("correlation", (), _rows)
+
     @property
     def failed(self) -> bool:
         return self.error is not None
@@ -154,9 +202,51 @@ class CandidateResult:
         return None if self.failed else not self.not_identifiable
 
     @property
-    def linear_names(self) -> tuple[str, ...]:
-        return tuple(n for n in self.names if n not in self.nonlinear_names)
+    def insignificant(self) -> tuple[str, ...]:
+        """Parameters whose t-test accepts zero."""
+        return tuple(n for n, s in self.significant.items() if not s)
 
+    @property
+    def correlation_matrix(self) -> np.ndarray:
+        return np.asarray(self.correlation, float)
+
+    def _fitted(self) -> ParameterEstimates:
+        if self.estimates is None:
+            raise ValueError(f"candidate {self.name} has no estimates: {self.error or 'not fitted'}")
+        return self.estimates
+
+    def cov_params(self) -> "pandas.DataFrame":
+        return self._fitted().cov_params()
+
+    def conf_int(self, level: float = 0.95) -> "pandas.DataFrame":
+        return self._fitted().conf_int(level)
+
+    def wald_test(self, names: Sequence[str]) -> WaldTest:
+        return self._fitted().wald_test(names)
+
+    def summary(self) -> "FitSummary":
+        """Scores, optimizer and parameters with tests and flags (text, Markdown, HTML, LaTeX)."""
+        from ..engine.summary import FitSummary, covariance_head, covariance_line
+        e = self._fitted()
+        head = [("model", self.name), ("coefficient", self.coefficient), ("lift model", self.lift or "-"),
+                ("parameters (nonlinear + linear)", f"{len(e.nonlinear_names)} + {len(e.linear_names)}")]
+        for label, split in (("train", self.train), ("cross-validation", self.cv), ("validation", self.validation)):
+            if split is not None:
+                head.append((f"MSE {label}", f"{split.mse:.6g}"))
+        if self.validation is not None:
+            r2 = self.validation.r2
+            head.append(("R^2 validation per maneuver mean / min / max",
+                         f"{r2.mean:.4f} / {r2.min:.4f} / {r2.max:.4f}"))
+        head += [("covariance", covariance_line(e.covariance_kind, e.max_lag, e.bandwidth)),
+                 ("optimizer", f"{'converged' if self.converged else 'NOT CONVERGED'}: {self.message} "
+                               f"({self.nfev} evaluations)"),
+                 ("starts reaching the best cost", f"{self.n_reached_best} of {self.n_starts}"),
+                 *covariance_head(e)]
+        if self.rank is not None:
+            head.append(("rank", f"{self.rank}" + ("" if self.admissible else " (not admissible)")))
+        return FitSummary(e, tuple(head))
+
+    # ----- scores ------------------------------------------------------------------------
     @property
     def mse_train(self) -> float:
         return self.train.mse
@@ -174,31 +264,16 @@ class CandidateResult:
         """The scores candidates are compared on: cross-validation when there is one, else validation."""
         return self.cv if self.cv is not None else self.validation
 
-    @property
-    def significant(self) -> dict[str, bool]:
-        return {n: p < self.significance for n, p in self.p_values.items()}
-
-    @property
-    def insignificant(self) -> tuple[str, ...]:
-        """Parameters whose t-test accepts zero."""
-        return tuple(n for n, s in self.significant.items() if not s)
-
-    @property
-    def correlation_matrix(self) -> np.ndarray:
-        return np.asarray(self.correlation, float)
-
     # ----- JSON (the cache) -------------------------------------------------------------
     def to_json(self) -> dict:
-        doc = asdict(self)
+        doc = {f.name: getattr(self, f.name) for f in fields(self)}
         doc["layout"] = JSON_LAYOUT
+        doc["estimates"] = None if self.estimates is None else self.estimates.to_dict()
         for split in ("train", "validation", "cv"):
             s = getattr(self, split)
             doc[split] = s.to_json() if s is not None else None
-        doc["high_correlations"] = [list(p) for p in self.high_correlations]
-        doc["correlation"] = [list(row) for row in self.correlation]
         doc["centred_correlation"] = [list(row) for row in self.centred_correlation]
         doc["reasons"] = list(self.reasons)
-        doc["names"], doc["nonlinear_names"] = list(self.names), list(self.nonlinear_names)
         return json_ready(doc)
 
     @classmethod
@@ -210,10 +285,8 @@ class CandidateResult:
         for split in ("train", "validation", "cv"):
             if values.get(split) is not None:
                 values[split] = SplitScores.from_json(values[split])
-        values["names"] = tuple(values.get("names", ()))
-        values["nonlinear_names"] = tuple(values.get("nonlinear_names", ()))
-        values["high_correlations"] = tuple((a, b, float(c)) for a, b, c in values.get("high_correlations", ()))
-        values["correlation"] = tuple(tuple(map(_nan_if_none, row)) for row in values.get("correlation", ()))
+        if values.get("estimates") is not None:
+            values["estimates"] = ParameterEstimates.from_dict(values["estimates"])
         values["centred_correlation"] = tuple(tuple(map(_nan_if_none, row))
                                               for row in values.get("centred_correlation", ()))
         values["reasons"] = tuple(values.get("reasons", ()))
@@ -221,7 +294,50 @@ class CandidateResult:
             for key in ("gap", "gap_se"):
                 if values.get(key) is None:
                     values[key] = float("nan")
-        for key in ("params", "stderr", "p_values", "reference_dof"):
-            if values.get(key) is not None:
-                values[key] = {k: _nan_if_none(v) for k, v in values[key].items()}
         return cls(**values)
+
+
+def _restated(base: ParameterEstimates | None, stated: dict, train: SplitScores | None) -> ParameterEstimates:
+    """``base`` (or, without one, estimates of the stated parameters alone) with the ``stated`` statistics.
+    Without a fit to derive them from, a covariance is rebuilt from stated correlations and standard
+    deviations (NaN where either is missing) and the box is unknown (NaN)."""
+    old = base.params if base is not None else {}
+    params = stated.get("params", old) or {}
+    names = tuple(stated.get("names", base.names if base is not None else tuple(params)))
+    nonlinear = tuple(stated.get("nonlinear_names", base.nonlinear_names if base is not None else ()))
+    linear = tuple(n for n in names if n not in nonlinear)
+    ordered = nonlinear + linear
+    p = len(ordered)
+    same = base is not None and base.names == ordered
+    carried = dict(base.stated) if same else {}
+    carried.update({k: v for k, v in stated.items() if k in ("stderr", "p_values", "at_bound", "high_correlations",
+                                                             "correlation", "not_identifiable", "reference_dof")})
+    if base is None:  # a result built by hand names what it cannot identify (nothing, unless it says so)
+        carried.setdefault("not_identifiable", {})
+    if "high_correlations" in carried:
+        carried["high_correlations"] = [tuple(pair) for pair in carried["high_correlations"]]
+    if same and not ({"stderr", "correlation"} & set(stated)):
+        covariance = base.covariance
+    else:
+        sd = np.array([(carried.get("stderr") or (base.stderr if same else {})).get(n, np.nan) for n in ordered],
+                      float)
+        corr = (np.asarray(carried["correlation"], float).reshape(p, p) if len(carried.get("correlation", ())) else
+                base.correlation if same else np.where(np.eye(p, dtype=bool), 1.0, np.nan))
+        covariance = corr * np.outer(sd, sd)
+    box = (base.lower, base.upper) if base is not None and base.nonlinear_names == nonlinear else \
+        (np.full(len(nonlinear), np.nan), np.full(len(nonlinear), np.nan))
+    return ParameterEstimates(
+        nonlinear_names=nonlinear, linear_names=linear,
+        values=np.array([params.get(n, np.nan) for n in ordered], float), lower=box[0], upper=box[1],
+        covariance=covariance, covariance_kind=base.covariance_kind if base is not None else "white",
+        n_samples=(base.n_samples if base is not None else int(sum(train.n_maneuvers)) if train is not None else 0),
+        n_maneuvers=(base.n_maneuvers if base is not None else len(train.n_maneuvers) if train is not None else 0),
+        white_covariance=base.white_covariance if same else None,
+        max_lag=stated.get("max_lag", base.max_lag if base is not None else None),
+        bandwidth=base.bandwidth if base is not None else None,
+        effective_maneuvers=base.effective_maneuvers if same else None,
+        significance=stated.get("significance", base.significance if base is not None else 0.05),
+        unidentifiable=dict(base.unidentifiable) if same else {},
+        condition_number=_nan_if_none(stated.get("condition_number",
+                                                 base.condition_number if base is not None else None)),
+        generated_regressors=base.generated_regressors if base is not None else None, stated=carried)

@@ -29,7 +29,8 @@ from .candidates import Candidate
 # A candidate with a donor is fitted from the donor's estimates and from its declared start (then from
 # quasi-random points if WARM_STARTS is raised above 1); a single fit's quasi-steady stage from its
 # declared start and STAGE_STARTS - 1 quasi-random points. `structsearch bench --staged` measures the
-# single fit against the best of 64 random starts on 50 small campaigns (results/bench.md).
+# single fit against the best admissible solution of 64 random starts on 50 small campaigns, beside fits
+# with fewer runs (experiments/bench_staged.py, results/bench.md).
 WARM_STARTS = 1
 STAGE_STARTS = 2
 # Kinds in order of nesting: each adds one parameter to the previous one.

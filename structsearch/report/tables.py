@@ -14,77 +14,14 @@ import math
 from pathlib import Path
 
 import numpy as np
-from tabulate import tabulate
 
 from ..data.atomic import write_text
-from ..engine.results import HIGH_CORRELATION
+from ..engine.estimates import HIGH_CORRELATION
+# one renderer for every table of a fit (engine.summary), re-exported here for the report's callers
+from ..engine.summary import (CSV_DIGITS, FORMATS, PARAMETER_HEADERS, TABLEFMT,  # noqa: F401
+                              csv_value, parameter_flags, parameter_rows, parameter_table, render_table)
+from ..engine.summary import with_newline as _with_newline
 from ..fitting.candidate_result import CandidateResult
-
-FORMATS = ("text", "markdown", "latex", "html", "csv")
-TABLEFMT = {"text": "simple", "markdown": "github", "md": "github", "latex": "latex_booktabs",
-             "tex": "latex_booktabs", "html": "html"}
-
-
-# CSV numbers carry 10 significant digits: what the estimates support, and no churn in the 15th digit
-# between machines.
-CSV_DIGITS = 10
-
-
-def csv_value(v):
-    """A CSV cell: floats with CSV_DIGITS significant digits, NaN as empty, the rest as is."""
-    if isinstance(v, (float, np.floating)):
-        return "" if not math.isfinite(v) else f"{float(v):.{CSV_DIGITS}g}"
-    return v
-
-
-def render_table(rows, headers, fmt: str, floatfmt: str = ".6g", numparse: bool = True) -> str:
-    """One table as text, Markdown ("markdown"/"md"), LaTeX ("latex"/"tex"), HTML or CSV."""
-    if fmt == "csv":
-        buf = io.StringIO()
-        writer = csv.writer(buf, lineterminator="\n")
-        writer.writerow(headers)
-        writer.writerows([[csv_value(v) for v in row] for row in rows])
-        return buf.getvalue()
-    if fmt not in TABLEFMT:
-        raise ValueError(f"format must be one of {FORMATS}, not {fmt!r}")
-    return tabulate(rows, headers=headers, tablefmt=TABLEFMT[fmt], floatfmt=floatfmt,
-                    disable_numparse=not numparse)
-
-
-def _with_newline(text: str, fmt: str) -> str:
-    return text if fmt == "csv" else text + "\n"
-
-
-# ----- parameters and correlations of one fit -------------------------------------------------
-PARAMETER_HEADERS = ["parameter", "kind", "estimate", "std. dev.", "t", "p (two-sided)", "flags"]
-
-
-def parameter_flags(fit, name: str) -> list[str]:
-    flags = []
-    if name in fit.at_bound:
-        flags.append(f"at {fit.at_bound[name]} bound")
-    if name in (fit.not_identifiable or {}):
-        flags.append("not identifiable")
-    elif not fit.significant[name]:
-        flags.append("t-test accepts 0")
-    if any(name in pair[:2] for pair in fit.high_correlations):
-        flags.append(f"|rho| > {HIGH_CORRELATION}")
-    return flags
-
-
-def parameter_rows(fit) -> list[list]:
-    rows = []
-    for name in fit.names:
-        value, se = fit.params[name], fit.stderr[name]
-        t = value / se if se > 0 else math.nan  # no standard deviation, no t
-        kind = "nonlinear" if name in fit.nonlinear_names else "linear"
-        rows.append([name, kind, value, se, t, fit.p_values[name], "; ".join(parameter_flags(fit, name))])
-    return rows
-
-
-def parameter_table(fit, fmt: str = "text", floatfmt: str = ".4g") -> str:
-    """Estimates, standard deviations, t-tests and flags (thesis Tables 11, 13, 15)."""
-    return _with_newline(render_table(parameter_rows(fit), PARAMETER_HEADERS, fmt, floatfmt=floatfmt), fmt)
 
 
 def correlation_table(fit, fmt: str = "text") -> str:

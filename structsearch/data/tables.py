@@ -1,0 +1,115 @@
+"""One maneuver file's columns: CSV, Parquet (optional ``pyarrow``) or MATLAB ``.mat``.
+
+A CSV file's data rows carry their file lines (:class:`CsvLines`) for the error messages that name one.
+"""
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DataError
+
+
+def read_table(path: Path) -> dict[str, np.ndarray]:
+    """The columns of one maneuver file by name (a CSV file's also its rows' file lines under LINE_KEY)."""
+    suffix = path.suffix.lower()
+    if not path.is_file():
+        raise DataError("maneuver file not found", source=str(path))
+    import pandas as pd
+    if suffix == ".csv":
+        try:
+            frame = pd.read_csv(path)
+        except (ValueError, pd.errors.ParserError) as exc:
+            raise DataError(f"cannot read CSV: {exc}", source=str(path)) from None
+    elif suffix == ".parquet":
+        try:
+            frame = pd.read_parquet(path)
+        except (ValueError, OSError) as exc:  # pyarrow's ArrowInvalid is a ValueError
+            raise DataError(f"cannot read Parquet: {exc}", source=str(path)) from None
+        except ImportError:
+            raise DataError("reading Parquet needs the optional dependency pyarrow "
+                            "(pip install 'structsearch[parquet]')", source=str(path)) from None
+    elif suffix == ".mat":
+        return read_mat(path)
+    else:
+        raise DataError(f"unsupported maneuver file type {suffix!r} (csv, parquet, mat)", source=str(path))
+    out = {}
+    lines = CsvLines(path, len(frame)) if suffix == ".csv" else None
+    for col in frame.columns:
+        values = frame[col]
+        if not pd.api.types.is_numeric_dtype(values):
+            numeric = pd.to_numeric(values.astype(object), errors="coerce")
+            bad = np.flatnonzero(numeric.isna() & values.notna())
+            if bad.size:
+                where = f" (line {int(lines[bad[0]])})" if lines is not None and len(lines) else ""
+                raise DataError(f"value {values.iloc[bad[0]]!r} is not a number{where}", source=str(path),
+                                column=str(col), row=int(bad[0]))
+            values = numeric
+        out[str(col)] = values.to_numpy(dtype=float)
+    if lines is not None:
+        out[LINE_KEY] = lines
+    return out
+
+
+# Not a column: the CSV line of each row (pandas skips blank lines, so row + 2 is not always the line).
+LINE_KEY = "__line__"
+
+
+class CsvLines:
+    """The 1-based file line of each data row of a CSV file, found when an error message asks for one
+    (reading the file again costs a third of reading a campaign; a valid campaign never needs it). Empty
+    (no line numbers rather than wrong ones) when :func:`_csv_lines` cannot tell them."""
+
+    def __init__(self, path: Path, n_rows: int):
+        self.path, self.n_rows = path, n_rows
+
+    @functools.cached_property
+    def lines(self) -> np.ndarray:
+        found = _csv_lines(self.path, self.n_rows)
+        return found if found is not None else np.empty(0)
+
+    def __len__(self) -> int:
+        return len(self.lines)
+
+    def __getitem__(self, row):
+        return self.lines[row]
+
+
+def _csv_lines(path: Path, n_rows: int) -> np.ndarray | None:
+    """1-based file line of each data row: the non-blank lines after the header; None (no line numbers
+    rather than wrong ones) when they do not match the rows pandas read one to one (quoted newlines,
+    form feeds, lone carriage returns)."""
+    raw_lines = path.read_bytes().split(b"\n")
+    if any(b"\r" in raw.rstrip(b"\r") or b'"' in raw for raw in raw_lines):
+        return None
+    filled = [i + 1 for i, raw in enumerate(raw_lines) if raw.strip(b" \t\r")]
+    if len(filled) != n_rows + 1:
+        return None
+    return np.asarray(filled[1:], float)
+
+
+def read_mat(path: Path | str) -> dict[str, np.ndarray]:
+    """Columns of a MATLAB maneuver file: top-level variables, or the fields of its only struct."""
+    from scipy.io import loadmat
+    path = Path(path)
+    try:
+        raw = loadmat(path, squeeze_me=True, struct_as_record=False)
+    except (ValueError, OSError, NotImplementedError) as exc:
+        raise DataError(f"cannot read MATLAB file: {exc}", source=str(path)) from None
+    variables = {k: v for k, v in raw.items() if not k.startswith("__")}
+    if len(variables) == 1:
+        (only,) = variables.values()
+        if hasattr(only, "_fieldnames"):
+            variables = {f: getattr(only, f) for f in only._fieldnames}
+    out = {}
+    for name, value in variables.items():
+        arr = np.asarray(value)
+        if arr.dtype.kind not in "fiu" or arr.ndim > 1:
+            continue  # strings, nested structs and matrices are not sample columns
+        out[name] = np.atleast_1d(arr).astype(float)
+    lengths = {len(v) for v in out.values() if len(v) > 1}
+    if len(lengths) > 1:
+        raise DataError(f"columns have different lengths {sorted(lengths)}", source=str(path))
+    return {k: v for k, v in out.items() if len(v) > 1}
