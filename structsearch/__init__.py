@@ -1,16 +1,34 @@
 """structsearch: model-structure search for aircraft stall aerodynamics.
 
-Attributes are imported on first use, so that ``structsearch.cli`` can set up
-the numeric libraries (one BLAS thread per process) before numpy loads.
+The public API (docs/interfaces.md 4 and 6.1) is importable from here: ``structsearch.fit``,
+``structsearch.search``, ``structsearch.diagnose``, ... (:mod:`structsearch.api`), the demo
+(:func:`structsearch.workflows.demo`), the generic models and the campaign reader. Attributes are
+imported on first use, so that ``import structsearch`` stays light and ``structsearch.cli`` can set up
+the numeric libraries (one BLAS thread per process) before numpy loads; the ``TYPE_CHECKING`` imports
+below show every name to IDEs and type checkers.
 """
+from __future__ import annotations
+
+import sys
+import types
 from importlib import import_module
+from typing import TYPE_CHECKING
 
-__version__ = "0.1.0"
+from ._version import __version__
 
+# exported name -> module (relative to this package) that defines it
 _EXPORTS = {
+    "fit": "api", "search": "api", "diagnose": "api", "simulate": "api", "preprocess": "api", "study": "api",
+    "report": "api",
+    "FitOutcome": "api", "Ranking": "api", "PreprocessOutcome": "api", "StudyOutcome": "api",
+    "ReportOutcome": "api",
+    "demo": "workflows", "DemoOutcome": "workflows",
     "SeparableModel": "engine.separable",
     "StallModel": "engine.stallmodel",
     "FitResult": "engine.results",
+    "CandidateResult": "fitting.candidate_result",
+    "FitOptions": "fitting.options",
+    "LiftFit": "fitting.lift_fit",
     "fit_report": "report.fit_report",
     "FlightData": "data.flightdata",
     "read_campaign": "data.campaign",
@@ -21,12 +39,78 @@ _EXPORTS = {
     "DeclarationError": "data.errors",
     "FitError": "data.errors",
 }
-__all__ = sorted(_EXPORTS) + ["__version__"]
+# a literal list, as type checkers read it (tests/test_api.py checks it against _EXPORTS)
+__all__ = ["Campaign", "CandidateResult", "DataError", "DeclarationError", "DemoOutcome", "FitError",
+           "FitOptions", "FitOutcome", "FitResult", "FlightData", "LiftFit", "PreprocessOutcome", "Ranking",
+           "ReportOutcome", "SeparableModel", "StallModel", "StructSearchError", "StudyOutcome", "demo",
+           "diagnose", "fit", "fit_report", "preprocess", "read_campaign", "report", "search", "simulate",
+           "study", "write_campaign", "__version__"]
+
+if TYPE_CHECKING:
+    from .api import (FitOutcome, PreprocessOutcome, Ranking, ReportOutcome, StudyOutcome, diagnose, fit,
+                      preprocess, report, search, simulate, study)
+    from .data.campaign import Campaign, read_campaign, write_campaign
+    from .data.errors import DataError, DeclarationError, FitError, StructSearchError
+    from .data.flightdata import FlightData
+    from .engine.results import FitResult
+    from .engine.separable import SeparableModel
+    from .engine.stallmodel import StallModel
+    from .fitting.candidate_result import CandidateResult
+    from .fitting.lift_fit import LiftFit
+    from .fitting.options import FitOptions
+    from .report.fit_report import fit_report
+    from .workflows import DemoOutcome, demo
 
 
-def __getattr__(name):
+def __getattr__(name: str):
     if name in _EXPORTS:
         value = getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
+        if name in _SHADOWED:
+            value = _CommandAndPackage(value, f"{__name__}.{name}")
         globals()[name] = value
         return value
     raise AttributeError(f"module 'structsearch' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+# API functions named like a subpackage: structsearch.search, .report, .study, .preprocess
+_SHADOWED = frozenset({"search", "report", "study", "preprocess"})
+
+
+class _CommandAndPackage:
+    """``structsearch.search`` (also ``.report``, ``.study``, ``.preprocess``): the API function of that name,
+    which is also the name of a subpackage. Calling it calls the function (``inspect.signature`` and ``help``
+    follow ``__wrapped__``); its other attributes are the subpackage's, so that ``structsearch.search.runner``
+    and ``import structsearch.search.runner as runner`` keep working."""
+
+    def __init__(self, function, package: str):
+        self.__wrapped__ = function
+        self.__doc__ = function.__doc__
+        self.__qualname__ = function.__qualname__
+        self.__name__ = package          # how the import system finds the subpackage's submodules
+
+    def __call__(self, *args, **kwargs):
+        return self.__wrapped__(*args, **kwargs)
+
+    def __getattr__(self, name: str):
+        return getattr(import_module(self.__name__), name)
+
+    def __repr__(self) -> str:
+        return f"<function {self.__wrapped__.__module__}.{self.__qualname__} (and the package {self.__name__})>"
+
+
+class _Package(types.ModuleType):
+    """This package: importing ``structsearch.search.pipeline`` binds the subpackage as an attribute of its parent,
+    which would hide the API function ``structsearch.search``; the function (which also reaches the
+    subpackage's attributes) stays. The subpackages themselves stay importable by name (``sys.modules``)."""
+
+    def __setattr__(self, name: str, value) -> None:
+        if name in _SHADOWED and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

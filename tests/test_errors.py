@@ -93,7 +93,7 @@ def test_atomic_files_get_the_normal_mode(tmp_path):
 def test_demo_knows_how_its_campaign_was_simulated(tmp_path):
     """Issue 13: the demo reuses results/campaign only when it was simulated as the demo would (seed 0,
     the requested scale, nothing withheld, realistic errors)."""
-    from structsearch.cli import _simulated_as
+    from structsearch.workflows import simulated_as as _simulated_as
     from structsearch.data.campaign import write_campaign
     from structsearch.flight.flighttest import build_campaign
     assert _simulated_as(tmp_path / "none") is None

@@ -40,7 +40,8 @@ def report_run(small, tmp_path_factory):
 @pytest.fixture(scope="module")
 def model_set(small, report_run):
     # the report's cache serves these fits
-    return rd.fit_model_set("identified", FINAL_MODEL_NAMES, small, report_run[1], FitOptions(n_starts=2))
+    from structsearch.study.model_set import fit_model_set
+    return fit_model_set("identified", FINAL_MODEL_NAMES, small, report_run[1], FitOptions(n_starts=2))
 
 
 def test_report_writes_every_figure_with_content(report_run):

@@ -15,6 +15,7 @@ import numpy as np
 import sympy as sp
 
 from ..data.errors import DeclarationError
+from .names import WITHHOLDABLE  # noqa: F401  (re-exported: truth_model's effects)
 from .reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH, final_drag_model, final_lift_model, final_pitch_model
 from ..engine.regressors import compile_expression, parse
 from ..engine.separation import SeparationState, static_separation
@@ -22,19 +23,7 @@ from ..engine.stallmodel import StallModel
 from .transport import (TRANSPORT_DRAG, TRANSPORT_LIFT, TRANSPORT_PITCH, TRANSPORT_ZEROED, transport_drag_model,
                         transport_lift_model, transport_pitch_model)
 
-# Effects of docs/interfaces.md section 3 that the final model contains, and what withholding does.
-WITHHOLDABLE = {
-    "unsteady_lag": "X_ss without its lag: tau1_ss = 0 (U -> Q)",
-    "separation_delay": "X_ss without its delay: tau2_ss = 0",
-    "second_separation_state": "no X_w: the outboard wing never separates (X_w = 1)",
-    "pitch_rate": "no q* term in C_L (pitch damping Cm_q stays: the aircraft must stay flyable)",
-    "elevator": "no delta_e term in C_L and C_D (elevator control power Cm_de stays)",
-    "elevator_effectiveness_loss": "no X_ss*delta_e term in C_m",
-    "thrust": "no C_T terms in C_D and C_m",
-    "induced_drag": "no C_L^2 term in C_D",
-    "separation_drag": "no (1-X) terms in C_D",
-    "cp_shift": "no (1-X)*C_L terms in C_m",
-}
+# the names live in .names, importable without numpy or sympy (the command line's choices)
 _ZEROED = {
     "pitch_rate": ("CL_qstar",),
     "elevator": ("CL_de", "CD_de"),

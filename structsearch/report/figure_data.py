@@ -1,7 +1,8 @@
 """What the campaign report plots, as plain arrays (no matplotlib, no files).
 
 A :class:`ModelSet` is one simulator: a lift, a drag and a pitch structure fitted
-on the training maneuvers (through the runner's cache). From it come the static
+on the training maneuvers (fitted by the study layer, :mod:`structsearch.study.model_set`;
+this module fits nothing). From it come the static
 curves of the thesis' figures 6-11 (separation states at equilibrium, q = 0,
 delta_e = 0, C_T = 0, mean centre of gravity and airspeed), the measured points
 corrected for everything the static curve leaves out (partial residuals: static
@@ -11,20 +12,19 @@ hysteresis loop, and the gap breakdown of a diagnosis.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
-from ..data.errors import DeclarationError
-from ..fitting.options import FitOptions
-from ..search.runner import run
+from ..fitting.candidate_result import CandidateResult
+from ..fitting.candidates import Candidate
 from ..engine.scores import ManeuverScores
 from ..engine.separation import static_separation
 
-from ..study.model_set import COEFFICIENTS, ModelSet, fit_model_set  # noqa: F401  (re-exported for the report)
+from ..study.model_set import COEFFICIENTS, ModelSet
+
 # Stall stages on the static separation curve (thesis Fig. 6)
 STAGES = (("flow starts to separate", 0.9), ("half separated (alpha*)", 0.5), ("fully stalled", 0.1))
 ALPHA_BAND = 0.04  # rad, as in the diagnosis
@@ -157,21 +157,15 @@ def alpha_bands(alpha: np.ndarray) -> np.ndarray:
     return np.arange(lo, hi + ALPHA_BAND / 2, ALPHA_BAND)
 
 
-def with_effect(ms: ModelSet, coef: str, effect: str, campaign: Campaign, out: Path,
-                options: FitOptions) -> dict:
-    """Validation residuals of the set's ``coef`` model before and after adding a library effect."""
-    from ..diagnosis import effects as fx
+def with_effect(ms: ModelSet, coef: str, changed: Candidate, fitted: CandidateResult, campaign: Campaign) -> dict:
+    """Validation residuals of the set's ``coef`` model before and after adding a library effect: ``changed``
+    is the model with the effect, ``fitted`` its fit (:func:`structsearch.study.model_set.fit_with_effect`)."""
     baseline = ms.candidates[coef]
-    changed = fx.get(effect, coef).apply(baseline)
-    lifts = None if coef == "CL" else {ms.lift.name: ms.lift}
-    summary = run([changed], campaign, out, options=options, lifts=lifts)[0]
-    if summary.failed:
-        raise DeclarationError(f"report: fitting {changed.name} failed: {summary.error}")
     val = campaign.split("validation")
-    after = ms.predict(coef, val, changed, summary.params)
+    after = ms.predict(coef, val, changed, fitted.params)
     bands = alpha_bands(val["alpha"])
     before_residual, after_residual = val[coef] - ms.predict(coef, val), val[coef] - after
-    return {"baseline": baseline.name, "model": changed.name, "effect": effect, "bands": bands,
+    return {"baseline": baseline.name, "model": changed.name, "bands": bands,
             "maneuvers": list(val.names), "before": gap_cells(before_residual, val, bands),
             "after": gap_cells(after_residual, val, bands),
             "mse_before": float(np.mean(before_residual ** 2)), "mse_after": float(np.mean(after_residual ** 2))}

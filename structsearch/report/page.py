@@ -3,8 +3,9 @@
 The models are the winners of a search written to the output directory
 (``ranking.csv``) when their names resolve, else the thesis' final structures;
 the Van Ingen structures (CL-I, CD-I, Cm-I) are fitted beside them for
-comparison. Fits go through the runner's cache, so after ``structsearch demo``
-the report refits nothing it has already fitted.
+comparison. This module only chooses and draws: :func:`structsearch.api.report`
+fits (through the runner's cache, so after ``structsearch demo`` it refits
+nothing already fitted) and hands the fits to :func:`build`.
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import html
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -26,7 +27,10 @@ from ..data.atomic import write_text
 from .tables import parameter_table, render_table
 from .diagnosis_doc import unexplained_sentence
 from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_MODEL_NAMES
+from ..fitting.candidate_result import CandidateResult
+from ..fitting.candidates import Candidate
 from ..fitting.options import FitOptions
+from ..study.model_set import ModelSet
 from ..fitting.specs import find_candidate
 
 GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
@@ -105,29 +109,45 @@ def applicable_models(names: dict[str, str], campaign: Campaign) -> tuple[dict[s
     return out, notes
 
 
-def _best_effect(doc: dict) -> str | None:
-    ok = [e for e in doc["effects"] if "error" not in e]
+def best_effect(diagnosis) -> str | None:
+    """The name of the diagnosis' best effect that was fitted (None if none was)."""
+    ok = [e for e in _as_dict(diagnosis)["effects"] if "error" not in e]
     return ok[0]["name"] if ok else None
 
 
-def build(campaign: Campaign, out: Path, *, options: FitOptions = FitOptions(), n_jobs: int = 1,
-          diagnose_coefficient: str | None = "Cm", models: tuple[str, ...] = (), story: list[str] | None = None,
-          progress: Callable[[str], None] | None = None) -> dict:
-    """Write ``out/figures/*.png`` and ``out/report.html``; returns what was written and the notes."""
+def _as_dict(x):
+    # until the typed diagnosis lands: a diagnosis may be a dict or an object with to_dict()
+    return x.to_dict() if hasattr(x, "to_dict") else x
+
+
+@dataclass(frozen=True)
+class ReportFits:
+    """Everything the page shows that had to be fitted (by :func:`structsearch.api.report`; the report layer
+    fits nothing): the models chosen and the notes on how, the identified and the Van Ingen model sets, the
+    diagnosis of one coefficient and its best effect's fit."""
+
+    names: Mapping[str, str]
+    notes: tuple[str, ...]
+    identified: ModelSet
+    van_ingen: ModelSet | None                 # None: the Van Ingen structures could not be fitted (a note says why)
+    diagnosis_coefficient: str | None = None
+    diagnosis: Any = None                      # the diagnosis (dict or typed) of diagnosis_coefficient's model
+    effect: tuple[str, Candidate, CandidateResult] | None = None  # (best effect, model with it, its fit)
+
+
+def require_figures() -> None:
+    """Raise unless matplotlib is installed (before anything is fitted for a page that cannot be drawn)."""
     fg.require()
-    say = progress or (lambda m: None)
+
+
+def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOptions = FitOptions(),
+          story: list[str] | None = None) -> dict:
+    """Write ``out/figures/*.png`` and ``out/report.html`` from ``fits``; returns what was written and the notes."""
+    fg.require()
     t0 = time.perf_counter()
     fig_dir = out / "figures"
-    names, notes = chosen_models(out, models)
-    names, more = applicable_models(names, campaign)
-    notes += more
-    say(f"report: fitting {', '.join(names.values())} and the Van Ingen structures")
-    ms = rd.fit_model_set("identified", names, campaign, out, options, n_jobs=n_jobs)
-    try:
-        vi = rd.fit_model_set("Van Ingen", VAN_INGEN_MODEL_NAMES, campaign, out, options, n_jobs=n_jobs)
-    except (DeclarationError, DataError) as exc:  # e.g. a column the campaign lacks
-        vi = None
-        notes.append(f"The Van Ingen comparison is left out: {exc}")
+    names, notes = dict(fits.names), list(fits.notes)
+    ms, vi = fits.identified, fits.van_ingen
     train, val = campaign.split("train"), campaign.split("validation")
     ref = rd.reference(train)
     alpha = np.linspace(min(0.0, float(campaign.data["alpha"].min())), float(campaign.data["alpha"].max()), 400)
@@ -195,15 +215,12 @@ def build(campaign: Campaign, out: Path, *, options: FitOptions = FitOptions(), 
          "lag makes lift overshoot the static curve while alpha rises and fall below it while alpha falls.")
     emit(fg.correlations(ms.summaries), "correlations.png", "Parameter correlations",
          f"Correlation matrices of the estimates ({options.covariance} covariance); '!' marks |rho| > 0.9.")
-    diagnosis = None
-    if diagnose_coefficient:
-        from ..diagnosis.diagnose import diagnose
-        say(f"report: diagnosing {names[diagnose_coefficient]}")
-        diagnosis = diagnose(campaign, ms.candidates[diagnose_coefficient], options=options, max_rounds=1,
-                             states=False, n_jobs=n_jobs)
-        best = _best_effect(diagnosis)
-        if best is not None:
-            g = rd.with_effect(ms, diagnose_coefficient, best, campaign, out, options)
+    diagnose_coefficient = fits.diagnosis_coefficient
+    diagnosis = None if fits.diagnosis is None else _as_dict(fits.diagnosis)
+    if diagnosis is not None:
+        if fits.effect is not None:
+            best, changed, fitted = fits.effect
+            g = rd.with_effect(ms, diagnose_coefficient, changed, fitted, campaign)
             shrink = next(e["shrink"] for e in diagnosis["effects"] if e["name"] == best)
             verdict = ("the baseline is at the noise floor, so little changes"
                        if diagnosis["gap_explained_by_baseline"] or shrink is None

@@ -73,3 +73,16 @@ def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out:
     aero = AeroModel(build_model(cands["CL"]), build_model(cands["CD"], lift_fit), build_model(cands["Cm"], lift_fit),
                      params, name=label)
     return ModelSet(label, cands, summaries, aero)
+
+
+def fit_with_effect(ms: ModelSet, coef: str, effect: str, campaign: Campaign, out: Path,
+                    options: FitOptions) -> tuple[Candidate, CandidateResult]:
+    """The set's ``coef`` model with a library effect added, fitted (cached under ``out/cache``) on the set's
+    lift model: the "after" of the report's gap breakdown."""
+    from ..diagnosis import effects as fx
+    changed = fx.get(effect, coef).apply(ms.candidates[coef])
+    lifts = None if coef == "CL" else {ms.lift.name: ms.lift}
+    result = run([changed], campaign, out, options=options, lifts=lifts)[0]
+    if result.failed:
+        raise DeclarationError(f"report: fitting {changed.name} failed: {result.error}")
+    return changed, result

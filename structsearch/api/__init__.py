@@ -1,0 +1,19 @@
+"""The public Python API: what each command does, as typed functions (docs/interfaces.md 6.1).
+
+=====================================  ==============================================
+``structsearch fit --model CD-IXr``    :func:`fit` -> :class:`FitOutcome`
+``structsearch search --grid drag``    :func:`search` -> :class:`Ranking`
+``structsearch diagnose --model CD-I`` :func:`diagnose`
+``structsearch simulate``              :func:`simulate` -> Campaign
+``structsearch preprocess``            :func:`preprocess` -> :class:`PreprocessOutcome`
+``structsearch study``                 :func:`study` -> :class:`StudyOutcome`
+``structsearch report``                :func:`report` -> :class:`ReportOutcome`
+``structsearch demo``                  :func:`structsearch.workflows.demo`
+=====================================  ==============================================
+"""
+from .commands import diagnose, fit, preprocess, search, simulate, study
+from .report import report
+from .results import FitOutcome, PreprocessOutcome, Ranking, ReportOutcome, StudyOutcome
+
+__all__ = ["FitOutcome", "PreprocessOutcome", "Ranking", "ReportOutcome", "StudyOutcome", "diagnose", "fit",
+           "preprocess", "report", "search", "simulate", "study"]

@@ -1,0 +1,207 @@
+"""What each command does, as typed Python functions (docs/interfaces.md 6.1): ``fit``, ``search``, ``diagnose``,
+``simulate``, ``preprocess``, ``study``. Options are keyword-only with the command line's defaults; nothing
+prints (``progress`` receives the lines the command writes to stderr). ``campaign`` is a
+:class:`~structsearch.data.campaign.Campaign` or the directory of one."""
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Callable, Iterable, Iterator, Mapping
+
+from ..data.campaign import Campaign, read_campaign
+from ..data.errors import DeclarationError
+from ..engine.statistics import DEFAULT_COVARIANCE
+from ..fitting.options import FitOptions, check_box_names
+from ..search.admissibility import MAX_CORRELATION
+from .results import FitOutcome, PreprocessOutcome, Ranking, StudyOutcome
+
+Progress = Callable[[str], None] | None
+Bounds = Mapping[str, tuple[float, float]] | Iterable[tuple[str, tuple[float, float]]] | None
+
+
+def as_campaign(campaign: Campaign | str | os.PathLike) -> Campaign:
+    """``campaign`` itself, or the standard campaign read from that directory."""
+    return campaign if isinstance(campaign, Campaign) else read_campaign(campaign)
+
+
+def process_count(jobs: int) -> int:
+    """``jobs`` as a process count: 0 means every core (the commands' ``--jobs``)."""
+    return jobs or os.cpu_count() or 1
+
+
+def parameter_boxes(bounds: Bounds) -> tuple:
+    """``bounds`` (a mapping or pairs, as repeated ``--bound NAME=LO:HI``) as FitOptions' sorted boxes, the
+    last box of a name winning."""
+    pairs = dict(bounds.items() if isinstance(bounds, Mapping) else (bounds or ()))
+    return tuple(sorted((name, (float(lo), float(hi))) for name, (lo, hi) in pairs.items()))
+
+
+def fit_options(starts: int, seed: int, covariance: str, bounds: Bounds, **more: Any) -> FitOptions:
+    return FitOptions(n_starts=starts, seed=seed, covariance=covariance, parameter_boxes=parameter_boxes(bounds),
+                      **more)
+
+
+@contextmanager
+def cache_directory(cache: str | os.PathLike | None) -> Iterator[Path]:
+    """``cache`` as a Path, or a temporary directory (removed afterwards) when it is None."""
+    if cache is not None:
+        yield Path(cache)
+        return
+    with tempfile.TemporaryDirectory(prefix="structsearch-") as tmp:
+        yield Path(tmp)
+
+
+def fit(campaign: Campaign | str | os.PathLike, model: str, *, starts: int = 4, seed: int = 0,
+        covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None, progress: Progress = None) -> FitOutcome:
+    """Fit one candidate (a catalogue name such as ``"CD-IXr"`` or a spec file) as ``structsearch fit`` does:
+    a drag or pitch candidate first fits the lift model it names, on the training maneuvers."""
+    from ..fitting.candidate_fit import fit_lift_model, fit_staged
+    from ..fitting.specs import resolve_candidate
+    campaign = as_campaign(campaign)
+    candidate = resolve_candidate(model)
+    options = fit_options(starts, seed, covariance, bounds)
+    check_box_names(options.parameter_boxes, [candidate])
+    train, validation = campaign.split("train"), campaign.split("validation")
+    if progress is not None:
+        progress(f"fit: {candidate.name}" + (f" on {candidate.lift}" if candidate.lift else ""))
+    lift = fit_lift_model(candidate, train, validation, options)
+    result = fit_staged(candidate, train, validation, lift, options)
+    if result.failed:
+        raise DeclarationError(result.error)
+    return FitOutcome(candidate, result, lift)
+
+
+def search_candidates(grid: str) -> list:
+    """Every candidate of ``grid`` (separation, lift, drag, pitch, all or a grid spec file)."""
+    from ..search.pipeline import grids_for
+    return [c for g in grids_for(grid) for c in g.candidates]
+
+
+def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, out: str | os.PathLike | None = None,
+           cache: str | os.PathLike | None = None, jobs: int = 0, starts: int = 4, seed: int = 0,
+           covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None, cv_method: str = "refit",
+           backend: str = "loky", scheduler: str | None = None, max_correlation: float = MAX_CORRELATION,
+           refine: bool = True, progress: Progress = None) -> Ranking:
+    """Fit and rank every candidate of ``grid`` as ``structsearch search`` does. ``cache``: the directory whose
+    ``cache/`` holds the fits (default ``out``, else a temporary directory); ``out``: also write
+    ``ranking.csv`` and the tables there."""
+    from ..search.pipeline import search as run_search
+    campaign = as_campaign(campaign)
+    options = fit_options(starts, seed, covariance, bounds, cv_method=cv_method)
+    check_box_names(options.parameter_boxes, search_candidates(grid))
+    client = dask_client(scheduler, process_count(jobs)) if backend == "dask" else None
+    try:
+        with cache_directory(cache if cache is not None else out) as where:
+            result = run_search(campaign, grid, where, n_jobs=process_count(jobs), options=options,
+                                backend=backend, max_correlation=max_correlation, progress=progress,
+                                do_refine=refine)
+    finally:
+        if client is not None:
+            client.close()
+    ranking = Ranking(result.grids, result.seconds, result.refinements)
+    if out is not None:
+        write_search_tables(ranking, campaign, Path(out))
+    return ranking
+
+
+def write_search_tables(ranking: Ranking, campaign: Campaign, out: Path) -> list[Path]:
+    """``ranking.csv`` and each grid's tables (with the thesis-estimator refits of the final models)."""
+    from ..report.tables import write_tables
+    from ..study.thesis_estimator import thesis_estimator_fits
+    return write_tables(ranking.grids, out, thesis_estimator_fits(ranking.grids, campaign))
+
+
+def dask_client(scheduler: str | None, jobs: int):
+    """A dask.distributed Client: the given scheduler, else a local cluster of ``jobs`` single-threaded workers."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise DeclarationError("--backend dask needs the optional dependency dask.distributed "
+                               "(pip install 'structsearch[dask]')") from None
+    if scheduler:
+        return Client(scheduler)
+    return Client(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None))
+
+
+def diagnose(campaign: Campaign | str | os.PathLike, model: str, *, coefficient: str | None = None,
+             starts: int = 2, seed: int = 0, covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None,
+             jobs: int = 0, out: str | os.PathLike | None = None, progress: Progress = None):
+    """Diagnose ``model`` (the baseline) as ``structsearch diagnose`` does; with ``out``, also write
+    ``diagnosis.json`` and ``diagnosis.md`` there. Returns the diagnosis (``to_dict()``: diagnosis.json)."""
+    from ..diagnosis.diagnose import diagnose as run_diagnosis
+    from ..fitting.specs import resolve_candidate
+    campaign = as_campaign(campaign)
+    baseline = resolve_candidate(model, coefficient)
+    options = fit_options(starts, seed, covariance, bounds)
+    check_box_names(options.parameter_boxes, [baseline])
+    result = run_diagnosis(campaign, baseline, options=options, n_jobs=process_count(jobs), seed=seed,
+                           progress=progress)
+    if out is not None:
+        from ..report.diagnosis_doc import write
+        write(result, Path(out))
+    return result
+
+
+def simulate(*, seed: int = 0, withhold: Iterable[str] = (), scale: float = 1.0, extras: bool = False,
+             aircraft: str = "citation", anomaly: str | None = None, raw: bool = False, slow_errors: float = 1.0,
+             out: str | os.PathLike | None = None, format: str = "csv") -> Campaign:
+    """Simulate a flight-test campaign as ``structsearch simulate`` does (same seed, same campaign bit for bit);
+    with ``out``, also write it there."""
+    from ..data.campaign import write_campaign
+    from ..flight.flighttest import build_campaign
+    campaign = build_campaign(seed=seed, withhold=tuple(withhold or ()), scale=scale, extras=extras,
+                              aircraft=aircraft, anomaly=anomaly, raw=raw, slow_errors=slow_errors)
+    if out is not None:
+        write_campaign(campaign, Path(out), fmt=format)
+    return campaign
+
+
+def preprocess(raw: Campaign | str | os.PathLike, out: str | os.PathLike | None = None, *,
+               cutoffs: Mapping[str, float] | None = None, suggested_cutoffs: bool = False,
+               stall_alpha: float | None = None, stall_state: str | None = None, figures: bool = True,
+               command: str | None = None, progress: Callable[[str, float], None] | None = None) -> PreprocessOutcome:
+    """Turn a raw campaign (docs/interfaces.md 5.2) into a standard one as ``structsearch preprocess`` does;
+    ``stall_alpha`` in degrees; with ``out``, write the standard campaign and preprocess.md there."""
+    import numpy as np
+
+    from ..data.campaign import write_campaign
+    from ..preprocess.pipeline import preprocess as run_preprocess, truth_agreement
+    started = time.perf_counter()
+    if out is not None and not isinstance(raw, Campaign) and Path(raw).resolve() == Path(out).resolve():
+        raise DeclarationError(f"--out {out} is the raw campaign itself: it would be replaced; give another directory")
+    raw_campaign = raw if isinstance(raw, Campaign) else read_campaign(raw, fmt="raw")
+    result = run_preprocess(raw_campaign, dict(cutoffs or {}), use_suggested=suggested_cutoffs,
+                            stall_alpha_rad=None if stall_alpha is None else np.deg2rad(stall_alpha),
+                            stall_state=stall_state, progress=progress)
+    directory = markdown = None
+    if out is not None:
+        from ..report.preprocess_doc import write
+        directory = write_campaign(result.campaign, Path(out))
+        markdown = write(result, directory, command or f"structsearch preprocess --raw {raw} --out {out}",
+                         time.perf_counter() - started, figures=figures)
+    worst: dict[str, float] = {}
+    for _, name, r2 in truth_agreement(result.campaign):
+        worst[name] = np.fmin(worst.get(name, np.inf), r2)   # a NaN R^2 (constant truth) does not hide others
+    return PreprocessOutcome(result, directory, markdown, worst, time.perf_counter() - started)
+
+
+def study(campaign: Campaign | str | os.PathLike, *, out: str | os.PathLike | None = None,
+          cache: str | os.PathLike | None = None, starts: int = 4, jobs: int = 0, command: str | None = None,
+          progress: Progress = None) -> StudyOutcome:
+    """The thesis' comparison tables as ``structsearch study`` computes them; fits are cached under ``cache``
+    (default ``out``, else a temporary directory); with ``out``, the tables and box plots are written there."""
+    from ..study.study import run_study
+    campaign = as_campaign(campaign)
+    with cache_directory(cache if cache is not None else out) as where:
+        result = run_study(campaign, where, FitOptions(n_starts=starts), n_jobs=process_count(jobs),
+                           progress=progress)
+    written: list[Path] = []
+    if out is not None:
+        from ..report import figures
+        from ..report.study_doc import write
+        written = write(result, Path(out), command or f"structsearch study --out {out}",
+                        figures=figures.plt is not None)
+    return StudyOutcome(result, written)

@@ -1,0 +1,126 @@
+"""Typed results of the public API (:mod:`structsearch.api`); each serialises with ``to_dict()`` to the JSON
+its command writes, or to the rows of the table it writes."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..data.campaign import Campaign
+from ..fitting.candidate_result import CandidateResult
+from ..fitting.candidates import Candidate
+from ..fitting.lift_fit import LiftFit
+
+
+def _as_dict(x: Any) -> Any:
+    """A diagnosis or story as its JSON dict (until the typed diagnosis lands, it may already be one)."""
+    return x.to_dict() if hasattr(x, "to_dict") else x
+
+
+@dataclass(frozen=True)
+class FitOutcome:
+    """One candidate fitted as ``structsearch fit`` fits it: its result and the lift model it takes its
+    separation states from (None for a lift or separation candidate)."""
+
+    candidate: Candidate
+    result: CandidateResult
+    lift: LiftFit | None
+
+    def to_dict(self) -> dict:
+        """``fit.json`` (docs/interfaces.md sections 2 and 5.4)."""
+        from ..report.documents import fit_document
+        return fit_document(self.result, self.lift)
+
+    def summary(self) -> Any:
+        """The fit's summary (the result's own ``summary()``: text when printed, HTML in a notebook); a plain
+        parameter table where the result has none."""
+        if hasattr(self.result, "summary"):
+            return self.result.summary()
+        from ..report.tables import parameter_table
+        return f"{self.result.name}\n" + parameter_table(self.result, "text")
+
+    def __getattr__(self, name: str):
+        # params, stderr, mse_train, ...: the fit's own attributes, so that ``fit(...).params`` reads naturally
+        if name.startswith("__") or name in ("candidate", "result", "lift"):
+            raise AttributeError(name)
+        return getattr(self.result, name)
+
+
+@dataclass(frozen=True)
+class Ranking:
+    """A search: per grid its candidates' results, best first by the ranking rule, its refinements and the wall
+    time it took."""
+
+    grids: dict[str, list[CandidateResult]]
+    seconds: dict[str, float]
+    refinements: dict[str, list] = field(default_factory=dict)
+
+    def best(self, grid: str) -> CandidateResult | None:
+        """The grid's rank-1 candidate that did not fail (None if every one failed)."""
+        return next((r for r in self.grids[grid] if not r.failed), None)
+
+    def to_frame(self):
+        """``ranking.csv`` as a pandas DataFrame (the same columns and values)."""
+        import io
+
+        import pandas as pd
+
+        from ..report.tables import ranking_csv
+        return pd.read_csv(io.StringIO(ranking_csv(self.grids)))
+
+    def to_dict(self) -> dict:
+        """Per grid the rows of ``ranking.csv`` (None where a cell is empty), and the seconds per grid."""
+        from ..report.tables import table_row
+        return {"grids": {g: [table_row(r) for r in ranked] for g, ranked in self.grids.items()},
+                "seconds": dict(self.seconds)}
+
+
+@dataclass(frozen=True)
+class PreprocessOutcome:
+    """A raw campaign preprocessed: the chain's result (``.campaign`` is the standard campaign), where it was
+    written (None if nowhere), the worst R^2 per coefficient against the simulator's truth, and the seconds."""
+
+    preprocessed: Any            # structsearch.preprocess.pipeline.Preprocessed
+    directory: Path | None
+    markdown: Path | None
+    worst_r2: dict[str, float]
+    seconds: float
+
+    @property
+    def campaign(self) -> Campaign:
+        return self.preprocessed.campaign
+
+    def to_dict(self) -> dict:
+        p = self.preprocessed
+        return {"directory": None if self.directory is None else str(self.directory),
+                "sensor_errors": [{"name": e.name, "estimate": e.estimate, "sd": e.sd}
+                                  for e in p.reconstruction.errors],
+                "worst_r2": dict(self.worst_r2), "seconds": self.seconds}
+
+
+@dataclass(frozen=True)
+class StudyOutcome:
+    """The thesis' comparison tables on a campaign and the files written (none when no ``out`` was given)."""
+
+    study: Any                   # structsearch.study.study.Study
+    written: list[Path]
+
+    def to_dict(self) -> dict:
+        s = self.study
+        if hasattr(s, "to_dict"):
+            return s.to_dict()
+        return {"written": [str(p) for p in self.written]}
+
+
+@dataclass(frozen=True)
+class ReportOutcome:
+    """``structsearch report``: the page, its figures, the notes shown on it and the seconds it took."""
+
+    html: Path
+    figures: list[Path]
+    notes: list[str]
+    seconds: float
+
+    def to_dict(self) -> dict:
+        return {"html": str(self.html), "figures": [str(f) for f in self.figures], "notes": list(self.notes),
+                "seconds": self.seconds}

@@ -1,0 +1,97 @@
+"""The ``bench`` command and ``diagnose --benchmark``: experiments run from the command line and what they print."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from .cli_options import _bounds, _jobs
+
+
+def _calibration(args) -> int:
+    from .experiments.calibration import run
+    from .data.atomic import write_json, write_text
+    from .experiments.calibration_doc import calibration_dict, calibration_markdown
+    say = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
+    cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=_jobs(args), progress=say)
+    out = Path(args.out)
+    command = f"structsearch bench --calibration --campaigns {args.campaigns} --scale {args.scale}"
+    write_text(out / "calibration.md", calibration_markdown(cal, command))
+    write_json(out / "calibration.json", calibration_dict(cal), indent=1)
+    for k in cal.kinds:
+        if k.worst95 is None:
+            print(f"{k.kind}: not estimable on these campaigns (every standard deviation NaN)")
+            continue
+        missing = (f"; not estimable for {', '.join(k.not_estimable_models)}"
+                   if k.not_estimable_models else "")
+        print(f"{k.kind}: 95 % coverage {k.pooled95:.3f} (worst {k.worst95.coverage95:.2f} "
+              f"{k.worst95.model} {k.worst95.parameter}{missing}), 68 % {k.pooled68:.3f}; gap test rejects "
+              f"{k.rejections}/{k.gap_tests}; goals {'met' if k.meets_goals else 'NOT met'}")
+    print(f"best calibrated: {cal.best.kind}; wrote {out / 'calibration.md'}")
+    return 0
+
+
+def _bench(args) -> int:
+    if args.calibration:
+        return _calibration(args)
+    from .experiments.bench import BenchConfig, run, write
+    config = BenchConfig(samples=args.samples, repeats=args.repeats, random_starts=args.starts,
+                         seed=args.seed, n_jobs=_jobs(args))
+    say = lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True)  # noqa: E731
+    fig = run(config, progress=say)
+    if not args.no_search:
+        from .experiments.bench import run_search
+        fig["search"] = run_search(n_jobs=_jobs(args), progress=say)
+    if args.staged:
+        from .experiments.bench import run_staged
+        fig["staged"] = run_staged(campaigns=args.staged, n_jobs=_jobs(args), progress=say)
+    md, js = write(fig, Path(args.out))
+    o, r = fig["one_start"], fig["random_starts"]
+    print(f"one start: SNLS {o['snls']['median_s']:.3f} s = {o['snls']['median_s'] / o['prototype']['median_s']:.2f}x "
+          f"the prototype's {o['prototype']['median_s']:.3f} s; time per success over {r['n']} random starts: SNLS "
+          f"{r['snls']['s_per_success']:.3f} s, prototype {r['prototype']['s_per_success']:.3f} s, full NLS "
+          f"{r['full']['s_per_success']:.3f} s, finite differences {r['fd']['s_per_success']:.3f} s; peak memory "
+          f"{fig['memory'][0]['peak_mb']:.0f} MB -> {fig['memory'][1]['peak_mb']:.0f} MB at 2x samples")
+    if "search" in fig:
+        s = fig["search"]
+        print("search --grid all: " + ", ".join(f"{g} {t:.1f} s" for g, t in s["by_grid_s"].items())
+              + f"; total {s['search_s']:.1f} s on {s['n_jobs']} processes = "
+              f"{s['search_in_cl_vi_starts']:.0f} CL-VI starts of {s['cl_vi_start_s']:.2f} s")
+    if "staged" in fig:
+        st = fig["staged"]
+        print(f"staged default fit reached the best of {st['random_starts']} random starts on "
+              f"{st['staged_success']}/{st['campaigns']} campaigns (previous default {st['previous_success']}, "
+              f"one random start {100 * st['random_start_success']:.0f} %)")
+    print(f"wrote {md} and {js}")
+    return 0
+
+
+def _diagnose_benchmark(args) -> int:
+    """``diagnose --benchmark``: the withheld-effect benchmark on simulated campaigns."""
+    import json
+    from .data.atomic import write_text
+    out = Path(args.out)
+    from .diagnosis import withheld
+    from .fitting.options import FitOptions
+    from .engine.statistics import DEFAULT_COVARIANCE
+    options = FitOptions(n_starts=args.starts, covariance=args.covariance, parameter_boxes=_bounds(args), cv_folds=0)
+    res = withheld.run(seed=args.seed, scale=args.scale, null_seeds=tuple(range(args.null_seeds)),
+                       n_jobs=_jobs(args), options=options,
+                       progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr,
+                                                                       flush=True))
+    command = " ".join(["structsearch diagnose --benchmark --out", str(out)]
+                       + ([f"--scale {args.scale:g}"] if args.scale != 1.0 else [])
+                       + ([f"--seed {args.seed}"] if args.seed else [])
+                       + ([f"--null-seeds {args.null_seeds}"] if args.null_seeds != 3 else [])
+                       + ([f"--starts {args.starts}"] if args.starts != 2 else [])
+                       + ([f"--covariance {args.covariance}"] if args.covariance != DEFAULT_COVARIANCE else [])
+                       + [f"--bound {n}={lo:g}:{hi:g}" for n, (lo, hi) in args.bound])
+    write_text(out / "withheld_benchmark.json", json.dumps(res, indent=2, default=float))
+    write_text(out / "withheld_benchmark.md", withheld.markdown(res, command))
+    hits = sum(r["ranked_first"] for r in res["rows"])
+    outside = res["outside"]
+    good = sum(r["located"] and not r["false_claim"] and r["signal_first"] for r in outside)
+    print(f"withheld effect ranked first {hits}/{len(res['rows'])}; out-of-library effects located, not falsely "
+          f"explained and their signal first {good}/{len(outside)}; false alarms "
+          f"{sum(n['alarm_combined'] for n in res['null'])}/{len(res['null'])} (Wald test alone "
+          f"{sum(bool(n['alarm_test']) for n in res['null'])}); wrote {out / 'withheld_benchmark.md'}")
+    return 0

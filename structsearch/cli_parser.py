@@ -1,0 +1,158 @@
+"""The command line's parser: options, choices and help, built from light modules only (no numpy at ``--help``)."""
+from __future__ import annotations
+
+import argparse
+from typing import Callable, Mapping
+
+from ._version import __version__
+from .cli_options import (COVARIANCE_KINDS, CV_METHODS, DEFAULT_COVARIANCE, MAX_CORRELATION, _Parser, _angle_degrees,
+                          _bound, _count, _cutoff, _fraction, _non_negative, _non_negative_float)
+from .flight.names import AIRCRAFT_NAMES, ANOMALY_NAMES, WITHHOLDABLE
+
+DESCRIPTION = "Command line: ``structsearch <command>`` (also ``python -m structsearch``)."
+
+
+def _admissibility_options(p) -> None:
+    p.add_argument("--max-correlation", type=_fraction, default=MAX_CORRELATION,
+                   help=f"admissibility: largest |correlation| of two parameters (default {MAX_CORRELATION}; "
+                        "judged with the data columns centred)")
+
+
+def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
+    """--data, --out, --starts, --seed: the options every command that fits a campaign shares."""
+    p.add_argument("--data", required=data_required, help="campaign directory")
+    p.add_argument("--out", default="results", help="output directory (default: results)")
+    p.add_argument("--starts", type=_count, default=starts, help="starts per nonlinear fit (1: the default start)")
+    p.add_argument("--seed", type=_non_negative, default=0)
+    p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI", type=_bound,
+                   help="search box of a nonlinear parameter, over the declared one (repeatable), "
+                        "e.g. --bound tau2_ss=0:5")
+    p.add_argument("--covariance", choices=COVARIANCE_KINDS, default=DEFAULT_COVARIANCE,
+                   help=f"covariance estimate of every fit (default {DEFAULT_COVARIANCE}, the best calibrated "
+                        "by `bench --calibration`)")
+
+
+def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
+    """The parser; each command's ``func`` default is ``handlers[command]``."""
+    parser = _Parser(prog="structsearch", description=DESCRIPTION)
+    parser.add_argument("--version", action="version", version=f"structsearch {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("bench", help="measure speed, robustness and memory of the SNLS engine")
+    b.add_argument("--out", default="results", help="output directory (default: results)")
+    b.add_argument("--samples", type=_count, default=250_000, help="samples in the benchmark campaign")
+    b.add_argument("--repeats", type=_count, default=3, help="repeats of every single-start timing (every method alike)")
+    b.add_argument("--starts", type=_count, default=20, help="random starts for the success rate")
+    b.add_argument("--seed", type=_non_negative, default=2025)
+    b.add_argument("--jobs", type=_non_negative, default=2, help="processes for the random starts and the search")
+    b.add_argument("--no-search", action="store_true", help="skip the search --grid all benchmark")
+    b.add_argument("--staged", type=_count, default=None, metavar="CAMPAIGNS",
+                   help="also measure the default fit's success over this many seeded campaigns (50: ~10 min)")
+    b.add_argument("--calibration", action="store_true",
+                   help="instead: Monte Carlo calibration of the covariances on simulated campaigns "
+                        "(writes calibration.md and calibration.json)")
+    b.add_argument("--campaigns", type=_count, default=50, help="--calibration: number of seeded campaigns")
+    b.add_argument("--scale", type=_fraction, default=0.1, help="--calibration: fraction of the maneuvers flown")
+    b.set_defaults(func=handlers["bench"])
+
+    s = sub.add_parser("simulate", help="simulate a flight-test campaign (thesis Table 4) of the Citation II or the "
+                                        "twin-jet transport")
+    s.add_argument("--aircraft", choices=AIRCRAFT_NAMES, default="citation",
+                   help="citation (the thesis' Citation II, default) or transport (a twin-jet transport with one "
+                        "separation state, no stall strips and no recorded cg: README)")
+    s.add_argument("--out", required=True, help="campaign directory to write")
+    s.add_argument("--seed", type=_non_negative, default=0, help="random seed (same seed, same campaign bit for bit)")
+    s.add_argument("--withhold", action="append", choices=sorted(WITHHOLDABLE), metavar="EFFECT",
+                   help="remove an effect from the truth model (repeatable): " + ", ".join(WITHHOLDABLE))
+    s.add_argument("--anomaly", choices=sorted(ANOMALY_NAMES), metavar="NAME",
+                   help="add an effect outside the diagnosis' library to the Citation's truth: " + ", ".join(ANOMALY_NAMES))
+    s.add_argument("--scale", type=_fraction, default=1.0,
+                   help="fraction of the maneuvers of each kind to fly (small test campaigns)")
+    s.add_argument("--extras", action="store_true", help="add pullups, pushovers and phugoids")
+    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.add_argument("--slow-errors", type=_non_negative_float, default=1.0, metavar="F",
+                   help="scale of the slow reconstruction errors of a standard campaign (1, the default: realistic; "
+                        "0: only sensor noise, buffet and residual biases, like a raw campaign's channels)")
+    s.add_argument("--raw", action="store_true",
+                   help="write the raw sensor channels (docs/interfaces.md 5.2) with the injected sensor errors recorded")
+    s.set_defaults(func=handlers["simulate"])
+
+    pp = sub.add_parser("preprocess", help="turn a raw flight-test campaign (docs/interfaces.md 5.2) into a standard one: "
+                                           "spectra, pre-filter, flight-path reconstruction, coefficients")
+    pp.add_argument("--raw", required=True, help="raw campaign directory (format = \"raw\")")
+    pp.add_argument("--out", required=True, help="standard campaign directory to write, with preprocess.md")
+    pp.add_argument("--cutoffs", choices=("table5", "spectra"), default="table5",
+                    help="default cut-offs: thesis Table 5 (default) or those the spectra suggest")
+    pp.add_argument("--cutoff", action="append", type=_cutoff, metavar="CHANNEL=HZ",
+                    help="pre-filter cut-off of one channel (repeatable; over campaign.toml's [cutoffs])")
+    pp.add_argument("--stall-alpha", type=_angle_degrees, metavar="DEG",
+                    help="stalled flow for the spectra: alpha above this [deg] (default: campaign.toml's "
+                         "stall_alpha [rad], else the angle of maximum normal force less 1 deg)")
+    pp.add_argument("--stall-state", metavar="COLUMN",
+                    help="stalled flow for the spectra: where this column (a separation state, 1 attached, 0 "
+                         "separated) is below 0.5, instead of an alpha threshold")
+    pp.add_argument("--no-figures", action="store_true", help="skip the spectra figures (no matplotlib needed)")
+    pp.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    pp.set_defaults(func=handlers["preprocess"])
+
+    st = sub.add_parser("study", help="the thesis' comparison tables on a campaign: final models against Van Ingen's, "
+                                      "the dynamic-stall study, the separation matrix, derived quantities")
+    st.add_argument("--data", required=True, help="campaign directory")
+    st.add_argument("--out", required=True, help="directory for the tables (Markdown, LaTeX, CSV) and box plots")
+    st.add_argument("--cache", help="the search's output directory whose cache to reuse (default: --out)")
+    st.add_argument("--starts", type=_count, default=4, help="starts per nonlinear fit (as search: its cache serves)")
+    st.add_argument("--jobs", type=_non_negative, default=0, help="processes (0: all cores)")
+    st.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    st.set_defaults(func=handlers["study"])
+
+    f = sub.add_parser("fit", help="fit one model structure to a campaign")
+    _campaign_options(f)
+    f.add_argument("--model", required=True, help="candidate name (CL-VI, CD-IXr, Cm-XXXIII, ...) or spec file")
+    f.set_defaults(func=handlers["fit"])
+
+    r = sub.add_parser("search", help="fit and rank every candidate of a grid")
+    _campaign_options(r)
+    r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all, or a grid spec file")
+    r.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
+    r.add_argument("--cv-method", choices=CV_METHODS, default="refit",
+                   help="cross-validation folds of a nonlinear candidate: refit (solved again from the full "
+                        "fit's estimates, exact; default) or one-step (one Gauss-Newton step from them: no "
+                        "solve, linearised; exact for linear candidates)")
+    r.add_argument("--backend", default="loky", choices=("loky", "dask"),
+                   help="loky: local processes; dask: a dask.distributed cluster")
+    r.add_argument("--scheduler", default=None,
+                   help="dask scheduler address (default: start a local cluster of --jobs workers)")
+    r.add_argument("--quiet", action="store_true", help="no progress lines")
+    _admissibility_options(r)
+    r.set_defaults(func=handlers["search"])
+
+    g = sub.add_parser("diagnose", help="where the model misses the data, which effect causes it, how far it shrinks")
+    _campaign_options(g, starts=2, data_required=False)
+    g.add_argument("--model", help="baseline candidate name or spec file")
+    g.add_argument("--coefficient", choices=("CL", "CD", "Cm"), help="check that the baseline models this")
+    g.add_argument("--benchmark", action="store_true",
+                   help="run the withheld-effect benchmark on simulated campaigns instead")
+    g.add_argument("--scale", type=_fraction, default=1.0, help="benchmark campaign scale")
+    g.add_argument("--null-seeds", type=_non_negative, default=3, help="benchmark: seeds of the null case")
+    g.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
+    g.add_argument("--quiet", action="store_true")
+    g.set_defaults(func=handlers["diagnose"])
+
+    p = sub.add_parser("report", help="figures and one self-contained HTML page for a campaign")
+    _campaign_options(p)  # the search's defaults, so that its cached fits are reused
+    p.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes for the fits (default 0: all cores)")
+    p.add_argument("--diagnose", choices=("CL", "CD", "Cm", "none"), default="Cm",
+                   help="coefficient whose gap breakdown is shown (default Cm; none: skip the diagnosis)")
+    p.add_argument("--model", action="append", metavar="NAME",
+                   help="use this lift, drag or pitch structure instead of the search's winner (repeatable)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=handlers["report"])
+
+    d = sub.add_parser("demo", help="simulate the default campaign, search every grid, write all tables and the report")
+    d.add_argument("--out", default="results", help="output directory (default: results)")
+    d.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default: all cores)")
+    d.add_argument("--starts", type=_count, default=4)
+    d.add_argument("--scale", type=_fraction, default=1.0, help="fraction of the campaign to fly (quick looks)")
+    d.add_argument("--quiet", action="store_true")
+    _admissibility_options(d)
+    d.set_defaults(func=handlers["demo"])
+    return parser

@@ -1,0 +1,123 @@
+"""The demo's orchestration (``structsearch demo``): simulate the default campaign (or reuse it), search every
+grid, write the tables, tell the Van Ingen story, compute the thesis' comparison tables and write the report.
+Prints nothing: ``say`` receives the lines the command prints on stdout, ``progress`` those on stderr."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from .api.commands import process_count, write_search_tables
+from .api.results import Ranking, ReportOutcome, _as_dict
+from .data.campaign import Campaign
+from .search.admissibility import MAX_CORRELATION
+
+Lines = Callable[[str], None]
+
+
+def simulated_as(directory: Path) -> dict | None:
+    """How the campaign in ``directory`` was simulated (seed, scale, ...), or None if there is none."""
+    import tomllib
+    toml = directory / "campaign.toml"
+    if not toml.exists():
+        return None
+    try:
+        doc = tomllib.loads(toml.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError):
+        return {"manifest": "unreadable"}
+    return {k: doc.get(k) for k in ("seed", "scale", "withheld", "slow_errors", "extras")}
+
+
+@dataclass(frozen=True)
+class DemoOutcome:
+    """What the demo made: the campaign, the search, the story, the study and the report (None without
+    matplotlib), and the seconds each stage took."""
+
+    out: Path
+    campaign: Campaign
+    ranking: Ranking
+    story: Any                      # the Van Ingen story (dict or typed, with "lines")
+    story_markdown: Path
+    study_files: list[Path]
+    report: ReportOutcome | None
+    seconds: dict[str, float]
+
+    def to_dict(self) -> dict:
+        return {"out": str(self.out), "ranking": self.ranking.to_dict(), "story": _as_dict(self.story),
+                "study_files": [str(p) for p in self.study_files],
+                "report": None if self.report is None else self.report.to_dict(), "seconds": dict(self.seconds)}
+
+
+def demo_campaign(out: Path, scale: float, say: Lines) -> Campaign:
+    """The demo's campaign (seed 0 at ``scale``) in ``out/campaign``: reused when it was simulated so, else
+    simulated again."""
+    from .data.campaign import read_campaign, write_campaign
+    from .flight.flighttest import build_campaign
+    camp_dir = out / "campaign"
+    wanted = {"seed": 0, "scale": float(scale), "withheld": "none", "slow_errors": 1.0, "extras": False}
+    found = simulated_as(camp_dir)
+    if found == wanted:
+        say(f"reusing the simulated campaign in {camp_dir}")
+        return read_campaign(camp_dir)
+    if found is not None:
+        say(f"{camp_dir} holds another campaign ({', '.join(f'{k} = {v}' for k, v in found.items())}); "
+            "simulating it again")
+    say(f"simulating the default flight-test campaign (seed 0, scale {scale}) ...")
+    write_campaign(build_campaign(seed=0, scale=scale), camp_dir)
+    return read_campaign(camp_dir)
+
+
+def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: float = 1.0,
+         max_correlation: float = MAX_CORRELATION, say: Lines | None = None,
+         winners: Callable[[Ranking], None] | None = None, progress: Lines | None = None) -> DemoOutcome:
+    """``structsearch demo``: every artefact in ``out``. ``winners`` is called with the search's ranking when it
+    is done (the command prints each grid's winner there)."""
+    from .diagnosis.story import van_ingen_story
+    from .fitting.options import FitOptions
+    from .report import figures
+    from .report.diagnosis_doc import write_story
+    from .report.study_doc import write as write_study
+    from .search.pipeline import search
+    from .study.study import run_study
+    say = say or (lambda m: None)
+    out = Path(out)
+    t0 = time.perf_counter()
+    campaign = demo_campaign(out, scale, say)
+    t_sim = time.perf_counter() - t0
+    n_jobs = process_count(jobs)
+    result = search(campaign, "all", out, n_jobs=n_jobs, options=FitOptions(n_starts=starts),
+                    max_correlation=max_correlation, progress=progress)
+    ranking = Ranking(result.grids, result.seconds, result.refinements)
+    write_search_tables(ranking, campaign, out)
+    total = time.perf_counter() - t0
+    if winners is not None:
+        winners(ranking)
+    say(f"campaign: {len(campaign.maneuvers)} maneuvers, {campaign.data.n_samples} samples "
+        f"({t_sim:.0f} s); search of {sum(len(r) for r in result.grids.values())} candidates on {n_jobs} "
+        f"process(es): {total - t_sim:.0f} s; total {total:.0f} s")
+    say(f"tables and ranking.csv in {out}")
+    t1 = time.perf_counter()
+    # the story's diagnoses use the diagnose command's defaults (2 starts), not the search's --starts
+    story = van_ingen_story(campaign, progress=progress, n_jobs=n_jobs)
+    _, story_md = write_story(story, out, f"structsearch demo --out {out}"
+                              + (f" --scale {scale:g}" if scale != 1.0 else ""))
+    t_story = time.perf_counter() - t1
+    say(f"the story, Van Ingen's simulator model against the flight data ({t_story:.0f} s; {story_md}):")
+    for line in _as_dict(story)["lines"]:
+        say(f"  {line}")
+    t2 = time.perf_counter()
+    study = run_study(campaign, out, FitOptions(n_starts=starts), n_jobs=n_jobs, progress=progress)
+    written = write_study(study, out / "study", f"structsearch study --data {out / 'campaign'} --out "
+                          f"{out / 'study'} --cache {out}" + (f" --starts {starts}" if starts != 4 else ""),
+                          figures=figures.plt is not None)
+    t_study = time.perf_counter() - t2
+    say(f"the thesis' comparison tables: {len(written)} files in {out / 'study'} ({t_study:.0f} s)")
+    seconds = {"simulate": t_sim, "search": total - t_sim, "story": t_story, "study": t_study}
+    if figures.plt is None:
+        say("no figures: the report needs matplotlib (pip install 'structsearch[figures]')")
+        return DemoOutcome(out, campaign, ranking, story, story_md, written, None, seconds)
+    from .api.report import report
+    page = report(campaign, out, starts=starts, jobs=n_jobs, story=_as_dict(story)["lines"], progress=progress)
+    seconds["report"] = page.seconds
+    return DemoOutcome(out, campaign, ranking, story, story_md, written, page, seconds)

@@ -1,0 +1,112 @@
+"""The public Python API (docs/interfaces.md 6.1): exports, a light command line, the tutorial, the API beside
+the command it mirrors."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import structsearch
+from structsearch.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+HEAVY = ("numpy", "scipy", "sympy", "pandas")
+
+
+def _python(code: str, timeout: float = 60) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout, env=env,
+                          cwd=ROOT)
+
+
+def test_api_functions_win_over_subpackages_of_the_same_name():
+    """structsearch.search is the function even after structsearch.search.pipeline (the subpackage) is imported."""
+    import structsearch.preprocess.pipeline  # noqa: F401
+    import structsearch.report.page  # noqa: F401
+    import structsearch.search.pipeline  # noqa: F401
+    import structsearch.study.study  # noqa: F401
+    import inspect
+
+    import structsearch.search.runner as runner
+    from structsearch import api
+    assert [f.__wrapped__ for f in (structsearch.search, structsearch.report, structsearch.study,
+                                    structsearch.preprocess)] == [api.search, api.report, api.study, api.preprocess]
+    assert runner is sys.modules["structsearch.search.runner"]
+    assert structsearch.search.pipeline is sys.modules["structsearch.search.pipeline"]
+    assert structsearch.report.page is sys.modules["structsearch.report.page"]
+    assert "grid" in inspect.signature(structsearch.search).parameters
+    assert structsearch.search.__doc__ == api.search.__doc__
+
+
+def test_every_exported_name_resolves_and_is_listed():
+    listed = dir(structsearch)
+    assert sorted(structsearch.__all__) == sorted([*structsearch._EXPORTS, "__version__"])
+    for name in structsearch.__all__:
+        assert getattr(structsearch, name) is not None, name
+        assert name in listed, name
+    for name in ("fit", "search", "diagnose", "simulate", "preprocess", "study", "report", "demo", "SeparableModel",
+                 "StallModel", "FitResult", "CandidateResult", "FitOptions", "LiftFit", "fit_report", "FlightData",
+                 "Campaign", "read_campaign", "write_campaign", "StructSearchError", "DataError",
+                 "DeclarationError", "FitError"):
+        assert name in structsearch.__all__, name
+    with pytest.raises(AttributeError):
+        structsearch.no_such_name  # noqa: B018
+    assert (ROOT / "structsearch" / "py.typed").exists()
+
+
+def test_import_and_parser_load_no_numeric_library():
+    """``structsearch --help`` must stay fast: building the parser imports none of numpy, scipy, sympy, pandas."""
+    proc = _python("import sys, structsearch, structsearch.cli\nstructsearch.cli.build_parser()\n"
+                   f"print(','.join(m for m in {HEAVY!r} if m in sys.modules))")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == ""
+
+
+def test_light_choices_equal_their_owners():
+    from structsearch import cli_options
+    from structsearch.engine.statistics import COVARIANCE_KINDS, DEFAULT_COVARIANCE
+    from structsearch.fitting.options import CV_METHODS
+    from structsearch.flight import aero, anomalies, names
+    from structsearch.search.admissibility import MAX_CORRELATION
+    assert tuple(cli_options.COVARIANCE_KINDS) == tuple(COVARIANCE_KINDS)
+    assert cli_options.DEFAULT_COVARIANCE == DEFAULT_COVARIANCE
+    assert cli_options.MAX_CORRELATION == MAX_CORRELATION
+    assert tuple(cli_options.CV_METHODS) == tuple(CV_METHODS)
+    assert names.AIRCRAFT_NAMES == tuple(aero.TRUTHS)
+    assert names.ANOMALY_NAMES == tuple(anomalies.ANOMALIES)
+    assert aero.WITHHOLDABLE is names.WITHHOLDABLE
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"structsearch {structsearch.__version__}"
+
+
+@pytest.mark.slow
+def test_fit_is_the_fit_command(tmp_path):
+    """The API's fit gives the document the command writes, number for number."""
+    campaign = structsearch.simulate(scale=0.05, seed=1)
+    structsearch.write_campaign(campaign, tmp_path / "c")
+    assert main(["fit", "--data", str(tmp_path / "c"), "--model", "CL-VI", "--starts", "1",
+                 "--out", str(tmp_path / "o")]) == 0
+    written = json.loads((tmp_path / "o" / "fit.json").read_text())
+    outcome = structsearch.fit(tmp_path / "c", "CL-VI", starts=1)
+    from structsearch.data.atomic import json_ready
+    assert json.loads(json.dumps(json_ready(outcome.to_dict()))) == written
+    assert outcome.lift is None and outcome.result.params == written["params"]
+    with pytest.raises(structsearch.StructSearchError, match="no_such_parameter"):
+        structsearch.fit(campaign, "CL-VI", bounds={"no_such_parameter": (0.0, 1.0)})
+
+
+@pytest.mark.slow
+def test_tutorial_runs():
+    """examples/tutorial.py: the main path in Python, on a small campaign, as a notebook user sees it."""
+    proc = subprocess.run([sys.executable, str(ROOT / "examples" / "tutorial.py")], capture_output=True, text=True,
+                          timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT)), cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = proc.stdout
+    assert "campaign: " in out and "CL-VI: MSE train" in out and "CD-IXr on CL-VI" in out
+    assert "best drag structure: CD-" in out and "CD-I: final model " in out
