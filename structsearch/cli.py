@@ -173,11 +173,6 @@ def _print_report(res) -> None:
           f"({res.seconds:.0f} s)")
 
 
-def _as_dict(x):
-    # until the typed diagnosis lands: a diagnosis may be a dict or an object with to_dict()
-    return x.to_dict() if hasattr(x, "to_dict") else x
-
-
 def _diagnose(args) -> int:
     if args.benchmark:
         from .cli_bench import _diagnose_benchmark
@@ -185,19 +180,12 @@ def _diagnose(args) -> int:
     if not args.data or not args.model:
         raise_error("diagnose needs --data and --model (or --benchmark)")
     from .api import diagnose
-    from .report.diagnosis_doc import unexplained_sentence
+    from .report.diagnosis_doc import diagnosis_console_lines
     out = Path(args.out)
-    doc = _as_dict(diagnose(args.data, args.model, coefficient=args.coefficient, starts=args.starts, seed=args.seed,
-                            covariance=args.covariance, bounds=_bounds(args), jobs=_jobs(args), out=out,
-                            progress=_progress(args, "diagnose: ")))
-    js, md = out / "diagnosis.json", out / "diagnosis.md"
-    best = next((e for e in doc["effects"] if "error" not in e), None)
-    verdict = ("the baseline is at the noise floor" if doc["gap_explained_by_baseline"] else
-               f"best effect {best['name']} closes {best['shrink']:.0%} of the gap" if best and best["shrink"] is not None
-               else "no effect fitted")
-    print(f"{doc['coefficient']} {doc['baseline']}: {verdict}; final model {doc['final_model']}; explained: "
-          f"{'yes' if doc['explained'] else 'no'}; wrote {js} and {md}")
-    for line in filter(None, [unexplained_sentence(doc)] + [f"warning: {w}" for w in doc.get("warnings", [])]):
+    diagnosis = diagnose(args.data, args.model, coefficient=args.coefficient, starts=args.starts, seed=args.seed,
+                         covariance=args.covariance, bounds=_bounds(args), jobs=_jobs(args), out=out,
+                         progress=_progress(args, "diagnose: "))
+    for line in diagnosis_console_lines(diagnosis, (out / "diagnosis.json", out / "diagnosis.md")):
         print(line)
     return 0
 

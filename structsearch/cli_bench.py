@@ -51,24 +51,27 @@ def _bench(args) -> int:
           f"{r['snls']['s_per_success']:.3f} s, prototype {r['prototype']['s_per_success']:.3f} s, full NLS "
           f"{r['full']['s_per_success']:.3f} s, finite differences {r['fd']['s_per_success']:.3f} s; peak memory "
           f"{fig['memory'][0]['peak_mb']:.0f} MB -> {fig['memory'][1]['peak_mb']:.0f} MB at 2x samples")
+    if "processes" in fig:
+        ratio = fig["processes"]["ratio_to_script"]
+        print(f"whole process: the default fit {ratio['fit_default']:.2f}x the reference script, "
+              f"fit --starts 1 {ratio['fit_starts_1']:.2f}x")
     if "search" in fig:
         s = fig["search"]
+        naive = f"{s['search_over_naive']:.2f}x the naive fan-out, " if "search_over_naive" in s else ""
         print("search --grid all: " + ", ".join(f"{g} {t:.1f} s" for g, t in s["by_grid_s"].items())
-              + f"; total {s['search_s']:.1f} s on {s['n_jobs']} processes = "
-              f"{s['search_in_cl_vi_starts']:.0f} CL-VI starts of {s['cl_vi_start_s']:.2f} s")
+              + f"; total {s['search_s']:.1f} s on {s['n_jobs']} processes = {naive}"
+              f"{s['search_over_critical_path']:.2f}x its critical path")
     if "staged" in fig:
         st = fig["staged"]
-        print(f"staged default fit reached the best of {st['random_starts']} random starts on "
-              f"{st['staged_success']}/{st['campaigns']} campaigns (previous default {st['previous_success']}, "
-              f"one random start {100 * st['random_start_success']:.0f} %)")
+        print(f"default fit reached the best admissible solution of {st['random_starts']} random starts on "
+              f"{st['staged_success']}/{st['admissible_campaigns']} campaigns that have one "
+              f"({st['campaigns']} campaigns; one random start {100 * st['random_start_success']:.0f} %)")
     print(f"wrote {md} and {js}")
     return 0
 
 
 def _diagnose_benchmark(args) -> int:
     """``diagnose --benchmark``: the withheld-effect benchmark on simulated campaigns."""
-    import json
-    from .data.atomic import write_text
     out = Path(args.out)
     from .diagnosis import withheld
     from .fitting.options import FitOptions
@@ -85,13 +88,7 @@ def _diagnose_benchmark(args) -> int:
                        + ([f"--starts {args.starts}"] if args.starts != 2 else [])
                        + ([f"--covariance {args.covariance}"] if args.covariance != DEFAULT_COVARIANCE else [])
                        + [f"--bound {n}={lo:g}:{hi:g}" for n, (lo, hi) in args.bound])
-    write_text(out / "withheld_benchmark.json", json.dumps(res, indent=2, default=float))
-    write_text(out / "withheld_benchmark.md", withheld.markdown(res, command))
-    hits = sum(r["ranked_first"] for r in res["rows"])
-    outside = res["outside"]
-    good = sum(r["located"] and not r["false_claim"] and r["signal_first"] for r in outside)
-    print(f"withheld effect ranked first {hits}/{len(res['rows'])}; out-of-library effects located, not falsely "
-          f"explained and their signal first {good}/{len(outside)}; false alarms "
-          f"{sum(n['alarm_combined'] for n in res['null'])}/{len(res['null'])} (Wald test alone "
-          f"{sum(bool(n['alarm_test']) for n in res['null'])}); wrote {out / 'withheld_benchmark.md'}")
+    from .report.diagnosis_doc import benchmark_console_line, write_benchmark
+    _, md = write_benchmark(res, out, command)
+    print(benchmark_console_line(res, md))
     return 0

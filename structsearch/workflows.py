@@ -6,11 +6,12 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Callable
 
 from .api.commands import process_count, write_search_tables
-from .api.results import Ranking, ReportOutcome, _as_dict
+from .api.results import Ranking, ReportOutcome
 from .data.campaign import Campaign
+from .diagnosis.story import Story
 from .search.admissibility import MAX_CORRELATION
 
 Lines = Callable[[str], None]
@@ -37,14 +38,14 @@ class DemoOutcome:
     out: Path
     campaign: Campaign
     ranking: Ranking
-    story: Any                      # the Van Ingen story (dict or typed, with "lines")
+    story: Story                    # the Van Ingen story
     story_markdown: Path
     study_files: list[Path]
     report: ReportOutcome | None
     seconds: dict[str, float]
 
     def to_dict(self) -> dict:
-        return {"out": str(self.out), "ranking": self.ranking.to_dict(), "story": _as_dict(self.story),
+        return {"out": str(self.out), "ranking": self.ranking.to_dict(), "story": self.story.to_dict(),
                 "study_files": [str(p) for p in self.study_files],
                 "report": None if self.report is None else self.report.to_dict(), "seconds": dict(self.seconds)}
 
@@ -104,7 +105,7 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
                               + (f" --scale {scale:g}" if scale != 1.0 else ""))
     t_story = time.perf_counter() - t1
     say(f"the story, Van Ingen's simulator model against the flight data ({t_story:.0f} s; {story_md}):")
-    for line in _as_dict(story)["lines"]:
+    for line in story.lines:
         say(f"  {line}")
     t2 = time.perf_counter()
     study = run_study(campaign, out, FitOptions(n_starts=starts), n_jobs=n_jobs, progress=progress)
@@ -118,6 +119,6 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
         say("no figures: the report needs matplotlib (pip install 'structsearch[figures]')")
         return DemoOutcome(out, campaign, ranking, story, story_md, written, None, seconds)
     from .api.report import report
-    page = report(campaign, out, starts=starts, jobs=n_jobs, story=_as_dict(story)["lines"], progress=progress)
+    page = report(campaign, out, starts=starts, jobs=n_jobs, story=list(story.lines), progress=progress)
     seconds["report"] = page.seconds
     return DemoOutcome(out, campaign, ranking, story, story_md, written, page, seconds)

@@ -85,31 +85,30 @@ def withheld_elevator(campaign):
 
 def test_withheld_effect_ranked_first_and_gap_closed(withheld_elevator):
     d = withheld_elevator
-    assert d["effects"][0]["name"] == "elevator"
+    assert d.effects[0].name == "elevator"
     # the p-value's F reference has the effective maneuvers' dof (a handful on this small campaign),
     # so "significant" means below the diagnosis' adoption level, not astronomically small
-    assert d["effects"][0]["shrink"] > 0.8 and d["effects"][0]["p_value"] < 0.01
-    assert not d["gap_explained_by_baseline"] and d["explained"]
+    assert d.effects[0].shrink > 0.8 and d.effects[0].p_value < 0.01
+    assert not d.gap_explained_by_baseline and d.explained
 
 
 def test_final_model_is_the_model_after_the_adopted_effects_and_shrinks_stay_in_0_1(withheld_elevator, campaign):
     d = withheld_elevator
-    adopted = d["rounds"][0]["effects"][0]
-    assert d["rounds"][0]["adopted"] == "elevator"
-    assert d["final_model"] == adopted["model"] != d["baseline"]
+    adopted = d.rounds[0].effects[0]
+    assert d.rounds[0].adopted == "elevator"
+    assert d.final_model == adopted.model != d.baseline
     # the final model refitted here, outside the diagnosis, from the baseline and the effect's declaration
     final = fx.LIBRARY["elevator"].apply(baseline_without("elevator"))
-    assert final.name == d["final_model"]
+    assert final.name == d.final_model
     train_, val_ = campaign.split("train"), campaign.split("validation")
     lift_ = fit_lift_model(final, train_, val_, OPTIONS)
     refit = fit_candidate(final, train_, val_, lift_, OPTIONS)
-    assert d["final_mse"] == pytest.approx(refit.mse_validation, rel=1e-6)
+    assert d.final_mse == pytest.approx(refit.mse_validation, rel=1e-6)
     # every gap ratio computed from the document's MSEs, unclamped, lies in [0, 1] for improving effects
-    for r in d["rounds"]:
-        for e in r["effects"]:
-            if "error" not in e and e["mse_validation_after"] < r["mse"]["validation"]:
-                ratio = (r["mse"]["validation"] - e["mse_validation_after"]) / (r["mse"]["validation"]
-                                                                                 - d["noise_floor"])
+    for r in d.rounds:
+        for e in r.effects:
+            if not e.failed and e.mse_validation_after < r.mse.validation:
+                ratio = (r.mse.validation - e.mse_validation_after) / (r.mse.validation - d.noise_floor)
                 assert -1e-12 <= ratio <= 1 + 1e-12, e
     # the floor is not above the saturated model refitted here, outside the diagnosis (interfaces.md 5.4)
     from structsearch.diagnosis.diagnose import saturated
@@ -117,43 +116,43 @@ def test_final_model_is_the_model_after_the_adopted_effects_and_shrinks_stay_in_
     train, val = campaign.split("train"), campaign.split("validation")
     lift = fit_lift_model(base, train, val, OPTIONS)
     sat = fit_candidate(saturated(base, fx.applicable(base))[0], train, val, lift, OPTIONS)
-    assert d["noise_floor"] <= sat.mse_validation * (1 + 1e-9)
+    assert d.noise_floor <= sat.mse_validation * (1 + 1e-9)
     # explained: nothing left for the library-free floor either
-    assert d["explained"] and d["unexplained"]["signals"] == []
+    assert d.explained and d.unexplained.signals == ()
 
 
 def test_state_level_error_shrinks_with_the_effect(withheld_elevator, campaign):
-    sl = withheld_elevator["state_level"]
-    assert set(sl["before"]) == {"alpha", "q", "V", "theta"}
+    sl = withheld_elevator.state_level
+    assert set(sl.before.to_dict()) == {"alpha", "q", "V", "theta"} and not sl.failed
     d = diagnose(campaign, baseline_without("cp_shift"), options=OPTIONS, max_rounds=1)
-    assert d["state_level"]["reduction"]["alpha"] > 0.5  # the replayed pitch dynamics follow the data
+    assert d.state_level.reduction.alpha > 0.5  # the replayed pitch dynamics follow the data
 
 
 def test_where_bins_partition_the_validation_samples(withheld_elevator, campaign):
     """Each dimension's bins cover every validation sample once: their sample-weighted MSEs give back the
     baseline's validation MSE (shares are normalised inside the code, so their sum proves nothing)."""
     d = withheld_elevator
-    dims = {r["dimension"] for r in d["where"]}
+    dims = {r.dimension for r in d.where}
     assert {"maneuver", "alpha_band", "phase", "alpha_dot_sign"} <= dims
     n_val = campaign.split("validation").n_samples
     for dim in dims - {"frequency_band"}:   # frequency bands split power, not samples
-        rows = [r for r in d["where"] if r["dimension"] == dim]
-        assert sum(r["samples"] for r in rows) == n_val, dim
-        pooled = sum(r["mse"] * r["samples"] for r in rows) / n_val
-        assert pooled == pytest.approx(d["mse"]["validation"], rel=1e-9), dim
+        rows = [r for r in d.where if r.dimension == dim]
+        assert sum(r.samples for r in rows) == n_val, dim
+        pooled = sum(r.mse * r.samples for r in rows) / n_val
+        assert pooled == pytest.approx(d.mse.validation, rel=1e-9), dim
     # the per-maneuver bins against the baseline fitted here, outside the diagnosis
     base = baseline_without("elevator")
     train, val = campaign.split("train"), campaign.split("validation")
     lift = fit_lift_model(base, train, val, OPTIONS)
     fit = fit_candidate(base, train, val, lift, OPTIONS)
-    by_bin = {r["bin"]: r["mse"] for r in d["where"] if r["dimension"] == "maneuver"}
+    by_bin = {r.bin: r.mse for r in d.where if r.dimension == "maneuver"}
     assert list(by_bin) == list(val.names)
     assert np.allclose([by_bin[n] for n in val.names], fit.validation.mse_maneuvers, rtol=1e-4)
 
 
 def test_final_model_is_explained(campaign):
     d = diagnose(campaign, find_candidate("Cm-XXXIIIr"), options=OPTIONS, max_rounds=1)
-    assert d["gap_explained_by_baseline"] and d["explained"]
+    assert d.gap_explained_by_baseline and d.explained
     # checked outside the diagnosis: the saturated model, fitted here, predicts the validation maneuvers
     # no better than 1 % below the final model
     from structsearch.diagnosis import effects as fx
@@ -162,16 +161,17 @@ def test_final_model_is_explained(campaign):
     train, val = campaign.split("train"), campaign.split("validation")
     lift = fit_lift_model(final, train, val, OPTIONS)
     sat = fit_candidate(saturated(final, fx.applicable(final))[0], train, val, lift, OPTIONS)
-    assert sat.mse_validation >= 0.99 * d["mse"]["validation"], (sat.mse_validation, d["mse"])
+    assert sat.mse_validation >= 0.99 * d.mse.validation, (sat.mse_validation, d.mse)
 
 
 def test_deterministic(campaign):
     a = diagnose(campaign, baseline_without("induced_drag"), options=OPTIONS, max_rounds=1)
     # the effects fitted on two processes give the same document as on one
     b = diagnose(campaign, baseline_without("induced_drag"), options=OPTIONS, max_rounds=1, n_jobs=2)
-    a.pop("seconds"), b.pop("seconds")
-    assert json.dumps(a, default=float, sort_keys=True) == json.dumps(b, default=float, sort_keys=True)
-    assert a["effects"][0]["name"] == "induced_drag"
+    da, db = a.to_dict(), b.to_dict()
+    da.pop("seconds"), db.pop("seconds")
+    assert json.dumps(da, default=float, sort_keys=True) == json.dumps(db, default=float, sort_keys=True)
+    assert a.effects[0].name == "induced_drag"
 
 
 def test_campaign_without_validation_maneuvers(campaign):
@@ -214,35 +214,104 @@ def test_a_gap_outside_the_library_is_not_explained_and_follows_its_signal():
     not at the library-free floor even after what the library adds, and the remainder follows V."""
     camp = build_campaign(seed=5, scale=0.1, slow_errors=0.0, anomaly="compressibility")
     d = diagnose(camp, find_candidate("CL-VI"), options=OPTIONS, max_rounds=2, states=False)
-    assert not d["gap_explained_by_baseline"] and not d["explained"]
-    u = d["unexplained"]
-    assert u["gap_signals"][0]["name"] == "V" and u["gap_signals"][0]["importance"] > 0.3
-    assert 0.0 < u["share"] <= 1.0 and u["noise_floor"] >= d["noise_floor"]
+    assert not d.gap_explained_by_baseline and not d.explained
+    u = d.unexplained
+    assert u.gap_signals[0].name == "V" and u.gap_signals[0].importance > 0.3
+    assert 0.0 < u.share <= 1.0 and u.noise_floor >= d.noise_floor
     # a function of V alone, fitted on training maneuvers, removes part of the gap on the validation ones
-    assert u["gap_signals"][0]["share"] > 0.1
+    assert u.gap_signals[0].share > 0.1
     # the report draws the residual against the top signals of what remains
-    assert [p["name"] for p in u["partial_dependence"]] == [s["name"] for s in u["signals"][:3]]
+    assert [p.name for p in u.partial_dependence] == [s.name for s in u.signals[:3]]
     # the same campaign without the anomaly: the truth structure is at the floor, nothing unexplained
     clean = diagnose(build_campaign(seed=5, scale=0.1, slow_errors=0.0), find_candidate("CL-VI"),
                      options=OPTIONS, max_rounds=1, states=False)
-    assert clean["explained"] and clean["unexplained"]["signals"] == []
+    assert clean.explained and clean.unexplained.signals == ()
+
+
+def _round(baseline, validation, adopted, effects):
+    from structsearch.diagnosis.results import Round, TrainValidation
+    return Round(baseline, TrainValidation(validation, validation), 1.0, "saturated library model", 1.0, 0.1, (),
+                 tuple(effects), adopted is None, 0.0, 0.01, None, adopted, 1.0, validation - 1.0)
+
+
+def _story_diagnosis(**changes):
+    """A two-round diagnosis made by hand: two effects adopted, then at the floor."""
+    import dataclasses
+    from structsearch.diagnosis.results import Diagnosis, EffectRow, Unexplained
+
+    def effect(name, after):
+        return EffectRow(name, None, after, after, 1e-6, 0.5, {}, False, f"model + {name}")
+    rounds = (_round("CL-I", 2.0, "a", [effect("a", 1.5), effect("b", 1.8)]),
+              _round("CL-I + a", 1.5, "b", [effect("b", 1.0)]),
+              _round("CL-I + a + b", 1.0, None, [effect("c", 1.0), EffectRow("d", error="fitting d failed")]))
+    d = Diagnosis("CL", "CL-I", 1.0, "saturated library model", 1.0, True, 0.0, 0.01, rounds, "CL-I + a + b", 1.0,
+                  Unexplained(1.0, 0, 0.0), seconds=1.0)
+    return dataclasses.replace(d, **changes)
 
 
 def test_story_lines_tell_the_adopted_effects_in_order():
-    """The demo's story from a diagnosis document (two effects adopted, then at the floor)."""
+    """The demo's story from a diagnosis (two effects adopted, then at the floor)."""
+    from structsearch.diagnosis.results import SignalShare, Unexplained
     from structsearch.diagnosis.story import story_lines
-
-    def effect(name, after):
-        return {"name": name, "mse_validation_after": after, "shrink": None, "p_value": 1e-6}
-    doc = {"baseline": "CL-I", "mse": {"validation": 2.0}, "noise_floor": 1.0, "final_mse": 1.0,
-           "final_model": "CL-I + a + b", "explained": True, "unexplained": {"signals": []},
-           "rounds": [{"mse": {"validation": 2.0}, "adopted": "a", "effects": [effect("a", 1.5), effect("b", 1.8)]},
-                      {"mse": {"validation": 1.5}, "adopted": "b", "effects": [effect("b", 1.0)]},
-                      {"mse": {"validation": 1.0}, "adopted": None, "effects": [effect("c", 1.0)]}]}
-    line, = story_lines({"CL": doc})
+    line, = story_lines({"CL": _story_diagnosis()})
     assert "misses the flight data by 100% above the noise floor" in line
     assert "adding a closes 50% of that gap, then adding b closes 50% of that gap" in line
     assert line.endswith("CL-I + a + b is at the floor.")
-    doc.update(explained=False, final_mse=1.25, unexplained={"share": 0.25, "signals": [{"name": "V", "share": 0.9}]})
+    doc = _story_diagnosis(explained=False, final_mse=1.25,
+                           unexplained=Unexplained(1.0, 3, 0.25, signals=(SignalShare("V", 0.9, None),)))
     line, = story_lines({"CL": doc})
     assert "still 25% above the floor" in line and "(25% of the gap) and follows V" in line
+
+
+# the keys docs/interfaces.md sections 3 and 5.4 fix (extend, never rename), and the extensions written since
+INTERFACE_KEYS = ["coefficient", "baseline", "mse", "noise_floor", "floor_source", "noise_floor_library",
+                  "noise_floor_spectral", "where", "effects", "explained", "gap_explained_by_baseline",
+                  "final_excess_over_floor", "final_excess_se", "rounds", "final_model", "final_mse", "unexplained",
+                  "warnings", "state_level", "seconds"]
+
+
+def test_diagnosis_to_dict_is_the_interface_document(withheld_elevator):
+    from structsearch.diagnosis.results import Diagnosis
+    from structsearch.report.diagnosis_doc import public
+    d = withheld_elevator
+    doc = d.to_dict()
+    assert list(doc) == INTERFACE_KEYS
+    assert set(doc["mse"]) == {"train", "validation"}
+    assert {"dimension", "bin", "share", "mse"} <= set(doc["where"][0])
+    assert {"name", "shrink", "mse_validation_after", "p_value"} <= set(doc["effects"][0])
+    assert {"share", "noise_floor", "signals"} <= set(doc["unexplained"])
+    assert list(doc["state_level"]) == ["before", "after", "window_s", "reduction"]
+    # the first round's parts at the top level, and the document survives JSON
+    assert doc["effects"] == doc["rounds"][0]["effects"] and doc["where"] == doc["rounds"][0]["where"]
+    assert doc["gap_explained_by_baseline"] == doc["rounds"][0]["explained_before"] is False
+    text = json.dumps(doc, default=float)
+    assert json.dumps(Diagnosis.from_dict(json.loads(text)).to_dict(), default=float) == text
+    # what could not be estimated is null in the file (the maneuver bins draw no bootstrap)
+    written = public(d)
+    assert [w["share_std"] for w in written["where"] if w["dimension"] == "maneuver"][0] is None
+    assert written == public(doc)
+
+
+def test_failures_stay_recorded_in_the_document():
+    from structsearch.diagnosis.results import StateLevel
+    from structsearch.report.diagnosis_doc import diagnosis_console_lines, markdown
+    d = _story_diagnosis(state_level=StateLevel(error="state-level comparison: no Cm column"))
+    doc = json.loads(json.dumps(d.to_dict()))
+    assert doc["state_level"] == {"error": "state-level comparison: no Cm column"}
+    assert doc["rounds"][2]["effects"][1] == {"name": "d", "error": "fitting d failed"}
+    assert "state_level" not in _story_diagnosis().to_dict()    # not asked for: absent, as before
+    assert "Not available: state-level comparison: no Cm column" in markdown(d)
+    head, = diagnosis_console_lines(d, ("x.json", "x.md"))
+    # the best effect's shrink is None (made by hand without one): nothing to quote
+    assert head == "CL CL-I: no effect fitted; final model CL-I + a + b; explained: yes; wrote x.json and x.md"
+
+
+def test_story_to_dict_round_trips_through_json():
+    from structsearch.diagnosis.story import Story, story_lines
+    from structsearch.report.diagnosis_doc import story_console_lines
+    diagnoses = {"CL": _story_diagnosis()}
+    story = Story(diagnoses, tuple(story_lines(diagnoses)))
+    doc = json.loads(json.dumps(story.to_dict()))
+    assert list(doc) == ["diagnoses", "lines"] and doc["lines"] == list(story.lines)
+    assert doc["diagnoses"]["CL"] == json.loads(json.dumps(diagnoses["CL"].to_dict()))
+    assert story_console_lines(story) == [f"  {line}" for line in story.lines]

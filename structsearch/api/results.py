@@ -12,11 +12,6 @@ from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
 
 
-def _as_dict(x: Any) -> Any:
-    """A diagnosis or story as its JSON dict (until the typed diagnosis lands, it may already be one)."""
-    return x.to_dict() if hasattr(x, "to_dict") else x
-
-
 @dataclass(frozen=True)
 class FitOutcome:
     """One candidate fitted as ``structsearch fit`` fits it: its result and the lift model it takes its

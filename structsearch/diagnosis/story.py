@@ -4,11 +4,13 @@ how far each closes it, at coefficient and state level, and where it ends.
 """
 from __future__ import annotations
 
-from typing import Callable
+from dataclasses import dataclass
+from typing import Callable, Mapping
 
 import numpy as np
 
 from .diagnose import diagnose
+from .results import Diagnosis
 from ..data.campaign import Campaign
 from ..flight.reference import VAN_INGEN_MODEL_NAMES
 from ..fitting.options import FitOptions
@@ -18,8 +20,20 @@ from ..fitting.specs import find_candidate
 STORY_ROUNDS = 4
 
 
+@dataclass(frozen=True)
+class Story:
+    """Each Van Ingen structure's diagnosis (coefficient -> diagnosis) and the story in words, a line each."""
+
+    diagnoses: Mapping[str, Diagnosis]
+    lines: tuple[str, ...]
+
+    def to_dict(self) -> dict:
+        """``story.json``: ``{"diagnoses": {coefficient: diagnosis document}, "lines": [...]}``."""
+        return {"diagnoses": {coef: d.to_dict() for coef, d in self.diagnoses.items()}, "lines": list(self.lines)}
+
+
 def van_ingen_story(campaign: Campaign, options: FitOptions = FitOptions(n_starts=2, cv_folds=0),
-                    progress: Callable[[str], None] | None = None, n_jobs: int = 1) -> dict:
+                    progress: Callable[[str], None] | None = None, n_jobs: int = 1) -> Story:
     """Diagnose each Van Ingen structure (as many rounds as effects keep closing its gap)."""
     say = progress or (lambda m: None)
     docs = {}
@@ -27,18 +41,17 @@ def van_ingen_story(campaign: Campaign, options: FitOptions = FitOptions(n_start
         say(f"story: diagnosing the Van Ingen {coef} model {name}")
         docs[coef] = diagnose(campaign, find_candidate(name), options=options, max_rounds=STORY_ROUNDS,
                               progress=lambda m, c=coef: say(f"story {c}: {m}"), n_jobs=n_jobs)
-    return {"diagnoses": docs, "lines": story_lines(docs)}
+    return Story(docs, tuple(story_lines(docs)))
 
 
-def _steps(doc: dict) -> list[tuple[str, float]]:
+def _steps(doc: Diagnosis) -> list[tuple[str, float]]:
     """(effect adopted, fraction of the first round's gap it closed), round by round."""
-    rounds = doc["rounds"]
-    gap = rounds[0]["mse"]["validation"] - doc["noise_floor"]
+    gap = doc.rounds[0].mse.validation - doc.noise_floor
     out = []
-    for r in rounds:
-        if r.get("adopted"):
-            after = next(e["mse_validation_after"] for e in r["effects"] if e["name"] == r["adopted"])
-            out.append((r["adopted"], (r["mse"]["validation"] - after) / gap if gap > 0 else float("nan")))
+    for r in doc.rounds:
+        if r.adopted:
+            after = r.effect(r.adopted).mse_validation_after
+            out.append((r.adopted, (r.mse.validation - after) / gap if gap > 0 else float("nan")))
     return out
 
 
@@ -46,43 +59,45 @@ def _above(mse: float, floor: float) -> str:
     return f"{mse / floor - 1:.0%}" if floor > 0 else "n/a"
 
 
-def story_lines(docs: dict[str, dict]) -> list[str]:
+def story_lines(docs: Mapping[str, Diagnosis]) -> list[str]:
     """One line per coefficient, in words; "above the floor" is the pooled validation MSE's excess."""
     lines = []
     for coef, doc in docs.items():
-        mse, floor = doc["mse"]["validation"], doc["noise_floor"]
-        text = (f"{coef}: the Van Ingen model {doc['baseline']} misses the flight data by {_above(mse, floor)} "
+        mse, floor = doc.mse.validation, doc.noise_floor
+        text = (f"{coef}: the Van Ingen model {doc.baseline} misses the flight data by {_above(mse, floor)} "
                 f"above the noise floor (validation MSE {mse:.3g} against {floor:.3g})")
         steps = _steps(doc)
         if steps:
             text += "; " + ", then ".join(
                 f"adding {name} closes {'n/a' if not np.isfinite(share) else f'{share:.0%}'} of that gap"
                 for name, share in steps)
-        verdict = ("at the floor" if doc["explained"] else
-                   f"still {_above(doc['final_mse'], floor)} above the floor")
-        text += f"; {doc['final_model']} is {verdict}"
-        sl = doc.get("state_level") or {}
-        if "before" in sl:
-            text += (f" (replayed alpha RMS {sl['before']['alpha']:.4f} -> {sl['after']['alpha']:.4f} rad with the "
+        verdict = ("at the floor" if doc.explained else
+                   f"still {_above(doc.final_mse, floor)} above the floor")
+        text += f"; {doc.final_model} is {verdict}"
+        sl = doc.state_level
+        if sl is not None and not sl.failed:
+            text += (f" (replayed alpha RMS {sl.before.alpha:.4f} -> {sl.after.alpha:.4f} rad with the "
                      "first effect)")
-        unexplained = doc.get("unexplained") or {}
-        if not doc["explained"] and unexplained.get("signals") and unexplained.get("share") is not None:
-            text += (f"; what remains is not in the library ({unexplained['share']:.0%} of the gap) and follows "
-                     f"{unexplained['signals'][0]['name']}")
+        u = doc.unexplained
+        if not doc.explained and u.signals and u.share is not None:
+            text += (f"; what remains is not in the library ({u.share:.0%} of the gap) and follows "
+                     f"{u.signals[0].name}")
         lines.append(text + ".")
     return lines
 
 
-def unexplained_sentence(doc: dict) -> str:
-    """What the library cannot explain, in words (empty when the final model is at the floor)."""
-    u = doc.get("unexplained") or {}
-    if doc.get("explained") or u.get("share") is None or not u["share"] > 0:
+def unexplained_sentence(doc: Diagnosis | Mapping) -> str:
+    """What the library cannot explain, in words (empty when the final model is at the floor). ``doc`` is a
+    diagnosis or its ``to_dict()``."""
+    if not isinstance(doc, Diagnosis):
+        doc = Diagnosis.from_dict(doc)
+    u = doc.unexplained
+    if doc.explained or u.share is None or not u.share > 0:
         return ""
-    text = f"{u['share']:.0%} of the gap is not explained by the library"
-    top = [s for s in u.get("signals", []) if s["share"] > 0][:1]
+    text = f"{u.share:.0%} of the gap is not explained by the library"
+    top = [s for s in u.signals if s.share > 0][:1]
     if top:
-        text += f"; it follows {top[0]['name']} (a function of it alone removes {top[0]['share']:.0%} of the rest)"
-    where = u.get("where")
-    if where:
-        text += f", mostly at alpha {where['alpha_band']} rad in the {where['phase']} phase"
+        text += f"; it follows {top[0].name} (a function of it alone removes {top[0].share:.0%} of the rest)"
+    if u.where is not None:
+        text += f", mostly at alpha {u.where.alpha_band} rad in the {u.where.phase} phase"
     return text + "."

@@ -20,12 +20,15 @@ state.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from dataclasses import dataclass, fields
+from typing import Callable, Mapping
 
 import numpy as np
 
-from .diagnose import _bins, _shares, _top_bins, diagnose
+from .diagnose import diagnose
+from .results import Diagnosis
 from .story import unexplained_sentence
+from .where import bins, shares, top_bins
 from ..engine.separation import static_separation
 from ..flight.reference import FINAL_LIFT
 from ..flight.anomalies import ANOMALIES, truth_difference
@@ -71,83 +74,183 @@ def truth_location(campaign, effect: str) -> dict:
                            for m, sl in zip(campaign.maneuvers, campaign.data.segment_slices())])
     val = campaign.split("validation")
     # phases as the diagnosis defines them (a static stall-strip curve), from the truth's parameters
-    labels = _bins(val, static_separation(val["alpha"], FINAL_LIFT["a1_ss"], FINAL_LIFT["a_star_ss"]))
+    labels = bins(val, static_separation(val["alpha"], FINAL_LIFT["a1_ss"], FINAL_LIFT["a_star_ss"]))
     out = {"truth_mse": float(np.mean(delta[mask] ** 2))}
     for dim in ("phase", "alpha_band"):
-        keys, shares = _shares(delta[mask] ** 2, labels[dim])
-        top = None if np.all(np.isnan(shares)) else int(np.nanargmax(shares))
+        keys, share = shares(delta[mask] ** 2, labels[dim])
+        top = None if np.all(np.isnan(share)) else int(np.nanargmax(share))
         out[dim] = None if top is None else str(keys[top])
-        out[f"{dim}_share"] = None if top is None else float(shares[top])
+        out[f"{dim}_share"] = None if top is None else float(share[top])
     return out
 
 
-def _top(doc: dict) -> dict:
-    return _top_bins(doc["where"]) or {"phase": None, "alpha_band": None}
+class _Row:
+    """A benchmark row: its ``to_dict()`` is its fields in declaration order (the JSON's key order)."""
+
+    def to_dict(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
-def _closed_by_library(doc: dict) -> float:
+@dataclass(frozen=True)
+class WithheldRow(_Row):
+    """A final model without one library effect, diagnosed: is the effect found, does it close the gap, and is
+    the gap where the truth says the effect acts?"""
+
+    effect: str
+    coefficient: str
+    baseline: str
+    ranked_first: bool
+    first: str
+    shrink: float | None
+    closes_half: bool
+    # the truth's own measure of the effect against the baseline's gap: an upper bound of what adding it can
+    # close (the baseline's refit absorbs part of the effect through its other terms)
+    truth_share: float | None
+    top_phase: str | None
+    top_alpha_band: str | None
+    truth_phase: str | None
+    truth_alpha_band: str | None
+    truth_mse: float
+    located: bool
+    gap_p_value: float | None
+    explained: bool
+    state_alpha_rms: float | None
+    state_alpha_rms_after: float | None
+    seconds: float
+
+
+@dataclass(frozen=True)
+class AnomalyRow(_Row):
+    """A campaign whose truth holds an effect outside the library, diagnosed from the final model."""
+
+    anomaly: str
+    coefficient: str
+    baseline: str
+    description: str
+    signal: str
+    detected: bool
+    top_phase: str | None
+    top_alpha_band: str | None
+    truth_phase: str | None
+    truth_alpha_band: str | None
+    truth_mse: float
+    located: bool
+    adopted: str                 # the model after the adopted effects
+    closed_by_library: float     # NaN: no gap
+    explained: bool
+    false_claim: bool
+    unexplained_share: float | None
+    first_signal: str | None
+    says: str
+    first_signal_remaining: str | None
+    signal_first: bool
+    gap_p_value: float | None
+    seconds: float
+
+
+@dataclass(frozen=True)
+class NullRow(_Row):
+    """A final model diagnosed on a campaign of its own truth: any alarm is false."""
+
+    seed: int
+    model: str
+    explained: bool
+    gap_p_value: float | None
+    alarm_test: bool | None      # None: the Wald test is not estimable
+    alarm_combined: bool
+    seconds: float
+
+
+@dataclass(frozen=True)
+class BenchmarkResult:
+    """The whole benchmark; ``to_dict()`` is ``withheld_benchmark.json``."""
+
+    seed: int
+    scale: float
+    rows: tuple[WithheldRow, ...]
+    outside: tuple[AnomalyRow, ...]
+    null: tuple[NullRow, ...]
+    not_expressible: Mapping[str, str]
+    seconds: float
+
+    def to_dict(self) -> dict:
+        return {"seed": self.seed, "scale": self.scale, "rows": [r.to_dict() for r in self.rows],
+                "outside": [r.to_dict() for r in self.outside], "null": [r.to_dict() for r in self.null],
+                "not_expressible": dict(self.not_expressible), "seconds": self.seconds}
+
+    @property
+    def ranked_first(self) -> int:
+        return sum(r.ranked_first for r in self.rows)
+
+    @property
+    def outside_scored(self) -> int:
+        """Out-of-library effects located, not falsely explained and with their signal first."""
+        return sum(r.located and not r.false_claim and r.signal_first for r in self.outside)
+
+    @property
+    def false_alarms(self) -> int:
+        return sum(r.alarm_combined for r in self.null)
+
+    @property
+    def false_alarms_test(self) -> int:
+        return sum(bool(r.alarm_test) for r in self.null)
+
+
+def _top(doc: Diagnosis):
+    top = top_bins(doc.where)
+    return (None, None) if top is None else (top.phase, top.alpha_band)
+
+
+def _closed_by_library(doc: Diagnosis) -> float:
     """Fraction of the first round's gap the adopted library effects close together (NaN: no gap)."""
-    gap = doc["mse"]["validation"] - doc["noise_floor"]
-    return float((doc["mse"]["validation"] - doc["final_mse"]) / gap) if gap > 0 else float("nan")
+    gap = doc.mse.validation - doc.noise_floor
+    return float((doc.mse.validation - doc.final_mse) / gap) if gap > 0 else float("nan")
 
 
-def withheld_row(campaign, effect: str, options: FitOptions, n_jobs: int) -> dict:
+def withheld_row(campaign, effect: str, options: FitOptions, n_jobs: int) -> WithheldRow:
     base = baseline_without(effect)
     doc = diagnose(campaign, base, options=options, max_rounds=1, n_jobs=n_jobs)
-    first = doc["effects"][0]
-    reported = next((e for e in doc["effects"] if e["name"] == effect), None)
+    first = doc.effects[0]
+    reported = next((e for e in doc.effects if e.name == effect), None)
     truth = truth_location(campaign, effect)
-    top = _top(doc)
-    return {"effect": effect, "coefficient": base.coefficient, "baseline": base.name,
-            "ranked_first": first["name"] == effect, "first": first["name"],
-            "shrink": reported["shrink"] if reported else None,
-            "closes_half": bool(reported and reported["shrink"] is not None and reported["shrink"] >= HALF),
-            # the truth's own measure of the effect against the baseline's gap: an upper bound of what adding it
-            # can close (the baseline's refit absorbs part of the effect through its other terms)
-            "truth_share": (min(truth["truth_mse"] / (doc["mse"]["validation"] - doc["noise_floor"]), 1.0)
-                            if doc["mse"]["validation"] > doc["noise_floor"] else None),
-            "top_phase": top["phase"], "top_alpha_band": top["alpha_band"],
-            "truth_phase": truth["phase"], "truth_alpha_band": truth["alpha_band"], "truth_mse": truth["truth_mse"],
-            "located": top["phase"] is not None and top["phase"] == truth["phase"],
-            "gap_p_value": doc["rounds"][0]["gap_p_value"], "explained": doc["explained"],
-            "state_alpha_rms": (doc.get("state_level") or {}).get("before", {}).get("alpha"),
-            "state_alpha_rms_after": (doc.get("state_level") or {}).get("after", {}).get("alpha"),
-            "seconds": doc["seconds"]}
+    top_phase, top_band = _top(doc)
+    mse, floor = doc.mse.validation, doc.noise_floor
+    sl = doc.state_level if doc.state_level is not None and not doc.state_level.failed else None
+    return WithheldRow(effect, base.coefficient, base.name, first.name == effect, first.name,
+                       reported.shrink if reported else None,
+                       bool(reported and reported.shrink is not None and reported.shrink >= HALF),
+                       min(truth["truth_mse"] / (mse - floor), 1.0) if mse > floor else None,
+                       top_phase, top_band, truth["phase"], truth["alpha_band"], truth["truth_mse"],
+                       top_phase is not None and top_phase == truth["phase"], doc.rounds[0].gap_p_value,
+                       doc.explained, None if sl is None else sl.before.alpha, None if sl is None else sl.after.alpha,
+                       doc.seconds)
 
 
-def anomaly_row(name: str, seed: int, scale: float, options: FitOptions, n_jobs: int) -> dict:
+def anomaly_row(name: str, seed: int, scale: float, options: FitOptions, n_jobs: int) -> AnomalyRow:
     anomaly = ANOMALIES[name]
     campaign = build_campaign(seed=seed, scale=scale, anomaly=name)
     base = find_candidate(FINAL_MODEL_NAMES[anomaly.coefficient])
     doc = diagnose(campaign, base, options=options, max_rounds=2, states=False, n_jobs=n_jobs)
     truth = truth_location(campaign, name)
-    top = _top(doc)
+    top_phase, top_band = _top(doc)
     closed = _closed_by_library(doc)
     # the signal the whole gap followed before any library effect: an adopted effect may absorb part of the
     # anomaly and leave a remainder that follows something else (flight-to-flight offsets)
-    u = doc.get("unexplained") or {}
-    signals = u.get("gap_signals") or []
-    remaining = u.get("signals") or []
-    detected = not doc["gap_explained_by_baseline"]
-    false_claim = bool(doc["explained"] and doc["final_model"] != base.name and not closed >= HALF)
-    return {"anomaly": name, "coefficient": anomaly.coefficient, "baseline": base.name,
-            "description": anomaly.description, "signal": anomaly.signal,
-            "detected": detected, "top_phase": top["phase"], "top_alpha_band": top["alpha_band"],
-            "truth_phase": truth["phase"], "truth_alpha_band": truth["alpha_band"],
-            "truth_mse": truth["truth_mse"],
-            "located": bool(detected and top["phase"] is not None and top["phase"] == truth["phase"]),
-            "adopted": doc["final_model"], "closed_by_library": closed, "explained": doc["explained"],
-            "false_claim": false_claim,
-            "unexplained_share": (doc.get("unexplained") or {}).get("share"),
-            "first_signal": signals[0]["name"] if signals else None, "says": unexplained_sentence(doc),
-            "first_signal_remaining": remaining[0]["name"] if remaining else None,
-            "signal_first": bool(signals and signals[0]["name"] == anomaly.signal),
-            "gap_p_value": doc["rounds"][0]["gap_p_value"], "seconds": doc["seconds"]}
+    signals, remaining = doc.unexplained.gap_signals, doc.unexplained.signals
+    detected = not doc.gap_explained_by_baseline
+    false_claim = bool(doc.explained and doc.final_model != base.name and not closed >= HALF)
+    return AnomalyRow(name, anomaly.coefficient, base.name, anomaly.description, anomaly.signal, detected,
+                      top_phase, top_band, truth["phase"], truth["alpha_band"], truth["truth_mse"],
+                      bool(detected and top_phase is not None and top_phase == truth["phase"]), doc.final_model,
+                      closed, doc.explained, false_claim, doc.unexplained.share,
+                      signals[0].name if signals else None, unexplained_sentence(doc),
+                      remaining[0].name if remaining else None, bool(signals and signals[0].name == anomaly.signal),
+                      doc.rounds[0].gap_p_value, doc.seconds)
 
 
 def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, anomalies=None,
         progress: Callable[[str], None] | None = None, options: FitOptions = FitOptions(n_starts=2, cv_folds=0),
-        n_jobs: int = 1) -> dict:
+        n_jobs: int = 1) -> BenchmarkResult:
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     campaign = build_campaign(seed=seed, scale=scale)
@@ -165,58 +268,57 @@ def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, a
         for coef, name in FINAL_MODEL_NAMES.items():
             say(f"null case seed {s} {name}")
             doc = diagnose(camp, find_candidate(name), options=options, max_rounds=1, states=False, n_jobs=n_jobs)
-            p = doc["rounds"][0]["gap_p_value"]
-            null.append({"seed": s, "model": name, "explained": doc["explained"], "gap_p_value": p,
-                         "alarm_test": None if p is None else bool(p < 0.01), "alarm_combined": not doc["explained"],
-                         "seconds": doc["seconds"]})
-    return {"seed": seed, "scale": scale, "rows": rows, "outside": outside, "null": null,
-            "not_expressible": NOT_EXPRESSIBLE, "seconds": time.perf_counter() - t0}
+            p = doc.rounds[0].gap_p_value
+            null.append(NullRow(s, name, doc.explained, p, None if p is None else bool(p < 0.01), not doc.explained,
+                                doc.seconds))
+    return BenchmarkResult(seed, scale, tuple(rows), tuple(outside), tuple(null), NOT_EXPRESSIBLE,
+                           time.perf_counter() - t0)
 
 
 def _yes(flag) -> str:
     return "yes" if flag else "NO"
 
 
-def markdown(res: dict, command: str = "structsearch diagnose --benchmark --out results") -> str:
+def markdown(res: BenchmarkResult, command: str = "structsearch diagnose --benchmark --out results") -> str:
     from tabulate import tabulate
-    rows, outside, null = res["rows"], res.get("outside", []), res["null"]
+    rows, outside, null = res.rows, res.outside, res.null
     n = len(rows)
     lines = ["# Diagnosis benchmark", "", f"Every figure on this page was made by `{command}` "
-             f"(seed {res['seed']}, scale {res['scale']}; {res['seconds']:.0f} s).", "",
+             f"(seed {res.seed}, scale {res.scale}; {res.seconds:.0f} s).", "",
              "References come from the truth itself: the truth coefficient with and without the effect, evaluated "
              "on the flown validation states, gives where the effect acts (the phase and alpha band with the "
              "largest share of the squared difference).", "",
              "## Withheld library effects", "",
              "Default campaign; baseline = final model of the effect's coefficient without it.", "",
-             tabulate([[r["effect"], r["coefficient"], r["first"], _yes(r["ranked_first"]),
-                        "n/a" if r["shrink"] is None else f"{r['shrink']:.2f}", _yes(r["closes_half"]),
-                        "n/a" if r["truth_share"] is None else f"{r['truth_share']:.2f}",
-                        f"{r['top_phase']} / {r['top_alpha_band']}", f"{r['truth_phase']} / {r['truth_alpha_band']}",
-                        _yes(r["located"]), "-" if r.get("state_alpha_rms") is None else
-                        f"{r['state_alpha_rms']:.4f} -> {r['state_alpha_rms_after']:.4f}", f"{r['seconds']:.0f}"]
+             tabulate([[r.effect, r.coefficient, r.first, _yes(r.ranked_first),
+                        "n/a" if r.shrink is None else f"{r.shrink:.2f}", _yes(r.closes_half),
+                        "n/a" if r.truth_share is None else f"{r.truth_share:.2f}",
+                        f"{r.top_phase} / {r.top_alpha_band}", f"{r.truth_phase} / {r.truth_alpha_band}",
+                        _yes(r.located), "-" if r.state_alpha_rms is None else
+                        f"{r.state_alpha_rms:.4f} -> {r.state_alpha_rms_after:.4f}", f"{r.seconds:.0f}"]
                        for r in rows],
                       headers=["withheld effect", "coef.", "ranked first", "hit", "shrink", ">= 0.5",
                                "truth's share of the gap (upper bound)",
                                "gap's top phase / alpha band", "truth's top phase / alpha band", "phase matches",
                                "replayed alpha RMS [rad] before -> after", "s"], tablefmt="github"), "",
-             f"Ranked first: **{sum(r['ranked_first'] for r in rows)}/{n}**; closes at least half of the gap: "
-             f"**{sum(r['closes_half'] for r in rows)}/{n}**; the gap's top phase is the truth's: "
-             f"**{sum(r['located'] for r in rows)}/{n}**.", "",
-             "Not benchmarked: " + "; ".join(f"{k}: {v}" for k, v in res["not_expressible"].items()) + ".", ""]
+             f"Ranked first: **{sum(r.ranked_first for r in rows)}/{n}**; closes at least half of the gap: "
+             f"**{sum(r.closes_half for r in rows)}/{n}**; the gap's top phase is the truth's: "
+             f"**{sum(r.located for r in rows)}/{n}**.", "",
+             "Not benchmarked: " + "; ".join(f"{k}: {v}" for k, v in res.not_expressible.items()) + ".", ""]
     if outside:
         m = len(outside)
-        scored = [r["located"] and not r["false_claim"] and r["signal_first"] for r in outside]
+        scored = [r.located and not r.false_claim and r.signal_first for r in outside]
         lines += ["## Effects outside the library", "",
                   "Campaigns whose truth contains an effect no library term expresses; baseline = the final model "
                   "of the coefficient it affects (two rounds).", "",
-                  tabulate([[r["anomaly"], r["coefficient"], _yes(r["detected"]),
-                             f"{r['top_phase']} / {r['top_alpha_band']}",
-                             f"{r['truth_phase']} / {r['truth_alpha_band']}", _yes(r["located"]), r["adopted"],
-                             "n/a" if not np.isfinite(r["closed_by_library"]) else f"{r['closed_by_library']:.2f}",
-                             "NO (false claim)" if r["false_claim"] else "yes",
-                             "n/a" if r["unexplained_share"] is None else f"{r['unexplained_share']:.2f}",
-                             r["signal"], r["first_signal"] or "-", r.get("first_signal_remaining") or "-",
-                             _yes(r["signal_first"]), f"{r['seconds']:.0f}"]
+                  tabulate([[r.anomaly, r.coefficient, _yes(r.detected),
+                             f"{r.top_phase} / {r.top_alpha_band}",
+                             f"{r.truth_phase} / {r.truth_alpha_band}", _yes(r.located), r.adopted,
+                             "n/a" if not np.isfinite(r.closed_by_library) else f"{r.closed_by_library:.2f}",
+                             "NO (false claim)" if r.false_claim else "yes",
+                             "n/a" if r.unexplained_share is None else f"{r.unexplained_share:.2f}",
+                             r.signal, r.first_signal or "-", r.first_signal_remaining or "-",
+                             _yes(r.signal_first), f"{r.seconds:.0f}"]
                             for r in outside],
                            headers=["effect", "coef.", "gap found", "gap's top phase / band", "truth's top phase / band",
                                     "located", "model after adopted effects", "share the library closes",
@@ -224,19 +326,19 @@ def markdown(res: dict, command: str = "structsearch diagnose --benchmark --out 
                                     "first signal of the gap", "first signal of what remains", "signal first",
                                     "s"],
                            tablefmt="github"), "",
-                  f"Located: **{sum(r['located'] for r in outside)}/{m}**; not falsely explained: "
-                  f"**{sum(not r['false_claim'] for r in outside)}/{m}**; responsible signal first: "
-                  f"**{sum(r['signal_first'] for r in outside)}/{m}**; all three: **{sum(scored)}/{m}**.", "",
-                  *[f"- `{r['anomaly']}`: {r['description']} The diagnosis says: "
-                    f"{r['says'] or ('explained by ' + r['adopted'] if r['explained'] else '(nothing)')}"
+                  f"Located: **{sum(r.located for r in outside)}/{m}**; not falsely explained: "
+                  f"**{sum(not r.false_claim for r in outside)}/{m}**; responsible signal first: "
+                  f"**{sum(r.signal_first for r in outside)}/{m}**; all three: **{sum(scored)}/{m}**.", "",
+                  *[f"- `{r.anomaly}`: {r.description} The diagnosis says: "
+                    f"{r.says or ('explained by ' + r.adopted if r.explained else '(nothing)')}"
                     for r in outside], ""]
     lines += ["## Null case (nothing withheld)", "",
-              tabulate([[r["seed"], r["model"], "n/a" if r["gap_p_value"] is None else f"{r['gap_p_value']:.2g}",
-                         "not testable" if r["alarm_test"] is None else _yes(not r["alarm_test"]),
-                         _yes(not r["alarm_combined"])] for r in null],
+              tabulate([[r.seed, r.model, "n/a" if r.gap_p_value is None else f"{r.gap_p_value:.2g}",
+                         "not testable" if r.alarm_test is None else _yes(not r.alarm_test),
+                         _yes(not r.alarm_combined)] for r in null],
                        headers=["seed", "model", "gap p-value (Wald)", "no alarm by the test alone",
                                 "no alarm by the combined rule (at the floor)"], tablefmt="github"), "",
-              f"False alarms by the Wald test alone (1 %): **{sum(bool(r['alarm_test']) for r in null)}/"
-              f"{sum(r['alarm_test'] is not None for r in null)}** testable; "
-              f"by the combined rule: **{sum(r['alarm_combined'] for r in null)}/{len(null)}**.", ""]
+              f"False alarms by the Wald test alone (1 %): **{sum(bool(r.alarm_test) for r in null)}/"
+              f"{sum(r.alarm_test is not None for r in null)}** testable; "
+              f"by the combined rule: **{sum(r.alarm_combined for r in null)}/{len(null)}**.", ""]
     return "\n".join(lines)

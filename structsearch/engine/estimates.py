@@ -15,7 +15,7 @@ from functools import cached_property
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from ..data.atomic import json_ready
 from .statistics import covariance_kind
@@ -191,7 +191,7 @@ class ParameterEstimates:
         def derive():
             t = np.array(list(self.t_values.values()))
             dof = np.array([self.reference_dof[n] for n in self.names])
-            return dict(zip(self.names, map(float, 2.0 * stats.t.sf(np.abs(t), dof))))
+            return dict(zip(self.names, map(float, 2.0 * special.stdtr(dof, -np.abs(t)))))
         return self._stated("p_values", derive)
 
     @cached_property
@@ -236,6 +236,7 @@ class ParameterEstimates:
         standard deviation. Columns ``lower`` and ``upper``, one row per parameter."""
         import pandas as pd
         dof = np.array([self.reference_dof[n] for n in self.names], float)
+        from scipy import stats  # as in wald_test: only when intervals are asked for
         half = stats.t.ppf(0.5 + level / 2, dof) * self._stderr
         return pd.DataFrame({"lower": self.values - half, "upper": self.values + half}, index=list(self.names))
 
@@ -265,6 +266,7 @@ class ParameterEstimates:
             return untestable("the covariance of the tested parameters is singular")
         # F(q, dof): the small-sample version of chi2(q)/q (equal to it for m - p dof), the usual reference
         # for a clustered sandwich (Cameron & Miller 2015); dof: the fewest among the tested parameters
+        from scipy import stats  # imported when a test is made (0.5 s that a plain fit does not need)
         finite = [d for d in (self.reference_dof.get(n, np.nan) for n in names) if np.isfinite(d)]
         if not finite:
             return WaldTest(names, w, q, float("nan"), float(stats.chi2.sf(w, q)))

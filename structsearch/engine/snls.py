@@ -23,7 +23,6 @@ from typing import Protocol
 import numpy as np
 from scipy.linalg import qr, solve_triangular
 from scipy.optimize import least_squares
-from scipy.stats import qmc
 
 from ..data.errors import FitError
 
@@ -251,6 +250,8 @@ def start_points(start, lower, upper, n_starts: int, seed: int) -> np.ndarray:
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
         raise FitError("multistart needs finite bounds on every nonlinear parameter")
+    # scipy.stats (0.5 s to import) only when there are quasi-random starts to draw
+    from scipy.stats import qmc
     sampler = qmc.Sobol(d=len(start), scramble=True, seed=seed)
     # Sobol balance properties want a power of two; draw that many and keep the first ones
     m = int(np.ceil(np.log2(max(n_starts - 1, 1))))

@@ -1,18 +1,30 @@
-"""diagnosis.json and a readable diagnosis.md (no figures), and the withheld-effect benchmark."""
+"""diagnosis.json and a readable diagnosis.md (no figures), story.json and story.md, the withheld-effect
+benchmark's files, and what ``structsearch diagnose`` and ``demo`` print of them."""
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from tabulate import tabulate
 
 from ..data.atomic import json_ready, write_json, write_text
-from ..diagnosis.story import unexplained_sentence
+from ..diagnosis.results import Diagnosis
+from ..diagnosis.story import Story, unexplained_sentence
+
+if TYPE_CHECKING:  # the benchmark module imports the flight simulator: loaded only to write a benchmark
+    from ..diagnosis.withheld import BenchmarkResult
+
+__all__ = ["public", "markdown", "write", "story_markdown", "write_story", "write_benchmark", "unexplained_sentence",
+           "diagnosis_console_lines", "story_console_lines", "benchmark_console_line"]
 
 
-def public(doc: dict) -> dict:
-    """The docs/interfaces.md section 3 document (extra fields kept); what could not be estimated is null."""
+def public(doc) -> dict:
+    """The docs/interfaces.md section 3 document (extra fields kept) of a typed result (a :class:`Diagnosis`, a
+    :class:`Story`) or of its ``to_dict()``; what could not be estimated is null."""
+    if hasattr(doc, "to_dict"):
+        doc = doc.to_dict()
     return json_ready(json.loads(json.dumps(doc, default=float)))
 
 
@@ -24,113 +36,150 @@ def _num(x, fmt=".2f") -> str:
     return "n/a" if x is None or not np.isfinite(x) else format(x, fmt)
 
 
-def markdown(doc: dict) -> str:
-    lines = [f"# Diagnosis of {doc['coefficient']} (baseline {doc['baseline']})", ""]
-    m = doc["mse"]
-    u = doc.get("unexplained") or {}
-    lines += [f"Validation MSE {m['validation']:.4g} (training {m['train']:.4g}); noise floor {doc['noise_floor']:.4g} "
-              f"({doc['floor_source']}): the lowest of every library model fitted ({doc['noise_floor_library']:.4g}, "
+def markdown(doc: Diagnosis) -> str:
+    lines = [f"# Diagnosis of {doc.coefficient} (baseline {doc.baseline})", ""]
+    m = doc.mse
+    u = doc.unexplained
+    lines += [f"Validation MSE {m.validation:.4g} (training {m.train:.4g}); noise floor {doc.noise_floor:.4g} "
+              f"({doc.floor_source}): the lowest of every library model fitted ({doc.noise_floor_library:.4g}, "
               f"the saturated model among them) and of a library-free flexible model of the residual "
-              f"({u.get('noise_floor', np.nan):.4g}); spectral estimate {doc['noise_floor_spectral']:.4g}.", ""]
-    lines += [f"Warning: {w}" for w in doc.get("warnings", [])] + ([""] if doc.get("warnings") else [])
-    first = doc["rounds"][0] if doc["rounds"] else {}
-    if doc["gap_explained_by_baseline"]:
+              f"({u.noise_floor:.4g}); spectral estimate {doc.noise_floor_spectral:.4g}.", ""]
+    lines += [f"Warning: {w}" for w in doc.warnings] + ([""] if doc.warnings else [])
+    first = doc.first
+    if doc.gap_explained_by_baseline:
         lines += [f"**The baseline is already at the noise floor**: its per-maneuver validation MSE exceeds the "
-                  f"floor's by {_pct(first.get('excess_over_floor'))} +- {_pct(first.get('excess_se'))} (within "
+                  f"floor's by {_pct(first.excess_over_floor)} +- {_pct(first.excess_se)} (within "
                   "one standard error, or below 1 %).", ""]
     else:
-        lines += [f"**Gap**: {m['validation'] - doc['noise_floor']:.4g} "
-                  f"({_pct(m['validation'] / doc['noise_floor'] - 1 if doc['noise_floor'] > 0 else None)} above the "
+        lines += [f"**Gap**: {m.validation - doc.noise_floor:.4g} "
+                  f"({_pct(m.validation / doc.noise_floor - 1 if doc.noise_floor > 0 else None)} above the "
                   "floor).", ""]
         lines += ["## Where the gap lies", ""]
         for dim in ("phase", "alpha_band", "alpha_dot_sign", "frequency_band", "maneuver"):
-            rows = sorted((r for r in doc["where"] if r["dimension"] == dim), key=lambda r: -r["share"])
-            body = [[r["bin"], f"{r['share']:.2f}", "-" if not np.isfinite(r["share_std"]) else f"{r['share_std']:.2f}",
-                     "-" if not np.isfinite(r["mse"]) else f"{r['mse']:.3g}"] for r in rows[:8]]
+            rows = sorted((r for r in doc.where if r.dimension == dim), key=lambda r: -r.share)
+            body = [[r.bin, f"{r.share:.2f}", "-" if not np.isfinite(r.share_std) else f"{r.share_std:.2f}",
+                     "-" if not np.isfinite(r.mse) else f"{r.mse:.3g}"] for r in rows[:8]]
             lines += [f"### by {dim.replace('_', ' ')}", "",
                       tabulate(body, headers=["bin", "share of excess", "+-", "MSE"], tablefmt="github"), ""]
     lines += ["## Which effect", ""]
     body = []
-    for e in doc["effects"]:
-        if "error" in e:
-            body.append([e["name"], "-", "-", "-", "-", "-", e["error"]])
+    for e in doc.effects:
+        if e.failed:
+            body.append([e.name, "-", "-", "-", "-", "-", e.error])
         else:
-            body.append([e["name"], _num(e["shrink"]), f"{e['mse_validation_after']:.4g}", _num(e["p_value"], ".2g"),
-                         _num(e["overlap"]), (e["acts_in"] or {}).get("phase", "-"),
-                         "at floor" if e["at_floor"] else ""])
+            body.append([e.name, _num(e.shrink), f"{e.mse_validation_after:.4g}", _num(e.p_value, ".2g"),
+                         _num(e.overlap), (e.acts_in or {}).get("phase", "-"),
+                         "at floor" if e.at_floor else ""])
     lines += [tabulate(body, headers=["effect", "shrink", "validation MSE after", "p (Wald)",
                                       "overlap with gap", "acts most in", ""], tablefmt="github"), ""]
     lines += ["## How far it shrinks", ""]
-    for i, r in enumerate(doc["rounds"]):
-        best = next((e for e in r["effects"] if "error" not in e), None)
-        step = ("at the floor" if r["explained_before"] else
-                f"adopted {r['adopted']}, which closes {_pct(best['shrink'])} of the gap (p = {_num(best['p_value'], '.2g')})"
-                if r.get("adopted") and best else "no effect significant at 1 % closes part of the gap")
-        lines.append(f"{i + 1}. {r['baseline']}: validation MSE {r['mse']['validation']:.4g} (floor of this "
-                     f"round {r['noise_floor_round']:.4g}, {r['floor_source']}); {step}.")
-    lines += ["", f"**Explained**: {'yes' if doc['explained'] else 'no'} (the final model's per-maneuver excess over "
-              f"the floor: {_pct(doc.get('final_excess_over_floor'))} +- {_pct(doc.get('final_excess_se'))}). "
-              f"Final model: {doc['final_model']}.", ""]
+    for i, r in enumerate(doc.rounds):
+        best = r.best
+        step = ("at the floor" if r.explained_before else
+                f"adopted {r.adopted}, which closes {_pct(best.shrink)} of the gap (p = {_num(best.p_value, '.2g')})"
+                if r.adopted and best else "no effect significant at 1 % closes part of the gap")
+        lines.append(f"{i + 1}. {r.baseline}: validation MSE {r.mse.validation:.4g} (floor of this "
+                     f"round {r.noise_floor_round:.4g}, {r.floor_source}); {step}.")
+    lines += ["", f"**Explained**: {'yes' if doc.explained else 'no'} (the final model's per-maneuver excess over "
+              f"the floor: {_pct(doc.final_excess_over_floor)} +- {_pct(doc.final_excess_se)}). "
+              f"Final model: {doc.final_model}.", ""]
     sentence = unexplained_sentence(doc)
-    if u.get("gap_signals") and not doc["gap_explained_by_baseline"]:
-        top = ", ".join(f"{g['name']} ({g['share']:.2f})" for g in u["gap_signals"][:4])
+    if u.gap_signals and not doc.gap_explained_by_baseline:
+        top = ", ".join(f"{g.name} ({g.share:.2f})" for g in u.gap_signals[:4])
         lines += [f"Before any effect, the gap followed (share of it a function of one signal removes on the "
                   f"validation maneuvers): {top}.", ""]
-    if u.get("note") and not doc["explained"]:
-        lines += [f"Note: {u['note']}.", ""]
+    if u.note and not doc.explained:
+        lines += [f"Note: {u.note}.", ""]
     if sentence:
         lines += ["## What the library does not explain", "", sentence, ""]
-        body = [[s["name"], f"{s['share']:.2f}"] for s in u.get("signals", [])[:8]]
+        body = [[s.name, f"{s.share:.2f}"] for s in u.signals[:8]]
         lines += ["Share of the remaining gap a smooth function of one signal removes on the validation maneuvers:",
                   "", tabulate(body, headers=["signal", "share"], tablefmt="github"), ""]
-    sl = doc.get("state_level")
-    if sl:
+    sl = doc.state_level
+    if sl is not None:
         lines += ["## At the state level", ""]
-        if "error" in sl:
-            lines += [f"Not available: {sl['error']}", ""]
+        if sl.failed:
+            lines += [f"Not available: {sl.error}", ""]
         else:
             units = {"alpha": "rad", "q": "rad/s", "V": "m/s", "theta": "rad"}
-            body = [[s, units[s], f"{sl['before'][s]:.4g}", f"{sl['after'][s]:.4g}",
-                     "n/a" if not np.isfinite(sl["reduction"][s]) else f"{sl['reduction'][s]:+.0%}"]
+            body = [[s, units[s], f"{sl.before[s]:.4g}", f"{sl.after[s]:.4g}",
+                     "n/a" if not np.isfinite(sl.reduction[s]) else f"{sl.reduction[s]:+.0%}"]
                     for s in ("alpha", "q", "theta", "V")]
             lines += [f"Validation maneuvers replayed through the simulator (recorded elevator and thrust, "
-                      f"re-initialised on the measured states every {sl['window_s']:g} s); RMS state error with "
+                      f"re-initialised on the measured states every {sl.window_s:g} s); RMS state error with "
                       f"the baseline and with the best effect added:", "",
                       tabulate(body, headers=["state", "unit", "before", "after", "reduction"], tablefmt="github"),
                       ""]
     return "\n".join(lines)
 
 
-def write(doc: dict, out: Path) -> tuple[Path, Path]:
+def write(doc: Diagnosis, out: Path) -> tuple[Path, Path]:
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "diagnosis.json", public(doc))
     write_text(out / "diagnosis.md", markdown(doc))
     return out / "diagnosis.json", out / "diagnosis.md"
 
 
-def story_markdown(story: dict, command: str) -> str:
+def story_markdown(story: Story, command: str) -> str:
     """The Van Ingen -> final story: the lines, then each coefficient's rounds."""
     lines = ["# From the Van Ingen simulator model to the final model", "", f"Made by `{command}`.", ""]
-    lines += [f"- {line}" for line in story["lines"]] + [""]
-    for coef, doc in story["diagnoses"].items():
-        lines += [f"## {coef}: {doc['baseline']} -> {doc['final_model']}", ""]
+    lines += [f"- {line}" for line in story.lines] + [""]
+    for coef, doc in story.diagnoses.items():
+        lines += [f"## {coef}: {doc.baseline} -> {doc.final_model}", ""]
         body = []
-        for i, r in enumerate(doc["rounds"]):
-            best = next((e for e in r["effects"] if "error" not in e), None)
-            body.append([i + 1, r["baseline"], f"{r['mse']['validation']:.4g}",
-                         "-" if best is None else best["name"], "-" if best is None else _num(best["shrink"]),
-                         "-" if best is None else _num(best["p_value"], ".2g"), r.get("adopted") or "-",
-                         "yes" if r["explained_before"] else "no"])
+        for i, r in enumerate(doc.rounds):
+            best = r.best
+            body.append([i + 1, r.baseline, f"{r.mse.validation:.4g}",
+                         "-" if best is None else best.name, "-" if best is None else _num(best.shrink),
+                         "-" if best is None else _num(best.p_value, ".2g"), r.adopted or "-",
+                         "yes" if r.explained_before else "no"])
         lines += [tabulate(body, headers=["round", "model", "validation MSE", "best effect",
                                           "shrink (of this round's gap)", "p (Wald)", "adopted", "at the floor"],
                            tablefmt="github"), "",
-                  f"Noise floor {doc['noise_floor']:.4g}; explained: {'yes' if doc['explained'] else 'no'}. "
+                  f"Noise floor {doc.noise_floor:.4g}; explained: {'yes' if doc.explained else 'no'}. "
                   + unexplained_sentence(doc), ""]
     return "\n".join(lines)
 
 
-def write_story(story: dict, out: Path, command: str) -> tuple[Path, Path]:
+def write_story(story: Story, out: Path, command: str) -> tuple[Path, Path]:
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "story.json", public(story))
     write_text(out / "story.md", story_markdown(story, command))
     return out / "story.json", out / "story.md"
+
+
+def write_benchmark(result: BenchmarkResult, out: Path, command: str) -> tuple[Path, Path]:
+    """``withheld_benchmark.json`` (NaN written as NaN, as before) and ``withheld_benchmark.md``."""
+    from ..diagnosis.withheld import markdown as benchmark_markdown
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(out / "withheld_benchmark.json", json.dumps(result.to_dict(), indent=2, default=float))
+    write_text(out / "withheld_benchmark.md", benchmark_markdown(result, command))
+    return out / "withheld_benchmark.json", out / "withheld_benchmark.md"
+
+
+def diagnosis_console_lines(diagnosis: Diagnosis, written: tuple[Path, Path] | None = None) -> list[str]:
+    """What ``structsearch diagnose`` prints: the verdict line (ending with the files ``written``, the json and
+    the md, when given), then what the library does not explain and the warnings, a line each."""
+    d = diagnosis
+    best = d.best_effect
+    verdict = ("the baseline is at the noise floor" if d.gap_explained_by_baseline else
+               f"best effect {best.name} closes {best.shrink:.0%} of the gap" if best and best.shrink is not None
+               else "no effect fitted")
+    head = (f"{d.coefficient} {d.baseline}: {verdict}; final model {d.final_model}; explained: "
+            f"{'yes' if d.explained else 'no'}")
+    if written is not None:
+        head += f"; wrote {written[0]} and {written[1]}"
+    return [head] + [line for line in [unexplained_sentence(d)] + [f"warning: {w}" for w in d.warnings] if line]
+
+
+def story_console_lines(story: Story) -> list[str]:
+    """The story's lines as ``structsearch demo`` prints them (indented by two spaces)."""
+    return [f"  {line}" for line in story.lines]
+
+
+def benchmark_console_line(result: BenchmarkResult, written: Path | None = None) -> str:
+    """The summary ``structsearch diagnose --benchmark`` prints (ending with the Markdown file ``written``)."""
+    text = (f"withheld effect ranked first {result.ranked_first}/{len(result.rows)}; out-of-library effects located, "
+            f"not falsely explained and their signal first {result.outside_scored}/{len(result.outside)}; false "
+            f"alarms {result.false_alarms}/{len(result.null)} (Wald test alone {result.false_alarms_test})")
+    return text + (f"; wrote {written}" if written is not None else "")

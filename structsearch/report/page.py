@@ -111,13 +111,8 @@ def applicable_models(names: dict[str, str], campaign: Campaign) -> tuple[dict[s
 
 def best_effect(diagnosis) -> str | None:
     """The name of the diagnosis' best effect that was fitted (None if none was)."""
-    ok = [e for e in _as_dict(diagnosis)["effects"] if "error" not in e]
-    return ok[0]["name"] if ok else None
-
-
-def _as_dict(x):
-    # until the typed diagnosis lands: a diagnosis may be a dict or an object with to_dict()
-    return x.to_dict() if hasattr(x, "to_dict") else x
+    best = diagnosis.best_effect
+    return None if best is None else best.name
 
 
 @dataclass(frozen=True)
@@ -216,7 +211,8 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
     emit(fg.correlations(ms.summaries), "correlations.png", "Parameter correlations",
          f"Correlation matrices of the estimates ({options.covariance} covariance); '!' marks |rho| > 0.9.")
     diagnose_coefficient = fits.diagnosis_coefficient
-    diagnosis = None if fits.diagnosis is None else _as_dict(fits.diagnosis)
+    # the page renders the diagnosis as its document (diagnosis.json), the form its captions quote
+    diagnosis = None if fits.diagnosis is None else fits.diagnosis.to_dict()
     if diagnosis is not None:
         if fits.effect is not None:
             best, changed, fitted = fits.effect

@@ -7,7 +7,7 @@ the campaign's measured C_X, C_Z (or the same rotation of the measured C_L, C_D 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Mapping
+from typing import Callable
 
 import numpy as np
 
@@ -41,6 +41,11 @@ class CoefficientScores:
     @property
     def r2_max(self) -> float:
         return float(np.nanmax(self.r2))
+
+    def to_dict(self) -> dict:
+        return {"model": self.model, "coefficient": self.coefficient, "split": self.split, "mse": self.mse,
+                "r2": list(self.r2), "maneuvers": list(self.maneuvers), "r2_mean": self.r2_mean,
+                "r2_min": self.r2_min, "r2_max": self.r2_max}
 
 
 def measured(data: FlightData, coefficient: str) -> np.ndarray:
@@ -99,9 +104,3 @@ def comparison_rows(scores: list[CoefficientScores], model: str, reference: str)
                          "reference_r2_min": b.r2_min, "reference_r2_max": b.r2_max})
     return rows
 
-
-def by_model(scores: list[CoefficientScores]) -> Mapping[str, list[CoefficientScores]]:
-    out: dict[str, list[CoefficientScores]] = {}
-    for s in scores:
-        out.setdefault(s.model, []).append(s)
-    return out

@@ -24,6 +24,9 @@ class DerivedQuantity:
     unit: str
     meaning: str
 
+    def to_dict(self) -> dict:
+        return {"name": self.name, "value": self.value, "unit": self.unit, "meaning": self.meaning}
+
 
 def physical_quantities(params: dict[str, float], data: FlightData) -> list[DerivedQuantity]:
     """tau* = tau V/cbar for every time constant (at the data's mean airspeed), alpha* in degrees, and the
@@ -48,6 +51,10 @@ class Collinearity:
     correlations: tuple[tuple[str, str, float], ...]    # pairs of data columns
     vif: tuple[tuple[str, float], ...]                   # regressor, variance inflation factor
     condition_number: float                              # of the column-scaled regression matrix
+
+    def to_dict(self) -> dict:
+        return {"correlations": [{"a": a, "b": b, "correlation": v} for a, b, v in self.correlations],
+                "vif": [{"regressor": n, "vif": v} for n, v in self.vif], "condition_number": self.condition_number}
 
 
 def collinearity(model: StallModel, params: dict[str, float], data: FlightData) -> Collinearity:

@@ -38,6 +38,11 @@ class Identification:
             return float("nan")
         return float(self.correlation[self.names.index(a)][self.names.index(b)])
 
+    def to_dict(self) -> dict:
+        return {"label": self.label, "maneuvers": list(self.maneuvers), "names": list(self.names),
+                "estimate": list(self.estimate), "sd": list(self.sd), "p_value": list(self.p_value),
+                "correlation": [list(row) for row in self.correlation]}
+
 
 @dataclass(frozen=True)
 class DynamicStallStudy:
@@ -48,6 +53,11 @@ class DynamicStallStudy:
     def called_out(self) -> list[tuple[str, str, float, float]]:
         """(parameter, parameter, rho quasi-steady only, rho full training set)."""
         return [(a, b, self.quasi_steady.rho(a, b), self.full.rho(a, b)) for a, b in CALLED_OUT]
+
+    def to_dict(self) -> dict:
+        return {"model": self.model, "quasi_steady": self.quasi_steady.to_dict(), "full": self.full.to_dict(),
+                "called_out": [{"a": a, "b": b, "rho_quasi_steady": rq, "rho_full": rf}
+                               for a, b, rq, rf in self.called_out()]}
 
 
 def _identification(label: str, result: FitResult, names_of_maneuvers) -> Identification:

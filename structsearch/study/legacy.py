@@ -39,6 +39,10 @@ class LegacyFit:
     n_starts: int
     seconds: float
 
+    def to_dict(self) -> dict:
+        return {"model": self.model, "params": dict(self.params), "per_maneuver": [dict(p) for p in self.per_maneuver],
+                "n_starts": self.n_starts, "seconds": self.seconds}
+
 
 @dataclass(frozen=True)
 class EstimatorComparison:
@@ -50,6 +54,11 @@ class EstimatorComparison:
     snls_seconds: float
     n_starts: int
     scores: tuple[CoefficientScores, ...]
+
+    def to_dict(self) -> dict:
+        return {"names": dict(self.names), "legacy": self.legacy.to_dict(), "snls_params": dict(self.snls_params),
+                "snls_seconds": self.snls_seconds, "n_starts": self.n_starts,
+                "scores": [s.to_dict() for s in self.scores]}
 
 
 def legacy_fit(model: StallModel, data: FlightData, n_starts: int = 8, seed: int = 0) -> LegacyFit:

@@ -12,6 +12,7 @@ from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from .comparison import percent_difference
 
+
 @dataclass(frozen=True)
 class ThesisTable:
     grid: str
@@ -19,6 +20,11 @@ class ThesisTable:
     reference: str
     headers: tuple[str, ...]
     rows: tuple[tuple, ...]
+
+    def to_dict(self) -> dict:
+        """The table with each row as a list in the order of ``headers``; NaN where a number is missing."""
+        return {"grid": self.grid, "coefficient": self.coefficient, "reference": self.reference,
+                "headers": list(self.headers), "rows": [[_plain(x) for x in row] for row in self.rows]}
 
 
 def thesis_table(grid: str, candidates: Sequence[Candidate], results: Sequence[CandidateResult],
@@ -45,6 +51,11 @@ def thesis_table(grid: str, candidates: Sequence[Candidate], results: Sequence[C
         rows.append(tuple(row))
     return ThesisTable(grid, coefficient, reference.name if reference is not None else "", tuple(headers),
                        tuple(rows))
+
+
+def _plain(x):
+    """A table cell as a JSON value (numpy scalars as Python numbers)."""
+    return x.item() if isinstance(x, np.generic) else x
 
 
 def _or_nan(x) -> float:

@@ -39,6 +39,19 @@ class Study:
     estimators: EstimatorComparison
     search_tables: tuple[ThesisTable, ...]
 
+    def to_dict(self) -> dict:
+        """Everything the study holds as plain JSON values (NaN where a number could not be computed; write it
+        through ``structsearch.data.atomic.json_ready`` for null)."""
+        return {"models": {label: dict(m) for label, m in self.models.items()},
+                "scores": [s.to_dict() for s in self.scores],
+                "dynamic_stalls": self.dynamic_stalls.to_dict(),
+                "separation": {"kinds": list(self.separation_kinds),
+                               "training_mse": [list(row) for row in self.separation_mse]},
+                "derived": [d.to_dict() for d in self.derived],
+                "collinearity": self.collinearity.to_dict(),
+                "estimators": self.estimators.to_dict(),
+                "search_tables": [t.to_dict() for t in self.search_tables]}
+
 
 def run_study(campaign: Campaign, cache: Path, options: FitOptions = FitOptions(), n_jobs: int = 1,
               progress: Callable[[str], None] | None = None) -> Study:

@@ -1,0 +1,62 @@
+"""The candidate fits a diagnosis compares: each candidate fitted on the training maneuvers with its residual on
+both splits, and the separation state that defines a model's flight phases."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..data.errors import DeclarationError
+from ..data.flightdata import FlightData
+from ..engine.separation import static_separation
+from ..fitting.candidate_fit import fit_candidate
+from ..fitting.candidate_result import CandidateResult
+from ..fitting.candidates import Candidate
+from ..fitting.lift_fit import LiftFit
+from ..fitting.models import predict_candidate
+from ..flight.reference import FINAL_LIFT
+
+
+@dataclass
+class Fitted:
+    candidate: Candidate
+    summary: CandidateResult
+    residual: np.ndarray        # validation residual
+    train_residual: np.ndarray  # training residual
+
+
+def fit(c: Candidate, train: FlightData, val: FlightData, lift, options, start=None) -> Fitted:
+    summary = fit_candidate(c, train, val, lift, options, start=start)
+    if summary.failed:
+        raise DeclarationError(f"fitting {c.name} failed: {summary.error}")
+    pred = predict_candidate(c, summary.params, val, lift)
+    pred_train = predict_candidate(c, summary.params, train, lift)
+    return Fitted(c, summary, val[c.coefficient] - pred, train[c.coefficient] - pred_train)
+
+
+def _fit_or_error(c: Candidate, train, val, lift, options, start) -> Fitted | str:
+    try:
+        return fit(c, train, val, lift, options, start=start)
+    except DeclarationError as exc:
+        return str(exc)
+
+
+def fit_all(models, train, val, lift, options, start, n_jobs: int) -> list[Fitted | str]:
+    """:func:`fit` of every model (the error text where one fails), in order, on ``n_jobs`` processes."""
+    if n_jobs == 1 or len(models) < 2:
+        return [_fit_or_error(c, train, val, lift, options, start) for c in models]
+    from joblib import Parallel, delayed
+    return Parallel(n_jobs=n_jobs)(delayed(_fit_or_error)(c, train, val, lift, options, start)
+                                   for c in models)
+
+
+def state_for_phases(c: Candidate, summary: CandidateResult, lift: LiftFit | None,
+                     data: FlightData) -> np.ndarray:
+    """The separation state that defines flight phases: the model's first state, or a static stall-strip
+    curve from the lift fit; without any, the thesis' stall-strip curve."""
+    params = summary.params if not c.lift else (lift.params if lift is not None else {})
+    for name, _ in (c.states or ()):
+        suffix = f"_{name}" if name else ""
+        if f"a1{suffix}" in params and f"a_star{suffix}" in params:
+            return static_separation(data["alpha"], params[f"a1{suffix}"], params[f"a_star{suffix}"])
+    return static_separation(data["alpha"], FINAL_LIFT["a1_ss"], FINAL_LIFT["a_star_ss"])

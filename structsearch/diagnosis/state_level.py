@@ -1,0 +1,74 @@
+"""The diagnosis at the state level: the validation maneuvers replayed through the simulator with the model
+before and after the first adopted effect, and the RMS state errors of both."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..data.campaign import Campaign
+from ..data.errors import DeclarationError
+from ..engine.regressors import declare, symbol_names
+from ..fitting.candidate_fit import fit_candidate
+from ..fitting.candidates import Candidate
+from ..fitting.lift_fit import LiftFit
+from ..fitting.models import build_model
+from ..fitting.options import FitOptions
+from ..fitting.specs import find_candidate
+from ..flight.reference import FINAL_MODEL_NAMES
+from .fitted import Fitted
+from .results import STATES, StateLevel, StateRms
+
+
+def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options: FitOptions,
+                window_s: float = 5.0) -> StateLevel:
+    """Forward-simulated state error on the validation maneuvers with the model before and after.
+
+    The diagnosed coefficient uses the baseline (before) or improved (after) fit; the other two use
+    the final structures of the thesis refitted on the training maneuvers with the same separation
+    states, so that the three form one simulator.
+    """
+    from ..flight.aero import AeroModel
+    from ..flight.replay import replay
+    train, val = campaign.split("train"), campaign.split("validation")
+    coef = before.candidate.coefficient
+
+    def aero(fitted: Fitted) -> AeroModel:
+        # the simulator's lift model: the diagnosed one, or the lift model the drag or pitch candidate names
+        lift_fit = LiftFit(fitted.candidate, fitted.summary) if coef == "CL" else lift
+        lift_cand = lift_fit.candidate
+        models, params = {}, dict(lift_fit.params)
+        models["CL"] = build_model(lift_cand)
+        for other in ("CD", "Cm"):
+            if other == coef:
+                models[other] = build_model(fitted.candidate, lift)
+                params.update(fitted.summary.params)
+                continue
+            structure = find_candidate(FINAL_MODEL_NAMES[other])
+            # terms on states this lift model does not have, or on columns the campaign lacks (x_cg), are left
+            # out (before and after alike)
+            symbols = [f"X_{n}" if n else "X" for n, _ in lift_cand.states]
+            have = set(campaign.data.columns) | set(campaign.data.constants) | set(symbols)
+            kept = []
+            for name, text in structure.regressors:
+                try:
+                    declare(name, text, states=symbols)
+                except DeclarationError:
+                    continue
+                if set(symbol_names(text)) <= have | {"CL"}:
+                    kept.append((name, text))
+            structure = Candidate(structure.name, structure.grid, structure.coefficient, tuple(kept),
+                                  lift_cand.states, lift_cand.name, structure.note, lift_cand.bounds)
+            s = fit_candidate(structure, train, val, lift_fit, options)
+            if s.failed:
+                raise DeclarationError(f"state-level comparison: {s.error}")
+            models[other] = build_model(structure, lift_fit)
+            params.update({k: v for k, v in s.params.items() if k not in lift_fit.result.nonlinear_names})
+        return AeroModel(models["CL"], models["CD"], models["Cm"], params, name=fitted.candidate.name)
+
+    rms = {}
+    for label, fitted in (("before", before), ("after", after)):
+        runs = replay(val, aero(fitted), window_s=window_s)
+        n = sum(len(r.t) for r in runs)
+        rms[label] = StateRms(*(float(np.sqrt(sum(r.rms[s] ** 2 * len(r.t) for r in runs) / n)) for s in STATES))
+    b, a = rms["before"], rms["after"]
+    reduction = StateRms(*(1 - a[s] / b[s] if b[s] > 0 else float("nan") for s in STATES))
+    return StateLevel(b, a, window_s, reduction)
