@@ -28,8 +28,7 @@ class BenchConfig:
     n_jobs: int = 2
     noise_sigma: float = 0.01
     noise_phi: float = 0.95
-    # whole processes (``structsearch fit`` against the reference script): repeats of each, alternated
-    process_repeats: int = 3
+    # whole processes too (``structsearch fit`` against the reference script, alternated, `repeats` times each)
     processes: bool = True
 
 
