@@ -38,13 +38,16 @@ def _bench(args) -> int:
                          seed=args.seed, n_jobs=_jobs(args))
     say = lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True)  # noqa: E731
     fig = run(config, progress=say)
+    # written after every part, so that a part that fails late leaves the earlier ones' figures
+    md, js = write(fig, Path(args.out))
     if not args.no_search:
         from .experiments.bench import run_search
         fig["search"] = run_search(n_jobs=_jobs(args), progress=say)
+        md, js = write(fig, Path(args.out))
     if args.staged:
         from .experiments.bench import run_staged
         fig["staged"] = run_staged(campaigns=args.staged, n_jobs=_jobs(args), progress=say)
-    md, js = write(fig, Path(args.out))
+        md, js = write(fig, Path(args.out))
     o, r = fig["one_start"], fig["random_starts"]
     print(f"one start: SNLS {o['snls']['median_s']:.3f} s = {o['snls']['median_s'] / o['prototype']['median_s']:.2f}x "
           f"the prototype's {o['prototype']['median_s']:.3f} s; time per success over {r['n']} random starts: SNLS "
