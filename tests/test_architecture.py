@@ -179,6 +179,7 @@ def _requirement_name(text: str) -> tuple[str, str | None]:
     return name, extra.group(1) if extra else None
 
 
+@pytest.mark.slow
 def test_the_wheel_works_outside_the_checkout(tmp_path):
     """Build the wheel, install it into a fresh virtual environment and fit a small campaign from elsewhere.
 

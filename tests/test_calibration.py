@@ -54,6 +54,7 @@ def test_missing_standard_deviation_is_left_out_and_counted():
     assert row.n == 2 and row.coverage95 == 1.0
 
 
+@pytest.mark.slow
 def test_calibration_command_end_to_end(tmp_path):
     """The CI version: two scaled campaigns, every covariance kind, strict JSON and the markdown."""
     out = subprocess.run([sys.executable, "-m", "structsearch", "bench", "--calibration", "--campaigns", "2",

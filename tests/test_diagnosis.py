@@ -191,6 +191,7 @@ def test_baselines_of_the_benchmark_are_final_minus_one():
         assert effect in {e.name for e in fx.applicable(base)}, effect
 
 
+@pytest.mark.slow
 def test_cli_diagnose(campaign, tmp_path):
     from structsearch.data.campaign import write_campaign
     write_campaign(campaign, tmp_path / "c")

@@ -168,6 +168,7 @@ def test_buffet_peaks_in_the_record_and_the_cutoffs_below_them(processed):
     assert p.cutoff("alpha").source == "Table 5"
 
 
+@pytest.mark.slow
 def test_preprocess_command_end_to_end(tmp_path, capsys):
     raw_dir, out = tmp_path / "raw", tmp_path / "std"
     assert main(["simulate", "--raw", "--scale", "0.05", "--seed", "2", "--out", str(raw_dir)]) == 0

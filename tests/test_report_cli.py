@@ -73,6 +73,7 @@ def run_cli(*args, cwd=None):
                           cwd=cwd, timeout=600)
 
 
+@pytest.mark.slow
 def test_bench_command_end_to_end(tmp_path):
     proc = run_cli("bench", "--samples", "6000", "--repeats", "1", "--starts", "2", "--jobs", "1", "--no-search",
                    "--out", str(tmp_path))
@@ -144,6 +145,7 @@ def test_condition_number_of_the_scaled_jacobian():
     assert scaled_condition_number(jac) == float("inf")
 
 
+@pytest.mark.slow
 def test_report_renders_for_a_campaign_without_x_cg(tmp_path):
     """Issue 12 items 4 and 6: the transport's campaign has no x_cg column and no cg envelope -> the pitch
     model that needs x_cg is replaced by one that does not, the centre of pressure is left out with a note,

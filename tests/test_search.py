@@ -184,6 +184,7 @@ def test_refinement_drops_what_the_t_test_rejects(tiny, tmp_path):
     assert "junk" not in refined.params
 
 
+@pytest.mark.slow
 def test_cli_fit_search_and_dask(tiny, tmp_path):
     data = str(tiny.directory)
     proc = run_cli("fit", "--data", data, "--model", "CD-IXr", "--out", str(tmp_path / "fit"))
@@ -206,6 +207,7 @@ def test_cli_fit_search_and_dask(tiny, tmp_path):
     assert [(r["model"], r["mse_validation"]) for r in dask_rows] == [(r["model"], r["mse_validation"]) for r in rows]
 
 
+@pytest.mark.slow
 def test_cli_demo_small(tmp_path):
     proc = run_cli("demo", "--out", str(tmp_path), "--scale", "0.05", "--quiet")
     assert proc.returncode == 0, proc.stderr
@@ -362,6 +364,7 @@ def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
         assert out.failed and path.exists() == cached, error
 
 
+@pytest.mark.slow
 def test_fit_prints_no_numpy_warnings(tiny, tmp_path):
     """Issue 13: no RuntimeWarning (overflow, divide by zero) reaches the terminal of a fit or a diagnosis."""
     import subprocess

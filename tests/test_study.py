@@ -33,6 +33,7 @@ def _csv(path):
     return list(csv.DictReader(lines[1:]))
 
 
+@pytest.mark.slow
 def test_every_artefact_is_written_with_its_command(studied):
     _, out = studied
     for stem in STEMS:
