@@ -184,14 +184,28 @@ def _diagnose(args) -> int:
     out = Path(args.out)
     diagnosis = diagnose(args.data, args.model, coefficient=args.coefficient, starts=args.starts, seed=args.seed,
                          covariance=args.covariance, bounds=_bounds(args), jobs=_jobs(args), out=out,
-                         progress=_progress(args, "diagnose: "))
+                         progress=_progress(args, "diagnose: "), terms=args.terms, beam=args.beam,
+                         max_steps=args.max_steps)
     for line in diagnosis_console_lines(diagnosis, (out / "diagnosis.json", out / "diagnosis.md")):
         print(line)
     return 0
 
 
+def _discover(args) -> int:
+    from .api import discover
+    from .report.discovery_doc import discovery_console_lines
+    out = Path(args.out)
+    found = discover(args.data, args.coefficient, start=args.start, lifts=args.lift, terms=args.terms,
+                     beam=args.beam, max_steps=args.max_steps, starts=args.starts, seed=args.seed,
+                     covariance=args.covariance, bounds=_bounds(args), jobs=_jobs(args), backend=args.backend,
+                     out=out, progress=_progress(args, "discover: "))
+    for line in discovery_console_lines(found, out):
+        print(line)
+    return 0
+
+
 HANDLERS = {"bench": _bench, "simulate": _simulate, "preprocess": _preprocess, "study": _study, "fit": _fit,
-            "search": _search, "diagnose": _diagnose, "report": _report, "demo": _demo}
+            "search": _search, "diagnose": _diagnose, "discover": _discover, "report": _report, "demo": _demo}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -134,8 +134,24 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     g.add_argument("--scale", type=_fraction, default=1.0, help="benchmark campaign scale")
     g.add_argument("--null-seeds", type=_non_negative, default=3, help="benchmark: seeds of the null case")
     g.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
+    _structure_search_options(g)
     g.add_argument("--quiet", action="store_true")
     g.set_defaults(func=handlers["diagnose"])
+
+    d = sub.add_parser("discover", help="search model structures over moves from a minimal or named structure")
+    _campaign_options(d, starts=2)
+    d.add_argument("--coefficient", choices=("CL", "CD", "Cm"), required=True)
+    d.add_argument("--from", dest="start", default="minimal",
+                   help="the structure to start from: 'minimal' (default), a candidate name or a spec file")
+    d.add_argument("--lift", action="append", default=[], metavar="NAME",
+                   help="a lift model drag or pitch structures may be fed (repeatable; default: the start's own "
+                        "and the thesis' CL-VI)")
+    d.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
+    d.add_argument("--backend", default="loky", choices=("loky", "dask"),
+                   help="loky: local processes; dask: a dask.distributed cluster")
+    _structure_search_options(d)
+    d.add_argument("--quiet", action="store_true", help="no progress lines")
+    d.set_defaults(func=handlers["discover"])
 
     p = sub.add_parser("report", help="figures and one self-contained HTML page for a campaign")
     _campaign_options(p)  # the search's defaults, so that its cached fits are reused
@@ -156,3 +172,10 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     _admissibility_options(d)
     d.set_defaults(func=handlers["demo"])
     return parser
+
+
+def _structure_search_options(p) -> None:
+    """The structure search's options (diagnose, discover)."""
+    p.add_argument("--terms", metavar="FILE", help="a term library in TOML (docs/interfaces.md, 'Term library')")
+    p.add_argument("--beam", type=_count, default=None, help="structures each step expands (default 3)")
+    p.add_argument("--max-steps", type=_count, default=None, help="steps of the search at most (default 20)")

@@ -100,7 +100,7 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
     say(f"tables and ranking.csv in {out}")
     t1 = time.perf_counter()
     # the story's diagnoses use the diagnose command's defaults (2 starts), not the search's --starts
-    story = van_ingen_story(campaign, progress=progress, n_jobs=n_jobs)
+    story = van_ingen_story(campaign, progress=progress, n_jobs=n_jobs, cache_dir=out)
     _, story_md = write_story(story, out, f"structsearch demo --out {out}"
                               + (f" --scale {scale:g}" if scale != 1.0 else ""))
     t_story = time.perf_counter() - t1

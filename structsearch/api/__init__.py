@@ -3,7 +3,8 @@
 =====================================  ==============================================
 ``structsearch fit --model CD-IXr``    :func:`fit` -> :class:`FitOutcome`
 ``structsearch search --grid drag``    :func:`search` -> :class:`Ranking`
-``structsearch diagnose --model CD-I`` :func:`diagnose`
+``structsearch diagnose --model CD-I`` :func:`diagnose` -> Diagnosis
+``structsearch discover --coefficient`` :func:`discover` -> Discovery
 ``structsearch simulate``              :func:`simulate` -> Campaign
 ``structsearch preprocess``            :func:`preprocess` -> :class:`PreprocessOutcome`
 ``structsearch study``                 :func:`study` -> :class:`StudyOutcome`
@@ -12,8 +13,9 @@
 =====================================  ==============================================
 """
 from .commands import diagnose, fit, preprocess, search, simulate, study
+from .discovering import discover
 from .report import report
 from .results import FitOutcome, PreprocessOutcome, Ranking, ReportOutcome, StudyOutcome
 
-__all__ = ["FitOutcome", "PreprocessOutcome", "Ranking", "ReportOutcome", "StudyOutcome", "diagnose", "fit",
+__all__ = ["FitOutcome", "PreprocessOutcome", "Ranking", "ReportOutcome", "StudyOutcome", "diagnose", "discover", "fit",
            "preprocess", "report", "search", "simulate", "study"]

@@ -128,17 +128,26 @@ def dask_client(scheduler: str | None, jobs: int):
 
 def diagnose(campaign: Campaign | str | os.PathLike, model: str, *, coefficient: str | None = None,
              starts: int = 2, seed: int = 0, covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None,
-             jobs: int = 0, out: str | os.PathLike | None = None, progress: Progress = None):
-    """Diagnose ``model`` (the baseline) as ``structsearch diagnose`` does; with ``out``, also write
-    ``diagnosis.json`` and ``diagnosis.md`` there. Returns the diagnosis (``to_dict()``: diagnosis.json)."""
+             jobs: int = 0, out: str | os.PathLike | None = None, progress: Progress = None,
+             terms: str | os.PathLike | None = None, beam: int | None = None, max_steps: int | None = None,
+             backend: str = "loky"):
+    """Diagnose ``model`` (the baseline) as ``structsearch diagnose`` does: a structure search over moves from it
+    (``terms``: a user's term file; ``beam``, ``max_steps``: the search's width and length); with ``out``, also
+    write ``diagnosis.json`` and ``diagnosis.md`` there and cache the fits in ``out/cache``. Returns the
+    diagnosis (``to_dict()``: diagnosis.json)."""
+    import dataclasses
     from ..diagnosis.diagnose import diagnose as run_diagnosis
+    from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS
     from ..fitting.specs import resolve_candidate
     campaign = as_campaign(campaign)
     baseline = resolve_candidate(model, coefficient)
-    options = fit_options(starts, seed, covariance, bounds)
+    # structures with separation parameters are cross-validated by one-step folds in a structure search
+    options = dataclasses.replace(fit_options(starts, seed, covariance, bounds), cv_method="one-step")
     check_box_names(options.parameter_boxes, [baseline])
     result = run_diagnosis(campaign, baseline, options=options, n_jobs=process_count(jobs), seed=seed,
-                           progress=progress)
+                           progress=progress, terms=None if terms is None else str(terms),
+                           beam=beam or DEFAULT_BEAM, max_rounds=max_steps or DEFAULT_MAX_STEPS,
+                           cache_dir=out, backend=backend)
     if out is not None:
         from ..report.diagnosis_doc import write
         write(result, Path(out))
@@ -205,3 +214,4 @@ def study(campaign: Campaign | str | os.PathLike, *, out: str | os.PathLike | No
         written = write(result, Path(out), command or f"structsearch study --out {out}",
                         figures=figures.plt is not None)
     return StudyOutcome(result, written)
+

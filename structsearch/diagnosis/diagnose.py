@@ -25,24 +25,33 @@ Where the gap lies is :mod:`.where`; the state-level comparison :mod:`.state_lev
 from __future__ import annotations
 
 import dataclasses
-
+import tempfile
 import time
 from dataclasses import dataclass
-from typing import Callable
+from pathlib import Path
+from typing import Callable, Mapping
 
 import numpy as np
 
-from . import effects as fx
+from ..discovery import effects as fx
 from . import floor as fl
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
+from ..discovery.adoption import DEFAULT_ALPHA, TEST_NAME
+from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, explore, fit_structures
+from ..discovery.judge import judge_for
+from ..discovery.moves import generate
+from ..discovery.terms import library_for
 from ..fitting.options import FitOptions
 from ..fitting.candidate_fit import fit_lift_model
 from ..fitting.candidates import Candidate
 from ..fitting.candidate_result import CandidateResult
+from ..fitting.lift_fit import LiftFit
+from ..fitting.models import predict_candidate
+from ..flight.reference import FINAL_MODEL_NAMES
 from ..engine.scores import maneuver_mse, sizes_of, weighted_mean_se
-from .fitted import Fitted, fit as _fit, fit_all as _fit_all, state_for_phases
+from .fitted import Fitted, fit as _fit, state_for_phases
 from .results import Diagnosis, EffectRow, Round, StateLevel, TrainValidation
 from .state_level import state_level
 from .unexplained import unexplained as _unexplained
@@ -56,6 +65,9 @@ SPECTRAL_SPLIT_HZ = 3.0
 # error or below this (the ranking's practical tolerance); the error needs this many maneuvers.
 PRACTICAL_TOLERANCE = 0.01
 MIN_MANEUVERS = 3
+# A diagnosis fits as a search does, with one-step folds for structures with separation parameters (they rank
+# alike, experiments/bench) and two starts (each child also starts from its parent's estimates).
+DIAGNOSIS_OPTIONS = FitOptions(n_starts=2, cv_method="one-step")
 
 
 def spectral_floor(residual: np.ndarray, data: FlightData) -> float:
@@ -129,9 +141,10 @@ class _Floor:
     """One estimate of the floor: its validation MSE, residual and where it comes from."""
 
     mse: float
-    residual: np.ndarray
+    residual: np.ndarray | None    # None: a structure of the search, whose residual is computed when needed
     source: str
     library_free: bool = False
+    node: object = None
 
 
 def _flexible(fit: Fitted, model: Candidate, lift, train: FlightData, val: FlightData, seed: int):
@@ -143,43 +156,98 @@ def _flexible(fit: Fitted, model: Candidate, lift, train: FlightData, val: Fligh
     return flex, sig_train, sig_val, x_val
 
 
-def _rank_key(r: EffectRow):
-    """Significant effects first (Wald test, 1 %; an untestable one counts as not significant), then by shrink."""
-    p = r.p_value
-    return (not (p is not None and p < 0.01), -(r.shrink or 0.0), p if p is not None else np.inf)
+VERDICT_ORDER = ("improves", "simplifies", "look-ahead", "rejected", "failed")
 
 
-def _effect_rows(candidates, current: Candidate, base_fit: Fitted, floor: _Floor, explained_now: bool,
-                 where_rows, val: FlightData, x_val: np.ndarray) -> tuple[list[EffectRow], dict[str, Fitted]]:
-    """One round's effects, significant and large first, failed fits last; and the fit of each fitted one."""
-    mse_base = float(np.mean(base_fit.residual ** 2))
-    rows, fits = [], {}
-    for e, changed, f in candidates:
-        if isinstance(f, str):
-            rows.append(EffectRow(e.name, error=f))
-            continue
-        p = wald_p_value(f.summary, e.new_parameters(current, changed))
-        mse_after = float(np.mean(f.residual ** 2))
-        overlap, acts_in = _overlap(where_rows, base_fit.residual, f.residual, val, x_val)
-        rows.append(EffectRow(e.name, None if explained_now else _shrink(mse_base, mse_after, floor.mse), mse_after,
-                              f.summary.mse_train, p if np.isfinite(p) else None, overlap, acts_in,
-                              within_noise(f.residual, floor.residual, val)[0], changed.name))
-        fits[e.name] = f
-    ok = sorted((r for r in rows if not r.failed), key=_rank_key)
-    return ok + [r for r in rows if r.failed], fits
+def _row_key(n):
+    """Adopted and passing moves first, then by the held-out MSE; failed fits last."""
+    return (VERDICT_ORDER.index(n.status) if n.status in VERDICT_ORDER else len(VERDICT_ORDER), n.mse)
 
 
-def diagnose(campaign: Campaign, baseline: Candidate, *, options: FitOptions = FitOptions(n_starts=2, cv_folds=0),
-             max_rounds: int = 3, progress: Callable[[str], None] | None = None, seed: int = 0,
-             states: bool = True, n_jobs: int = 1) -> Diagnosis:
-    """Diagnose one coefficient; ``to_dict()`` of the result is the JSON document of docs/interfaces.md sections 3
-    and 5.4. The fits of each round's effects run on ``n_jobs`` processes."""
+@dataclass
+class _Context:
+    """What every round of one diagnosis shares."""
+
+    train: FlightData
+    val: FlightData
+    lifts: dict
+    seed: int
+
+    def lift_of(self, c: Candidate):
+        return self.lifts.get(c.lift) if c.lift else None
+
+    def fitted(self, node) -> Fitted:
+        """A node of the structure search as a :class:`Fitted` (its residuals on both splits)."""
+        c, r = node.candidate, node.result
+        lift = self.lift_of(c)
+        return Fitted(c, r, self.val[c.coefficient] - predict_candidate(c, r.params, self.val, lift),
+                      self.train[c.coefficient] - predict_candidate(c, r.params, self.train, lift))
+
+
+def _row(child, base: Fitted, floor: _Floor, explained_now: bool, where_rows, ctx: _Context, x_val) -> EffectRow:
+    """One move tried from a round's structure: its shrink of the gap, test and (fitted in full) where it acts."""
+    move = child.move
+    extra = dict(kind=move.kind, effect=move.effect, verdict=child.status,
+                 test=child.test.to_dict() if child.test is not None else None)
+    if child.result.failed:
+        return EffectRow(move.name, error=child.result.error, **extra)
+    mse_base = float(np.mean(base.residual ** 2))
+    mse_after = child.result.validation.mse
+    shrink = None if explained_now else _shrink(mse_base, mse_after, floor.mse)
+    p = overlap = acts_in = at_floor = None
+    if not child.screened:   # statistics and residuals of the structures fitted in full
+        p = wald_p_value(child.result, move.new_parameters) if move.new_parameters else float("nan")
+        after = ctx.fitted(child)
+        overlap, acts_in = _overlap(where_rows, base.residual, after.residual, ctx.val, x_val)
+        at_floor = within_noise(after.residual, floor.residual, ctx.val)[0]
+    return EffectRow(move.name, None if shrink is None else min(shrink, 1.0), mse_after, child.result.mse_train,
+                     p if p is not None and np.isfinite(p) else None, overlap, acts_in, at_floor,
+                     child.candidate.name, **extra)
+
+
+def _lift_models(baseline: Candidate, lift, train, val, options, given) -> dict:
+    """The lift models a drag or pitch structure may be fed: its own, the thesis' final one and ``given``."""
+    if not baseline.lift:
+        return {}
+    out = {baseline.lift: lift}
+    thesis = FINAL_MODEL_NAMES["CL"]
+    if thesis not in out and thesis not in (given or {}):
+        out[thesis] = fit_lift_model(dataclasses.replace(baseline, lift=thesis), train, val, options)
+    out.update(given or {})
+    return out
+
+
+def diagnose(campaign: Campaign, baseline: Candidate, *, options: FitOptions = DIAGNOSIS_OPTIONS,
+             max_rounds: int = DEFAULT_MAX_STEPS, progress: Callable[[str], None] | None = None, seed: int = 0,
+             states: bool = True, n_jobs: int = 1, lifts: Mapping[str, LiftFit] | None = None,
+             terms: str | None = None, beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA,
+             cache_dir: str | Path | None = None, backend: str = "loky") -> Diagnosis:
+    """Diagnose one coefficient (:func:`diagnose_with_search`, its diagnosis alone)."""
+    return diagnose_with_search(campaign, baseline, options=options, max_rounds=max_rounds, progress=progress,
+                                seed=seed, states=states, n_jobs=n_jobs, lifts=lifts, terms=terms, beam=beam,
+                                alpha=alpha, cache_dir=cache_dir, backend=backend)[0]
+
+
+def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: FitOptions = DIAGNOSIS_OPTIONS,
+                         max_rounds: int = DEFAULT_MAX_STEPS, progress: Callable[[str], None] | None = None,
+                         seed: int = 0, states: bool = True, n_jobs: int = 1,
+                         lifts: Mapping[str, LiftFit] | None = None, terms: str | None = None,
+                         beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA, cache_dir: str | Path | None = None,
+                         backend: str = "loky"):
+    """Diagnose one coefficient, and the structure search it ran: a search over moves (:mod:`structsearch.discovery`) from ``baseline``
+    until it is at the floor or no move passes the adoption test; each adopted move is a round. ``to_dict()``
+    of the result is the JSON document of docs/interfaces.md sections 3 and 5.4. ``lifts`` adds lift models a
+    drag or pitch structure may be fed (the story: the lift structure found for C_L); ``terms`` a user's term
+    file; the fits are cached in ``cache_dir`` (a temporary directory when None) and run on ``n_jobs``."""
+    if cache_dir is None:
+        with tempfile.TemporaryDirectory(prefix="structsearch-diagnose-") as tmp:
+            return diagnose_with_search(campaign, baseline, options=options, max_rounds=max_rounds, progress=progress, seed=seed,
+                            states=states, n_jobs=n_jobs, lifts=lifts, terms=terms, beam=beam, alpha=alpha,
+                            cache_dir=tmp, backend=backend)
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     if max_rounds < 1:
         raise DeclarationError(f"a diagnosis needs at least one round, not {max_rounds}")
-    # the diagnosis compares fits on the validation maneuvers itself: no cross-validation folds
-    options = dataclasses.replace(options, cv_folds=0)
     train, val = campaign.split("train"), campaign.split("validation")
     if baseline.coefficient not in val:
         raise DataError("the campaign has no column for the diagnosed coefficient", source=str(campaign.directory),
@@ -187,91 +255,100 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, options: FitOptions = F
     if baseline.lift:
         say(f"fitting the lift model {baseline.lift}")
     lift = fit_lift_model(baseline, train, val, options)
-    if not fx.applicable(baseline):
-        raise DeclarationError(f"no effect of the library applies to {baseline.name} that it does not contain")
+    ctx = _Context(train, val, _lift_models(baseline, lift, train, val, options, lifts), seed)
+    library = library_for(baseline.coefficient, train, terms)
+    lift_candidates = {n: lf.candidate for n, lf in ctx.lifts.items()}
+    if not generate(baseline, library, lift_candidates):
+        raise DeclarationError(f"no move of the structure search applies to {baseline.name}")
     warnings = []
     if len(val.names) < MIN_MANEUVERS:
         warnings.append(f"only {len(val.names)} validation maneuvers: no spread of the per-maneuver excess, so "
                         "'at the floor' uses the 1 % tolerance alone and standard errors are n/a")
-    rounds: list[Round] = []
-    current = baseline
-    base_fit = _fit(current, train, val, lift, options)
-    baseline_fit, first_best = base_fit, None
-    floors: list[_Floor] = []   # every floor estimate of every round
-    flexible = None
-    for rnd in range(max_rounds):
-        library = fx.applicable(current)
-        if not library:
-            break
-        say(f"round {rnd + 1}: baseline {current.name}, {len(library)} effects; library-free floor of its residual")
-        flexible, sig_train, sig_val, x_val = _flexible(base_fit, current, lift, train, val, seed)
-        if rnd == 0:
-            first_floor = (base_fit, flexible, sig_train, sig_val)
-        saturated_c, added = saturated(current, library)
-        sat_fit = _fit(saturated_c, train, val, lift, options, start=base_fit.summary.params)
-        mse_base, se_base = _mse_se(base_fit.residual, val)
-        changed_models = [e.apply(current) for e in library]
-        fits = _fit_all(changed_models, train, val, lift, options, base_fit.summary.params, n_jobs)
-        candidates = list(zip(library, changed_models, fits))
-        # the floor: the lowest validation MSE of the saturated model, the library-free flexible model and
-        # every model fitted here, so that no shrink leaves [0, 1]
-        here = [_Floor(float(np.mean(sat_fit.residual ** 2)), sat_fit.residual, "saturated library model"),
-                _Floor(flexible.mse, flexible.residual, "library-free flexible model of the residual", True),
-                _Floor(mse_base, base_fit.residual, current.name)]
-        here += [_Floor(float(np.mean(f.residual ** 2)), f.residual, c.name) for _, c, f in candidates
-                 if not isinstance(f, str)]
-        floors += here
-        floor = min(here, key=lambda f: f.mse)
-        explained_now, excess, excess_se = within_noise(base_fit.residual, floor.residual, val)
-        where_rows = where_bins(base_fit.residual, floor.residual, val, x_val, seed=seed)
-        ranked, fitted = _effect_rows(candidates, current, base_fit, floor, explained_now, where_rows, val, x_val)
-        best = ranked[0] if ranked and not ranked[0].failed else None
-        # the Wald p-value of everything the saturated model adds beyond the baseline
-        p_gap = wald_p_value(sat_fit.summary, [p for ps in added.values() for p in ps])
-        significant = best is not None and best.p_value is not None and best.p_value < 0.01
-        adopt = not (explained_now or not significant or not (best.shrink or 0.0) > 0)
-        # noise_floor and gap use the final floor: filled in below, once every round's floors are known
-        rounds.append(Round(current.name, TrainValidation(base_fit.summary.mse_train, mse_base), floor.mse,
-                            floor.source, spectral_floor(base_fit.residual, val), se_base, where_rows,
-                            tuple(ranked), explained_now, excess, excess_se,
-                            p_gap if np.isfinite(p_gap) else None, best.name if adopt else None,
-                            float("nan"), float("nan")))
-        if not adopt:
-            break
-        if first_best is None:
-            first_best = fitted[best.name]
-        current, base_fit = fitted[best.name].candidate, fitted[best.name]
-    final_fit = base_fit
-    if rounds[-1].adopted is not None or flexible is None:  # the final model's own library-free floor
+    cache = Path(cache_dir)
+    (base_result,) = fit_structures([baseline], campaign, cache, ctx.lifts, options, n_jobs, backend)
+    if base_result.failed:
+        raise DeclarationError(f"fitting {baseline.name} failed: {base_result.error}")
+    base_fit = Fitted(baseline, base_result, *_residuals(ctx, baseline, base_result))
+    say(f"library-free floor of {baseline.name}'s residual; the saturated library model")
+    flexible, sig_train, sig_val, x_val = _flexible(base_fit, baseline, lift, train, val, seed)
+    first_floor = (base_fit, flexible, sig_train, sig_val)
+    floors = [_Floor(flexible.mse, flexible.residual, "library-free flexible model of the residual", True),
+              _Floor(float(np.mean(base_fit.residual ** 2)), base_fit.residual, baseline.name)]
+    p_gap_first = None
+    if fx.applicable(baseline):
+        saturated_c, added = saturated(baseline, fx.applicable(baseline))
+        try:
+            sat_fit = _fit(saturated_c, train, val, lift, options, start=base_result.params)
+            floors.append(_Floor(float(np.mean(sat_fit.residual ** 2)), sat_fit.residual, "saturated library model"))
+            p = wald_p_value(sat_fit.summary, [q for ps in added.values() for q in ps])
+            p_gap_first = p if np.isfinite(p) else None
+        except DeclarationError as exc:
+            warnings.append(f"the saturated library model could not be fitted: {exc}")
+
+    def at_floor(node) -> bool:
+        floor = _lowest(floors, ctx)
+        return within_noise(_residuals(ctx, node.candidate, node.result)[0], floor.residual, val)[0]
+
+    say(f"structure search from {baseline.name}: {len(library.terms)} term templates, beam {beam}")
+    ex = explore(baseline, campaign, library, cache, lifts=ctx.lifts, options=options, beam=beam, alpha=alpha,
+                 max_steps=max_rounds, judge=judge_for(campaign), stop=at_floor,
+                 n_jobs=n_jobs, backend=backend, progress=say)
+    path = ex.final.path()
+    fits = [base_fit] + [ctx.fitted(n) for n in path[1:]]
+    final_fit = fits[-1]
+    # every structure fitted in full joins the floor estimates (so that no shrink leaves [0, 1])
+    for n in [n for s in ex.steps for n in s.tried if not n.screened and not n.result.failed]:
+        floors.append(_Floor(n.result.validation.mse, None, n.candidate.name, node=n))
+    if len(path) > 1:
         say("library-free floor of the final model's residual")
-        flexible, sig_train, sig_val, x_val = _flexible(final_fit, current, lift, train, val, seed)
+        flexible, sig_train, sig_val, x_val_final = _flexible(final_fit, final_fit.candidate, ctx.lift_of(
+            final_fit.candidate), train, val, seed)
         floors.append(_Floor(flexible.mse, flexible.residual, "library-free flexible model of the residual", True))
-    floor = min(floors, key=lambda f: f.mse)
+    else:
+        x_val_final = x_val
+    floor = _lowest(floors, ctx)
+    rounds = []
+    for i, (node, fit_i) in enumerate(zip(path, fits)):
+        x_i = state_for_phases(node.candidate, node.result, ctx.lift_of(node.candidate), val)
+        explained_now, excess, excess_se = within_noise(fit_i.residual, floor.residual, val)
+        where_rows = where_bins(fit_i.residual, floor.residual, val, x_i, seed=seed)
+        children = sorted(ex.tried_from(node), key=_row_key)
+        rows = tuple(_row(c, fit_i, floor, explained_now, where_rows, ctx, x_i) for c in children)
+        mse_i, se_i = _mse_se(fit_i.residual, val)
+        adopted = path[i + 1].move.name if i + 1 < len(path) else None
+        rounds.append(Round(node.candidate.name, TrainValidation(node.result.mse_train, mse_i), floor.mse,
+                            floor.source, spectral_floor(fit_i.residual, val), se_i, where_rows, rows, explained_now,
+                            excess, excess_se, p_gap_first if i == 0 else None, adopted, floor.mse,
+                            mse_i - floor.mse))
     explained, final_excess, final_excess_se = within_noise(final_fit.residual, floor.residual, val)
-    rounds = [_with_final_floor(r, floor.mse) for r in rounds]
-    if rounds[-1].adopted is None:  # the final model is the last round's baseline: one verdict for both
-        rounds[-1] = dataclasses.replace(rounds[-1], explained_before=explained, excess_over_floor=final_excess,
-                                         excess_se=final_excess_se)
     library_free = min(f.mse for f in floors if f.library_free)
     block = _unexplained(rounds[0].mse.validation, final_fit, flexible, library_free, val, sig_train, sig_val,
-                         x_val, explained, seed, first_floor)
+                         x_val_final, explained, seed, first_floor)
     sl = None
-    if states and first_best is not None:
+    if states and len(fits) > 1:
         say("state level: replaying the validation maneuvers before and after")
         try:
-            sl = state_level(campaign, baseline_fit, first_best, lift, options)
+            sl = state_level(campaign, base_fit, fits[1], ctx.lift_of(fits[1].candidate) or lift, options)
         except (DeclarationError, DataError) as exc:
             sl = StateLevel(error=str(exc))
+    search_doc = {"stopped": ex.stopped, "structures_fitted": ex.n_fitted, "steps": len(ex.steps), "beam": beam,
+                  "alpha": alpha, "test": TEST_NAME, "terms": library.to_dict(),
+                  "lift_models": sorted(ctx.lifts), "seconds": ex.seconds}
     return Diagnosis(baseline.coefficient, baseline.name, floor.mse, floor.source,
                      min(f.mse for f in floors if not f.library_free), explained, final_excess, final_excess_se,
-                     tuple(rounds), current.name, float(np.mean(final_fit.residual ** 2)), block, tuple(warnings),
-                     sl, time.perf_counter() - t0)
+                     tuple(rounds), final_fit.candidate.name, float(np.mean(final_fit.residual ** 2)), block,
+                     tuple(warnings), sl, time.perf_counter() - t0, final_fit.candidate.to_dict(), search_doc), ex
 
 
-def _with_final_floor(r: Round, floor: float) -> Round:
-    """A round with the diagnosis' final floor: one floor for every reported shrink and verdict, the lowest of
-    everything fitted."""
-    effects = tuple(e if e.failed or e.shrink is None else
-                    dataclasses.replace(e, shrink=_shrink(r.mse.validation, e.mse_validation_after, floor))
-                    for e in r.effects)
-    return dataclasses.replace(r, noise_floor=floor, gap=r.mse.validation - floor, effects=effects)
+def _residuals(ctx: _Context, c: Candidate, r) -> tuple[np.ndarray, np.ndarray]:
+    lift = ctx.lift_of(c)
+    return (ctx.val[c.coefficient] - predict_candidate(c, r.params, ctx.val, lift),
+            ctx.train[c.coefficient] - predict_candidate(c, r.params, ctx.train, lift))
+
+
+def _lowest(floors: list[_Floor], ctx: _Context) -> _Floor:
+    """The lowest floor estimate, with its validation residual (that of a structure of the search computed now)."""
+    floor = min(floors, key=lambda f: f.mse)
+    if floor.residual is None:
+        floor = dataclasses.replace(floor, residual=_residuals(ctx, floor.node.candidate, floor.node.result)[0])
+    return floor

@@ -64,24 +64,33 @@ class EffectRow:
     at_floor: bool | None = None
     model: str | None = None                 # the baseline with the effect added
     error: str | None = None
+    # the move that made it (discovery.moves): its kind, the effect library's name when it equals one, the
+    # search's verdict, and the adoption test (discovery.adoption.MoveTest.to_dict())
+    kind: str | None = None
+    effect: str | None = None
+    verdict: str | None = None
+    test: Mapping[str, Any] | None = None
 
     @property
     def failed(self) -> bool:
         return self.error is not None
 
     def to_dict(self) -> dict:
+        move = {"kind": self.kind, "effect": self.effect, "verdict": self.verdict,
+                "test": dict(self.test) if self.test is not None else None}
         if self.failed:
-            return {"name": self.name, "error": self.error}
+            return {"name": self.name, "error": self.error, **move}
         return {"name": self.name, "shrink": self.shrink, "mse_validation_after": self.mse_validation_after,
                 "mse_train_after": self.mse_train_after, "p_value": self.p_value, "overlap": self.overlap,
-                "acts_in": dict(self.acts_in or {}), "at_floor": self.at_floor, "model": self.model}
+                "acts_in": dict(self.acts_in or {}), "at_floor": self.at_floor, "model": self.model, **move}
 
     @classmethod
     def from_dict(cls, d: Mapping) -> EffectRow:
+        move = {"kind": d.get("kind"), "effect": d.get("effect"), "verdict": d.get("verdict"), "test": d.get("test")}
         if "error" in d:
-            return cls(d["name"], error=d["error"])
+            return cls(d["name"], error=d["error"], **move)
         return cls(d["name"], d["shrink"], d["mse_validation_after"], d["mse_train_after"], d["p_value"],
-                   d["overlap"], dict(d["acts_in"] or {}), d["at_floor"], d["model"])
+                   d["overlap"], dict(d["acts_in"] or {}), d["at_floor"], d["model"], **move)
 
 
 @dataclass(frozen=True)
@@ -289,6 +298,9 @@ class Diagnosis:
     warnings: tuple[str, ...] = ()
     state_level: StateLevel | None = None
     seconds: float = field(default=float("nan"), compare=False)
+    # the structure reached (Candidate.to_dict(): terms, states, lift model), the structure search's numbers
+    final_structure: Mapping[str, Any] | None = None
+    search: Mapping[str, Any] | None = None
 
     @property
     def first(self) -> Round:
@@ -332,6 +344,10 @@ class Diagnosis:
                "warnings": list(self.warnings)}
         if self.state_level is not None:
             out["state_level"] = self.state_level.to_dict()
+        if self.final_structure is not None:
+            out["final_structure"] = dict(self.final_structure)
+        if self.search is not None:
+            out["search"] = dict(self.search)
         out["seconds"] = self.seconds
         return out
 
@@ -344,4 +360,5 @@ class Diagnosis:
                    d["explained"], d["final_excess_over_floor"], d["final_excess_se"],
                    tuple(Round.from_dict(r) for r in d["rounds"]), d["final_model"], d["final_mse"],
                    Unexplained.from_dict(d["unexplained"]), tuple(d.get("warnings", ())),
-                   None if sl is None else StateLevel.from_dict(sl), d.get("seconds", float("nan")))
+                   None if sl is None else StateLevel.from_dict(sl), d.get("seconds", float("nan")),
+                   d.get("final_structure"), d.get("search"))

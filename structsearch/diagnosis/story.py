@@ -9,15 +9,21 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from .diagnose import diagnose
+from pathlib import Path
+
+from .diagnose import DIAGNOSIS_OPTIONS, diagnose
+from ..fitting.candidate_fit import fit_staged
+from ..fitting.candidates import Candidate
+from ..fitting.lift_fit import LiftFit
 from .results import Diagnosis
 from ..data.campaign import Campaign
 from ..flight.reference import VAN_INGEN_MODEL_NAMES
+from ..discovery.explore import DEFAULT_MAX_STEPS
 from ..fitting.options import FitOptions
 from ..fitting.specs import find_candidate
 
-# Rounds enough for Van Ingen's lift to gain the second state, q* and delta_e of the final model.
-STORY_ROUNDS = 4
+# Steps enough for the longest path of the story (pitch: a lift model, the centre-of-pressure and elevator terms).
+STORY_ROUNDS = DEFAULT_MAX_STEPS
 
 
 @dataclass(frozen=True)
@@ -32,15 +38,27 @@ class Story:
         return {"diagnoses": {coef: d.to_dict() for coef, d in self.diagnoses.items()}, "lines": list(self.lines)}
 
 
-def van_ingen_story(campaign: Campaign, options: FitOptions = FitOptions(n_starts=2, cv_folds=0),
-                    progress: Callable[[str], None] | None = None, n_jobs: int = 1) -> Story:
-    """Diagnose each Van Ingen structure (as many rounds as effects keep closing its gap)."""
+def van_ingen_story(campaign: Campaign, options: FitOptions = DIAGNOSIS_OPTIONS,
+                    progress: Callable[[str], None] | None = None, n_jobs: int = 1,
+                    cache_dir: str | Path | None = None) -> Story:
+    """Diagnose each Van Ingen structure (a structure search from each until it is at the floor or no move
+    passes), lift first: the drag and pitch searches may feed their models the lift structure found for C_L."""
     say = progress or (lambda m: None)
     docs = {}
+    lifts: dict[str, LiftFit] = {}
     for coef, name in VAN_INGEN_MODEL_NAMES.items():
         say(f"story: diagnosing the Van Ingen {coef} model {name}")
         docs[coef] = diagnose(campaign, find_candidate(name), options=options, max_rounds=STORY_ROUNDS,
-                              progress=lambda m, c=coef: say(f"story {c}: {m}"), n_jobs=n_jobs)
+                              progress=lambda m, c=coef: say(f"story {c}: {m}"), n_jobs=n_jobs, lifts=lifts,
+                              cache_dir=cache_dir)
+        if coef == "CL" and docs[coef].final_structure is not None and docs[coef].rounds[-1].baseline != name:
+            # drag and pitch may be fed the lift structure the story found for C_L
+            found = Candidate.from_dict(docs[coef].final_structure)
+            say(f"story: fitting the lift structure found for CL ({found.name}) for the drag and pitch models")
+            train, val = campaign.split("train"), campaign.split("validation")
+            result = fit_staged(found, train, val, None, options)
+            if not result.failed:
+                lifts[found.name] = LiftFit(found, result)
     return Story(docs, tuple(story_lines(docs)))
 
 

@@ -25,7 +25,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 from scipy import stats
 
-from ..diagnosis import effects as fx
+from ..discovery import effects as fx
 from ..diagnosis.diagnose import saturated, wald_p_value
 from ..engine.statistics import COVARIANCE_KINDS
 from ..flight.flighttest import build_campaign

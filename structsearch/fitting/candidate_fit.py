@@ -67,9 +67,10 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         starts = options.n_starts if n_starts is None else n_starts
         # with a lift model the two-step covariance replaces the fit's own: the fit computes the white one
         result = model.fit(train, start=warm or None, n_starts=starts if model.nonlinear_names else 1,
-                           seed=options.seed, covariance="white" if context is not None else options.covariance,
+                           seed=options.seed,
+                           covariance="white" if context is not None or options.scores_only else options.covariance,
                            declared_too=declared_too)
-        if context is not None:
+        if context is not None and not options.scores_only:
             result = with_lift_uncertainty(result, model, measured, lift, context, options.covariance)
         scores = {}
         folds = maneuver_folds(len(train.starts), options.cv_folds)
@@ -90,7 +91,8 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
                                         # a linear candidate's folds are exact fits whichever method is asked
                                         cv_method=options.cv_method if model.nonlinear_names and folds else "refit",
                                         seconds=time.perf_counter() - t0,
-                                        centred_correlation=centred_correlation(c, model, train, result))
+                                        centred_correlation=None if options.scores_only else
+                                        centred_correlation(c, model, train, result))
     except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                        error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)

@@ -44,6 +44,12 @@ class Candidate:
                 "regressors": dict(self.regressors), "states": dict(self.states), "lift": self.lift,
                 "note": self.note, "bounds": {k: list(v) for k, v in self.bounds}}
 
+    @classmethod
+    def from_dict(cls, d) -> "Candidate":
+        """The candidate of :meth:`to_dict` (an exact round trip)."""
+        return cls(d["name"], d["grid"], d["coefficient"], tuple(d["regressors"].items()), tuple(d["states"].items()),
+                   d["lift"], d.get("note", ""), tuple((k, tuple(v)) for k, v in d.get("bounds", {}).items()))
+
 
 @dataclass(frozen=True)
 class Grid:

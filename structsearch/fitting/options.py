@@ -34,6 +34,10 @@ class FitOptions:
     # --bound NAME=LO:HI: search boxes of separation parameters, over the declared ones
     parameter_boxes: tuple[tuple[str, tuple[float, float]], ...] = ()
     cv_method: str = "refit"          # CV_METHODS
+    # A screening fit (a structure search's first look at a move): estimates and scores only. Its covariance is
+    # the white one, conditional on the lift model, and it has no centred correlations: no statistic of it is
+    # reported or judged; the structures a search keeps are fitted again in full.
+    scores_only: bool = False
 
     def __post_init__(self):
         if self.cv_method not in CV_METHODS:
@@ -47,6 +51,8 @@ class FitOptions:
                "cv_folds": self.cv_folds, "bounds": [[k, list(v)] for k, v in self.parameter_boxes]}
         if nonlinear and self.cv_folds:
             key["cv_method"] = self.cv_method
+        if self.scores_only:
+            key["scores_only"] = True
         return key
 
 

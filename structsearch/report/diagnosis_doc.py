@@ -28,6 +28,24 @@ def public(doc) -> dict:
     return json_ready(json.loads(json.dumps(doc, default=float)))
 
 
+# The moves a diagnosis.md lists per table (all of them are in diagnosis.json).
+MOVES_SHOWN = 15
+
+
+def _test_p(e):
+    """The adoption test's p-value of a move (None when it has none)."""
+    return (e.test or {}).get("p_value")
+
+
+def _terms(doc) -> str:
+    """The final structure's terms (and lift model), in words."""
+    st = doc.final_structure
+    if not st:
+        return ""
+    text = ", ".join(f"{n} = {e}" for n, e in st["regressors"].items())
+    return f" ({text}" + (f"; lift model {st['lift']})" if st.get("lift") else ")")
+
+
 def _pct(x) -> str:
     return "n/a" if x is None or not np.isfinite(x) else f"{x:.0%}"
 
@@ -61,28 +79,33 @@ def markdown(doc: Diagnosis) -> str:
                      "-" if not np.isfinite(r.mse) else f"{r.mse:.3g}"] for r in rows[:8]]
             lines += [f"### by {dim.replace('_', ' ')}", "",
                       tabulate(body, headers=["bin", "share of excess", "+-", "MSE"], tablefmt="github"), ""]
-    lines += ["## Which effect", ""]
+    lines += ["## Which effect (the moves tried from the baseline)", ""]
     body = []
-    for e in doc.effects:
+    shown = doc.effects[:MOVES_SHOWN]
+    for e in shown:
         if e.failed:
-            body.append([e.name, "-", "-", "-", "-", "-", e.error])
+            body.append([e.name, e.verdict or "failed", "-", "-", "-", "-", "-", "-", e.error])
         else:
-            body.append([e.name, _num(e.shrink), f"{e.mse_validation_after:.4g}", _num(e.p_value, ".2g"),
-                         _num(e.overlap), (e.acts_in or {}).get("phase", "-"),
-                         "at floor" if e.at_floor else ""])
-    lines += [tabulate(body, headers=["effect", "shrink", "validation MSE after", "p (Wald)",
+            body.append([e.name, e.verdict or "-", _num(e.shrink), f"{e.mse_validation_after:.4g}",
+                         _num(_test_p(e), ".2g"), _num(e.p_value, ".2g"), _num(e.overlap),
+                         (e.acts_in or {}).get("phase", "-"), "at floor" if e.at_floor else ""])
+    lines += [tabulate(body, headers=["move", "verdict", "shrink", "validation MSE after", "p (test)", "p (Wald)",
                                       "overlap with gap", "acts most in", ""], tablefmt="github"), ""]
+    if len(doc.effects) > len(shown):
+        lines += [f"{len(doc.effects) - len(shown)} more moves in diagnosis.json. p (test): the structure search's "
+                  "adoption test; p (Wald): the test of the parameters a nested move adds (fitted in full).", ""]
     lines += ["## How far it shrinks", ""]
     for i, r in enumerate(doc.rounds):
-        best = r.best
-        step = ("at the floor" if r.explained_before else
-                f"adopted {r.adopted}, which closes {_pct(best.shrink)} of the gap (p = {_num(best.p_value, '.2g')})"
-                if r.adopted and best else "no effect significant at 1 % closes part of the gap")
+        best = r.effect(r.adopted) if r.adopted else None
+        step = ("at the floor" if r.explained_before and not r.adopted else
+                f"adopted {r.adopted} ({best.verdict}), which closes {_pct(best.shrink)} of the gap "
+                f"(p = {_num(_test_p(best), '.2g')}, adoption test)"
+                if best is not None else "no move passes the adoption test")
         lines.append(f"{i + 1}. {r.baseline}: validation MSE {r.mse.validation:.4g} (floor of this "
                      f"round {r.noise_floor_round:.4g}, {r.floor_source}); {step}.")
     lines += ["", f"**Explained**: {'yes' if doc.explained else 'no'} (the final model's per-maneuver excess over "
               f"the floor: {_pct(doc.final_excess_over_floor)} +- {_pct(doc.final_excess_se)}). "
-              f"Final model: {doc.final_model}.", ""]
+              f"Final model: {doc.final_model}" + _terms(doc) + ".", ""]
     sentence = unexplained_sentence(doc)
     if u.gap_signals and not doc.gap_explained_by_baseline:
         top = ", ".join(f"{g.name} ({g.share:.2f})" for g in u.gap_signals[:4])
@@ -128,13 +151,13 @@ def story_markdown(story: Story, command: str) -> str:
         lines += [f"## {coef}: {doc.baseline} -> {doc.final_model}", ""]
         body = []
         for i, r in enumerate(doc.rounds):
-            best = r.best
+            best = r.effect(r.adopted) if r.adopted else r.best
             body.append([i + 1, r.baseline, f"{r.mse.validation:.4g}",
                          "-" if best is None else best.name, "-" if best is None else _num(best.shrink),
-                         "-" if best is None else _num(best.p_value, ".2g"), r.adopted or "-",
+                         "-" if best is None else _num(_test_p(best), ".2g"), r.adopted or "-",
                          "yes" if r.explained_before else "no"])
-        lines += [tabulate(body, headers=["round", "model", "validation MSE", "best effect",
-                                          "shrink (of this round's gap)", "p (Wald)", "adopted", "at the floor"],
+        lines += [tabulate(body, headers=["round", "model", "validation MSE", "best move",
+                                          "shrink (of this round's gap)", "p (test)", "adopted", "at the floor"],
                            tablefmt="github"), "",
                   f"Noise floor {doc.noise_floor:.4g}; explained: {'yes' if doc.explained else 'no'}. "
                   + unexplained_sentence(doc), ""]

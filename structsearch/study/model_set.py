@@ -79,7 +79,7 @@ def fit_with_effect(ms: ModelSet, coef: str, effect: str, campaign: Campaign, ou
                     options: FitOptions) -> tuple[Candidate, CandidateResult]:
     """The set's ``coef`` model with a library effect added, fitted (cached under ``out/cache``) on the set's
     lift model: the "after" of the report's gap breakdown."""
-    from ..diagnosis import effects as fx
+    from ..discovery import effects as fx
     changed = fx.get(effect, coef).apply(ms.candidates[coef])
     lifts = None if coef == "CL" else {ms.lift.name: ms.lift}
     result = run([changed], campaign, out, options=options, lifts=lifts)[0]

@@ -1,0 +1,90 @@
+"""When a move is adopted: the test of a child structure against its parent.
+
+The statistic is the ranking's: the per-maneuver relative MSE out of sample, paired maneuver by maneuver
+and weighted by samples, over every maneuver that has one: the training maneuvers held out by the
+maneuver-grouped cross-validation and the validation maneuvers (only these when a fit has no folds).
+Pooling both doubles the pairs the test has; each error is still a prediction of data the fit did not see. A move *improves* when the one-sided paired t-test of
+``1 - child/parent`` > 0 rejects at ``alpha / m``: Bonferroni over the ``m`` moves a step tries from
+that parent, so that the step's family-wise false-adoption rate stays below ``alpha`` whatever the number
+of moves (the rate measured on null campaigns is in ``results/discovery_null.md``, made by
+``structsearch bench --discovery-null``). A move *simplifies* (fewer parameters) when its relative
+excess over the parent is within one standard error (or 1 %): the ranking's one-standard-error rule.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import stdtr
+
+from ..engine.scores import weighted_mean_se
+from ..fitting.candidate_result import CandidateResult
+
+# The family-wise rate of one step's improvement test (Bonferroni over its moves).
+DEFAULT_ALPHA = 0.05
+PRACTICAL_TOLERANCE = 0.01
+MIN_MANEUVERS = 3
+TEST_NAME = ("paired one-sided t-test of the out-of-sample per-maneuver relative MSE (held-out training and "
+             "validation maneuvers), Bonferroni over the step's moves")
+
+
+@dataclass(frozen=True)
+class MoveTest:
+    """The adoption test of one child against its parent: the mean relative gain (1 - child/parent per maneuver)
+    and its standard error, the one-sided p-value and the threshold (alpha / moves tried); NaN p-value with
+    ``reason`` when it cannot be computed (fewer than three maneuvers, a failed fit)."""
+
+    basis: str                  # "cv" or "validation"
+    gain: float
+    gain_se: float
+    n_maneuvers: int
+    p_value: float
+    threshold: float
+    reason: str = ""
+
+    @property
+    def improves(self) -> bool:
+        return bool(np.isfinite(self.p_value) and self.p_value < self.threshold and self.gain > 0)
+
+    @property
+    def within_one_se(self) -> bool:
+        """Not worse than the parent beyond one standard error (or 1 %): a simplification may be adopted."""
+        bar = max(self.gain_se, PRACTICAL_TOLERANCE) if np.isfinite(self.gain_se) else PRACTICAL_TOLERANCE
+        return bool(np.isfinite(self.gain) and -self.gain <= bar)
+
+    def to_dict(self) -> dict:
+        def num(x):
+            return float(x) if np.isfinite(x) else None
+        return {"test": TEST_NAME, "basis": self.basis, "gain": num(self.gain), "gain_se": num(self.gain_se),
+                "n_maneuvers": self.n_maneuvers, "p_value": num(self.p_value), "threshold": self.threshold,
+                "reason": self.reason or None}
+
+
+def _per_maneuver(result: CandidateResult) -> tuple[str, np.ndarray, np.ndarray]:
+    """Out-of-sample MSE and samples of every maneuver: the training maneuvers held out by the folds, then the
+    validation maneuvers (fitted on all training maneuvers); the validation ones alone without folds."""
+    parts = [("cv", result.cv)] if result.cv is not None else []
+    parts.append(("validation", result.validation))
+    return ("+".join(n for n, _ in parts), np.concatenate([np.array(s.mse_maneuvers, float) for _, s in parts]),
+            np.concatenate([np.array(s.n_maneuvers, float) for _, s in parts]))
+
+
+def move_test(parent: CandidateResult, child: CandidateResult, alpha: float, n_moves: int) -> MoveTest:
+    """The child against the parent (module docstring)."""
+    threshold = alpha / max(n_moves, 1)
+    if parent.failed or child.failed:
+        return MoveTest("", float("nan"), float("nan"), 0, float("nan"), threshold, "a fit failed")
+    basis, before, _ = _per_maneuver(parent)
+    child_basis, after, samples = _per_maneuver(child)
+    if child_basis != basis:   # one of them without folds: compare what both have
+        basis, before, after, samples = "validation", np.array(parent.validation.mse_maneuvers), \
+            np.array(child.validation.mse_maneuvers), np.array(child.validation.n_maneuvers, float)
+    gain_each = 1.0 - after / before
+    gain, se = weighted_mean_se(gain_each, samples)
+    n = len(gain_each)
+    if n < MIN_MANEUVERS or not np.isfinite(se) or se <= 0:
+        return MoveTest(basis, float(gain), float("nan"), n, float("nan"), threshold,
+                        f"{n} maneuvers: no spread of the per-maneuver gain" if n < MIN_MANEUVERS else
+                        "no spread of the per-maneuver gain")
+    p_value = float(stdtr(n - 1, -gain / se))   # P(T >= t): the child better than the parent
+    return MoveTest(basis, float(gain), float(se), n, p_value, threshold)

@@ -1,0 +1,279 @@
+"""A structure search over moves: bidirectional stepwise with a beam.
+
+Each step expands the beam (at most ``beam`` structures): every valid move (:mod:`.moves`) of each is fitted
+once (the search's runner: cached, in parallel on joblib or dask, each child warm started from the
+structures it extends), and judged against its parent by :func:`.adoption.move_test`:
+
+1. children that *improve* (the test rejects at alpha / moves tried, the validation MSE falls, and the
+   child is admissible or has no more reasons against it than its parent) form the next beam, best
+   (lowest held-out MSE) first;
+2. else children that *simplify* (fewer parameters, within one standard error of the parent, and no more
+   reasons against them): the best one is the next beam (backward stepwise);
+3. else the ``beam`` best children that lower the held-out MSE without passing the test are kept as a
+   *look-ahead*: their own children are tested against the structure they came from, two moves together,
+   so that a move that pays only with a second one is not lost. A look-ahead that leads nowhere ends the
+   search.
+
+The search stops when no move passes, when ``stop`` says a structure is good enough (the diagnosis: at the
+floor) or after ``max_steps`` steps. It does no I/O but the fit cache in ``cache_dir``.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
+
+
+from ..data.campaign import Campaign
+from ..fitting.candidate_result import CandidateResult
+from ..fitting.candidates import Candidate
+from ..fitting.lift_fit import LiftFit
+from ..fitting.options import FitOptions
+from ..search import runner
+from .adoption import DEFAULT_ALPHA, MoveTest, move_test
+from .moves import MOVE_KINDS, Move, generate, structure_key
+from .terms import TermLibrary
+
+STATUSES = ("start", "improves", "simplifies", "look-ahead", "rejected", "failed")
+CONFIRMED = ("start", "improves", "simplifies")
+DEFAULT_BEAM = 3
+DEFAULT_MAX_STEPS = 20
+# screened children that may simplify and are fitted in full (the simplest first)
+SIMPLIFY_SHORTLIST = 4
+
+Judge = Callable[[CandidateResult, Candidate], Sequence[str]]
+
+
+@dataclass(frozen=True, eq=False)
+class Node:
+    """A structure the search fitted: how it was reached (``move`` from ``parent``), its test against the
+    structure it is compared with (``anchor``: its parent, or the parent's parent after a look-ahead) and its
+    verdict (``status``)."""
+
+    candidate: Candidate
+    result: CandidateResult
+    move: Move | None = None
+    parent: "Node | None" = field(default=None, repr=False)
+    anchor: "Node | None" = field(default=None, repr=False)
+    test: MoveTest | None = None
+    status: str = "start"
+    reasons: tuple[str, ...] = ()
+    step: int = 0
+    screened: bool = False        # fitted for its scores only (no statistics: not judged for admissibility)
+
+    @property
+    def admissible(self) -> bool:
+        return not self.reasons and not self.result.failed
+
+    @property
+    def mse(self) -> float:
+        """The held-out MSE the search compares: cross-validation, else validation."""
+        r = self.result
+        if r.failed:
+            return float("inf")
+        return r.cv.mse if r.cv is not None else r.validation.mse
+
+    @property
+    def n_params(self) -> int:
+        return len(self.result.params) if not self.result.failed else 0
+
+    def path(self) -> list["Node"]:
+        """The nodes from the start to this one (the start first)."""
+        out, node = [], self
+        while node is not None:
+            out.append(node)
+            node = node.parent
+        return out[::-1]
+
+
+@dataclass(frozen=True)
+class Step:
+    index: int
+    expanded: tuple[str, ...]     # the structures whose moves were tried
+    tried: tuple[Node, ...]       # every child fitted in this step, with its verdict
+    beam: tuple[Node, ...]        # what the next step expands
+    seconds: float
+
+
+@dataclass(frozen=True)
+class Exploration:
+    start: Node
+    final: Node
+    steps: tuple[Step, ...]
+    stopped: str                  # why the search ended
+    n_fitted: int
+    seconds: float
+
+    @property
+    def path(self) -> list[Node]:
+        """The adopted moves, in order (the start excluded)."""
+        return self.final.path()[1:]
+
+    def tried_from(self, node: Node) -> list[Node]:
+        """Every child fitted from ``node`` (look-aheads' children from their own parent)."""
+        return [n for s in self.steps for n in s.tried if n.parent is node]
+
+
+def fit_structures(candidates: Sequence[Candidate], campaign: Campaign, cache_dir: Path, lifts, options, n_jobs=1,
+                   backend="loky", donors: Sequence[Node] = ()) -> list[CandidateResult]:
+    """Fit structures as the search does (the runner: cached in ``cache_dir``, in parallel, warm started from
+    ``donors``), in order."""
+    if not candidates:
+        return []
+    return runner.run(list(candidates), campaign, cache_dir, lifts=dict(lifts), options=options, n_jobs=n_jobs,
+                      backend=backend, fitted_before=[(d.candidate, d.result) for d in donors])
+
+
+HARD_REASONS = ("not identifiable", "optimizer did not converge", "fit failed")
+
+
+def _hard(n: Node) -> set[str]:
+    return {h for h in HARD_REASONS for r in n.reasons if r.startswith(h)}
+
+
+def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool = True) -> Node:
+    """The child's status against its anchor; a screened child (``judged`` False: no statistics yet) passes
+    every condition on the reasons against it, which its full fit then decides."""
+    import dataclasses
+    if child.result.failed:
+        return dataclasses.replace(child, status="failed", anchor=anchor)
+    test = move_test(anchor.result, child.result, alpha, n_moves)
+    if judged and _hard(child) - _hard(anchor):
+        # a structure the data cannot identify, or a fit that did not converge, is never adopted
+        return dataclasses.replace(child, status="rejected", anchor=anchor, test=test)
+    fewer_reasons = not judged or len(child.reasons) <= len(anchor.reasons)
+    strictly_fewer = not judged or len(child.reasons) < len(anchor.reasons)
+    if test.improves and child.result.validation.mse < anchor.result.validation.mse and \
+            (child.admissible or fewer_reasons):
+        status = "improves"
+    elif child.parent is anchor and test.within_one_se and (
+            (child.n_params < anchor.n_params and fewer_reasons) or
+            (child.n_params <= anchor.n_params and strictly_fewer)):
+        status = "simplifies"   # fewer parameters, or as many and fewer reasons against it: not worse
+    elif child.parent is anchor and (child.mse < anchor.mse or test.within_one_se or child.move.kind == "lift"):
+        status = "look-ahead"   # a possible first of two moves (a lift model: the terms may need to follow)
+    else:
+        status = "rejected"
+    return dataclasses.replace(child, status=status, anchor=anchor, test=test)
+
+
+def _shortlist(prelim: list[Node], beam: int) -> list[Node]:
+    """The screened children worth a full fit: the best that improve (twice the beam), the simplest that may
+    simplify, and the look-aheads the beam could keep (lift models first)."""
+    def pick(status, key, n):
+        return sorted((c for c in prelim if c.status == status), key=key)[:n]
+    chosen = pick("improves", lambda c: c.mse, 2 * beam) + \
+        pick("simplifies", lambda c: (c.n_params, c.mse), SIMPLIFY_SHORTLIST) + \
+        pick("look-ahead", lambda c: (c.move.kind != "lift", c.mse), beam)
+    seen, out = set(), []
+    for c in chosen:
+        if id(c) not in seen:
+            seen.add(id(c))
+            out.append(c)
+    return out
+
+
+def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_dir: Path, *,
+            lifts: Mapping[str, LiftFit] | None = None, options: FitOptions = FitOptions(n_starts=2),
+            beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA, max_steps: int = DEFAULT_MAX_STEPS,
+            kinds: Sequence[str] = MOVE_KINDS, judge: Judge | None = None,
+            stop: Callable[[Node], bool] | None = None, n_jobs: int = 1, backend: str = "loky",
+            progress: Callable[[str], None] | None = None) -> Exploration:
+    """Search structures from ``start`` (module docstring); ``lifts`` are the lift models a drag or pitch
+    structure may be fed (by name; the start's own among them)."""
+    import dataclasses
+    say = progress or (lambda m: None)
+    t0 = time.perf_counter()
+    lifts = dict(lifts or {})
+    lift_candidates = {name: lf.candidate for name, lf in lifts.items()}
+    judge = judge or (lambda r, c: ())
+
+    def node(c, r, **kw):
+        return Node(c, r, reasons=tuple(judge(r, c)) if not r.failed else (f"fit failed: {r.error}",), **kw)
+
+    screening = dataclasses.replace(options, scores_only=True)
+    (start_result,) = fit_structures([start], campaign, cache_dir, lifts, options, n_jobs, backend, [])
+    if start_result.failed:
+        from ..data.errors import StructSearchError
+        raise StructSearchError(f"fitting the start structure {start.name} failed: {start_result.error}")
+    root = node(start, start_result)
+    visited = {structure_key(start)}
+    current, confirmed, steps, n_fitted = [root], [root], [], 1   # confirmed: every adopted structure
+    stopped = "max steps"
+    if stop is not None and stop(root):
+        return Exploration(root, root, (), "good enough at the start", 1, time.perf_counter() - t0)
+    for index in range(1, max_steps + 1):
+        t_step = time.perf_counter()
+        pending: list[tuple[Node, Move, Candidate]] = []
+        n_moves: dict[int, int] = {}
+        for parent in current:
+            anchor = parent if parent.status in CONFIRMED else parent.anchor
+            moves = generate(parent.candidate, library, lift_candidates, kinds)
+            n_moves[id(anchor)] = n_moves.get(id(anchor), 0) + len(moves)
+            for move, child in moves:
+                key = structure_key(child)
+                if key in visited:
+                    continue
+                visited.add(key)
+                pending.append((parent, move, child))
+        # screening: every child's estimates and out-of-sample scores (what the test needs), no statistics
+        screens = fit_structures([c for _, _, c in pending], campaign, cache_dir, lifts, screening, n_jobs, backend, current)
+        prelim = []
+        for (parent, move, child), result in zip(pending, screens):
+            anchor = parent if parent.status in CONFIRMED else parent.anchor
+            raw = Node(child, result, move=move, parent=parent, step=index, screened=True)
+            prelim.append(_verdict(raw, anchor, n_moves[id(anchor)], alpha, judged=False))
+        shortlist = _shortlist(prelim, beam)
+        # the shortlist fitted in full (statistics, admissibility) and judged again
+        fulls = fit_structures([n.candidate for n in shortlist], campaign, cache_dir, lifts, options, n_jobs, backend, current)
+        n_fitted += len(pending)
+        judged = {id(n): _verdict(node(n.candidate, r, move=n.move, parent=n.parent, step=index), n.anchor,
+                                  n_moves[id(n.anchor)], alpha)
+                  for n, r in zip(shortlist, fulls)}
+        tried = [judged.get(id(n), dataclasses.replace(n, status="rejected" if n.status != "failed" else "failed"))
+                 for n in prelim]
+        improved = sorted((n for n in tried if n.status == "improves"), key=lambda n: n.mse)
+        simpler = sorted((n for n in tried if n.status == "simplifies"),
+                         key=lambda n: (len(n.reasons), n.n_params, n.mse))
+        ahead = sorted((n for n in tried if n.status == "look-ahead"), key=lambda n: n.mse)
+        if improved:
+            nxt = improved[:beam]
+        elif simpler:
+            nxt = simpler[:1]
+        elif ahead and any(n.status in CONFIRMED for n in current):
+            # a change of lift model first: it is what the other terms of a drag or pitch model build on
+            nxt = sorted(ahead, key=lambda n: (n.move.kind != "lift", n.mse))[:beam]
+        else:
+            nxt = []
+        # only the chosen look-aheads keep that status: the others are rejected for the record
+        chosen = {id(n) for n in nxt}
+        tried = [n if n.status != "look-ahead" or id(n) in chosen else dataclasses.replace(n, status="rejected")
+                 for n in tried]
+        nxt = [next(t for t in tried if t.candidate is n.candidate) for n in nxt]
+        steps.append(Step(index, tuple(n.candidate.name for n in current), tuple(tried), tuple(nxt),
+                          time.perf_counter() - t_step))
+        confirmed += [n for n in nxt if n.status in CONFIRMED]
+        best = min((n for n in nxt if n.status in CONFIRMED), key=lambda n: n.mse, default=None)
+        top = min(confirmed, key=lambda n: n.mse)
+        say(f"step {index}: {len(pending)} structures tried ({n_fitted} in all), "
+            f"{'kept ' + nxt[0].status + ' ' + nxt[0].move.name if nxt else 'no move passes'}; best so far "
+            f"{top.candidate.name} (held-out MSE {top.mse:.4g}), {time.perf_counter() - t0:.0f} s")
+        if not nxt:
+            stopped = "no move passes the test"
+            break
+        if best is not None and stop is not None and stop(best):
+            stopped = "good enough"
+            break
+        current = nxt
+    return Exploration(root, choose(confirmed, alpha), tuple(steps), stopped, n_fitted, time.perf_counter() - t0)
+
+
+def choose(confirmed: Sequence[Node], alpha: float = DEFAULT_ALPHA) -> Node:
+    """The structure the search ends with: of every adopted one (each branch of the beam), the fewest parameters
+    within one standard error of the lowest held-out MSE (the ranking's one-standard-error rule), then the lower
+    MSE."""
+    best = min(confirmed, key=lambda n: n.mse)
+    near = [n for n in confirmed if n is best or move_test(best.result, n.result, alpha, 1).within_one_se]
+    return min(near, key=lambda n: (n.n_params, n.mse))
+

@@ -1,0 +1,233 @@
+"""Moves on a candidate structure: the steps a structure search takes.
+
+* ``add`` a term of the term library, ``drop`` a term, ``replace`` one term by another (a term on a state by a
+  term on the same state, a term on signals by a term on signals: the structural replacements of the thesis,
+  alpha -> C_L^2 in drag, a Cm_alpha term -> a centre-of-pressure term);
+* ``state kind``: a separation state's kind one step along S <-> Q <-> U (own states only: a drag or pitch
+  candidate takes its states from its lift model);
+* ``add state`` / ``remove state``: a separation state with its own K term (K_L, 1 - X, (1 - X) C_L), or a state
+  removed with every term on it;
+* ``lift``: a drag or pitch candidate fed another lift model's states and C_L; each of its terms on a state
+  is rewritten for every state of the new lift model (1 - X -> 1 - X_ss, 1 - X_w);
+* ``effect``: an entry of the effect library (:mod:`.effects`) as a named composite move. A structural move
+  that builds the same structure as an effect carries the effect's name.
+
+A move that leaves one of a candidate's own states without a regressor, or a candidate without a term, is not
+generated.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from typing import Mapping
+
+from ..data.errors import DeclarationError
+from ..engine.separation import SeparationState
+from ..fitting.candidates import Candidate
+from . import effects as fx
+from .terms import TermLibrary, normalise, template_of, uses_state
+
+MOVE_KINDS = ("add", "drop", "replace", "state kind", "add state", "remove state", "lift", "effect")
+KIND_STEPS = {"S": ("Q",), "Q": ("S", "U"), "U": ("Q",)}
+# The K term of a coefficient's own new separation state, and the states' default boxes (docs/catalogue.md:
+# the stall strip separates first, then the wing).
+K_TERMS = {"CL": ("{c}_KL{s}", "K_L({X})"), "CD": ("{c}_1mX{s}", "1 - {X}"), "Cm": ("{c}_1mX{s}CL", "(1 - {X})*CL")}
+NEW_STATES = (("ss", (0.05, 0.27)), ("w", (0.22, 0.45)), ("w2", (0.22, 0.45)))
+MAX_NAME = 90
+
+
+@dataclass(frozen=True)
+class Move:
+    """One step from a parent structure to a child."""
+
+    kind: str                              # MOVE_KINDS
+    label: str                             # what it does, in words ("add CD_CL2 = CL**2", "X_ss: S -> Q")
+    new_parameters: tuple[str, ...] = ()   # parameters whose zero gives back the parent (nested moves)
+    effect: str | None = None              # the effect library's name for the same change
+
+    @property
+    def name(self) -> str:
+        """The effect's name when the move is one, else the label."""
+        return self.effect or self.label
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "label": self.label, "effect": self.effect,
+                "new_parameters": list(self.new_parameters)}
+
+
+def structure_key(c: Candidate) -> tuple:
+    """What makes two candidates the same model: regressor expressions, states, lift model."""
+    return (c.coefficient, tuple(sorted(normalise(t) for _, t in c.regressors)), tuple(sorted(c.states)), c.lift)
+
+
+def _symbol(state: str) -> str:
+    return f"X_{state}" if state else "X"
+
+
+def _valid(c: Candidate) -> bool:
+    if not c.regressors or len({normalise(e) for _, e in c.regressors}) != len(c.regressors):
+        return False
+    if len({n for n, _ in c.regressors}) != len(c.regressors):
+        return False
+    # a candidate's own state without a regressor is not identifiable
+    return c.lift is not None or all(uses_state(c, _symbol(s)) for s, _ in c.states)
+
+
+def _unique(name: str, taken: set[str]) -> str:
+    out, k = name, 2
+    while out in taken:
+        out, k = f"{name}_{k}", k + 1
+    return out
+
+
+def child_name(parent: Candidate, label: str, regressors, states, lift) -> str:
+    name = f"{parent.name} + {label}"
+    if len(name) <= MAX_NAME:
+        return name
+    digest = hashlib.sha1(repr((sorted(e for _, e in regressors), sorted(states), lift)).encode()).hexdigest()[:8]
+    root = parent.name.split(" + ")[0].split(" [")[0]
+    return f"{root} [{digest}]"
+
+
+def _child(parent: Candidate, label: str, regressors, states=None, lift=..., bounds=None) -> Candidate:
+    states = parent.states if states is None else tuple(states)
+    lift = parent.lift if lift is ... else lift
+    regressors = tuple(regressors)
+    return Candidate(child_name(parent, label, regressors, states, lift), parent.grid or "discover",
+                     parent.coefficient, regressors, states, lift, f"{parent.name} with {label}",
+                     parent.bounds if bounds is None else tuple(bounds))
+
+
+def _keep_bounds(bounds, states) -> tuple:
+    """The boxes of the separation parameters of ``states`` (name, kind)."""
+    names = {p for n, k in states for p in SeparationState(n, k).parameters}
+    return tuple((k, v) for k, v in bounds if k in names)
+
+
+def _term_moves(c: Candidate, library: TermLibrary) -> list[tuple[Move, Candidate]]:
+    states = tuple(n for n, _ in c.states)
+    have = {normalise(e) for _, e in c.regressors}
+    names = {n for n, _ in c.regressors}
+    options = [(n, e) for n, e in library.instances(states) if normalise(e) not in have]
+    out = []
+    for name, expr in options:
+        name = _unique(name, names)
+        label = f"add {name} = {expr}"
+        out.append((Move("add", label, (name,)), _child(c, label, c.regressors + ((name, expr),))))
+    for i, (name, expr) in enumerate(c.regressors):
+        if normalise(expr) == "1":
+            continue   # the intercept stays
+        rest = c.regressors[:i] + c.regressors[i + 1:]
+        label = f"drop {name}"
+        out.append((Move("drop", label), _child(c, label, rest)))
+        own = template_of(name, expr)
+        for new_name, new_expr in options:
+            other = template_of(new_name, new_expr)
+            if own is None or other is None or own.per_state != other.per_state:
+                continue
+            if own.per_state and _state_of(expr) != _state_of(new_expr):
+                continue
+            new_name = _unique(new_name, {n for n, _ in rest})
+            label = f"replace {name} by {new_name} = {new_expr}"
+            out.append((Move("replace", label), _child(c, label, rest[:i] + ((new_name, new_expr),) + rest[i:])))
+    return out
+
+
+def _state_of(expr: str) -> str:
+    from .terms import _STATE
+    m = _STATE.search(expr)
+    return (m.group(1) or "") if m else ""
+
+
+def _state_moves(c: Candidate) -> list[tuple[Move, Candidate]]:
+    """Kind changes, a new state with its K term, a state removed with its terms (own states only)."""
+    if c.lift:
+        return []
+    out = []
+    for i, (s, kind) in enumerate(c.states):
+        for to in KIND_STEPS[kind]:
+            states = c.states[:i] + ((s, to),) + c.states[i + 1:]
+            before, after = SeparationState(s, kind).parameters, SeparationState(s, to).parameters
+            label = f"{_symbol(s)}: {kind} -> {to}"
+            out.append((Move("state kind", label, tuple(p for p in after if p not in before)),
+                        _child(c, label, c.regressors, states, bounds=_keep_bounds(c.bounds, states))))
+        rest = tuple(r for r in c.regressors if _symbol(s) not in _symbols(r[1]))
+        states = c.states[:i] + c.states[i + 1:]
+        label = f"remove state {_symbol(s)}"
+        out.append((Move("remove state", label), _child(c, label, rest, states, bounds=_keep_bounds(c.bounds, states))))
+    taken = {s for s, _ in c.states}
+    if "" not in taken:
+        fresh = [(s, box) for s, box in NEW_STATES if s not in taken][:1]
+        for s, box in fresh:
+            name_t, expr_t = K_TERMS[c.coefficient]
+            name = name_t.format(c=c.coefficient, s=f"_{s}")
+            expr = expr_t.replace("{X}", _symbol(s))
+            states = c.states + ((s, "S"),)
+            label = f"add state {_symbol(s)} with {name} = {expr}"
+            out.append((Move("add state", label, (name,)),
+                        _child(c, label, c.regressors + ((_unique(name, {n for n, _ in c.regressors}), expr),),
+                               states, bounds=c.bounds + ((f"a_star_{s}", box),))))
+    return out
+
+
+def _symbols(expr: str) -> set[str]:
+    from .terms import _STATE
+    return {m.group(0) for m in _STATE.finditer(expr)}
+
+
+def _lift_moves(c: Candidate, lifts: Mapping[str, Candidate]) -> list[tuple[Move, Candidate]]:
+    """The candidate fed each other lift model: its terms on a state rewritten for the new states."""
+    if not c.lift:
+        return []
+    out = []
+    for name, lift in lifts.items():
+        if name == c.lift:
+            continue
+        new_states = tuple(n for n, _ in lift.states)
+        regressors: list[tuple[str, str]] = []
+        for reg_name, expr in c.regressors:
+            t = template_of(reg_name, expr)
+            pairs = t.instances(new_states) if t is not None and t.per_state else [(reg_name, expr)]
+            for n, e in pairs:
+                if normalise(e) not in {normalise(x) for _, x in regressors}:
+                    regressors.append((_unique(n, {x for x, _ in regressors}), e))
+        label = f"lift {c.lift} -> {name}"
+        out.append((Move("lift", label), _child(c, label, regressors, lift.states, name, lift.bounds)))
+    return out
+
+
+def _effect_moves(c: Candidate) -> list[tuple[Move, Candidate]]:
+    out = []
+    for e in fx.applicable(c):
+        changed = e.apply(c)
+        child = _child(c, e.name, changed.regressors, changed.states, changed.lift, changed.bounds)
+        out.append((Move("effect", e.name, tuple(e.new_parameters(c, changed)), e.name), child))
+    return out
+
+
+def generate(c: Candidate, library: TermLibrary, lifts: Mapping[str, Candidate] | None = None,
+             kinds=MOVE_KINDS) -> list[tuple[Move, Candidate]]:
+    """Every valid move of ``kinds`` from ``c``, one per child structure (an effect's name wins)."""
+    if library.coefficient != c.coefficient:
+        raise DeclarationError(f"the term library is for {library.coefficient}, and {c.name} models {c.coefficient}")
+    found: list[tuple[Move, Candidate]] = []
+    if {"add", "drop", "replace"} & set(kinds):
+        found += [(m, ch) for m, ch in _term_moves(c, library) if m.kind in kinds]
+    if {"state kind", "add state", "remove state"} & set(kinds):
+        found += [(m, ch) for m, ch in _state_moves(c) if m.kind in kinds]
+    if "lift" in kinds:
+        found += _lift_moves(c, lifts or {})
+    effect_moves = _effect_moves(c) if "effect" in kinds else []
+    by_key: dict[tuple, tuple[Move, Candidate]] = {}
+    parent_key = structure_key(c)
+    for move, child in found + effect_moves:
+        key = structure_key(child)
+        if key == parent_key or not _valid(child):
+            continue
+        if key in by_key and move.kind == "effect":
+            first, first_child = by_key[key]
+            by_key[key] = (Move(first.kind, first.label, first.new_parameters or move.new_parameters, move.effect),
+                           first_child)
+        elif key not in by_key:
+            by_key[key] = (move, child)
+    return list(by_key.values())

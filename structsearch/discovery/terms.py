@@ -1,0 +1,192 @@
+"""The term library a structure search draws from: regressor templates per coefficient.
+
+A template is a regressor whose separation state, if it has one, is a placeholder: ``1 - {X}`` stands for
+``1 - X_ss``, ``1 - X_w`` or ``1 - X``, whichever states the candidate has (its own, or its lift model's). The
+default library is every regressor declared in the shipped grids (``model_specs/``) for the coefficient plus
+the regressors of the effect library (:mod:`.effects`); users add their own in TOML (docs/interfaces.md,
+section "Term library")::
+
+    coefficient = "CD"                 # optional: the coefficient the terms are for
+    [terms]
+    CD_alpha3 = "alpha**3"             # any campaign column, constant or helper (K_L, K_D, K2, KS, max_half)
+    CD_KD = "K_D(X)"                   # X: each separation state of the candidate in turn
+
+A term on a column the campaign lacks is an error for a user's term (the file and the term named) and is
+set aside, with the reason, for a shipped one (a pitch term on x_cg on a campaign without x_cg).
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..data.errors import DeclarationError
+from ..engine.regressors import HELPERS, NAMED_EXPRESSIONS, parse, symbol_names
+from ..fitting.candidates import Candidate
+from ..fitting.specs import BUILTIN_GRIDS, load_grid, read_toml
+
+COEFFICIENTS = ("CL", "CD", "Cm")
+# a separation state's symbol in an expression: X (the single state) or X_<name>
+_STATE = re.compile(r"\bX(?:_([A-Za-z0-9]+))?\b")
+_PLACEHOLDER = "{X}"
+
+
+@dataclass(frozen=True)
+class Term:
+    """One regressor template: ``name`` and ``expression`` hold ``{s}`` and ``{X}`` where a state goes."""
+
+    name: str
+    expression: str
+    source: str = "model_specs"
+
+    @property
+    def per_state(self) -> bool:
+        return _PLACEHOLDER in self.expression
+
+    def instances(self, states: tuple[str, ...]) -> list[tuple[str, str]]:
+        """(name, expression) for each state of ``states`` (names), or the term itself without a state."""
+        if not self.per_state:
+            return [(self.name, self.expression)]
+        return [(self.name.replace("{s}", f"_{s}" if s else ""), self.expression.replace(_PLACEHOLDER, f"X_{s}" if s else "X"))
+                for s in states]
+
+
+@dataclass(frozen=True)
+class TermLibrary:
+    """The templates of one coefficient, and the shipped ones set aside for the campaign (with why)."""
+
+    coefficient: str
+    terms: tuple[Term, ...]
+    set_aside: tuple[tuple[str, str], ...] = field(default=())
+
+    def instances(self, states: tuple[str, ...]) -> list[tuple[str, str]]:
+        out, seen = [], set()
+        for t in self.terms:
+            for name, expr in t.instances(states):
+                key = normalise(expr)
+                if key not in seen:
+                    seen.add(key)
+                    out.append((name, expr))
+        return out
+
+    def to_dict(self) -> dict:
+        return {"coefficient": self.coefficient, "terms": {t.name: t.expression for t in self.terms},
+                "set_aside": dict(self.set_aside)}
+
+
+def normalise(expression: str) -> str:
+    return expression.replace(" ", "")
+
+
+def template_of(name: str, expression: str) -> Term | None:
+    """The template of a declared regressor; None when it mixes two separation states."""
+    states = {m.group(1) or "" for m in _STATE.finditer(expression)}
+    if not states:
+        return Term(name, expression)
+    if len(states) > 1:
+        return None
+    (s,) = states
+    expr = _STATE.sub(_PLACEHOLDER, expression)
+    if s and f"_{s}" in name:
+        i = name.index(f"_{s}")
+        name = name[:i] + "{s}" + name[i + len(s) + 1:]
+    else:
+        name = name + "{s}"
+    return Term(name, expr)
+
+
+def _add(terms: list[Term], term: Term) -> None:
+    """Append unless the expression is known; a name another template holds gets a numeral."""
+    if any(normalise(t.expression) == normalise(term.expression) for t in terms):
+        return
+    names = {t.name for t in terms}
+    name, k = term.name, 2
+    while name in names:
+        name = term.name.replace("{s}", "") + f"_{k}" + ("{s}" if term.per_state else "")
+        k += 1
+    terms.append(Term(name, term.expression, term.source))
+
+
+def shipped_terms(coefficient: str) -> list[Term]:
+    """Every regressor declared for ``coefficient`` in the shipped grids, then the effect library's."""
+    from .effects import effect_terms
+    if coefficient not in COEFFICIENTS:
+        raise DeclarationError(f"no term library for coefficient {coefficient!r}; one of {', '.join(COEFFICIENTS)}")
+    terms: list[Term] = []
+    lift = load_grid("lift")
+    for grid_name in BUILTIN_GRIDS:
+        grid = lift if grid_name == "lift" else load_grid(grid_name, lift)
+        if grid.coefficient != coefficient:
+            continue
+        for c in grid.candidates:
+            for name, expr in c.regressors:
+                t = template_of(name, expr)
+                if t is not None:
+                    _add(terms, t)
+    for name, expr in effect_terms(coefficient):
+        t = template_of(name, expr)
+        if t is not None:
+            _add(terms, Term(t.name, t.expression, "effect library"))
+    return terms
+
+
+def read_terms(path: str | Path, coefficient: str) -> list[Term]:
+    """A user's term file (TOML, module docstring); every error names the file and the term."""
+    path = Path(path)
+    doc = read_toml(path)
+    declared = doc.get("coefficient", coefficient)
+    if declared != coefficient:
+        raise DeclarationError(f"{path}: the terms are for {declared}, not {coefficient}")
+    table = doc.get("terms")
+    if not isinstance(table, dict) or not table:
+        raise DeclarationError(f"{path}: no [terms] table (name = \"expression\" lines)")
+    out: list[Term] = []
+    for name, expr in table.items():
+        if not isinstance(expr, str) or not expr.strip():
+            raise DeclarationError(f"{path}: term {name!r}: the expression must be a non-empty string")
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+            raise DeclarationError(f"{path}: term {name!r}: a name is letters, digits and underscores")
+        try:
+            parse(_STATE.sub("X", expr), known=())
+        except DeclarationError as exc:
+            raise DeclarationError(f"{path}: term {name!r}: {exc}") from None
+        t = template_of(name, expr)
+        if t is None:
+            raise DeclarationError(f"{path}: term {name!r}: one separation state per term (X stands for each)")
+        out.append(Term(t.name, t.expression, str(path)))
+    return out
+
+
+def columns_of(expression: str) -> set[str]:
+    """The campaign columns (or constants) a term reads: its free symbols other than states and helpers."""
+    names = symbol_names(_STATE.sub("X", expression.replace(_PLACEHOLDER, "X")))
+    return {n for n in names if not _STATE.fullmatch(n) and n not in HELPERS and n not in NAMED_EXPRESSIONS}
+
+
+def _missing(term: Term, data) -> list[str]:
+    expr = term.expression.replace(_PLACEHOLDER, "X")
+    return sorted(c for c in columns_of(expr) if c not in data and c not in data.constants)
+
+
+def library_for(coefficient: str, data, user_terms: str | Path | None = None) -> TermLibrary:
+    """The shipped templates (those the campaign ``data`` can evaluate) and a user's term file."""
+    kept: list[Term] = []
+    aside = []
+    for t in shipped_terms(coefficient):
+        missing = _missing(t, data)
+        if missing:
+            aside.append((t.name.replace("{s}", ""), f"the campaign has no column {', '.join(missing)}"))
+        else:
+            kept.append(t)
+    if user_terms is not None:
+        for t in read_terms(user_terms, coefficient):
+            missing = _missing(t, data)
+            if missing:
+                raise DeclarationError(f"{user_terms}: term {t.name.replace('{s}', '')!r} reads "
+                                       f"{', '.join(missing)}, which the campaign does not have")
+            _add(kept, t)
+    return TermLibrary(coefficient, tuple(kept), tuple(aside))
+
+
+def uses_state(c: Candidate, symbol: str) -> bool:
+    return any(symbol in {m.group(0) for m in _STATE.finditer(expr)} for _, expr in c.regressors)

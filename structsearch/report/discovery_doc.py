@@ -1,0 +1,124 @@
+"""``discover``'s files: discover.json, discover.md, path.csv and the final structure's model spec; its console
+lines. Everything is written atomically, and the JSON last, so that a reader never sees a half result."""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+from pathlib import Path
+
+import numpy as np
+from tabulate import tabulate
+
+from ..data.atomic import write_json, write_text
+from ..diagnosis.discovered import Discovery
+from ..discovery.spec_file import spec_text
+from ..fitting.candidates import Candidate
+from .diagnosis_doc import public
+
+PATH_COLUMNS = ("step", "move", "kind", "effect", "structure", "mse_validation", "mse_cv", "p_value", "threshold",
+                "shrink", "phase", "alpha_band")
+
+
+def _g(x, fmt=".4g") -> str:
+    return "n/a" if x is None or (isinstance(x, float) and not np.isfinite(x)) else format(x, fmt)
+
+
+def spec_name(found: Discovery) -> str:
+    return f"{found.coefficient}_discovered.toml"
+
+
+def path_rows(found: Discovery) -> list[list]:
+    rows = []
+    for i, p in enumerate(found.path, 1):
+        where = p.where or {}
+        rows.append([i, p.move, p.kind, p.effect or "", p.structure["name"], p.mse_validation,
+                     "" if p.mse_cv is None else p.mse_cv, "" if p.p_value is None else p.p_value,
+                     (p.test or {}).get("threshold", ""), "" if p.shrink is None else p.shrink,
+                     where.get("phase", ""), where.get("alpha_band", "")])
+    return rows
+
+
+def path_csv(found: Discovery) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(PATH_COLUMNS)
+    w.writerows(path_rows(found))
+    return buf.getvalue()
+
+
+def markdown(found: Discovery, command: str = "") -> str:
+    start = found.start
+    lines = [f"# Structure discovery for {found.coefficient}", ""]
+    if command:
+        lines += [f"Made by `{command}`.", ""]
+    lines += [f"From {start['name']} ({', '.join(start['regressors'].values())}"
+              + (f"; lift model {start['lift']}" if start.get("lift") else "") + f"): validation MSE "
+              f"{_g(found.start_mse_validation)}. {found.structures_fitted} structures fitted in "
+              f"{len(found.steps)} steps ({found.seconds:.0f} s); the search stopped: {found.stopped}.", "",
+              "## Path", ""]
+    if found.path:
+        body = [[i, p.move, p.effect or "", _g(p.mse_validation), _g(p.mse_cv), _g(p.p_value, ".2g"),
+                 _g(p.shrink, ".0%"), (p.where or {}).get("phase", ""), (p.where or {}).get("alpha_band", "")]
+                for i, p in enumerate(found.path, 1)]
+        lines += [tabulate(body, headers=["step", "move", "effect", "validation MSE", "CV MSE", "p (test)",
+                                          "shrink", "phase", "alpha band"], tablefmt="github"), ""]
+        test = (found.path[0].test or {}).get("test", "")
+        lines += [f"Test: {test}; a move that simplifies is adopted within one standard error. Shrink: the share of "
+                  f"the gap from the start to the floor ({_g(found.noise_floor)}) the move closes.", ""]
+    else:
+        lines += ["No move passed the test: the start is the structure found.", ""]
+    f = found.final
+    lines += ["## Final structure", "", f"{f.name}: validation MSE {_g(f.mse_validation)}, CV MSE {_g(f.mse_cv)}, "
+              + ("admissible" if f.admissible else "not admissible: " + "; ".join(f.reasons))
+              + ("; at the floor" if found.explained else "; above the floor") + ".", ""]
+    lines += [tabulate([[n, e] for n, e in f.structure["regressors"].items()], headers=["parameter", "term"],
+                       tablefmt="github"), ""]
+    if f.structure.get("states"):
+        lines += ["States: " + ", ".join(f"X{'_' + s if s else ''}: {k}" for s, k in f.structure["states"].items())
+                  + (f" (from the lift model {f.structure['lift']})" if f.structure.get("lift") else ""), ""]
+    if f.spec:
+        lines += [f"Written as a model spec: `{f.spec}` (`structsearch fit --model {f.spec}`).", ""]
+    lines += ["## Against the grid and the thesis", ""]
+    body = [[c.role, c.name, c.n_params, _g(c.mse_validation), _g(c.mse_cv), "yes" if c.admissible else "no",
+             _g(c.excess, "+.1%"), _g(c.excess_se, ".1%"),
+             "-" if c.within_noise is None else ("yes" if c.within_noise else "no")] for c in found.comparison]
+    lines += [tabulate(body, headers=["role", "structure", "parameters", "validation MSE", "CV MSE", "admissible",
+                                      "discovered's excess", "se", "within noise"], tablefmt="github"), "",
+              "The discovered structure's per-maneuver relative excess of out-of-sample MSE over each reference; "
+              "within noise by the ranking's one-standard-error rule.", ""]
+    for c in found.comparison[1:]:
+        mine = set(found.comparison[0].terms)
+        theirs = set(c.terms)
+        if mine != theirs:
+            lines += [f"Terms against {c.name}: only discovered {sorted(mine - theirs) or '-'}; only in {c.name} "
+                      f"{sorted(theirs - mine) or '-'}.", ""]
+    return "\n".join(lines)
+
+
+def write_discovery(found: Discovery, out: Path, command: str = "") -> Discovery:
+    """Write the spec, path.csv, discover.md and (last) discover.json; the result with ``final.spec`` set."""
+    out.mkdir(parents=True, exist_ok=True)
+    spec = out / spec_name(found)
+    final = Candidate.from_dict(found.final.structure)
+    write_text(spec, spec_text(final, f"the structure structsearch discover found for {found.coefficient}"))
+    found = dataclasses.replace(found, final=dataclasses.replace(found.final, spec=str(spec)))
+    write_text(out / "path.csv", path_csv(found))
+    write_text(out / "discover.md", markdown(found, command))
+    write_json(out / "discover.json", public(found))
+    return found
+
+
+def discovery_console_lines(found: Discovery, out: Path) -> list[str]:
+    f = found.final
+    lines = [f"{found.coefficient}: {len(found.path)} moves from {found.start['name']} to {f.name} "
+             f"(validation MSE {_g(found.start_mse_validation)} -> {_g(f.mse_validation)}; "
+             f"{'admissible' if f.admissible else 'not admissible'}; {found.structures_fitted} structures, "
+             f"{found.seconds:.0f} s)"]
+    for i, p in enumerate(found.path, 1):
+        lines.append(f"  {i}. {p.move} (p {_g(p.p_value, '.2g')}, shrink {_g(p.shrink, '.0%')})")
+    for c in found.comparison[1:]:
+        lines.append(f"  against {c.role} {c.name}: excess {_g(c.excess, '+.1%')} +- {_g(c.excess_se, '.1%')}, "
+                     f"within noise: {'n/a' if c.within_noise is None else 'yes' if c.within_noise else 'no'}")
+    lines.append(f"wrote {out / 'discover.json'}, discover.md, path.csv and {f.spec}")
+    return lines
