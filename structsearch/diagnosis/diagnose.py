@@ -333,7 +333,7 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
             sl = StateLevel(error=str(exc))
     search_doc = {"stopped": ex.stopped, "structures_fitted": ex.n_fitted, "steps": len(ex.steps), "beam": beam,
                   "alpha": alpha, "test": TEST_NAME, "terms": library.to_dict(),
-                  "lift_models": sorted(ctx.lifts), "seconds": ex.seconds}
+                  "lift_models": sorted(ctx.lifts)}
     return Diagnosis(baseline.coefficient, baseline.name, floor.mse, floor.source,
                      min(f.mse for f in floors if not f.library_free), explained, final_excess, final_excess_se,
                      tuple(rounds), final_fit.candidate.name, float(np.mean(final_fit.residual ** 2)), block,

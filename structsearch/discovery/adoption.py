@@ -1,6 +1,11 @@
 """When a move is adopted: the test of a child structure against its parent.
 
-The statistic is the ranking's: the per-maneuver relative MSE out of sample, paired maneuver by maneuver
+A nested move (an effect, a term, a state or a state's lag added: the parent is the child with the new
+parameters at zero) is tested by the Wald test of those parameters on the covariance the fit kept (the
+options' kind: maneuver-aware, coloured residuals), the most powerful test the fit offers. Every other move
+(a replacement, a lift model, a removal) is tested out of sample.
+
+The out-of-sample statistic is the ranking's: the per-maneuver relative MSE out of sample, paired maneuver by maneuver
 and weighted by samples, over every maneuver that has one: the training maneuvers held out by the
 maneuver-grouped cross-validation and the validation maneuvers (only these when a fit has no folds).
 Pooling both doubles the pairs the test has; each error is still a prediction of data the fit did not see. A move *improves* when the one-sided paired t-test of
@@ -21,11 +26,12 @@ from ..engine.scores import weighted_mean_se
 from ..fitting.candidate_result import CandidateResult
 
 # The family-wise rate of one step's improvement test (Bonferroni over its moves).
-DEFAULT_ALPHA = 0.05
+DEFAULT_ALPHA = 0.10
 PRACTICAL_TOLERANCE = 0.01
 MIN_MANEUVERS = 3
 TEST_NAME = ("paired one-sided t-test of the out-of-sample per-maneuver relative MSE (held-out training and "
              "validation maneuvers), Bonferroni over the step's moves")
+WALD_TEST_NAME = "Wald test of the parameters the move adds (the fit's covariance), Bonferroni over the step's moves"
 
 
 @dataclass(frozen=True)
@@ -34,17 +40,30 @@ class MoveTest:
     and its standard error, the one-sided p-value and the threshold (alpha / moves tried); NaN p-value with
     ``reason`` when it cannot be computed (fewer than three maneuvers, a failed fit)."""
 
-    basis: str                  # "cv" or "validation"
+    basis: str                  # "cv+validation" or "validation"
     gain: float
     gain_se: float
     n_maneuvers: int
-    p_value: float
+    p_value: float              # the paired out-of-sample test
     threshold: float
     reason: str = ""
+    # a nested move (it only adds parameters, whose zero gives back the parent): the Wald test of them on the
+    # covariance the fit kept; None for another move, or for a fit screened without statistics
+    wald_p_value: float | None = None
+
+    @property
+    def kind(self) -> str:
+        return "wald" if self.wald_p_value is not None else "paired"
+
+    @property
+    def decisive_p_value(self) -> float:
+        """The p-value the adoption decides on: Wald for a nested move, the paired test otherwise."""
+        return self.wald_p_value if self.wald_p_value is not None else self.p_value
 
     @property
     def improves(self) -> bool:
-        return bool(np.isfinite(self.p_value) and self.p_value < self.threshold and self.gain > 0)
+        p = self.decisive_p_value
+        return bool(np.isfinite(p) and p < self.threshold and self.gain > 0)
 
     @property
     def within_one_se(self) -> bool:
@@ -55,9 +74,10 @@ class MoveTest:
     def to_dict(self) -> dict:
         def num(x):
             return float(x) if np.isfinite(x) else None
-        return {"test": TEST_NAME, "basis": self.basis, "gain": num(self.gain), "gain_se": num(self.gain_se),
-                "n_maneuvers": self.n_maneuvers, "p_value": num(self.p_value), "threshold": self.threshold,
-                "reason": self.reason or None}
+        return {"test": WALD_TEST_NAME if self.kind == "wald" else TEST_NAME, "kind": self.kind,
+                "p_value": num(self.decisive_p_value), "threshold": self.threshold, "basis": self.basis,
+                "gain": num(self.gain), "gain_se": num(self.gain_se), "n_maneuvers": self.n_maneuvers,
+                "paired_p_value": num(self.p_value), "reason": self.reason or None}
 
 
 def _per_maneuver(result: CandidateResult) -> tuple[str, np.ndarray, np.ndarray]:
@@ -69,8 +89,19 @@ def _per_maneuver(result: CandidateResult) -> tuple[str, np.ndarray, np.ndarray]
             np.concatenate([np.array(s.n_maneuvers, float) for _, s in parts]))
 
 
-def move_test(parent: CandidateResult, child: CandidateResult, alpha: float, n_moves: int) -> MoveTest:
-    """The child against the parent (module docstring)."""
+def move_test(parent: CandidateResult, child: CandidateResult, alpha: float, n_moves: int,
+              new_parameters: tuple[str, ...] = (), statistics: bool = True) -> MoveTest:
+    """The child against the parent (module docstring); ``new_parameters`` are those a nested move adds (their
+    Wald test decides, when the child has ``statistics``)."""
+    import dataclasses
+    test = _paired(parent, child, alpha, n_moves)
+    if new_parameters and statistics and not child.failed:
+        wald = child.wald_test([n for n in new_parameters if n in child.params]).p_value
+        test = dataclasses.replace(test, wald_p_value=float(wald) if np.isfinite(wald) else float("nan"))
+    return test
+
+
+def _paired(parent: CandidateResult, child: CandidateResult, alpha: float, n_moves: int) -> MoveTest:
     threshold = alpha / max(n_moves, 1)
     if parent.failed or child.failed:
         return MoveTest("", float("nan"), float("nan"), 0, float("nan"), threshold, "a fit failed")

@@ -138,13 +138,17 @@ def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool
     import dataclasses
     if child.result.failed:
         return dataclasses.replace(child, status="failed", anchor=anchor)
-    test = move_test(anchor.result, child.result, alpha, n_moves)
+    # a move from the anchor itself that only adds parameters is nested: its Wald test decides (fitted in full)
+    nested = child.move.new_parameters if child.parent is anchor and child.move.kind in NESTED_KINDS else ()
+    test = move_test(anchor.result, child.result, alpha, n_moves, nested, statistics=judged)
     if judged and _hard(child) - _hard(anchor):
         # a structure the data cannot identify, or a fit that did not converge, is never adopted
         return dataclasses.replace(child, status="rejected", anchor=anchor, test=test)
     fewer_reasons = not judged or len(child.reasons) <= len(anchor.reasons)
     strictly_fewer = not judged or len(child.reasons) < len(anchor.reasons)
-    if test.improves and child.result.validation.mse < anchor.result.validation.mse and \
+    # screened (no statistics yet): a nested move that gains out of sample goes on to its full fit
+    passes = test.improves or (not judged and nested and test.gain > 0)
+    if passes and child.result.validation.mse < anchor.result.validation.mse and \
             (child.admissible or fewer_reasons):
         status = "improves"
     elif child.parent is anchor and test.within_one_se and (
@@ -156,6 +160,23 @@ def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool
     else:
         status = "rejected"
     return dataclasses.replace(child, status=status, anchor=anchor, test=test)
+
+
+NESTED_KINDS = ("effect", "add", "state kind", "add state")
+
+
+def _nested_first(improved: list[Node], alpha: float) -> list[Node]:
+    """The improving moves best first, except that a move that only adds to its parent (an effect, a term, a
+    state or a state's lag) goes before a better one that also removes something when the two are within one
+    standard error of each other: it keeps what the parent explained, and the unmodelled effect is named."""
+    if not improved or improved[0].move.kind in NESTED_KINDS:
+        return improved
+    best = improved[0]
+    nested = [n for n in improved if n.move.kind in NESTED_KINDS and n.parent is best.parent
+              and move_test(best.result, n.result, alpha, 1).within_one_se]
+    if not nested:
+        return improved
+    return [nested[0]] + [n for n in improved if n is not nested[0]]
 
 
 def _shortlist(prelim: list[Node], beam: int) -> list[Node]:
@@ -233,7 +254,7 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
                   for n, r in zip(shortlist, fulls)}
         tried = [judged.get(id(n), dataclasses.replace(n, status="rejected" if n.status != "failed" else "failed"))
                  for n in prelim]
-        improved = sorted((n for n in tried if n.status == "improves"), key=lambda n: n.mse)
+        improved = _nested_first(sorted((n for n in tried if n.status == "improves"), key=lambda n: n.mse), alpha)
         simpler = sorted((n for n in tried if n.status == "simplifies"),
                          key=lambda n: (len(n.reasons), n.n_params, n.mse))
         ahead = sorted((n for n in tried if n.status == "look-ahead"), key=lambda n: n.mse)

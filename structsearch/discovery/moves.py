@@ -17,6 +17,7 @@ generated.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 from dataclasses import dataclass
 from typing import Mapping
@@ -225,9 +226,10 @@ def generate(c: Candidate, library: TermLibrary, lifts: Mapping[str, Candidate] 
         if key == parent_key or not _valid(child):
             continue
         if key in by_key and move.kind == "effect":
+            # the structural move builds an effect of the library: it carries the effect's name
             first, first_child = by_key[key]
             by_key[key] = (Move(first.kind, first.label, first.new_parameters or move.new_parameters, move.effect),
-                           first_child)
+                           dataclasses.replace(first_child, name=child.name, note=child.note))
         elif key not in by_key:
             by_key[key] = (move, child)
     return list(by_key.values())
