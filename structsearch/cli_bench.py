@@ -79,8 +79,11 @@ def _diagnose_benchmark(args) -> int:
     from .diagnosis import withheld
     from .fitting.options import FitOptions
     from .engine.statistics import DEFAULT_COVARIANCE
-    options = FitOptions(n_starts=args.starts, covariance=args.covariance, parameter_boxes=_bounds(args), cv_folds=0)
+    options = FitOptions(n_starts=args.starts, covariance=args.covariance, parameter_boxes=_bounds(args),
+                         cv_method="one-step")
+    parts = set(args.parts.split(",")) if args.parts else {"withheld", "anomalies", "null"}
     res = withheld.run(seed=args.seed, scale=args.scale, null_seeds=tuple(range(args.null_seeds)),
+                       effects=None if "withheld" in parts else (), anomalies=None if "anomalies" in parts else (),
                        n_jobs=_jobs(args), options=options,
                        progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr,
                                                                        flush=True))
@@ -88,6 +91,7 @@ def _diagnose_benchmark(args) -> int:
                        + ([f"--scale {args.scale:g}"] if args.scale != 1.0 else [])
                        + ([f"--seed {args.seed}"] if args.seed else [])
                        + ([f"--null-seeds {args.null_seeds}"] if args.null_seeds != 3 else [])
+                       + ([f"--parts {args.parts}"] if args.parts else [])
                        + ([f"--starts {args.starts}"] if args.starts != 2 else [])
                        + ([f"--covariance {args.covariance}"] if args.covariance != DEFAULT_COVARIANCE else [])
                        + [f"--bound {n}={lo:g}:{hi:g}" for n, (lo, hi) in args.bound])

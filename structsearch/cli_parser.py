@@ -9,6 +9,17 @@ from .cli_options import (COVARIANCE_KINDS, CV_METHODS, DEFAULT_COVARIANCE, MAX_
                           _bound, _count, _cutoff, _fraction, _non_negative, _non_negative_float)
 from .flight.names import AIRCRAFT_NAMES, ANOMALY_NAMES, WITHHOLDABLE
 
+BENCHMARK_PARTS = ("withheld", "anomalies", "null")
+
+
+def _benchmark_parts(text: str) -> str:
+    parts = [p.strip() for p in text.split(",") if p.strip()]
+    bad = [p for p in parts if p not in BENCHMARK_PARTS]
+    if bad or not parts:
+        raise argparse.ArgumentTypeError(f"{text!r}: parts are {', '.join(BENCHMARK_PARTS)}, comma-separated")
+    return ",".join(parts)
+
+
 DESCRIPTION = "Command line: ``structsearch <command>`` (also ``python -m structsearch``)."
 
 
@@ -133,6 +144,8 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                    help="run the withheld-effect benchmark on simulated campaigns instead")
     g.add_argument("--scale", type=_fraction, default=1.0, help="benchmark campaign scale")
     g.add_argument("--null-seeds", type=_non_negative, default=3, help="benchmark: seeds of the null case")
+    g.add_argument("--parts", type=_benchmark_parts, default=None,
+                   help="benchmark: which parts, comma-separated: withheld, anomalies, null (default: all)")
     g.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
     _structure_search_options(g)
     g.add_argument("--quiet", action="store_true")

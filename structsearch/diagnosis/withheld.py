@@ -36,6 +36,7 @@ from ..flight.flighttest import build_campaign
 from ..flight.reference import FINAL_MODEL_NAMES
 from ..fitting.candidates import Candidate
 from ..fitting.options import FitOptions
+from .diagnose import DIAGNOSIS_OPTIONS
 from ..fitting.specs import find_candidate
 
 # effect -> (coefficient, regressors to drop, state kind changes)
@@ -159,6 +160,7 @@ class NullRow(_Row):
     alarm_test: bool | None      # None: the Wald test is not estimable
     alarm_combined: bool
     seconds: float
+    adopted: str | None = None   # the first move the structure search adopted: a false adoption (None: none)
 
 
 @dataclass(frozen=True)
@@ -194,6 +196,11 @@ class BenchmarkResult:
     @property
     def false_alarms_test(self) -> int:
         return sum(bool(r.alarm_test) for r in self.null)
+
+    @property
+    def false_adoptions(self) -> int:
+        """Null diagnoses in which the structure search adopted a move (the truth is the baseline)."""
+        return sum(r.adopted is not None for r in self.null)
 
 
 def _top(doc: Diagnosis):
@@ -249,7 +256,7 @@ def anomaly_row(name: str, seed: int, scale: float, options: FitOptions, n_jobs:
 
 
 def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, anomalies=None,
-        progress: Callable[[str], None] | None = None, options: FitOptions = FitOptions(n_starts=2, cv_folds=0),
+        progress: Callable[[str], None] | None = None, options: FitOptions = DIAGNOSIS_OPTIONS,
         n_jobs: int = 1) -> BenchmarkResult:
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
@@ -270,7 +277,7 @@ def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, a
             doc = diagnose(camp, find_candidate(name), options=options, max_rounds=1, states=False, n_jobs=n_jobs)
             p = doc.rounds[0].gap_p_value
             null.append(NullRow(s, name, doc.explained, p, None if p is None else bool(p < 0.01), not doc.explained,
-                                doc.seconds))
+                                doc.seconds, doc.rounds[0].adopted))
     return BenchmarkResult(seed, scale, tuple(rows), tuple(outside), tuple(null), NOT_EXPRESSIBLE,
                            time.perf_counter() - t0)
 
@@ -340,5 +347,8 @@ def markdown(res: BenchmarkResult, command: str = "structsearch diagnose --bench
                                 "no alarm by the combined rule (at the floor)"], tablefmt="github"), "",
               f"False alarms by the Wald test alone (1 %): **{sum(bool(r.alarm_test) for r in null)}/"
               f"{sum(r.alarm_test is not None for r in null)}** testable; "
-              f"by the combined rule: **{sum(r.alarm_combined for r in null)}/{len(null)}**.", ""]
+              f"by the combined rule: **{sum(r.alarm_combined for r in null)}/{len(null)}**. "
+              f"Moves adopted by the structure search (false adoptions): "
+              f"**{sum(r.adopted is not None for r in null)}/{len(null)}**"
+              + "".join(f"; seed {r.seed} {r.model}: {r.adopted}" for r in null if r.adopted) + ".", ""]
     return "\n".join(lines)
