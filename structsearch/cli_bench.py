@@ -33,6 +33,8 @@ def _calibration(args) -> int:
 def _bench(args) -> int:
     if args.calibration:
         return _calibration(args)
+    if args.discovery:
+        return _discovery_bench(args)
     from .experiments.bench import BenchConfig, run, write
     config = BenchConfig(samples=args.samples, repeats=args.repeats, random_starts=args.starts,
                          seed=args.seed, n_jobs=_jobs(args))
@@ -98,4 +100,23 @@ def _diagnose_benchmark(args) -> int:
     from .report.diagnosis_doc import benchmark_console_line, write_benchmark
     _, md = write_benchmark(res, out, command)
     print(benchmark_console_line(res, md))
+    return 0
+
+
+def _discovery_bench(args) -> int:
+    """``bench --discovery``: the story's and discover's cost at full scale (experiments.bench_discovery)."""
+    import json
+    from .data.atomic import write_json, write_text
+    from .experiments.bench_discovery import markdown, run_discovery_bench
+    out = Path(args.out)
+    say = lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True)  # noqa: E731
+    fig = run_discovery_bench(n_jobs=_jobs(args), seed=args.seed if args.seed != 2025 else 0, progress=say)
+    command = f"structsearch bench --discovery --out {out}" + (f" --jobs {args.jobs}" if args.jobs != 2 else "")
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(out / "discovery_bench.md", markdown(fig, command))
+    write_json(out / "discovery_bench.json", json.loads(json.dumps(fig, default=float)))
+    print(f"story {fig['story_structure_search']['seconds']:.0f} s with the structure search, "
+          f"{fig['story_library_only']['seconds']:.0f} s with the effect library alone ({fig['story_ratio']:.2f}x); "
+          + "; ".join(f"discover {c} {d['seconds']:.0f} s" for c, d in fig["discover"].items()))
+    print(f"wrote {out / 'discovery_bench.md'} and {out / 'discovery_bench.json'}")
     return 0

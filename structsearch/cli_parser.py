@@ -61,6 +61,9 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     b.add_argument("--calibration", action="store_true",
                    help="instead: Monte Carlo calibration of the covariances on simulated campaigns "
                         "(writes calibration.md and calibration.json)")
+    b.add_argument("--discovery", action="store_true",
+                   help="instead: the story with the structure search against the effect library alone, and "
+                        "discover --from minimal for each coefficient (writes discovery_bench.md and .json)")
     b.add_argument("--campaigns", type=_count, default=50, help="--calibration: number of seeded campaigns")
     b.add_argument("--scale", type=_fraction, default=0.1, help="--calibration: fraction of the maneuvers flown")
     b.set_defaults(func=handlers["bench"])

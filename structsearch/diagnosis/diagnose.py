@@ -41,7 +41,7 @@ from ..data.errors import DataError, DeclarationError
 from ..discovery.adoption import DEFAULT_ALPHA, TEST_NAME
 from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, explore, fit_structures
 from ..discovery.judge import judge_for
-from ..discovery.moves import generate
+from ..discovery.moves import MOVE_KINDS, generate
 from ..discovery.terms import library_for
 from ..fitting.options import FitOptions
 from ..fitting.candidate_fit import fit_lift_model
@@ -221,11 +221,11 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, options: FitOptions = D
              max_rounds: int = DEFAULT_MAX_STEPS, progress: Callable[[str], None] | None = None, seed: int = 0,
              states: bool = True, n_jobs: int = 1, lifts: Mapping[str, LiftFit] | None = None,
              terms: str | None = None, beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA,
-             cache_dir: str | Path | None = None, backend: str = "loky") -> Diagnosis:
+             cache_dir: str | Path | None = None, backend: str = "loky", kinds=MOVE_KINDS) -> Diagnosis:
     """Diagnose one coefficient (:func:`diagnose_with_search`, its diagnosis alone)."""
     return diagnose_with_search(campaign, baseline, options=options, max_rounds=max_rounds, progress=progress,
                                 seed=seed, states=states, n_jobs=n_jobs, lifts=lifts, terms=terms, beam=beam,
-                                alpha=alpha, cache_dir=cache_dir, backend=backend)[0]
+                                alpha=alpha, cache_dir=cache_dir, backend=backend, kinds=kinds)[0]
 
 
 def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: FitOptions = DIAGNOSIS_OPTIONS,
@@ -233,7 +233,7 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
                          seed: int = 0, states: bool = True, n_jobs: int = 1,
                          lifts: Mapping[str, LiftFit] | None = None, terms: str | None = None,
                          beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA, cache_dir: str | Path | None = None,
-                         backend: str = "loky"):
+                         backend: str = "loky", kinds=MOVE_KINDS):
     """Diagnose one coefficient, and the structure search it ran: a search over moves (:mod:`structsearch.discovery`) from ``baseline``
     until it is at the floor or no move passes the adoption test; each adopted move is a round. ``to_dict()``
     of the result is the JSON document of docs/interfaces.md sections 3 and 5.4. ``lifts`` adds lift models a
@@ -243,7 +243,7 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
         with tempfile.TemporaryDirectory(prefix="structsearch-diagnose-") as tmp:
             return diagnose_with_search(campaign, baseline, options=options, max_rounds=max_rounds, progress=progress, seed=seed,
                             states=states, n_jobs=n_jobs, lifts=lifts, terms=terms, beam=beam, alpha=alpha,
-                            cache_dir=tmp, backend=backend)
+                            cache_dir=tmp, backend=backend, kinds=kinds)
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     if max_rounds < 1:
@@ -258,7 +258,7 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
     ctx = _Context(train, val, _lift_models(baseline, lift, train, val, options, lifts), seed)
     library = library_for(baseline.coefficient, train, terms)
     lift_candidates = {n: lf.candidate for n, lf in ctx.lifts.items()}
-    if not generate(baseline, library, lift_candidates):
+    if not generate(baseline, library, lift_candidates, kinds):
         raise DeclarationError(f"no move of the structure search applies to {baseline.name}")
     warnings = []
     if len(val.names) < MIN_MANEUVERS:
@@ -291,7 +291,7 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
 
     say(f"structure search from {baseline.name}: {len(library.terms)} term templates, beam {beam}")
     ex = explore(baseline, campaign, library, cache, lifts=ctx.lifts, options=options, beam=beam, alpha=alpha,
-                 max_steps=max_rounds, judge=judge_for(campaign), stop=at_floor,
+                 max_steps=max_rounds, judge=judge_for(campaign), stop=at_floor, kinds=kinds,
                  n_jobs=n_jobs, backend=backend, progress=say)
     path = ex.final.path()
     fits = [base_fit] + [ctx.fitted(n) for n in path[1:]]

@@ -18,7 +18,8 @@ from ..fitting.lift_fit import LiftFit
 from .results import Diagnosis
 from ..data.campaign import Campaign
 from ..flight.reference import VAN_INGEN_MODEL_NAMES
-from ..discovery.explore import DEFAULT_MAX_STEPS
+from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS
+from ..discovery.moves import MOVE_KINDS
 from ..fitting.options import FitOptions
 from ..fitting.specs import find_candidate
 
@@ -40,9 +41,10 @@ class Story:
 
 def van_ingen_story(campaign: Campaign, options: FitOptions = DIAGNOSIS_OPTIONS,
                     progress: Callable[[str], None] | None = None, n_jobs: int = 1,
-                    cache_dir: str | Path | None = None) -> Story:
+                    cache_dir: str | Path | None = None, kinds=MOVE_KINDS, beam: int = DEFAULT_BEAM) -> Story:
     """Diagnose each Van Ingen structure (a structure search from each until it is at the floor or no move
-    passes), lift first: the drag and pitch searches may feed their models the lift structure found for C_L."""
+    passes), lift first: the drag and pitch searches may feed their models the lift structure found for C_L.
+    ``kinds`` and ``beam`` restrict the search (``("effect",)`` and 1: the effect library alone, one at a time)."""
     say = progress or (lambda m: None)
     docs = {}
     lifts: dict[str, LiftFit] = {}
@@ -50,7 +52,7 @@ def van_ingen_story(campaign: Campaign, options: FitOptions = DIAGNOSIS_OPTIONS,
         say(f"story: diagnosing the Van Ingen {coef} model {name}")
         docs[coef] = diagnose(campaign, find_candidate(name), options=options, max_rounds=STORY_ROUNDS,
                               progress=lambda m, c=coef: say(f"story {c}: {m}"), n_jobs=n_jobs, lifts=lifts,
-                              cache_dir=cache_dir)
+                              cache_dir=cache_dir, kinds=kinds, beam=beam)
         if coef == "CL" and docs[coef].final_structure is not None and docs[coef].rounds[-1].baseline != name:
             # drag and pitch may be fed the lift structure the story found for C_L
             found = Candidate.from_dict(docs[coef].final_structure)
