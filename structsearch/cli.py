@@ -198,7 +198,7 @@ def _discover(args) -> int:
     found = discover(args.data, args.coefficient, start=args.start, lifts=args.lift, terms=args.terms,
                      beam=args.beam, max_steps=args.max_steps, starts=args.starts, seed=args.seed,
                      covariance=args.covariance, bounds=_bounds(args), jobs=_jobs(args), backend=args.backend,
-                     out=out, progress=_progress(args, "discover: "))
+                     out=out, progress=_progress(args, "discover: "), command="structsearch " + " ".join(sys.argv[1:]))
     for line in discovery_console_lines(found, out):
         print(line)
     return 0

@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from structsearch.diagnosis import effects as fx
+from structsearch.discovery import effects as fx
 from structsearch.data.campaign import Maneuver, make_campaign
 from structsearch.diagnosis.diagnose import diagnose
 from structsearch.data.errors import DataError, DeclarationError
@@ -155,7 +155,7 @@ def test_final_model_is_explained(campaign):
     assert d.gap_explained_by_baseline and d.explained
     # checked outside the diagnosis: the saturated model, fitted here, predicts the validation maneuvers
     # no better than 1 % below the final model
-    from structsearch.diagnosis import effects as fx
+    from structsearch.discovery import effects as fx
     from structsearch.diagnosis.diagnose import saturated
     final = find_candidate("Cm-XXXIIIr")
     train, val = campaign.split("train"), campaign.split("validation")
@@ -268,7 +268,9 @@ def test_story_lines_tell_the_adopted_effects_in_order():
 INTERFACE_KEYS = ["coefficient", "baseline", "mse", "noise_floor", "floor_source", "noise_floor_library",
                   "noise_floor_spectral", "where", "effects", "explained", "gap_explained_by_baseline",
                   "final_excess_over_floor", "final_excess_se", "rounds", "final_model", "final_mse", "unexplained",
-                  "warnings", "state_level", "seconds"]
+                  "warnings", "state_level", "final_structure", "search", "seconds"]
+# what each effect row says of the move that made it (issue 28)
+MOVE_KEYS = {"kind", "effect", "verdict", "test"}
 
 
 def test_diagnosis_to_dict_is_the_interface_document(withheld_elevator):
@@ -279,7 +281,19 @@ def test_diagnosis_to_dict_is_the_interface_document(withheld_elevator):
     assert list(doc) == INTERFACE_KEYS
     assert set(doc["mse"]) == {"train", "validation"}
     assert {"dimension", "bin", "share", "mse"} <= set(doc["where"][0])
-    assert {"name", "shrink", "mse_validation_after", "p_value"} <= set(doc["effects"][0])
+    assert {"name", "shrink", "mse_validation_after", "p_value"} | MOVE_KEYS <= set(doc["effects"][0])
+    assert all(MOVE_KEYS <= set(e) for r in doc["rounds"] for e in r["effects"])
+    # the adopted move is named by its effect, and the test that adopted it passed
+    adopted = doc["effects"][0]
+    assert adopted["effect"] == adopted["name"] == doc["rounds"][0]["adopted"] == "elevator"
+    assert adopted["verdict"] == "improves" and adopted["kind"] in ("add", "effect")
+    assert adopted["test"]["p_value"] < adopted["test"]["threshold"]
+    # the structure reached, with its terms: the baseline and the elevator term
+    final = doc["final_structure"]
+    assert final["name"] == doc["final_model"] and final["coefficient"] == doc["coefficient"]
+    assert final["regressors"] == dict(baseline_without("elevator").regressors) | {"CL_de": "de"}
+    assert {"stopped", "structures_fitted", "steps", "terms"} <= set(doc["search"])
+    assert doc["search"]["structures_fitted"] >= 1 + len(doc["effects"])
     assert {"share", "noise_floor", "signals"} <= set(doc["unexplained"])
     assert list(doc["state_level"]) == ["before", "after", "window_s", "reduction"]
     # the first round's parts at the top level, and the document survives JSON
@@ -294,12 +308,16 @@ def test_diagnosis_to_dict_is_the_interface_document(withheld_elevator):
 
 
 def test_failures_stay_recorded_in_the_document():
-    from structsearch.diagnosis.results import StateLevel
+    from structsearch.diagnosis.results import EffectRow, StateLevel
     from structsearch.report.diagnosis_doc import diagnosis_console_lines, markdown
     d = _story_diagnosis(state_level=StateLevel(error="state-level comparison: no Cm column"))
     doc = json.loads(json.dumps(d.to_dict()))
     assert doc["state_level"] == {"error": "state-level comparison: no Cm column"}
-    assert doc["rounds"][2]["effects"][1] == {"name": "d", "error": "fitting d failed"}
+    # a failed row keeps its reason, and the keys of the move that made it (None: made by hand without one)
+    assert doc["rounds"][2]["effects"][1] == {"name": "d", "error": "fitting d failed", "kind": None, "effect": None,
+                                              "verdict": None, "test": None}
+    failed = EffectRow("e", error="fitting e failed", kind="add", effect="elevator", verdict="failed")
+    assert EffectRow.from_dict(json.loads(json.dumps(failed.to_dict()))) == failed
     assert "state_level" not in _story_diagnosis().to_dict()    # not asked for: absent, as before
     assert "Not available: state-level comparison: no Cm column" in markdown(d)
     head, = diagnosis_console_lines(d, ("x.json", "x.md"))

@@ -9,6 +9,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+import dataclasses
 from pathlib import Path
 
 from .diagnose import DIAGNOSIS_OPTIONS, diagnose
@@ -23,6 +24,8 @@ from ..discovery.moves import MOVE_KINDS
 from ..fitting.options import FitOptions
 from ..fitting.specs import find_candidate
 
+# The name the drag and pitch searches know the lift structure found for C_L by.
+FOUND_LIFT = "CL-story"
 # Steps enough for the longest path of the story (pitch: a lift model, the centre-of-pressure and elevator terms).
 STORY_ROUNDS = DEFAULT_MAX_STEPS
 
@@ -55,7 +58,8 @@ def van_ingen_story(campaign: Campaign, options: FitOptions = DIAGNOSIS_OPTIONS,
                               cache_dir=cache_dir, kinds=kinds, beam=beam)
         if coef == "CL" and docs[coef].final_structure is not None and docs[coef].rounds[-1].baseline != name:
             # drag and pitch may be fed the lift structure the story found for C_L
-            found = Candidate.from_dict(docs[coef].final_structure)
+            found = dataclasses.replace(Candidate.from_dict(docs[coef].final_structure), name=FOUND_LIFT,
+                                        note=f"the lift structure the story found: {docs[coef].final_model}")
             say(f"story: fitting the lift structure found for CL ({found.name}) for the drag and pitch models")
             train, val = campaign.split("train"), campaign.split("validation")
             result = fit_staged(found, train, val, None, options)
@@ -65,7 +69,8 @@ def van_ingen_story(campaign: Campaign, options: FitOptions = DIAGNOSIS_OPTIONS,
 
 
 def _steps(doc: Diagnosis) -> list[tuple[str, float]]:
-    """(effect adopted, fraction of the first round's gap it closed), round by round."""
+    """(move adopted, fraction of the first round's gap it closed; negative: it cost, as a look-ahead's first move
+    may), round by round."""
     gap = doc.rounds[0].mse.validation - doc.noise_floor
     out = []
     for r in doc.rounds:
@@ -73,6 +78,15 @@ def _steps(doc: Diagnosis) -> list[tuple[str, float]]:
             after = r.effect(r.adopted).mse_validation_after
             out.append((r.adopted, (r.mse.validation - after) / gap if gap > 0 else float("nan")))
     return out
+
+
+def _step_words(name: str, share: float, effect: bool) -> str:
+    what = f"adding {name}" if effect else name
+    if not np.isfinite(share):
+        return f"{what} (no gap to close)"
+    if share < 0:
+        return f"{what} costs {-share:.0%} of it (a first move that the next builds on)"
+    return f"{what} closes {share:.0%} of that gap"
 
 
 def _above(mse: float, floor: float) -> str:
@@ -87,10 +101,10 @@ def story_lines(docs: Mapping[str, Diagnosis]) -> list[str]:
         text = (f"{coef}: the Van Ingen model {doc.baseline} misses the flight data by {_above(mse, floor)} "
                 f"above the noise floor (validation MSE {mse:.3g} against {floor:.3g})")
         steps = _steps(doc)
+        effects = {r.adopted for r in doc.rounds if r.adopted and (r.effect(r.adopted).effect or
+                                                                   r.effect(r.adopted).kind is None)}
         if steps:
-            text += "; " + ", then ".join(
-                f"adding {name} closes {'n/a' if not np.isfinite(share) else f'{share:.0%}'} of that gap"
-                for name, share in steps)
+            text += "; " + ", then ".join(_step_words(name, share, name in effects) for name, share in steps)
         verdict = ("at the floor" if doc.explained else
                    f"still {_above(doc.final_mse, floor)} above the floor")
         text += f"; {doc.final_model} is {verdict}"

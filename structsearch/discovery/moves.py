@@ -218,7 +218,8 @@ def generate(c: Candidate, library: TermLibrary, lifts: Mapping[str, Candidate] 
         found += [(m, ch) for m, ch in _state_moves(c) if m.kind in kinds]
     if "lift" in kinds:
         found += _lift_moves(c, lifts or {})
-    effect_moves = _effect_moves(c) if "effect" in kinds else []
+    # the effect library names the structural moves that equal an effect, whichever kinds are asked
+    effect_moves = _effect_moves(c)
     by_key: dict[tuple, tuple[Move, Candidate]] = {}
     parent_key = structure_key(c)
     for move, child in found + effect_moves:
@@ -230,6 +231,6 @@ def generate(c: Candidate, library: TermLibrary, lifts: Mapping[str, Candidate] 
             first, first_child = by_key[key]
             by_key[key] = (Move(first.kind, first.label, first.new_parameters or move.new_parameters, move.effect),
                            dataclasses.replace(first_child, name=child.name, note=child.note))
-        elif key not in by_key:
+        elif key not in by_key and (move.kind != "effect" or "effect" in kinds):
             by_key[key] = (move, child)
     return list(by_key.values())

@@ -133,7 +133,10 @@ def shipped_terms(coefficient: str) -> list[Term]:
 def read_terms(path: str | Path, coefficient: str) -> list[Term]:
     """A user's term file (TOML, module docstring); every error names the file and the term."""
     path = Path(path)
-    doc = read_toml(path)
+    try:
+        doc = read_toml(path)
+    except UnicodeDecodeError as exc:   # read_toml reads text: a binary file is not a term file either
+        raise DeclarationError(f"{path}: not a UTF-8 text file: {exc}") from None
     declared = doc.get("coefficient", coefficient)
     if declared != coefficient:
         raise DeclarationError(f"{path}: the terms are for {declared}, not {coefficient}")
@@ -149,7 +152,8 @@ def read_terms(path: str | Path, coefficient: str) -> list[Term]:
         try:
             parse(_STATE.sub("X", expr), known=())
         except DeclarationError as exc:
-            raise DeclarationError(f"{path}: term {name!r}: {exc}") from None
+            # one line: sympy's messages span several
+            raise DeclarationError(f"{path}: term {name!r}: {' '.join(str(exc).split())}") from None
         t = template_of(name, expr)
         if t is None:
             raise DeclarationError(f"{path}: term {name!r}: one separation state per term (X stands for each)")
@@ -163,9 +167,14 @@ def columns_of(expression: str) -> set[str]:
     return {n for n in names if not _STATE.fullmatch(n) and n not in HELPERS and n not in NAMED_EXPRESSIONS}
 
 
-def _missing(term: Term, data) -> list[str]:
+# what a drag or pitch structure's lift model gives it, whether or not the campaign logs it
+FROM_LIFT_MODEL = {"CD": {"CL"}, "Cm": {"CL"}}
+
+
+def _missing(term: Term, data, coefficient: str) -> list[str]:
     expr = term.expression.replace(_PLACEHOLDER, "X")
-    return sorted(c for c in columns_of(expr) if c not in data and c not in data.constants)
+    given = FROM_LIFT_MODEL.get(coefficient, set())
+    return sorted(c for c in columns_of(expr) if c not in data and c not in data.constants and c not in given)
 
 
 def library_for(coefficient: str, data, user_terms: str | Path | None = None) -> TermLibrary:
@@ -173,14 +182,14 @@ def library_for(coefficient: str, data, user_terms: str | Path | None = None) ->
     kept: list[Term] = []
     aside = []
     for t in shipped_terms(coefficient):
-        missing = _missing(t, data)
+        missing = _missing(t, data, coefficient)
         if missing:
             aside.append((t.name.replace("{s}", ""), f"the campaign has no column {', '.join(missing)}"))
         else:
             kept.append(t)
     if user_terms is not None:
         for t in read_terms(user_terms, coefficient):
-            missing = _missing(t, data)
+            missing = _missing(t, data, coefficient)
             if missing:
                 raise DeclarationError(f"{user_terms}: term {t.name.replace('{s}', '')!r} reads "
                                        f"{', '.join(missing)}, which the campaign does not have")

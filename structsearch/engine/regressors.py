@@ -140,7 +140,7 @@ def _parse(text: str, known: tuple[str, ...]) -> sp.Expr:
     try:
         expr = sp.sympify(text, locals=local)
     except (sp.SympifyError, SyntaxError, TypeError, AttributeError) as exc:
-        raise DeclarationError(f"cannot parse expression {text!r}: {exc}") from None
+        raise DeclarationError(f"cannot parse expression {text!r}: {' '.join(str(exc).split())}") from None
     if not isinstance(expr, sp.Expr):
         raise DeclarationError(f"expression {text!r} is not a scalar expression")
     # names the user did not declare came back as plain (non-real) symbols: make them real

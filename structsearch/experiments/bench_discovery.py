@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import tempfile
 import time
+from pathlib import Path
 from typing import Callable
 
 
 def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
                         progress: Callable[[str], None] | None = None, coefficients=("CL", "CD", "Cm")) -> dict:
-    from ..api.discovering import discover
+    from ..study.structure_discovery import discover_structures
     from ..diagnosis.story import van_ingen_story
     from ..flight.flighttest import build_campaign
     say = progress or (lambda m: None)
@@ -39,7 +40,7 @@ def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
         say(f"discover {coef} from the minimal structure")
         with tempfile.TemporaryDirectory(prefix="structsearch-bench-discover-") as tmp:
             t0 = time.perf_counter()
-            found = discover(campaign, coef, jobs=n_jobs, out=tmp)
+            found = discover_structures(campaign, coef, n_jobs=n_jobs, cache_dir=Path(tmp))
             seconds = time.perf_counter() - t0
         thesis = next((r for r in found.comparison if r.role == "thesis final"), None)
         out["discover"][coef] = {"seconds": seconds, "moves": len(found.path),

@@ -40,6 +40,8 @@ def read_toml(path) -> dict:
         raise DeclarationError(f"model spec file {path} not found") from None
     except tomllib.TOMLDecodeError as exc:
         raise DeclarationError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise DeclarationError(f"{path}: not a UTF-8 text file: {exc}") from None
 
 
 def grid_path(name_or_path: str):

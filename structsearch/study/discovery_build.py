@@ -33,7 +33,7 @@ def build_discovery(campaign, diagnosis, exploration, lifts, options, n_jobs, ba
     from ..fitting.specs import find_candidate
     from ..flight.reference import FINAL_MODEL_NAMES
     from ..search.pipeline import search
-    from .discovering import GRIDS
+    from .structure_discovery import GRIDS
     judge = judge_for(campaign)
     nodes = exploration.final.path()
     path = []
