@@ -260,10 +260,12 @@ def test_a_state_kind_move_names_the_time_constant_it_adds():
     move, child = by_label["X_w: S -> Q"]
     assert move.new_parameters == ("tau2_w",) and dict(child.states) == {"ss": "U", "w": "Q"}
     assert move.effect == "separation_delay"   # the effect library's name for it
-    # without the effect library among the kinds the same move is structural only
+    # without the effect library among the kinds the move keeps the effect's name (the benchmark scores on it)
     ((alone, _),) = [(m, c) for m, c in generate(cl, _library("CL"), kinds=("state kind",))
                      if m.label == "X_w: S -> Q"]
-    assert alone.effect is None and alone.new_parameters == ("tau2_w",)
+    assert alone.effect == "separation_delay" and alone.new_parameters == ("tau2_w",)
+    # and the effect moves themselves are not generated then
+    assert not [m for m, _ in generate(cl, _library("CL"), kinds=("state kind",)) if m.kind == "effect"]
     # to a simpler kind: nothing is added, the move is not nested
     move, child = by_label["X_ss: U -> Q"]
     assert move.new_parameters == () and dict(child.states) == {"ss": "Q", "w": "S"}

@@ -298,9 +298,11 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
     path = ex.final.path()
     fits = [base_fit] + [ctx.fitted(n) for n in path[1:]]
     final_fit = fits[-1]
-    # every structure fitted in full joins the floor estimates (so that no shrink leaves [0, 1])
-    for n in [n for s in ex.steps for n in s.tried if not n.screened and not n.result.failed]:
-        floors.append(_Floor(n.result.validation.mse, None, n.candidate.name, node=n))
+    # the structure reached joins the floor estimates; the many a search tries and leaves do not: the lowest
+    # validation MSE of dozens of structures is biased low by the choice itself, and would call a true model
+    # unexplained (a move's shrink is capped at 1 instead)
+    if len(path) > 1:
+        floors.append(_Floor(path[-1].result.validation.mse, None, path[-1].candidate.name, node=path[-1]))
     if len(path) > 1:
         say("library-free floor of the final model's residual")
         flexible, sig_train, sig_val, x_val_final = _flexible(final_fit, final_fit.candidate, ctx.lift_of(

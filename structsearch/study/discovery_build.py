@@ -7,6 +7,10 @@ from pathlib import Path
 from ..diagnosis.discovered import ComparisonRow, Discovery, FinalStructure, PathStep, StepLine
 
 
+# The grid each coefficient's rank-1 candidate comes from.
+GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
+
+
 def _cv(result) -> float | None:
     return result.cv.mse if result.cv is not None else None
 
@@ -33,7 +37,6 @@ def build_discovery(campaign, diagnosis, exploration, lifts, options, n_jobs, ba
     from ..fitting.specs import find_candidate
     from ..flight.reference import FINAL_MODEL_NAMES
     from ..search.pipeline import search
-    from .structure_discovery import GRIDS
     judge = judge_for(campaign)
     nodes = exploration.final.path()
     path = []

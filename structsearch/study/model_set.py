@@ -77,10 +77,17 @@ def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out:
 
 def fit_with_effect(ms: ModelSet, coef: str, effect: str, campaign: Campaign, out: Path,
                     options: FitOptions) -> tuple[Candidate, CandidateResult]:
-    """The set's ``coef`` model with a library effect added, fitted (cached under ``out/cache``) on the set's
-    lift model: the "after" of the report's gap breakdown."""
-    from ..discovery import effects as fx
-    changed = fx.get(effect, coef).apply(ms.candidates[coef])
+    """The set's ``coef`` model after a diagnosis' move (a library effect's name or a structural move's label),
+    fitted (cached under ``out/cache``) on the set's lift model: the "after" of the report's gap breakdown."""
+    from ..discovery.moves import generate
+    from ..discovery.terms import library_for
+    base = ms.candidates[coef]
+    lift_candidates = {} if coef == "CL" else {ms.lift.name: ms.lift.candidate}
+    found = [child for move, child in generate(base, library_for(coef, campaign.split("train")), lift_candidates)
+             if move.name == effect]
+    if not found:
+        raise DeclarationError(f"report: no move {effect!r} applies to {base.name}")
+    changed = found[0]
     lifts = None if coef == "CL" else {ms.lift.name: ms.lift}
     result = run([changed], campaign, out, options=options, lifts=lifts)[0]
     if result.failed:

@@ -8,8 +8,7 @@ from pathlib import Path
 
 from ..data.errors import DeclarationError
 
-# The grid each coefficient's rank-1 candidate comes from.
-GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
+from .discovery_build import GRIDS, build_discovery
 
 def minimal(coefficient: str, lift: str | None):
     """The minimal structure: the intercept alone (a drag or pitch one fed the lift model ``lift``)."""
@@ -67,7 +66,6 @@ def run_discovery(campaign, first, names, terms, beam, max_steps, options, n_job
     from ..diagnosis.diagnose import diagnose_with_search
     from ..fitting.candidate_fit import fit_staged
     from ..fitting.lift_fit import LiftFit
-    from .discovery_build import build_discovery
     t0 = time.perf_counter()
     lifts = {}
     if first.coefficient != "CL":
