@@ -221,11 +221,13 @@ def diagnose(campaign: Campaign, baseline: Candidate, *, options: FitOptions = D
              max_rounds: int = DEFAULT_MAX_STEPS, progress: Callable[[str], None] | None = None, seed: int = 0,
              states: bool = True, n_jobs: int = 1, lifts: Mapping[str, LiftFit] | None = None,
              terms: str | None = None, beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA,
-             cache_dir: str | Path | None = None, backend: str = "loky", kinds=MOVE_KINDS) -> Diagnosis:
+             cache_dir: str | Path | None = None, backend: str = "loky", kinds=MOVE_KINDS,
+             simplify: bool = False) -> Diagnosis:
     """Diagnose one coefficient (:func:`diagnose_with_search`, its diagnosis alone)."""
     return diagnose_with_search(campaign, baseline, options=options, max_rounds=max_rounds, progress=progress,
                                 seed=seed, states=states, n_jobs=n_jobs, lifts=lifts, terms=terms, beam=beam,
-                                alpha=alpha, cache_dir=cache_dir, backend=backend, kinds=kinds)[0]
+                                alpha=alpha, cache_dir=cache_dir, backend=backend, kinds=kinds,
+                                simplify=simplify)[0]
 
 
 def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: FitOptions = DIAGNOSIS_OPTIONS,
@@ -233,10 +235,11 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
                          seed: int = 0, states: bool = True, n_jobs: int = 1,
                          lifts: Mapping[str, LiftFit] | None = None, terms: str | None = None,
                          beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA, cache_dir: str | Path | None = None,
-                         backend: str = "loky", kinds=MOVE_KINDS):
+                         backend: str = "loky", kinds=MOVE_KINDS, simplify: bool = False):
     """Diagnose one coefficient, and the structure search it ran: a search over moves
     (:mod:`structsearch.discovery`) from ``baseline`` until no move passes the adoption test; each adopted move
-    is a round, and the final structure is judged against the floor. ``to_dict()``
+    is a round, and the final structure is judged against the floor. A diagnosis adopts moves that close the
+    gap; with ``simplify`` (``discover``) also moves that only simplify within one standard error. ``to_dict()``
     of the result is the JSON document of docs/interfaces.md sections 3 and 5.4. ``lifts`` adds lift models a
     drag or pitch structure may be fed (the story: the lift structure found for C_L); ``terms`` a user's term
     file; the fits are cached in ``cache_dir`` (a temporary directory when None) and run on ``n_jobs``."""
@@ -244,7 +247,7 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
         with tempfile.TemporaryDirectory(prefix="structsearch-diagnose-") as tmp:
             return diagnose_with_search(campaign, baseline, options=options, max_rounds=max_rounds, progress=progress, seed=seed,
                             states=states, n_jobs=n_jobs, lifts=lifts, terms=terms, beam=beam, alpha=alpha,
-                            cache_dir=tmp, backend=backend, kinds=kinds)
+                            cache_dir=tmp, backend=backend, kinds=kinds, simplify=simplify)
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     if max_rounds < 1:
@@ -293,7 +296,7 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
     # and the search would stop early; it stops when no move passes, and the verdict is taken at the end
     say(f"structure search from {baseline.name}: {len(library.terms)} term templates, beam {beam}")
     ex = explore(baseline, campaign, library, cache, lifts=ctx.lifts, options=options, beam=beam, alpha=alpha,
-                 max_steps=max_rounds, judge=judge_for(campaign), kinds=kinds,
+                 max_steps=max_rounds, judge=judge_for(campaign), kinds=kinds, simplify=simplify,
                  n_jobs=n_jobs, backend=backend, progress=say)
     path = ex.final.path()
     fits = [base_fit] + [ctx.fitted(n) for n in path[1:]]

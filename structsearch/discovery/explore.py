@@ -200,9 +200,10 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
             beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA, max_steps: int = DEFAULT_MAX_STEPS,
             kinds: Sequence[str] = MOVE_KINDS, judge: Judge | None = None,
             stop: Callable[[Node], bool] | None = None, n_jobs: int = 1, backend: str = "loky",
-            progress: Callable[[str], None] | None = None) -> Exploration:
+            progress: Callable[[str], None] | None = None, simplify: bool = True) -> Exploration:
     """Search structures from ``start`` (module docstring); ``lifts`` are the lift models a drag or pitch
-    structure may be fed (by name; the start's own among them)."""
+    structure may be fed (by name; the start's own among them). Without ``simplify`` no move is adopted for
+    simplifying alone (the diagnosis asks what is missing, not what the data cannot support)."""
     import dataclasses
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
@@ -260,17 +261,17 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
         ahead = sorted((n for n in tried if n.status == "look-ahead"), key=lambda n: n.mse)
         if improved:
             nxt = improved[:beam]
-        elif simpler:
+        elif simpler and simplify:
             nxt = simpler[:1]
         elif ahead and any(n.status in CONFIRMED for n in current):
             # a change of lift model first: it is what the other terms of a drag or pitch model build on
             nxt = sorted(ahead, key=lambda n: (n.move.kind != "lift", n.mse))[:beam]
         else:
             nxt = []
-        # only the chosen look-aheads keep that status: the others are rejected for the record
+        # only the chosen look-aheads and simplifications keep that status: the others are rejected for the record
         chosen = {id(n) for n in nxt}
-        tried = [n if n.status != "look-ahead" or id(n) in chosen else dataclasses.replace(n, status="rejected")
-                 for n in tried]
+        tried = [n if n.status not in ("look-ahead", "simplifies") or id(n) in chosen
+                 else dataclasses.replace(n, status="rejected") for n in tried]
         nxt = [next(t for t in tried if t.candidate is n.candidate) for n in nxt]
         steps.append(Step(index, tuple(n.candidate.name for n in current), tuple(tried), tuple(nxt),
                           time.perf_counter() - t_step))

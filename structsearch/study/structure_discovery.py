@@ -79,7 +79,7 @@ def run_discovery(campaign, first, names, terms, beam, max_steps, options, n_job
     diagnosis, exploration = diagnose_with_search(campaign, first, options=options, max_rounds=max_steps,
                                                   progress=say, states=False, n_jobs=n_jobs, lifts=lifts,
                                                   terms=None if terms is None else str(terms), beam=beam,
-                                                  cache_dir=out, backend=backend)
+                                                  cache_dir=out, backend=backend, simplify=True)
     found = build_discovery(campaign, diagnosis, exploration, lifts, options, n_jobs, backend, out, say,
                             time.perf_counter() - t0)
     return found
