@@ -84,7 +84,8 @@ def _diagnose_benchmark(args) -> int:
     options = FitOptions(n_starts=args.starts, covariance=args.covariance, parameter_boxes=_bounds(args),
                          cv_method="one-step")
     parts = set(args.parts.split(",")) if args.parts else {"withheld", "anomalies", "null"}
-    res = withheld.run(seed=args.seed, scale=args.scale, null_seeds=tuple(range(args.null_seeds)),
+    res = withheld.run(seed=args.seed, scale=args.scale,
+                       null_seeds=tuple(range(args.null_seeds)) if "null" in parts else (),
                        effects=None if "withheld" in parts else (), anomalies=None if "anomalies" in parts else (),
                        n_jobs=_jobs(args), options=options,
                        progress=None if args.quiet else lambda m: print(f"diagnose: {m}", file=sys.stderr,
