@@ -218,12 +218,13 @@ def withheld_row(campaign, effect: str, options: FitOptions, n_jobs: int) -> Wit
     base = baseline_without(effect)
     doc = diagnose(campaign, base, options=options, max_rounds=1, n_jobs=n_jobs)
     first = doc.effects[0]
-    reported = next((e for e in doc.effects if e.name == effect), None)
+    # a move carries the effect's name when it equals the effect, or is the effect at one state (row.effect)
+    reported = next((e for e in doc.effects if e.name == effect or e.effect == effect), None)
     truth = truth_location(campaign, effect)
     top_phase, top_band = _top(doc)
     mse, floor = doc.mse.validation, doc.noise_floor
     sl = doc.state_level if doc.state_level is not None and not doc.state_level.failed else None
-    return WithheldRow(effect, base.coefficient, base.name, first.name == effect, first.name,
+    return WithheldRow(effect, base.coefficient, base.name, first.name == effect or first.effect == effect, first.name,
                        reported.shrink if reported else None,
                        bool(reported and reported.shrink is not None and reported.shrink >= HALF),
                        min(truth["truth_mse"] / (mse - floor), 1.0) if mse > floor else None,

@@ -11,8 +11,9 @@ maneuver-grouped cross-validation and the validation maneuvers (only these when 
 Pooling both doubles the pairs the test has; each error is still a prediction of data the fit did not see. A move *improves* when the one-sided paired t-test of
 ``1 - child/parent`` > 0 rejects at ``alpha / m``: Bonferroni over the ``m`` moves a step tries from
 that parent, so that the step's family-wise false-adoption rate stays below ``alpha`` whatever the number
-of moves (the rate measured on null campaigns is in ``results/discovery_null.md``, made by
-``structsearch bench --discovery-null``). A move *simplifies* (fewer parameters) when its relative
+of moves (the rate measured on null campaigns, the final models on their own truth, is in
+``results/null_benchmark/withheld_benchmark.md``, made by ``structsearch diagnose --benchmark --parts null
+--null-seeds 20 --scale 0.1``). A move *simplifies* (fewer parameters) when its relative
 excess over the parent is within one standard error (or 1 %): the ranking's one-standard-error rule.
 """
 from __future__ import annotations

@@ -166,17 +166,18 @@ NESTED_KINDS = ("effect", "add", "state kind", "add state")
 
 
 def _nested_first(improved: list[Node], alpha: float) -> list[Node]:
-    """The improving moves best first, except that a move that only adds to its parent (an effect, a term, a
-    state or a state's lag) goes before a better one that also removes something when the two are within one
-    standard error of each other: it keeps what the parent explained, and the unmodelled effect is named."""
-    if not improved or improved[0].move.kind in NESTED_KINDS:
+    """The improving moves best first, except among the moves within one standard error of the best (the ranking's
+    rule: the data cannot tell them apart): a move the effect library names goes first, then a move that only adds
+    to its parent (an effect, a term, a state or a state's lag): it keeps what the parent explained, and the
+    unmodelled effect is named."""
+    if not improved:
         return improved
     best = improved[0]
-    nested = [n for n in improved if n.move.kind in NESTED_KINDS and n.parent is best.parent
-              and move_test(best.result, n.result, alpha, 1).within_one_se]
-    if not nested:
-        return improved
-    return [nested[0]] + [n for n in improved if n is not nested[0]]
+    near = [n for n in improved if n.parent is best.parent
+            and (n is best or move_test(best.result, n.result, alpha, 1).within_one_se)]
+    preferred = ([n for n in near if n.move.effect] or [n for n in near if n.move.kind in NESTED_KINDS]
+                 or [best])[0]
+    return [preferred] + [n for n in improved if n is not preferred]
 
 
 def _shortlist(prelim: list[Node], beam: int) -> list[Node]:

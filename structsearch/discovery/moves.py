@@ -45,14 +45,17 @@ class Move:
     label: str                             # what it does, in words ("add CD_CL2 = CL**2", "X_ss: S -> Q")
     new_parameters: tuple[str, ...] = ()   # parameters whose zero gives back the parent (nested moves)
     effect: str | None = None              # the effect library's name for the same change
+    at_one_state: bool = False             # the effect at one of the states it adds terms for
 
     @property
     def name(self) -> str:
-        """The effect's name when the move is one, else the label."""
+        """The effect's name when the move is one (with the term, when at one state), else the label."""
+        if self.effect and self.at_one_state:
+            return f"{self.effect}: {self.label}"
         return self.effect or self.label
 
     def to_dict(self) -> dict:
-        return {"kind": self.kind, "label": self.label, "effect": self.effect,
+        return {"kind": self.kind, "label": self.label, "effect": self.effect, "at_one_state": self.at_one_state,
                 "new_parameters": list(self.new_parameters)}
 
 
@@ -206,6 +209,20 @@ def _effect_moves(c: Candidate) -> list[tuple[Move, Candidate]]:
     return out
 
 
+def _per_state_effect_terms(c: Candidate) -> dict[str, str]:
+    """Normalised expression -> effect name, for the terms a per-state effect of the library would add to ``c``
+    (X*de: elevator_effectiveness_loss, 1 - X: separation_drag, (1 - X)*C_L: cp_shift): adding one of them for
+    one state is that effect at that state."""
+    out = {}
+    for e in fx.applicable(c):
+        changed = e.apply(c)
+        if changed.states != c.states or len(changed.regressors) - len(c.regressors) < 2:
+            continue
+        for _, expr in changed.regressors[len(c.regressors):]:
+            out.setdefault(normalise(expr), e.name)
+    return out
+
+
 def generate(c: Candidate, library: TermLibrary, lifts: Mapping[str, Candidate] | None = None,
              kinds=MOVE_KINDS) -> list[tuple[Move, Candidate]]:
     """Every valid move of ``kinds`` from ``c``, one per child structure (an effect's name wins)."""
@@ -222,6 +239,15 @@ def generate(c: Candidate, library: TermLibrary, lifts: Mapping[str, Candidate] 
     effect_moves = _effect_moves(c)
     by_key: dict[tuple, tuple[Move, Candidate]] = {}
     parent_key = structure_key(c)
+    per_state = _per_state_effect_terms(c)
+    named = []
+    for move, child in found:
+        if move.kind == "add" and len(child.regressors) == len(c.regressors) + 1 and \
+                normalise(child.regressors[-1][1]) in per_state:
+            effect = per_state[normalise(child.regressors[-1][1])]
+            move = Move(move.kind, move.label, move.new_parameters, effect, at_one_state=True)
+        named.append((move, child))
+    found = named
     for move, child in found + effect_moves:
         key = structure_key(child)
         if key == parent_key or not _valid(child):
