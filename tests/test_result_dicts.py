@@ -23,7 +23,7 @@ ANOMALY_KEYS = ["anomaly", "coefficient", "baseline", "description", "signal", "
                 "top_alpha_band", "truth_phase", "truth_alpha_band", "truth_mse", "located", "adopted",
                 "closed_by_library", "explained", "false_claim", "unexplained_share", "first_signal", "says",
                 "first_signal_remaining", "signal_first", "gap_p_value", "seconds"]
-NULL_KEYS = ["seed", "model", "explained", "gap_p_value", "alarm_test", "alarm_combined", "seconds"]
+NULL_KEYS = ["seed", "model", "explained", "gap_p_value", "alarm_test", "alarm_combined", "seconds", "adopted"]
 
 
 def _benchmark():
