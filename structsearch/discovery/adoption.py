@@ -18,6 +18,7 @@ excess over the parent is within one standard error (or 1 %): the ranking's one-
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,7 +95,7 @@ def move_test(parent: CandidateResult, child: CandidateResult, alpha: float, n_m
               new_parameters: tuple[str, ...] = (), statistics: bool = True) -> MoveTest:
     """The child against the parent (module docstring); ``new_parameters`` are those a nested move adds (their
     Wald test decides, when the child has ``statistics``)."""
-    import dataclasses
+
     test = _paired(parent, child, alpha, n_moves)
     if new_parameters and statistics and not child.failed:
         wald = child.wald_test([n for n in new_parameters if n in child.params]).p_value

@@ -19,6 +19,7 @@ floor) or after ``max_steps`` steps. It does no I/O but the fit cache in ``cache
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -135,7 +136,7 @@ def _hard(n: Node) -> set[str]:
 def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool = True) -> Node:
     """The child's status against its anchor; a screened child (``judged`` False: no statistics yet) passes
     every condition on the reasons against it, which its full fit then decides."""
-    import dataclasses
+
     if child.result.failed:
         return dataclasses.replace(child, status="failed", anchor=anchor)
     # a move from the anchor itself that only adds parameters is nested: its Wald test decides (fitted in full)
@@ -205,7 +206,7 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
     """Search structures from ``start`` (module docstring); ``lifts`` are the lift models a drag or pitch
     structure may be fed (by name; the start's own among them). Without ``simplify`` no move is adopted for
     simplifying alone (the diagnosis asks what is missing, not what the data cannot support)."""
-    import dataclasses
+
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     lifts = dict(lifts or {})

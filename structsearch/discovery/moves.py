@@ -25,8 +25,9 @@ from typing import Mapping
 from ..data.errors import DeclarationError
 from ..engine.separation import SeparationState
 from ..fitting.candidates import Candidate
+from ..search.refinement import structure_key  # noqa: F401  (what makes two structures the same model)
 from . import effects as fx
-from .terms import TermLibrary, normalise, template_of, uses_state
+from .terms import STATE_SYMBOL, TermLibrary, normalise, template_of, uses_state
 
 MOVE_KINDS = ("add", "drop", "replace", "state kind", "add state", "remove state", "lift", "effect")
 KIND_STEPS = {"S": ("Q",), "Q": ("S", "U"), "U": ("Q",)}
@@ -57,11 +58,6 @@ class Move:
     def to_dict(self) -> dict:
         return {"kind": self.kind, "label": self.label, "effect": self.effect, "at_one_state": self.at_one_state,
                 "new_parameters": list(self.new_parameters)}
-
-
-def structure_key(c: Candidate) -> tuple:
-    """What makes two candidates the same model: regressor expressions, states, lift model."""
-    return (c.coefficient, tuple(sorted(normalise(t) for _, t in c.regressors)), tuple(sorted(c.states)), c.lift)
 
 
 def _symbol(state: str) -> str:
@@ -138,8 +134,7 @@ def _term_moves(c: Candidate, library: TermLibrary) -> list[tuple[Move, Candidat
 
 
 def _state_of(expr: str) -> str:
-    from .terms import _STATE
-    m = _STATE.search(expr)
+    m = STATE_SYMBOL.search(expr)
     return (m.group(1) or "") if m else ""
 
 
@@ -175,8 +170,7 @@ def _state_moves(c: Candidate) -> list[tuple[Move, Candidate]]:
 
 
 def _symbols(expr: str) -> set[str]:
-    from .terms import _STATE
-    return {m.group(0) for m in _STATE.finditer(expr)}
+    return {m.group(0) for m in STATE_SYMBOL.finditer(expr)}
 
 
 def _lift_moves(c: Candidate, lifts: Mapping[str, Candidate]) -> list[tuple[Move, Candidate]]:

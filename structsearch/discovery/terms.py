@@ -29,6 +29,7 @@ COEFFICIENTS = ("CL", "CD", "Cm")
 # a separation state's symbol in an expression: X (the single state) or X_<name>
 _STATE = re.compile(r"\bX(?:_([A-Za-z0-9]+))?\b")
 _PLACEHOLDER = "{X}"
+STATE_SYMBOL = _STATE   # the pattern of a state's symbol, for the moves
 
 
 @dataclass(frozen=True)
