@@ -352,6 +352,63 @@ def test_bonferroni_over_the_moves_of_a_step():
     assert np.isnan(t.p_value) and t.reason == "a fit failed" and not t.improves
 
 
+def test_a_nested_move_needs_its_wald_test_and_a_lower_pooled_mse_not_a_positive_relative_gain():
+    # four small maneuvers a little worse, one large one much better: the mean relative gain is negative, the
+    # pooled held-out MSE (what the search compares) falls by 30 %
+    parent = _result("parent", [1.0, 1.0, 1.0, 1.0, 10.0])
+    child = _result("child", [1.2, 1.2, 1.2, 1.2, 5.0], n=4)
+    t = move_test(parent, child, DEFAULT_ALPHA, 1)
+    assert t.gain == pytest.approx(-0.06) and t.pooled_gain == pytest.approx(1 - 9.8 / 14)
+    assert t.kind == "paired" and not t.improves        # a non-nested move: the relative gain decides
+    wald = dataclasses.replace(t, wald_p_value=1e-6)
+    assert wald.kind == "wald" and wald.improves          # nested: its Wald test and the pooled gain
+    assert not dataclasses.replace(wald, wald_p_value=0.5).improves
+    # a nested move that predicts worse pooled is never adopted, however small its Wald p-value
+    worse = move_test(parent, _result("child", [0.5, 0.5, 0.5, 0.5, 13.0], n=4), DEFAULT_ALPHA, 1)
+    assert worse.gain > 0 and worse.pooled_gain < 0
+    assert not dataclasses.replace(worse, wald_p_value=1e-9).improves
+    assert wald.to_dict()["pooled_gain"] == pytest.approx(0.3)
+
+
+def _node(name, validation, cv, n, reasons=(), move=None, parent=None, status="improves", test=None):
+    from structsearch.discovery.explore import Node
+    return Node(find_candidate("CD-I"), _result(name, validation, cv, n=n), move=move, parent=parent,
+                anchor=parent, reasons=tuple(reasons), status=status, test=test)
+
+
+def test_choose_prefers_admissible_structures_when_asked_and_then_the_fewest_parameters_within_one_se():
+    from structsearch.discovery.explore import choose
+    best = _node("best", [1.0] * 5, [1.0] * 5, 6, reasons=("t-test accepts 0 at 5%: p5",))
+    near = _node("near", [1.001] * 4 + [1.002], [1.0] * 5, 4)
+    worse = _node("worse", [1.5] * 5, [1.6] * 5, 3)
+    assert choose([best, near, worse]) is near                      # fewest parameters within one SE
+    assert choose([best, worse]) is best
+    assert choose([best, worse], admissible_first=True) is worse    # the ranking: admissible ones first
+    assert choose([best], admissible_first=True) is best            # none admissible: the best still
+
+
+def test_a_library_effect_within_one_se_of_the_best_passing_move_is_adopted_in_its_place():
+    from structsearch.discovery.explore import _nested_first
+    from structsearch.discovery.moves import Move
+    start = _node("start", [1.0] * 5, [1.0] * 5, 3, status="start")
+    term = Move("add", "add CL_Xde_w = X_w*de", ("CL_Xde_w",))
+    effect = Move("effect", "elevator", ("CL_de",), effect="elevator")
+    best = _node("best", [0.90] * 4 + [0.91], [0.9] * 5, 4, move=term, parent=start)
+    best = dataclasses.replace(best, test=move_test(start.result, best.result, DEFAULT_ALPHA, 2))
+    peer = _node("peer", [0.905] * 4 + [0.9], [0.9] * 5, 4, move=effect, parent=start, status="rejected")
+    peer = dataclasses.replace(peer, test=dataclasses.replace(move_test(start.result, peer.result, DEFAULT_ALPHA, 2),
+                                                              wald_p_value=0.2))
+    assert not peer.test.improves
+    first, *rest = _nested_first([best], [best, peer], DEFAULT_ALPHA)
+    assert first.candidate is peer.candidate and first.status == "improves" and rest == [best]
+    assert first.test.stands_for == best.move.name and first.test.to_dict()["stands_for"] == best.move.name
+    # nothing passes: nothing is adopted, whatever the effect's standing
+    assert _nested_first([], [peer], DEFAULT_ALPHA) == []
+    # an effect that does not lower the validation MSE does not stand for the best
+    worse = dataclasses.replace(peer, result=_result("peer", [1.01] * 5, [0.9] * 5, n=4))
+    assert _nested_first([best], [best, worse], DEFAULT_ALPHA)[0] is best
+
+
 def test_a_fit_without_folds_is_compared_on_validation_only():
     parent = _result("parent", [1.0, 2.0, 3.0, 2.0], PARENT_CV)
     child = _result("child", [0.8, 1.6, 2.5, 1.5])    # no cross-validation
@@ -430,17 +487,23 @@ def test_the_search_adopts_only_moves_that_pass_their_test(drag_search):
     assert path, "the withheld C_L^2 term is found"
     assert path[0].move.effect == "induced_drag" and path[0].status == "improves"
     for node in path:
-        assert node.status in ("improves", "simplifies", "look-ahead"), node.status
+        assert node.status in ("improves", "simplifies", "look-ahead", "repairs"), node.status
         anchor = node.anchor
         assert anchor is not None and anchor in node.path()
         if node.status == "improves":
-            assert node.test.improves and node.test.p_value is not None
             assert node.result.validation.mse < anchor.result.validation.mse
-            assert node.test.decisive_p_value < node.test.threshold <= DEFAULT_ALPHA
+            if node.test.stands_for:   # a library effect within one SE of a move whose test passed
+                passed = [t for s in found.steps for t in s.tried if t.move.name == node.test.stands_for
+                          and t.parent is node.parent]
+                assert passed and passed[0].test.improves and node.move.effect
+            else:
+                assert node.test.improves and node.test.p_value is not None
+                assert node.test.decisive_p_value < node.test.threshold <= DEFAULT_ALPHA
         elif node.status == "simplifies":
             assert node.test.within_one_se and node.n_params <= anchor.n_params
     # the structure the search ends with was adopted (the start, or one a step kept)
-    kept = [found.start] + [n for s in found.steps for n in s.beam if n.status in ("improves", "simplifies")]
+    kept = [found.start] + [n for s in found.steps for n in s.beam if n.status in ("improves", "simplifies",
+                                                                                 "repairs")]
     assert any(found.final is n for n in kept)
     assert found.final.path()[0] is found.start
 
@@ -458,3 +521,34 @@ def test_the_search_fits_every_structure_once(drag_search):
     # the nodes a step keeps are among those it tried, each judged against a structure adopted before it
     for step in found.steps:
         assert all(any(b is t for t in step.tried) for b in step.beam)
+
+
+def test_a_structure_the_search_ends_on_that_is_not_admissible_is_repaired(tmp_path):
+    """No move of the search applies (a lift move without another lift model), so the start is where it ends:
+    Cm-XXXIIIr with two superfluous terms (alpha, X_ss), correlated with its own and accepted at zero, is
+    repaired by removals until it is admissible, each repair removing a reason."""
+    from structsearch.discovery.explore import REPAIR_KINDS, explore
+    from structsearch.discovery.judge import judge_for
+    from structsearch.fitting.candidate_fit import fit_staged
+    from structsearch.fitting.lift_fit import LiftFit
+    from structsearch.fitting.options import FitOptions
+    from structsearch.flight.flighttest import build_campaign
+    campaign = build_campaign(seed=5, scale=0.1, slow_errors=0.0)
+    options = FitOptions(n_starts=1, cv_method="one-step")
+    train, val = campaign.split("train"), campaign.split("validation")
+    lift = LiftFit(find_candidate("CL-VI"), fit_staged(find_candidate("CL-VI"), train, val, None, options))
+    base = find_candidate("Cm-XXXIIIr")
+    start = dataclasses.replace(base, name="Cm-XXXIIIr + alpha + X_ss",
+                                regressors=base.regressors + (("Cm_alpha", "alpha"), ("Cm_X_ss", "X_ss")))
+    found = explore(start, campaign, library_for("Cm", train), tmp_path, lifts={"CL-VI": lift}, options=options,
+                    kinds=("lift",), max_steps=4, judge=judge_for(campaign))
+    assert not found.start.admissible and found.final.admissible
+    repairs = found.path
+    assert repairs and all(n.status == "repairs" and n.move.kind in REPAIR_KINDS for n in repairs)
+    for node in repairs:
+        assert len(node.reasons) < len(node.parent.reasons)
+        assert any(node is b for s in found.steps for b in s.beam)
+    # without simplify (a diagnosis) nothing is repaired
+    kept = explore(start, campaign, library_for("Cm", train), tmp_path, lifts={"CL-VI": lift}, options=options,
+                   kinds=("lift",), max_steps=4, judge=judge_for(campaign), simplify=False)
+    assert kept.final is kept.start and len(kept.steps) == 1

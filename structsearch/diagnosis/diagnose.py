@@ -156,7 +156,7 @@ def _flexible(fit: Fitted, model: Candidate, lift, train: FlightData, val: Fligh
     return flex, sig_train, sig_val, x_val
 
 
-VERDICT_ORDER = ("improves", "simplifies", "look-ahead", "rejected", "failed")
+VERDICT_ORDER = ("improves", "simplifies", "repairs", "look-ahead", "rejected", "failed")
 
 
 def _row_key(n):
@@ -319,7 +319,9 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
         x_i = state_for_phases(node.candidate, node.result, ctx.lift_of(node.candidate), val)
         explained_now, excess, excess_se = within_noise(fit_i.residual, floor.residual, val)
         where_rows = where_bins(fit_i.residual, floor.residual, val, x_i, seed=seed)
-        children = sorted(ex.tried_from(node), key=_row_key)
+        # the adopted move first (the one the round's verdict is about), then the others by verdict and MSE
+        adopted_node = path[i + 1] if i + 1 < len(path) else None
+        children = sorted(ex.tried_from(node), key=lambda c: (c is not adopted_node, *_row_key(c)))
         rows = tuple(_row(c, fit_i, floor, explained_now, where_rows, ctx, x_i) for c in children)
         mse_i, se_i = _mse_se(fit_i.residual, val)
         adopted = path[i + 1].move.name if i + 1 < len(path) else None

@@ -30,6 +30,10 @@ class PathStep:
     test: Mapping[str, Any] | None
     shrink: float | None
     where: Mapping[str, str] | None
+    # why it was adopted: "improves" (its test passed, or it stands for a move within one SE whose test did),
+    # "simplifies" (fewer parameters within one SE), "repairs" (removes a reason against admissibility),
+    # "look-ahead" (the first of two moves whose second passed)
+    verdict: str = "improves"
 
     @property
     def p_value(self) -> float | None:
@@ -39,7 +43,7 @@ class PathStep:
         return {"move": self.move, "kind": self.kind, "effect": self.effect, "structure": dict(self.structure),
                 "mse_validation": self.mse_validation, "mse_cv": _num(self.mse_cv),
                 "test": dict(self.test) if self.test else None, "p_value": self.p_value, "shrink": self.shrink,
-                "where": dict(self.where) if self.where else None}
+                "where": dict(self.where) if self.where else None, "verdict": self.verdict}
 
 
 @dataclass(frozen=True)

@@ -8,8 +8,13 @@ options' kind: maneuver-aware, coloured residuals), the most powerful test the f
 The out-of-sample statistic is the ranking's: the per-maneuver relative MSE out of sample, paired maneuver by maneuver
 and weighted by samples, over every maneuver that has one: the training maneuvers held out by the
 maneuver-grouped cross-validation and the validation maneuvers (only these when a fit has no folds).
-Pooling both doubles the pairs the test has; each error is still a prediction of data the fit did not see. A move *improves* when the one-sided paired t-test of
-``1 - child/parent`` > 0 rejects at ``alpha / m``: Bonferroni over the ``m`` moves a step tries from
+Pooling both doubles the pairs the test has; each error is still a prediction of data the fit did not see. A
+non-nested move *improves* when the one-sided paired t-test of ``1 - child/parent`` > 0 rejects at ``alpha / m``;
+a nested move when its Wald test rejects at ``alpha / m`` and the pooled held-out MSE (the samples' mean, what the
+search compares) falls. The relative gain weighs every maneuver alike, so it can be negative for a term that a
+few large-residual maneuvers need and the rest do not notice (the first terms of a pitch model fitted from the
+intercept alone); the Wald test already judges the parameters, and the pooled gain only asks that the fit does
+not predict worse. ``m``: Bonferroni over the moves a step tries from
 that parent, so that the step's family-wise false-adoption rate stays below ``alpha`` whatever the number
 of moves (the rate measured on null campaigns, the final models on their own truth, is in
 ``results/null_benchmark/withheld_benchmark.md``, made by ``structsearch diagnose --benchmark --parts null
@@ -52,6 +57,10 @@ class MoveTest:
     # a nested move (it only adds parameters, whose zero gives back the parent): the Wald test of them on the
     # covariance the fit kept; None for another move, or for a fit screened without statistics
     wald_p_value: float | None = None
+    # 1 - child/parent of the pooled held-out MSE (the samples' mean over the same maneuvers)
+    pooled_gain: float = float("nan")
+    # adopted in place of this move (within one standard error of it; the step's best, whose test passed)
+    stands_for: str = ""
 
     @property
     def kind(self) -> str:
@@ -65,7 +74,8 @@ class MoveTest:
     @property
     def improves(self) -> bool:
         p = self.decisive_p_value
-        return bool(np.isfinite(p) and p < self.threshold and self.gain > 0)
+        gain = self.pooled_gain if self.kind == "wald" else self.gain
+        return bool(np.isfinite(p) and p < self.threshold and gain > 0)
 
     @property
     def within_one_se(self) -> bool:
@@ -79,7 +89,8 @@ class MoveTest:
         return {"test": WALD_TEST_NAME if self.kind == "wald" else TEST_NAME, "kind": self.kind,
                 "p_value": num(self.decisive_p_value), "threshold": self.threshold, "basis": self.basis,
                 "gain": num(self.gain), "gain_se": num(self.gain_se), "n_maneuvers": self.n_maneuvers,
-                "paired_p_value": num(self.p_value), "reason": self.reason or None}
+                "paired_p_value": num(self.p_value), "pooled_gain": num(self.pooled_gain),
+                "stands_for": self.stands_for or None, "reason": self.reason or None}
 
 
 def _per_maneuver(result: CandidateResult) -> tuple[str, np.ndarray, np.ndarray]:
@@ -114,10 +125,11 @@ def _paired(parent: CandidateResult, child: CandidateResult, alpha: float, n_mov
             np.array(child.validation.mse_maneuvers), np.array(child.validation.n_maneuvers, float)
     gain_each = 1.0 - after / before
     gain, se = weighted_mean_se(gain_each, samples)
+    pooled = float(1.0 - np.dot(after, samples) / np.dot(before, samples))
     n = len(gain_each)
     if n < MIN_MANEUVERS or not np.isfinite(se) or se <= 0:
         return MoveTest(basis, float(gain), float("nan"), n, float("nan"), threshold,
                         f"{n} maneuvers: no spread of the per-maneuver gain" if n < MIN_MANEUVERS else
-                        "no spread of the per-maneuver gain")
+                        "no spread of the per-maneuver gain", pooled_gain=pooled)
     p_value = float(stdtr(n - 1, -gain / se))   # P(T >= t): the child better than the parent
-    return MoveTest(basis, float(gain), float(se), n, p_value, threshold)
+    return MoveTest(basis, float(gain), float(se), n, p_value, threshold, pooled_gain=pooled)

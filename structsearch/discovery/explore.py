@@ -4,15 +4,25 @@ Each step expands the beam (at most ``beam`` structures): every valid move (:mod
 once (the search's runner: cached, in parallel on joblib or dask, each child warm started from the
 structures it extends), and judged against its parent by :func:`.adoption.move_test`:
 
-1. children that *improve* (the test rejects at alpha / moves tried, the validation MSE falls, and the
-   child is admissible or has no more reasons against it than its parent) form the next beam, best
-   (lowest held-out MSE) first;
+1. children that *improve* (the test rejects at alpha / moves tried and the validation MSE falls) form
+   the next beam, best (lowest held-out MSE) first;
 2. else children that *simplify* (fewer parameters, within one standard error of the parent, and no more
    reasons against them): the best one is the next beam (backward stepwise);
 3. else the ``beam`` best children that lower the held-out MSE without passing the test are kept as a
    *look-ahead*: their own children are tested against the structure they came from, two moves together,
    so that a move that pays only with a second one is not lost. A look-ahead that leads nowhere ends the
    search.
+
+An improving move may add reasons against admissibility (a correlation, a term the t-test accepts at zero): the
+first terms of a structure grown from the intercept alone seldom make it admissible one at a time. Only the hard
+reasons (not identifiable, no convergence) reject it. When the search ends on a structure that is not
+admissible, it is *repaired* (a discovery, ``simplify``): the moves that remove or simplify (drop a term, replace
+one, change or remove a state) are fitted and the one with the fewest reasons against it, then the fewest
+parameters, then the lowest held-out MSE, is adopted while it removes a reason, until the structure is admissible
+or ``max_steps`` steps (the search's and the repairs' together) are taken.
+
+The structure the search ends with is chosen as the ranking chooses (:func:`choose`): admissible structures
+first, then the fewest parameters within one standard error of the best.
 
 The search stops when no move passes, when ``stop`` says a structure is good enough (the diagnosis: at the
 floor) or after ``max_steps`` steps. It does no I/O but the fit cache in ``cache_dir``.
@@ -36,8 +46,10 @@ from .adoption import DEFAULT_ALPHA, MoveTest, move_test
 from .moves import MOVE_KINDS, Move, generate, structure_key
 from .terms import TermLibrary
 
-STATUSES = ("start", "improves", "simplifies", "look-ahead", "rejected", "failed")
-CONFIRMED = ("start", "improves", "simplifies")
+STATUSES = ("start", "improves", "simplifies", "repairs", "look-ahead", "rejected", "failed")
+CONFIRMED = ("start", "improves", "simplifies", "repairs")
+# the moves that may repair admissibility: they remove or simplify, never add
+REPAIR_KINDS = ("drop", "replace", "state kind", "remove state")
 DEFAULT_BEAM = 3
 DEFAULT_MAX_STEPS = 20
 # screened children that may simplify and are fitted in full (the simplest first)
@@ -148,9 +160,8 @@ def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool
     fewer_reasons = not judged or len(child.reasons) <= len(anchor.reasons)
     strictly_fewer = not judged or len(child.reasons) < len(anchor.reasons)
     # screened (no statistics yet): a nested move that gains out of sample goes on to its full fit
-    passes = test.improves or (not judged and nested and test.gain > 0)
-    if passes and child.result.validation.mse < anchor.result.validation.mse and \
-            (child.admissible or fewer_reasons):
+    passes = test.improves or (not judged and nested and test.pooled_gain > 0)
+    if passes and child.result.validation.mse < anchor.result.validation.mse:
         status = "improves"
     elif child.parent is anchor and test.within_one_se and (
             (child.n_params < anchor.n_params and fewer_reasons) or
@@ -166,18 +177,41 @@ def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool
 NESTED_KINDS = ("effect", "add", "state kind", "add state")
 
 
-def _nested_first(improved: list[Node], alpha: float) -> list[Node]:
+def _preference(n: Node) -> int:
+    """How a move explains a gap, simplest first: the library's whole effect, its share at one state, a move that
+    only adds to its parent (it keeps what the parent explained), any other move; the start last but one."""
+    if n.move is None:
+        return 4
+    if n.move.effect:
+        return 0 if not n.move.at_one_state else 1
+    return 2 if n.move.kind in NESTED_KINDS else 3
+
+
+def _nested_first(improved: list[Node], tried: list[Node], alpha: float) -> list[Node]:
     """The improving moves best first, except among the moves within one standard error of the best (the ranking's
-    rule: the data cannot tell them apart): a move the effect library names goes first, then a move that only adds
-    to its parent (an effect, a term, a state or a state's lag): it keeps what the parent explained, and the
-    unmodelled effect is named."""
+    rule: the data cannot tell them apart), where :func:`_preference` orders: the unmodelled effect is named.
+
+    The step's test has said that the best move improves; which of the moves the data cannot tell from it is
+    adopted is the ranking's choice, so a library effect within one standard error of the best is adopted in its
+    place even when its own test does not pass (its test then records the move it stands for), provided it lowers
+    the held-out and validation MSE and adds no hard reason. The false-adoption rate is unchanged: nothing is
+    adopted unless the best move passes."""
     if not improved:
         return improved
     best = improved[0]
-    near = [n for n in improved if n.parent is best.parent
-            and (n is best or move_test(best.result, n.result, alpha, 1).within_one_se)]
-    preferred = ([n for n in near if n.move.effect] or [n for n in near if n.move.kind in NESTED_KINDS]
-                 or [best])[0]
+
+    def near_best(n):
+        return n is best or move_test(best.result, n.result, alpha, 1).within_one_se
+
+    peers = [n for n in tried if n.parent is best.parent and n.anchor is best.anchor and n.status != "improves"
+             and n.move.effect and not n.screened and n.status != "failed" and n.test is not None
+             and n.test.pooled_gain > 0 and n.result.validation.mse < n.anchor.result.validation.mse
+             and not (_hard(n) - _hard(n.anchor))]
+    near = [n for n in improved if n.parent is best.parent and near_best(n)] + [n for n in peers if near_best(n)]
+    preferred = min(near, key=lambda n: (_preference(n), n is not best, n.mse))
+    if preferred.status != "improves":
+        preferred = dataclasses.replace(preferred, status="improves",
+                                        test=dataclasses.replace(preferred.test, stands_for=best.move.name))
     return [preferred] + [n for n in improved if n is not preferred]
 
 
@@ -257,7 +291,10 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
                   for n, r in zip(shortlist, fulls)}
         tried = [judged.get(id(n), dataclasses.replace(n, status="rejected" if n.status != "failed" else "failed"))
                  for n in prelim]
-        improved = _nested_first(sorted((n for n in tried if n.status == "improves"), key=lambda n: n.mse), alpha)
+        improved = _nested_first(sorted((n for n in tried if n.status == "improves"), key=lambda n: n.mse), tried,
+                                 alpha)
+        if improved:   # the preferred move may stand for the best (its status changed): the record shows it
+            tried = [improved[0] if t.candidate is improved[0].candidate else t for t in tried]
         simpler = sorted((n for n in tried if n.status == "simplifies"),
                          key=lambda n: (len(n.reasons), n.n_params, n.mse))
         ahead = sorted((n for n in tried if n.status == "look-ahead"), key=lambda n: n.mse)
@@ -290,14 +327,68 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
             stopped = "good enough"
             break
         current = nxt
-    return Exploration(root, choose(confirmed, alpha), tuple(steps), stopped, n_fitted, time.perf_counter() - t0)
+    final = choose(confirmed, alpha, admissible_first=simplify)
+    if simplify and not final.admissible:
+        repairs = []
+        for index in range(len(steps) + 1, max_steps + 1):   # repairs count in the steps' budget
+            t_step = time.perf_counter()
+            step, fitted = _repair_step(final, index, campaign, library, lift_candidates, visited, cache_dir, lifts,
+                                        options, n_jobs, backend, node, alpha)
+            n_fitted += fitted
+            steps.append(dataclasses.replace(step, seconds=time.perf_counter() - t_step))
+            if not step.beam:
+                break
+            final = step.beam[0]
+            repairs.append(final)
+            say(f"repair {index}: {fitted} structures tried, kept {final.move.name} "
+                f"({len(final.reasons)} reasons against it), {time.perf_counter() - t0:.0f} s")
+            if final.admissible:
+                break
+        final = choose(confirmed + repairs, alpha, admissible_first=True)
+    return Exploration(root, final, tuple(steps), stopped, n_fitted, time.perf_counter() - t0)
 
 
-def choose(confirmed: Sequence[Node], alpha: float = DEFAULT_ALPHA) -> Node:
+def _repair_step(current: Node, index: int, campaign, library, lift_candidates, visited, cache_dir, lifts, options,
+                 n_jobs, backend, node, alpha) -> tuple[Step, int]:
+    """One repair of a structure that is not admissible: every removing or simplifying move fitted in full; the
+    child with the fewest reasons against it (then the fewest parameters, the lowest held-out MSE) is kept if it has
+    fewer than
+    ``current`` and no new hard reason."""
+    pending = []
+    for move, child in generate(current.candidate, library, lift_candidates, REPAIR_KINDS):
+        key = structure_key(child)
+        if key not in visited:
+            visited.add(key)
+            pending.append((move, child))
+    fulls = fit_structures([c for _, c in pending], campaign, cache_dir, lifts, options, n_jobs, backend, [current])
+    tried = []
+    for (move, child), result in zip(pending, fulls):
+        n = node(child, result, move=move, parent=current, step=index)
+        status = "failed" if result.failed else "rejected"
+        tried.append(dataclasses.replace(n, status=status, anchor=current,
+                                         test=move_test(current.result, result, alpha, max(len(pending), 1))))
+    fewer = [n for n in tried if n.status != "failed" and not (_hard(n) - _hard(current))
+             and len(n.reasons) < len(current.reasons)]
+    best = min(fewer, key=lambda n: (len(n.reasons), n.n_params, n.mse), default=None)
+    if best is not None:
+        kept = dataclasses.replace(best, status="repairs")
+        tried = [kept if n is best else n for n in tried]
+        beam = (kept,)
+    else:
+        beam = ()
+    return Step(index, (current.candidate.name,), tuple(tried), beam, 0.0), len(pending)
+
+
+def choose(confirmed: Sequence[Node], alpha: float = DEFAULT_ALPHA, admissible_first: bool = False) -> Node:
     """The structure the search ends with: of every adopted one (each branch of the beam), the fewest parameters
-    within one standard error of the lowest held-out MSE (the ranking's one-standard-error rule), then the lower
-    MSE."""
-    best = min(confirmed, key=lambda n: n.mse)
-    near = [n for n in confirmed if n is best or move_test(best.result, n.result, alpha, 1).within_one_se]
-    return min(near, key=lambda n: (n.n_params, n.mse))
+    within one standard error of the lowest held-out MSE (the ranking's one-standard-error rule), then the move that
+    names the effect (:func:`_preference`), then the lower MSE. With ``admissible_first`` (a discovery), among the admissible structures when there are any, as the
+    ranking ranks admissible candidates first."""
+    pool = list(confirmed)
+    if admissible_first:   # the admissible ones; when none is, those with the fewest reasons against them
+        fewest = min(len(n.reasons) + n.result.failed for n in pool)
+        pool = [n for n in pool if len(n.reasons) + n.result.failed == fewest]
+    best = min(pool, key=lambda n: n.mse)
+    near = [n for n in pool if n is best or move_test(best.result, n.result, alpha, 1).within_one_se]
+    return min(near, key=lambda n: (n.n_params, _preference(n), n.mse))
 

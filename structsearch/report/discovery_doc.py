@@ -17,7 +17,7 @@ from ..fitting.candidates import Candidate
 from .diagnosis_doc import public
 
 PATH_COLUMNS = ("step", "move", "kind", "effect", "structure", "mse_validation", "mse_cv", "p_value", "threshold",
-                "shrink", "phase", "alpha_band")
+                "shrink", "phase", "alpha_band", "verdict")
 
 
 def _g(x, fmt=".4g") -> str:
@@ -35,7 +35,7 @@ def path_rows(found: Discovery) -> list[list]:
         rows.append([i, p.move, p.kind, p.effect or "", p.structure["name"], p.mse_validation,
                      "" if p.mse_cv is None else p.mse_cv, "" if p.p_value is None else p.p_value,
                      (p.test or {}).get("threshold", ""), "" if p.shrink is None else p.shrink,
-                     where.get("phase", ""), where.get("alpha_band", "")])
+                     where.get("phase", ""), where.get("alpha_band", ""), p.verdict])
     return rows
 
 
@@ -58,14 +58,19 @@ def markdown(found: Discovery, command: str = "") -> str:
               f"{len(found.steps)} steps ({found.seconds:.0f} s); the search stopped: {found.stopped}.", "",
               "## Path", ""]
     if found.path:
-        body = [[i, p.move, p.effect or "", _g(p.mse_validation), _g(p.mse_cv), _g(p.p_value, ".2g"),
+        body = [[i, p.move, p.effect or "", p.verdict, _g(p.mse_validation), _g(p.mse_cv), _g(p.p_value, ".2g"),
                  _g(p.shrink, ".0%"), (p.where or {}).get("phase", ""), (p.where or {}).get("alpha_band", "")]
                 for i, p in enumerate(found.path, 1)]
-        lines += [tabulate(body, headers=["step", "move", "effect", "validation MSE", "CV MSE", "p (test)",
-                                          "shrink", "phase", "alpha band"], tablefmt="github"), ""]
-        test = (found.path[0].test or {}).get("test", "")
-        lines += [f"Test: {test}; a move that simplifies is adopted within one standard error. Shrink: the share of "
-                  f"the gap from the start to the floor ({_g(found.noise_floor)}) the move closes.", ""]
+        lines += [tabulate(body, headers=["step", "move", "effect", "verdict", "validation MSE", "CV MSE",
+                                          "p (test)", "shrink", "phase", "alpha band"], tablefmt="github"), ""]
+        tests = sorted({(p.test or {}).get("test", "") for p in found.path} - {""})
+        stands = [f"{p.move} stands for {p.test['stands_for']}" for p in found.path
+                  if p.test and p.test.get("stands_for")]
+        lines += ["Tests: " + "; ".join(tests) + ". A move improves when its test passes (or, a library effect, "
+                  "when it is within one standard error of a move whose test passed"
+                  + (": " + ", ".join(stands) if stands else "") + "); it simplifies with fewer parameters within "
+                  "one standard error; it repairs when it removes a reason against admissibility. Shrink: the share "
+                  f"of the gap from the start to the floor ({_g(found.noise_floor)}) the move closes.", ""]
     else:
         lines += ["No move passed the test: the start is the structure found.", ""]
     f = found.final
@@ -87,9 +92,13 @@ def markdown(found: Discovery, command: str = "") -> str:
                                       "discovered's excess", "se", "within noise"], tablefmt="github"), "",
               "The discovered structure's per-maneuver relative excess of out-of-sample MSE over each reference; "
               "within noise by the ranking's one-standard-error rule.", ""]
+    said = set()
     for c in found.comparison[1:]:
         mine = set(found.comparison[0].terms)
         theirs = set(c.terms)
+        if c.name in said:   # the grid's rank 1 is often the thesis' final model: one line
+            continue
+        said.add(c.name)
         if mine != theirs:
             lines += [f"Terms against {c.name}: only discovered {sorted(mine - theirs) or '-'}; only in {c.name} "
                       f"{sorted(theirs - mine) or '-'}.", ""]

@@ -47,7 +47,7 @@ def build_discovery(campaign, diagnosis, exploration, lifts, options, n_jobs, ba
                              node.result.validation.mse, _cv(node.result),
                              node.test.to_dict() if node.test is not None else None,
                              row.shrink if row is not None else None,
-                             dict(row.acts_in) if row is not None and row.acts_in else None))
+                             dict(row.acts_in) if row is not None and row.acts_in else None, node.status))
     final_node = exploration.final
     final = FinalStructure(final_node.candidate.name, None, final_node.candidate.to_dict(),
                            final_node.result.validation.mse, _cv(final_node.result), final_node.admissible,
