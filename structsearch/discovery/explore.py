@@ -284,7 +284,12 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
             prelim.append(_verdict(raw, anchor, n_moves[id(anchor)], alpha, judged=False))
         shortlist = _shortlist(prelim, beam)
         # the shortlist fitted in full (statistics, admissibility) and judged again
-        fulls = fit_structures([n.candidate for n in shortlist], campaign, cache_dir, lifts, options, n_jobs, backend, current)
+        # warm started from their own screening (renamed: a structure does not donate to itself by name)
+        screened_donors = [dataclasses.replace(n, candidate=dataclasses.replace(n.candidate,
+                                                                               name=n.candidate.name + " [screened]"))
+                           for n in shortlist if not n.result.failed]
+        fulls = fit_structures([n.candidate for n in shortlist], campaign, cache_dir, lifts, options, n_jobs, backend,
+                               list(current) + screened_donors)
         n_fitted += len(pending)
         judged = {id(n): _verdict(node(n.candidate, r, move=n.move, parent=n.parent, step=index), n.anchor,
                                   n_moves[id(n.anchor)], alpha)

@@ -106,10 +106,12 @@ def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: Li
     candidate with unsteady states, the estimates of its quasi-steady stage (:func:`.staging.stages`,
     fitted from ``stage_starts`` starts: :data:`.staging.STAGE_STARTS` unless a caller asks for fewer).
     Without ``declared_too`` the declared start does not follow a warm start or the stage's estimates
-    (a single fit that trusts its stage; the search always keeps it)."""
+    (a single fit that trusts its stage; the search always keeps it); nor does it follow a warm start in a
+    screening (``options.scores_only``: the structure search's first look at a child of a fitted parent)."""
     if start is not None:
+        # a screening (scores only) trusts its warm start; the full fit of a structure worth it adds the declared one
         return fit_candidate(c, train, validation, lift, options, start=start, n_starts=WARM_STARTS,
-                             declared_too=declared_too)
+                             declared_too=declared_too and not options.scores_only)
     for stage in stages(c):
         model = build_model(stage.with_bounds(options.parameter_boxes))
         try:

@@ -125,7 +125,8 @@ def discovery_console_lines(found: Discovery, out: Path) -> list[str]:
              f"{'admissible' if f.admissible else 'not admissible'}; {found.structures_fitted} structures, "
              f"{found.seconds:.0f} s)"]
     for i, p in enumerate(found.path, 1):
-        lines.append(f"  {i}. {p.move} (p {_g(p.p_value, '.2g')}, shrink {_g(p.shrink, '.0%')})")
+        lines.append(f"  {i}. {p.move} ({'' if p.verdict == 'improves' else p.verdict + ', '}"
+                     f"p {_g(p.p_value, '.2g')}, shrink {_g(p.shrink, '.0%')})")
     for c in found.comparison[1:]:
         lines.append(f"  against {c.role} {c.name}: excess {_g(c.excess, '+.1%')} +- {_g(c.excess_se, '.1%')}, "
                      f"within noise: {'n/a' if c.within_noise is None else 'yes' if c.within_noise else 'no'}")
