@@ -96,7 +96,9 @@ def _fit(args) -> int:
               bounds=_bounds(args))
     summary, out = res.result, Path(args.out)
     write_json(out / "fit.json", res.to_dict())
-    write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + parameter_table(summary, "md"))
+    from .report.documents import bands_table
+    write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + parameter_table(summary, "md")
+               + ("\n\n" + bands_table(res.bands) if res.bands is not None else ""))
     not_converged = "" if summary.converged else f"; the optimizer did NOT converge ({summary.message})"
     print(f"{res.candidate.name}: MSE train {summary.mse_train:.4g}, validation {summary.mse_validation:.4g}; "
           f"{len(summary.insignificant)} parameter(s) accept zero, {len(summary.at_bound)} at a bound"

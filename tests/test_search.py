@@ -192,6 +192,13 @@ def test_cli_fit_search_and_dask(tiny, tmp_path):
     doc = json.loads((tmp_path / "fit" / "fit.json").read_text())
     assert doc["model"] == "CD-IXr" and set(doc["mse"]) == {"train", "validation"}
     assert doc["params"].keys() == doc["stderr"].keys()
+    # the static curve's bands (issue 29): an alpha grid over the flown range, the conditions, CD's band
+    static = doc["bands"]["static"]
+    assert doc["bands"]["level"] == 0.95 and len(static["alpha"]) == len(static["CD"]["estimate"]) > 10
+    for low, high in (("confidence_low", "confidence_high"), ("prediction_low", "prediction_high")):
+        assert all(lo <= e <= hi for lo, e, hi in zip(static["CD"][low], static["CD"]["estimate"], static["CD"][high]))
+    assert static["conditions"]["CT"] == 0.0 and "V" in static["conditions"]["held_at_training_mean"]
+    assert "Static curve and its bands" in (tmp_path / "fit" / "fit.md").read_text()
     proc = run_cli("search", "--data", data, "--grid", "lift", "--out", str(tmp_path / "s"), "--jobs", "2")
     assert proc.returncode == 0, proc.stderr
     rows = list(csv.DictReader((tmp_path / "s" / "ranking.csv").open()))

@@ -57,7 +57,8 @@ def cache_directory(cache: str | os.PathLike | None) -> Iterator[Path]:
 def fit(campaign: Campaign | str | os.PathLike, model: str, *, starts: int = 4, seed: int = 0,
         covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None, progress: Progress = None) -> FitOutcome:
     """Fit one candidate (a catalogue name such as ``"CD-IXr"`` or a spec file) as ``structsearch fit`` does:
-    a drag or pitch candidate first fits the lift model it names, on the training maneuvers."""
+    a drag or pitch candidate first fits the lift model it names, on the training maneuvers. The outcome holds
+    the static curve's 95 % confidence and prediction bands (``.bands``)."""
     from ..fitting.candidate_fit import fit_lift_model, fit_staged
     from ..fitting.specs import resolve_candidate
     campaign = as_campaign(campaign)
@@ -71,7 +72,8 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, starts: int = 4, 
     result = fit_staged(candidate, train, validation, lift, options)
     if result.failed:
         raise DeclarationError(result.error)
-    return FitOutcome(candidate, result, lift)
+    from ..fitting.bands import static_bands
+    return FitOutcome(candidate, result, lift, static_bands(candidate, result, train, lift))
 
 
 def search_candidates(grid: str) -> list:

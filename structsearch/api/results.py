@@ -20,11 +20,12 @@ class FitOutcome:
     candidate: Candidate
     result: CandidateResult
     lift: LiftFit | None
+    bands: Any = None          # structsearch.fitting.bands.StaticBands: the static curve's bands (None: not made)
 
     def to_dict(self) -> dict:
-        """``fit.json`` (docs/interfaces.md sections 2 and 5.4)."""
+        """``fit.json`` (docs/interfaces.md sections 2, 5.4 and 6.3)."""
         from ..report.documents import fit_document
-        return fit_document(self.result, self.lift)
+        return fit_document(self.result, self.lift, self.bands)
 
     def summary(self) -> Any:
         """The fit's summary (the result's own ``summary()``: text when printed, HTML in a notebook); a plain
@@ -36,7 +37,7 @@ class FitOutcome:
 
     def __getattr__(self, name: str):
         # params, stderr, mse_train, ...: the fit's own attributes, so that ``fit(...).params`` reads naturally
-        if name.startswith("__") or name in ("candidate", "result", "lift"):
+        if name.startswith("__") or name in ("candidate", "result", "lift", "bands"):
             raise AttributeError(name)
         return getattr(self.result, name)
 

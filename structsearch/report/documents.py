@@ -2,14 +2,17 @@
 ``not_identifiable`` and ``condition_number`` of 5.4)."""
 from __future__ import annotations
 
+import numpy as np
+
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.lift_fit import LiftFit
 
 
-def fit_document(fit: CandidateResult, lift: LiftFit | None) -> dict:
-    """``fit.json`` of one fitted candidate (and the lift model whose states it uses); written with
+def fit_document(fit: CandidateResult, lift: LiftFit | None, bands=None) -> dict:
+    """``fit.json`` of one fitted candidate (and the lift model whose states it uses, and its static curve's
+    ``bands``: :class:`structsearch.fitting.bands.StaticBands`); written with
     :func:`structsearch.data.atomic.write_json`, which turns what could not be estimated into null."""
-    return {
+    doc = {
         "model": fit.name, "coefficient": fit.coefficient, "params": fit.params, "stderr": fit.stderr,
         "mse": {"train": fit.mse_train, "validation": fit.mse_validation,
                 **({"cv": fit.cv.mse, "cv_folds": fit.cv_folds} if fit.cv is not None else {})},
@@ -23,3 +26,27 @@ def fit_document(fit: CandidateResult, lift: LiftFit | None) -> dict:
         "condition_number": fit.condition_number,
         "lift": lift and {"model": lift.name, "params": lift.params},
     }
+    if bands is not None:
+        doc["bands"] = bands.to_dict()
+    return doc
+
+
+def bands_table(bands, every: int = 6) -> str:
+    """The static curve's bands at every ``every``-th grid point, as Markdown (``fit.md``)."""
+    from tabulate import tabulate
+    b = bands.band
+    rows = [[f"{a:.4f}", f"{np.degrees(a):.1f}", f"{b.estimate[i]:.5g}",
+             f"{b.confidence_low[i]:.5g} .. {b.confidence_high[i]:.5g}",
+             f"{b.prediction_low[i]:.5g} .. {b.prediction_high[i]:.5g}", f"{b.dof[i]:.1f}"]
+            for i, a in enumerate(bands.alpha) if i % every == 0 or i == len(bands.alpha) - 1]
+    pct = f"{bands.level:.0%}"
+    table = tabulate(rows, headers=["alpha [rad]", "alpha [deg]", bands.coefficient, f"{pct} confidence",
+                                    f"{pct} prediction", "t dof"], tablefmt="github")
+    from ..fitting.bands import CONDITIONS_TEXT
+    held = ", ".join(f"{k} = {v:.4g}" for k, v in bands.held.items())
+    reasons = ("\n\nNot estimable where these act: " + "; ".join(bands.reasons)) if bands.reasons else ""
+    return (f"## Static curve and its bands\n\nConditions: {CONDITIONS_TEXT}" + (f" ({held})" if held else "")
+            + ". Confidence: where the true static curve lies (the delta method on the parameters' covariance); "
+            "prediction: where a new measurement at that alpha lies (plus the training residual's variance in "
+            "that alpha band). Each point's t quantile has its own degrees of freedom (its effective number of "
+            f"maneuvers minus one).\n\n{table}{reasons}\n")

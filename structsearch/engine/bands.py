@@ -1,0 +1,114 @@
+"""Pointwise confidence and prediction bands of a fitted model's output (the delta method).
+
+For an output f(p) at points x_1..x_n with Jacobian J = df/dp (n x k) at the estimate and the parameter
+covariance C, the variance of the estimated output is diag(J C J^T) (computed row by row, never an n x n
+matrix). A *confidence* band covers the true output f(p_true); a *prediction* band covers a new
+measurement, so it adds the residual noise variance at each point:
+
+    confidence: f +- q * sqrt(diag(J C J^T))
+    prediction: f +- q * sqrt(diag(J C J^T) + s^2(x))
+
+with q the two-sided t quantile of ``level`` at the reference degrees of freedom (the normal quantile when
+they are infinite). A point whose variance cannot be estimated (a parameter the data cannot identify acts
+on it) gets NaN bounds, never a zero-width band.
+
+With a per-maneuver covariance (``hac-maneuver``, ``cluster``) each point has its own degrees of freedom:
+its effective number of maneuvers minus one (:func:`point_effective_maneuvers`, the parameters' rule applied
+to the combination J_i p the point is). A point in attached flow rests on every maneuver; one deep in the
+stall on the few that reach it; the fewest of the parameters' own (a deep-stall parameter's ~1) would make
+every point's quantile that of the worst parameter.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from .sandwich import bartlett_maneuver_sums, inverse_factor, kernel_weights, toeplitz_product
+
+
+@dataclass(frozen=True)
+class Band:
+    """One output's band: the estimate and its lower and upper bounds for confidence and prediction."""
+
+    estimate: np.ndarray
+    confidence_low: np.ndarray
+    confidence_high: np.ndarray
+    prediction_low: np.ndarray
+    prediction_high: np.ndarray
+    level: float
+    dof: np.ndarray                  # of each point's quantile (inf: normal)
+
+    @property
+    def confidence_half_width(self) -> np.ndarray:
+        """Half the confidence band's width at each point."""
+        return 0.5 * (self.confidence_high - self.confidence_low)
+
+    def to_dict(self) -> dict:
+        return {"estimate": self.estimate.tolist(), "confidence_low": self.confidence_low.tolist(),
+                "confidence_high": self.confidence_high.tolist(), "prediction_low": self.prediction_low.tolist(),
+                "prediction_high": self.prediction_high.tolist()}
+
+
+def output_variance(jacobian: np.ndarray, covariance: np.ndarray) -> np.ndarray:
+    """diag(J C J^T), row by row; NaN where a parameter with a non-finite covariance acts (J != 0)."""
+    jacobian = np.asarray(jacobian, float)
+    covariance = np.asarray(covariance, float)
+    finite = np.isfinite(np.diag(covariance))   # a parameter that cannot be estimated: NaN row and column
+    sub = covariance[np.ix_(finite, finite)]
+    j = jacobian[:, finite]
+    var = np.einsum("ij,jk,ik->i", j, sub, j)
+    unknown = np.any(jacobian[:, ~finite] != 0.0, axis=1) if (~finite).any() else np.zeros(len(var), bool)
+    var = np.where(unknown, np.nan, np.maximum(var, 0.0))
+    return var
+
+
+def quantile(level: float, dof) -> np.ndarray:
+    """The two-sided t quantile of ``level`` at ``dof`` (each point's; inf: the normal one)."""
+    if not 0.0 < level < 1.0:
+        raise ValueError(f"a band's level is in (0, 1), not {level}")
+    tail = 0.5 + level / 2.0
+    dof = np.asarray(dof, float)
+    with np.errstate(invalid="ignore"):
+        return np.where(np.isfinite(dof), stats.t.ppf(tail, np.maximum(np.nan_to_num(dof, nan=1.0), 1.0)),
+                        stats.norm.ppf(tail))
+
+
+def band(estimate: np.ndarray, jacobian: np.ndarray, covariance: np.ndarray, noise_variance: np.ndarray,
+         level: float = 0.95, dof=float("inf")) -> Band:
+    """Confidence and prediction bands of ``estimate`` (module docstring); ``noise_variance`` and ``dof`` per
+    point (or one for all)."""
+    estimate = np.asarray(estimate, float)
+    dof = np.broadcast_to(np.asarray(dof, float), estimate.shape).copy()
+    q = quantile(level, dof)
+    var = output_variance(jacobian, covariance)
+    half_c = q * np.sqrt(var)
+    half_p = q * np.sqrt(var + np.asarray(noise_variance, float))
+    return Band(estimate, estimate - half_c, estimate + half_c, estimate - half_p, estimate + half_p, level, dof)
+
+
+def point_effective_maneuvers(jac: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, kind: str,
+                              gradients: np.ndarray, bandwidth: float | None = None) -> np.ndarray:
+    """Effective number of maneuvers behind the variance of each combination g^T p (rows of ``gradients``,
+    in the columns of ``jac``): (sum_g c_g)^2 / sum_g c_g^2 with c_g maneuver g's share of the sandwich
+    variance of g^T p, as :func:`structsearch.engine.sandwich.effective_maneuvers` does for a parameter.
+    ``jac`` is the model Jacobian on the fitted samples and ``residual`` the fit's residual there."""
+    r_inv = inverse_factor(jac)
+    u = ((jac * residual[:, None]) @ (r_inv @ r_inv.T)) @ np.asarray(gradients, float).T   # (m, points)
+    boundaries = np.asarray(boundaries, int)
+    starts = boundaries[:-1]
+    if kind == "cluster":
+        share = np.add.reduceat(u, starts, axis=0) ** 2
+    else:   # a Bartlett kernel inside each maneuver (hac-maneuver: the whole maneuver as bandwidth)
+        longest = int(np.max(np.diff(boundaries))) - 1
+        b = float(longest + 1) if bandwidth is None else float(bandwidth)
+        if b >= longest:
+            share = bartlett_maneuver_sums(u, boundaries, b, diagonal=True)
+        else:
+            lags = min(int(np.ceil(b)), longest)
+            share = np.add.reduceat(u * toeplitz_product(u, kernel_weights("bartlett", b, lags), boundaries),
+                                    starts, axis=0)
+    total, square = share.sum(axis=0), (share ** 2).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(square > 0, total ** 2 / square, np.nan)

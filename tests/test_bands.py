@@ -1,0 +1,132 @@
+"""Uncertainty bands (issue 29): the delta method's arithmetic, each point's effective maneuvers, the static
+curve's Jacobian against finite differences, Monte Carlo coverage, and what a band says where it cannot be
+estimated."""
+import numpy as np
+import pytest
+from scipy import stats
+
+from structsearch.engine.bands import band, output_variance, point_effective_maneuvers, quantile
+from structsearch.engine.sandwich import effective_maneuvers
+
+from conftest import central_difference
+
+
+def test_output_variance_is_the_diagonal_of_j_c_jt_and_nan_where_an_unknown_parameter_acts():
+    rng = np.random.default_rng(1)
+    j = rng.standard_normal((7, 3))
+    a = rng.standard_normal((3, 3))
+    c = a @ a.T
+    np.testing.assert_allclose(output_variance(j, c), np.diag(j @ c @ j.T), rtol=1e-12)
+    c_nan = c.copy()
+    c_nan[2, :] = c_nan[:, 2] = np.nan
+    j[:3, 2] = 0.0    # the unknown parameter does not act on the first three points
+    var = output_variance(j, c_nan)
+    np.testing.assert_allclose(var[:3], np.diag(j[:3, :2] @ c[:2, :2] @ j[:3, :2].T), rtol=1e-12)
+    assert np.all(np.isnan(var[3:]))   # never a zero-width band where it cannot be estimated
+
+
+def test_quantiles_and_band_widths():
+    assert quantile(0.95, np.inf) == pytest.approx(stats.norm.ppf(0.975))
+    np.testing.assert_allclose(quantile(0.95, [1.0, 10.0]), stats.t.ppf(0.975, [1.0, 10.0]))
+    with pytest.raises(ValueError, match="level"):
+        quantile(1.5, 3.0)
+    b = band(np.array([1.0, 2.0]), np.eye(2), np.diag([0.04, 0.09]), np.array([0.0, 0.16]), 0.95, np.inf)
+    z = stats.norm.ppf(0.975)
+    np.testing.assert_allclose(b.confidence_half_width, z * np.array([0.2, 0.3]))
+    np.testing.assert_allclose(b.prediction_high - b.estimate, z * np.array([0.2, 0.5]))
+    assert set(b.to_dict()) == {"estimate", "confidence_low", "confidence_high", "prediction_low",
+                                "prediction_high"}
+
+
+def test_a_points_effective_maneuvers_for_a_unit_gradient_are_the_parameters_own():
+    rng = np.random.default_rng(5)
+    g, n = 6, 80
+    bounds = np.arange(0, g * n + 1, n)
+    jac = np.column_stack([np.ones(g * n), rng.standard_normal(g * n), np.repeat(rng.standard_normal(g), n)])
+    residual = rng.standard_normal(g * n)
+    for kind in ("cluster", "hac-maneuver"):
+        own = effective_maneuvers(jac, jac * residual[:, None], bounds, kind)
+        points = point_effective_maneuvers(jac, residual, bounds, kind, np.eye(3))
+        np.testing.assert_allclose(points, own, rtol=1e-10)
+        # a combination is informed by at least as few maneuvers as G allows and at least one
+        mixed = point_effective_maneuvers(jac, residual, bounds, kind, rng.standard_normal((5, 3)))
+        assert np.all((mixed >= 1.0 - 1e-12) & (mixed <= g + 1e-12))
+
+
+def test_the_confidence_band_of_a_linear_model_covers_its_truth_at_the_level():
+    """Monte Carlo: y = Phi c + noise, OLS with its white covariance; the 95 % band of Phi(x) c at five
+    points covers the truth in 95 % of 400 seeded draws (binomial 99.9 % range)."""
+    rng = np.random.default_rng(29)
+    x = np.linspace(-1, 1, 200)
+    phi = np.column_stack([np.ones_like(x), x, x ** 2])
+    coef = np.array([0.3, -1.0, 0.5])
+    grid = np.column_stack([np.ones(5), np.linspace(-1, 1, 5), np.linspace(-1, 1, 5) ** 2])
+    truth = grid @ coef
+    hits = []
+    for _ in range(400):
+        y = phi @ coef + 0.2 * rng.standard_normal(len(x))
+        c_hat, *_ = np.linalg.lstsq(phi, y, rcond=None)
+        s2 = np.sum((y - phi @ c_hat) ** 2) / (len(x) - 3)
+        cov = s2 * np.linalg.inv(phi.T @ phi)
+        b = band(grid @ c_hat, grid, cov, np.full(5, s2), 0.95, len(x) - 3)
+        hits.append((truth >= b.confidence_low) & (truth <= b.confidence_high))
+    coverage = np.mean(hits, axis=0)
+    lo, hi = stats.binom.ppf([0.0005, 0.9995], 400, 0.95) / 400
+    assert np.all((coverage >= lo) & (coverage <= hi)), coverage
+
+
+@pytest.fixture(scope="module")
+def fitted_finals(simulated_campaign):
+    from structsearch.experiments.calibration import TRUTH
+    from structsearch.fitting.options import FitOptions
+    from structsearch.study.thesis_estimator import fit_final_models
+    campaign = simulated_campaign(seed=3, scale=0.1)
+    train, val = campaign.split("train"), campaign.split("validation")
+    finals = fit_final_models(train, val, FitOptions(n_starts=1, cv_folds=0), {c: dict(TRUTH[c]) for c in TRUTH})
+    return train, finals
+
+
+@pytest.mark.parametrize("coefficient", ["CL", "CD", "Cm"])
+def test_the_static_curves_jacobian_is_its_finite_difference(fitted_finals, coefficient):
+    from structsearch.fitting.bands import static_evaluation
+    from structsearch.fitting.lift_fit import LiftFit
+    train, finals = fitted_finals
+    cand, fit = finals[coefficient]
+    lift = LiftFit(*finals["CL"]) if cand.lift else None
+    alpha, out, jac, names, held = static_evaluation(cand, fit.params, train, lift)
+    assert len(alpha) == len(out) == jac.shape[0] and jac.shape[1] == len(names)
+    assert alpha[0] == pytest.approx(train["alpha"].min()) and alpha[-1] == pytest.approx(train["alpha"].max())
+    assert "V" in held and "CL" not in held
+
+    def curve(values):
+        return static_evaluation(cand, dict(zip(names, values)), train, lift, jacobian=False)[1]
+    x = np.array([fit.params[n] for n in names])
+    fd = central_difference(curve, x, rel=1e-5)
+    # against each column's scale: the sigmoid's tail makes pointwise relative errors meaningless
+    scale = np.abs(fd).max(axis=0)
+    assert np.all(np.abs(jac - fd) <= 1e-5 * scale + 1e-12), names
+    # a static curve does not move with the lags, the pitch rate or the elevator: those columns are zero
+    for n in names:
+        if n.startswith(("tau1", "tau2")) or n.endswith(("_qstar", "_de")):
+            assert not np.any(jac[:, names.index(n)]), n
+
+
+def test_static_bands_of_the_final_models(fitted_finals):
+    from structsearch.fitting.bands import static_bands
+    from structsearch.fitting.lift_fit import LiftFit
+    train, finals = fitted_finals
+    lift = LiftFit(*finals["CL"])
+    for coefficient, (cand, fit) in finals.items():
+        b = static_bands(cand, fit, train, lift if cand.lift else None)
+        band_ = b.band
+        assert np.all(band_.confidence_low <= band_.estimate) and np.all(band_.estimate <= band_.confidence_high)
+        # the prediction band holds the confidence band and the residual noise
+        assert np.all(band_.prediction_low < band_.confidence_low)
+        assert np.all(band_.prediction_high > band_.confidence_high)
+        # per-maneuver covariance (the default): each point's dof from its effective maneuvers, at least 1
+        assert np.all(band_.dof >= 1.0) and len(set(np.round(band_.dof, 6))) > 1
+        doc = b.to_dict()
+        assert doc["level"] == 0.95 and set(doc["static"]) >= {"alpha", "conditions", "dof", coefficient}
+        assert doc["static"]["conditions"]["de"] == 0.0 and "text" in doc["static"]["conditions"]
+        # the grid's noise bins hold every training sample's alpha band
+        assert b.noise_bins[0][0] == -np.inf and b.noise_bins[-1][1] == np.inf
