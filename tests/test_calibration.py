@@ -75,4 +75,23 @@ def test_calibration_command_end_to_end(tmp_path):
             assert all(r["n"] == 2 and r["reported_sd"] > 0 for r in rows)
     text = (tmp_path / "calibration.md").read_text()
     assert "bench --calibration --campaigns 2 --scale 0.05" in text and "## cluster" in text
+    # the static curves' bands against the truth (issue 29): a coverage per coefficient, from both campaigns
+    for coef in ("CL", "CD", "Cm"):
+        band = doc["bands"][coef]
+        assert 0.0 <= band["campaign_min"] <= band["coverage95"] <= band["campaign_max"] <= 1.0
+        assert band["mean_half_width"] > 0
+    assert "Static curves: 95 % confidence bands against the truth" in text
     assert "best calibrated" in out.stdout
+
+
+def test_band_coverage_pools_the_points_of_every_campaign():
+    draws = _draws([0.0, 0.1])
+    draws = [CampaignDraw(d.seed, d.samples, d.estimates, d.stderr, d.gap_p, d.dof,
+                          band_hits={"CL": hits, "CD": (True,) * 4, "Cm": (False,) * 4},
+                          band_widths={"CL": 0.1, "CD": 0.01, "Cm": 0.02})
+             for d, hits in zip(draws, [(True, True, True, False), (True, False, False, False)])]
+    cal = summarise(draws, 0.1)
+    assert cal.band_coverage == {"CL": pytest.approx(4 / 8), "CD": 1.0, "Cm": 0.0}
+    assert cal.band_campaign_coverage["CL"] == (0.25, 0.75)
+    # no draw with bands (the default covariance was not among the kinds): NaN, never 0
+    assert all(np.isnan(v) for v in summarise(_draws([0.0, 0.1]), 0.1).band_coverage.values())

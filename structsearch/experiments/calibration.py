@@ -27,7 +27,7 @@ from scipy import stats
 
 from ..discovery import effects as fx
 from ..diagnosis.diagnose import saturated, wald_p_value
-from ..engine.statistics import COVARIANCE_KINDS
+from ..engine.statistics import COVARIANCE_KINDS, DEFAULT_COVARIANCE
 from ..flight.flighttest import build_campaign
 from ..flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_MODEL_NAMES, FINAL_PITCH
 from ..fitting.options import FitOptions
@@ -40,6 +40,8 @@ LARGE_DOF = 10 ** 9  # a draw without dof: the normal quantiles
 GAP_LEVEL = 0.01
 # goals of issue 11
 COVERAGE_RANGE = (0.92, 0.98)
+# goal of issue 29: the static curves' 95 % confidence bands cover the truth at 90-99 % of the points
+BAND_COVERAGE_RANGE = (0.90, 0.99)
 COVERAGE_FLOOR = 0.85
 REJECTION_CEILING = 0.03
 
@@ -54,13 +56,17 @@ class CampaignDraw:
     stderr: Mapping[str, Mapping[str, Mapping[str, float]]]     # kind -> model -> parameter -> sd
     gap_p: Mapping[str, Mapping[str, float]]                    # kind -> model -> p-value
     dof: Mapping[str, Mapping[str, Mapping[str, float]]] = field(default_factory=dict)  # kind -> model -> param -> t dof
+    # the default covariance's 95 % confidence band of each static curve against the truth's curve on the same
+    # alpha grid: coefficient -> per grid point, covered or not (issue 29)
+    band_hits: Mapping[str, tuple[bool, ...]] = field(default_factory=dict)
+    band_widths: Mapping[str, float] = field(default_factory=dict)   # coefficient -> mean half width
 
 
 def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
     """Simulate one campaign and fit the final models with every covariance kind."""
     campaign = build_campaign(seed=seed, scale=scale)
     train, val = campaign.split("train"), campaign.split("validation")
-    estimates, stderr, gap, dof = {}, {}, {}, {}
+    estimates, stderr, gap, dof, hits, widths = {}, {}, {}, {}, {}, {}
     starts = {coef: dict(TRUTH[coef]) for coef in TRUTH}
     for kind in kinds:
         options = FitOptions(n_starts=1, covariance=kind, cv_folds=0)
@@ -78,7 +84,33 @@ def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
             sat = fit_candidate(sat_cand, train, val, lift if cand.lift else None, options, start=fit.params)
             names = [p for ps in added.values() for p in ps]
             gap[kind][cand.name] = float("nan") if sat.failed else wald_p_value(sat, names)
-    return CampaignDraw(seed, train.n_samples, estimates, stderr, gap, dof)
+        if kind == DEFAULT_COVARIANCE:
+            hits, widths = band_coverage(finals, train)
+    return CampaignDraw(seed, train.n_samples, estimates, stderr, gap, dof, hits, widths)
+
+
+def truth_lift() -> LiftFit:
+    """The simulator's lift model as a drag or pitch curve's lift model: its structure and true parameters."""
+    from types import SimpleNamespace
+    from ..fitting.specs import find_candidate
+    return SimpleNamespace(params=dict(TRUTH["CL"]), candidate=find_candidate(FINAL_MODEL_NAMES["CL"]),
+                           failed=False, name=FINAL_MODEL_NAMES["CL"])
+
+
+def band_coverage(finals, train) -> tuple[dict, dict]:
+    """Per coefficient: whether the 95 % confidence band of the fitted static curve covers the truth's curve at
+    each grid point (the truth's parameters, on the truth's lift model for drag and pitch), and the band's mean
+    half width."""
+    from ..fitting.bands import static_bands, static_evaluation
+    lift = LiftFit(*finals["CL"])
+    hits, widths = {}, {}
+    for coef, (cand, fit) in finals.items():
+        b = static_bands(cand, fit, train, lift if cand.lift else None)
+        _, truth, _, _, _ = static_evaluation(cand, TRUTH[coef], train, truth_lift() if cand.lift else None,
+                                              jacobian=False)
+        hits[coef] = tuple(bool(h) for h in (truth >= b.band.confidence_low) & (truth <= b.band.confidence_high))
+        widths[coef] = float(np.nanmean(b.band.confidence_half_width))
+    return hits, widths
 
 
 @dataclass(frozen=True)
@@ -177,6 +209,25 @@ class Calibration:
     kinds: tuple[KindCalibration, ...]
     seconds: float = 0.0
     draws: tuple[CampaignDraw, ...] = field(default=(), repr=False)
+
+    @property
+    def band_coverage(self) -> dict[str, float]:
+        """Per coefficient: the share of (alpha, campaign) points where the default covariance's 95 % confidence
+        band of the static curve covers the truth's (NaN: no draw computed bands)."""
+        out = {}
+        for coef in TRUTH:
+            hits = [h for d in self.draws for h in d.band_hits.get(coef, ())]
+            out[coef] = float(np.mean(hits)) if hits else float("nan")
+        return out
+
+    @property
+    def band_campaign_coverage(self) -> dict[str, tuple[float, float]]:
+        """Per coefficient: the lowest and highest share of covered grid points over the campaigns."""
+        out = {}
+        for coef in TRUTH:
+            shares = [float(np.mean(d.band_hits[coef])) for d in self.draws if d.band_hits.get(coef)]
+            out[coef] = (min(shares), max(shares)) if shares else (float("nan"), float("nan"))
+        return out
 
     @property
     def best(self) -> KindCalibration:

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from tabulate import tabulate
 
-from .calibration import (COVERAGE_FLOOR, COVERAGE_RANGE, GAP_LEVEL, REJECTION_CEILING, Calibration,
-                           KindCalibration)
+from .calibration import (BAND_COVERAGE_RANGE, COVERAGE_FLOOR, COVERAGE_RANGE, GAP_LEVEL, REJECTION_CEILING,
+                           Calibration, KindCalibration)
 
 
 def calibration_dict(cal: Calibration) -> dict:
@@ -12,6 +12,12 @@ def calibration_dict(cal: Calibration) -> dict:
     return {
         "seeds": list(cal.seeds), "scale": cal.scale, "training_samples": cal.samples, "seconds": cal.seconds,
         "best": cal.best.kind,
+        "bands": {coef: {"coverage95": cov, "campaign_min": cal.band_campaign_coverage[coef][0],
+                         "campaign_max": cal.band_campaign_coverage[coef][1],
+                         "mean_half_width": (float(sum(d.band_widths[coef] for d in cal.draws) / len(cal.draws))
+                                             if cal.draws and all(coef in d.band_widths for d in cal.draws)
+                                             else None)}
+                  for coef, cov in cal.band_coverage.items()},
         "kinds": {k.kind: {
             "pooled_coverage68": k.pooled68, "pooled_coverage95": k.pooled95,
             "pooled_coverage95_of_mc_mean": k.pooled_centred95,
@@ -70,6 +76,7 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
         "itself, from errors in the measured regressors, that no covariance estimate can repair).", "",
         f"With {n} campaigns a single parameter's coverage has a standard error of about "
         f"{(0.95 * 0.05 / n) ** 0.5:.3f} at 95 %.", ""]
+    lines += band_lines(cal)
     for k in cal.kinds:
         if not any(p.n for p in k.parameters):
             lines += [f"## {k.kind}", "", "Not estimable on these campaigns: every reported standard deviation is "
@@ -85,3 +92,28 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
                                           "95 % coverage", "95 % coverage of the MC mean"],
                            tablefmt="github"), ""]
     return "\n".join(lines)
+
+
+def band_lines(cal: Calibration) -> list[str]:
+    """The static curves' bands against the truth (issue 29); nothing when no draw computed them."""
+    coverage = cal.band_coverage
+    if all(v != v for v in coverage.values()):   # all NaN: the default covariance was not among the kinds
+        return []
+    lo, hi = BAND_COVERAGE_RANGE
+    rows = []
+    for coef, cov in coverage.items():
+        cmin, cmax = cal.band_campaign_coverage[coef]
+        width = sum(d.band_widths[coef] for d in cal.draws) / len(cal.draws)
+        rows.append([coef, f"{cov:.3f}", f"{cmin:.2f}-{cmax:.2f}", f"{width:.4g}",
+                     "yes" if lo <= cov <= hi else "no"])
+    n_points = len(next(iter(cal.draws[0].band_hits.values())))
+    return ["## Static curves: 95 % confidence bands against the truth", "",
+            f"On each campaign the default covariance's fits give each static curve (q* = 0, delta_e = 0, C_T = 0, "
+            f"separation states at their steady values; {n_points} alpha points over the flown range) its 95 % "
+            "confidence band (the delta method, each point's Student-t quantile with its own effective maneuvers "
+            "minus one: `structsearch fit`'s `bands`); the truth's curve is the simulator's model with its true "
+            "parameters on the same grid (drag and pitch on the true lift model). Coverage: the share of the "
+            f"(alpha, campaign) points where the band holds the truth; goal (issue 29) {lo:.2f}-{hi:.2f}. The fits "
+            "start at the truth, as the parameters' above: the coverage is conditional on the right basin.", "",
+            tabulate(rows, headers=["coefficient", "pooled coverage", "per campaign (min-max)",
+                                    "mean half width", "in the goal"], tablefmt="github"), ""]
