@@ -71,6 +71,8 @@ def test_html_is_self_contained_with_captions(report_run):
     # no ranking.csv in the output directory: the final structures, and the page says so
     assert "CL-VI" in page and "Cm-XXXIIIr" in page and "final structures" in page
     assert "<table>" in page
+    # the static curves carry their bands, and the captions say which (issue 29)
+    assert page.count("95 % confidence band (where the true static curve lies") == 2
 
 
 def test_centre_of_pressure_and_elevator_effectiveness_follow_eqs_32_33(model_set, small):

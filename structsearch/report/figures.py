@@ -80,8 +80,16 @@ def _compare(ax, model_xy, van_ingen_xy, names, points_xy=None) -> None:
         ax.plot(*van_ingen_xy, color=COLOURS["van_ingen"], lw=1.8, ls="--", label=f"{names[1]} (Van Ingen structure)")
 
 
-def static_curve(coef: str, alpha, model, van_ingen, points, names):
+def static_curve(coef: str, alpha, model, van_ingen, points, names, bands=None):
+    """The identified static curve (with its 95 % bands when given: a StaticBands), the Van Ingen structure's
+    and the measured points corrected to the static condition."""
     fig, ax = plt.subplots(figsize=(7, 4.2))
+    if bands is not None:
+        b = bands.band
+        ax.fill_between(bands.alpha, b.prediction_low, b.prediction_high, color=COLOURS["model"], alpha=0.12,
+                        lw=0, label=f"{bands.level:.0%} prediction band (a new measurement)")
+        ax.fill_between(bands.alpha, b.confidence_low, b.confidence_high, color=COLOURS["model"], alpha=0.35,
+                        lw=0, label=f"{bands.level:.0%} confidence band (the curve)")
     _compare(ax, (alpha, model[coef]), (alpha, van_ingen[coef]) if van_ingen is not None else None, names,
              (points["alpha"], points[coef]))
     _finish(ax, "alpha [rad]", LABELS[coef])

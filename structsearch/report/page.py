@@ -29,6 +29,7 @@ from .diagnosis_doc import unexplained_sentence
 from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_MODEL_NAMES
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
+from ..fitting.bands import static_bands
 from ..fitting.options import FitOptions
 from ..study.model_set import ModelSet
 from ..fitting.specs import find_candidate
@@ -165,16 +166,25 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
     emit(fg.separation(curves, alpha), "separation_static.png", "Static flow separation",
          f"X_0(alpha) of each separation state of {names['CL']} with the stall stages marked: flow starts to "
          "separate (X_0 = 0.9), half separated (alpha*, X_0 = 0.5), fully stalled (X_0 = 0.1) (thesis Fig. 6).")
-    emit(fg.static_curve("CL", alpha, static, static_vi, points, pair), "lift_static.png", "Static lift curve",
-         f"C_L(alpha) of {names['CL']} and of the Van Ingen structure {pair[1]} in the {cond}. {corrected} "
-         "(thesis Fig. 7)")
+    bands = {coef: static_bands(ms.candidates[coef], ms.summaries[coef], train, ms.lift if coef != "CL" else None)
+             for coef in ("CL", "Cm")}
+    band_text = ("Shaded: the identified curve's 95 % confidence band (where the true static curve lies: the delta "
+                 "method on the parameters' covariance, each point's t quantile with its own effective maneuvers) "
+                 "and, lighter, its 95 % prediction band (where a new measurement at that alpha lies: plus the "
+                 "training residual's variance in its alpha band), over the flown alpha range.")
+    emit(fg.static_curve("CL", alpha, static, static_vi, points, pair, bands["CL"]), "lift_static.png",
+         "Static lift curve",
+         f"C_L(alpha) of {names['CL']} and of the Van Ingen structure {pair[1]} in the {cond}. {band_text} "
+         f"{corrected} (thesis Fig. 7)")
     emit(fg.drag_polar(static, static_vi, points, (names["CD"], VAN_INGEN_MODEL_NAMES["CD"])), "drag_polar.png",
          "Static drag polar",
          f"C_L against C_D of {names['CD']} (with {names['CL']}) and of {VAN_INGEN_MODEL_NAMES['CD']} (with "
          f"{VAN_INGEN_MODEL_NAMES['CL']}) in the {cond}. {corrected} (thesis Fig. 8)")
-    emit(fg.static_curve("Cm", alpha, static, static_vi, points, (names["Cm"], VAN_INGEN_MODEL_NAMES["Cm"])),
+    emit(fg.static_curve("Cm", alpha, static, static_vi, points, (names["Cm"], VAN_INGEN_MODEL_NAMES["Cm"]),
+                         bands["Cm"]),
          "pitch_static.png", "Static pitch moment",
          f"C_m(alpha) of {names['Cm']} and {VAN_INGEN_MODEL_NAMES['Cm']} in the {cond}; C_L from the lift model. "
+         f"{band_text} "
          f"{corrected} Both curves hold delta_e = 0: a structure whose elevator term cannot be told apart from "
          "alpha in trimmed flight (the elevator follows alpha) carries part of the alpha slope in that term. "
          "(thesis Fig. 11)")
