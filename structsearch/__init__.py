@@ -18,7 +18,7 @@ from ._version import __version__
 
 # exported name -> module (relative to this package) that defines it
 _EXPORTS = {
-    "fit": "api", "search": "api", "diagnose": "api", "discover": "api", "simulate": "api", "preprocess": "api", "study": "api",
+    "fit": "api", "fit_joint": "api", "search": "api", "diagnose": "api", "discover": "api", "simulate": "api", "preprocess": "api", "study": "api",
     "report": "api",
     "FitOutcome": "api", "Ranking": "api", "PreprocessOutcome": "api", "StudyOutcome": "api",
     "ReportOutcome": "api",
@@ -43,12 +43,12 @@ _EXPORTS = {
 __all__ = ["Campaign", "CandidateResult", "DataError", "DeclarationError", "DemoOutcome", "FitError",
            "FitOptions", "FitOutcome", "FitResult", "FlightData", "LiftFit", "PreprocessOutcome", "Ranking",
            "ReportOutcome", "SeparableModel", "StallModel", "StructSearchError", "StudyOutcome", "demo",
-           "diagnose", "discover", "fit", "fit_report", "preprocess", "read_campaign", "report", "search", "simulate",
+           "diagnose", "discover", "fit", "fit_joint", "fit_report", "preprocess", "read_campaign", "report", "search", "simulate",
            "study", "write_campaign", "__version__"]
 
 if TYPE_CHECKING:
     from .api import (FitOutcome, PreprocessOutcome, Ranking, ReportOutcome, StudyOutcome, diagnose, discover, fit,
-                      preprocess, report, search, simulate, study)
+                      fit_joint, preprocess, report, search, simulate, study)
     from .data.campaign import Campaign, read_campaign, write_campaign
     from .data.errors import DataError, DeclarationError, FitError, StructSearchError
     from .data.flightdata import FlightData

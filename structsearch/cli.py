@@ -92,6 +92,8 @@ def _fit(args) -> int:
     from .api import fit
     from .data.atomic import write_json, write_text
     from .report.tables import parameter_table
+    if args.joint:
+        return _fit_joint(args)
     res = fit(args.data, args.model, starts=args.starts, seed=args.seed, covariance=args.covariance,
               bounds=_bounds(args))
     summary, out = res.result, Path(args.out)
@@ -103,6 +105,24 @@ def _fit(args) -> int:
     print(f"{res.candidate.name}: MSE train {summary.mse_train:.4g}, validation {summary.mse_validation:.4g}; "
           f"{len(summary.insignificant)} parameter(s) accept zero, {len(summary.at_bound)} at a bound"
           f"{not_converged}; wrote {out / 'fit.json'}")
+    return 0
+
+
+def _fit_joint(args) -> int:
+    from .api import fit_joint
+    from .data.atomic import write_json, write_text
+    from .report.documents import joint_markdown
+    res = fit_joint(args.data, args.joint, starts=args.starts, seed=args.seed, covariance=args.covariance,
+                    bounds=_bounds(args))
+    out = Path(args.out)
+    write_json(out / "fit.json", res.to_dict())
+    write_text(out / "fit.md", joint_markdown(res))
+    r = res.result
+    not_converged = "" if r.converged else f"; the optimizer did NOT converge ({r.message})"
+    unsettled = "" if res.weights_settled else f"; the weights did NOT settle in {res.iterations} iterations"
+    mses = ", ".join(f"{c.coefficient} {c.train.mse:.4g}/{c.validation.mse:.4g}" for c in res.coefficients)
+    print(f"{res.name} (joint): MSE train/validation {mses}; {len(res.shared)} shared separation parameters, "
+          f"{len(r.at_bound)} at a bound{not_converged}{unsettled}; wrote {out / 'fit.json'}")
     return 0
 
 

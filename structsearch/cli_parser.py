@@ -120,7 +120,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
 
     f = sub.add_parser("fit", help="fit one model structure to a campaign")
     _campaign_options(f)
-    f.add_argument("--model", required=True, help="candidate name (CL-VI, CD-IXr, Cm-XXXIII, ...) or spec file")
+    which = f.add_mutually_exclusive_group(required=True)
+    which.add_argument("--model", help="candidate name (CL-VI, CD-IXr, Cm-XXXIII, ...) or spec file")
+    which.add_argument("--joint", metavar="LIFT,DRAG,PITCH",
+                       help="fit two or three structures jointly, sharing their separation states: names or spec "
+                            "files, comma-separated, or a joint spec file ([joint] structures = [...])")
     f.set_defaults(func=handlers["fit"])
 
     r = sub.add_parser("search", help="fit and rank every candidate of a grid")

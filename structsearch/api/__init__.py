@@ -2,6 +2,7 @@
 
 =====================================  ==============================================
 ``structsearch fit --model CD-IXr``    :func:`fit` -> :class:`FitOutcome`
+``structsearch fit --joint CL-VI,...`` :func:`fit_joint` -> JointFit
 ``structsearch search --grid drag``    :func:`search` -> :class:`Ranking`
 ``structsearch diagnose --model CD-I`` :func:`diagnose` -> Diagnosis
 ``structsearch discover --coefficient`` :func:`discover` -> Discovery
@@ -12,10 +13,10 @@
 ``structsearch demo``                  :func:`structsearch.workflows.demo`
 =====================================  ==============================================
 """
-from .commands import diagnose, fit, preprocess, search, simulate, study
+from .commands import diagnose, fit, fit_joint, preprocess, search, simulate, study
 from .discovering import discover
 from .report import report
 from .results import FitOutcome, PreprocessOutcome, Ranking, ReportOutcome, StudyOutcome
 
 __all__ = ["FitOutcome", "PreprocessOutcome", "Ranking", "ReportOutcome", "StudyOutcome", "diagnose", "discover", "fit",
-           "preprocess", "report", "search", "simulate", "study"]
+           "fit_joint", "preprocess", "report", "search", "simulate", "study"]

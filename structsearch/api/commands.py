@@ -9,7 +9,7 @@ import tempfile
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator, Mapping
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from ..data.campaign import Campaign, read_campaign
 from ..data.errors import DeclarationError
@@ -74,6 +74,24 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, starts: int = 4, 
         raise DeclarationError(result.error)
     from ..fitting.bands import static_bands
     return FitOutcome(candidate, result, lift, static_bands(candidate, result, train, lift))
+
+
+def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence[str], *, starts: int = 4,
+              seed: int = 0, covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None,
+              progress: Progress = None):
+    """Fit two or three structures (lift, drag, pitch) jointly, sharing their separation states, as
+    ``structsearch fit --joint`` does: ``structures`` is "CL-VI,CD-IXr,Cm-XXXIIIr", a list of names or spec
+    files, or a joint spec file. Returns the typed :class:`structsearch.fitting.joint.JointFit` (``to_dict()``
+    is its ``fit.json``)."""
+    from ..fitting.joint import fit_joint as run, joint_structures
+    campaign = as_campaign(campaign)
+    candidates = joint_structures(structures if isinstance(structures, str) else ",".join(structures))
+    options = fit_options(starts, seed, covariance, bounds)
+    check_box_names(options.parameter_boxes, candidates)
+    candidates = [c.with_bounds(options.parameter_boxes) for c in candidates]
+    if progress is not None:
+        progress("fit: " + " + ".join(c.name for c in candidates) + " jointly")
+    return run(candidates, campaign.split("train"), campaign.split("validation"), options)
 
 
 def search_candidates(grid: str) -> list:

@@ -67,6 +67,22 @@ class StaticBands:
             self.coefficient: self.band.to_dict()}}
 
 
+def merged_bands(bands: "list[StaticBands]") -> dict:
+    """``fit.json``'s ``bands`` for several coefficients on the same grid (a joint fit): one ``static`` with each
+    coefficient's band, and the dof per coefficient."""
+    doc = bands[0].to_dict()
+    static = doc["static"]
+    static["dof"] = {bands[0].coefficient: static["dof"]}
+    static["reasons"] = {bands[0].coefficient: static["reasons"]}
+    for b in bands[1:]:
+        other = b.to_dict()["static"]
+        static[b.coefficient] = other[b.coefficient]
+        static["dof"][b.coefficient] = other["dof"]
+        static["reasons"][b.coefficient] = other["reasons"]
+        static["conditions"]["held_at_training_mean"].update(other["conditions"]["held_at_training_mean"])
+    return doc
+
+
 def static_grid(model_columns, train: FlightData, alpha: np.ndarray) -> tuple[FlightData, dict[str, float]]:
     """The grid as FlightData: one two-sample maneuver per alpha (a state starts at, and keeps, X0(alpha))."""
     n = len(alpha)
@@ -99,11 +115,12 @@ def noise_variance(alpha_train: np.ndarray, residual: np.ndarray, alpha: np.ndar
 
 
 def static_evaluation(c: Candidate, params: Mapping[str, float], train: FlightData, lift: LiftFit | None = None,
-                      points: int = GRID_POINTS, jacobian: bool = True):
+                      points: int = GRID_POINTS, jacobian: bool = True, model=None):
     """The static curve of ``c`` with ``params`` on the alpha grid of ``train``: (alpha, output, Jacobian in the
     model's parameters or None, their names, the columns held at their training mean). ``lift`` gives a drag or
-    pitch candidate its lift model's states and C_L (its ``params`` may be another estimate's, the truth's)."""
-    model = build_model(c, lift)
+    pitch candidate its lift model's states and C_L (its ``params`` may be another estimate's, the truth's);
+    ``model`` replaces ``c``'s own (a joint fit's drag model, whose states are free)."""
+    model = model if model is not None else build_model(c, lift)
     alpha = np.linspace(float(np.min(train["alpha"])), float(np.max(train["alpha"])), points)
     columns = set(model.required_columns)
     if c.lift and lift is not None:   # the lift model's C_L on the grid reads its own columns
@@ -129,13 +146,18 @@ def static_bands(c: Candidate, result: CandidateResult, train: FlightData, lift:
     """The static curve of a fitted candidate with its confidence and prediction bands (module docstring)."""
     if result.failed or result.estimates is None:
         raise ValueError(f"{c.name}: a failed fit has no bands")
-    est = result.estimates
-    alpha, out, jac, names, held = static_evaluation(c, est.params, train, lift, points)
+    return curve_bands(c, result.estimates, train, lift, build_model(c, lift), level, points)
+
+
+def curve_bands(c: Candidate, est, train: FlightData, lift, model, level: float = LEVEL,
+                points: int = GRID_POINTS) -> StaticBands:
+    """The bands of ``model``'s static curve with the estimates ``est`` (ParameterEstimates holding at least the
+    model's parameters: a single fit's, or a joint fit's whose covariance also spans the shared states)."""
+    alpha, out, jac, names, held = static_evaluation(c, est.params, train, lift, points, model=model)
     order = [est.names.index(n) for n in names]
     cov = est.covariance[np.ix_(order, order)]
     acting = np.any(jac != 0.0, axis=0)
     seen = _training_view(c, train, lift)
-    model = build_model(c, lift)
     jac_train, fitted = model.jacobian(seen, est.params)
     residual = seen[c.coefficient] - fitted
     kind = covariance_kind(est.covariance_kind)

@@ -50,3 +50,27 @@ def bands_table(bands, every: int = 6) -> str:
             "prediction: where a new measurement at that alpha lies (plus the training residual's variance in "
             "that alpha band). Each point's t quantile has its own degrees of freedom (its effective number of "
             f"maneuvers minus one).\n\n{table}{reasons}\n")
+
+
+def joint_markdown(joint) -> str:
+    """``fit.md`` of a joint fit (:class:`structsearch.fitting.joint.JointFit`): the shared parameters, each
+    coefficient's parameters and scores, and how the weights settled."""
+    from tabulate import tabulate
+    from .tables import parameter_table
+    r = joint.result
+    rows = [[c.coefficient, c.model, f"{c.train.mse:.5g}", f"{c.validation.mse:.5g}",
+             f"{c.validation.r2.mean:.3f}", f"{c.weight:.4g}"] for c in joint.coefficients]
+    settled = (f"settled after {joint.iterations} iterations" if joint.weights_settled
+               else f"did NOT settle in {joint.iterations} iterations")
+    lines = [f"# {joint.name} (joint fit)", "",
+             f"One separable problem: the coefficients share {', '.join(joint.shared)}; each keeps its own linear "
+             "coefficients. Rows weighted by 1 / (the coefficient's residual variance), re-estimated until the "
+             f"weights settle ({settled}); drag and pitch read the joint lift model's C_L. Statistics with the "
+             f"{r.covariance_kind} covariance of the stacked problem (a maneuver's rows of every coefficient are one "
+             "record).", "",
+             tabulate(rows, headers=["coefficient", "structure", "MSE train", "MSE validation",
+                                     "R^2 validation (mean)", "weight"], tablefmt="github"), "",
+             "## Every parameter", "", parameter_table(r, "md"), ""]
+    if not r.converged:
+        lines.insert(2, f"**The optimizer did not converge** ({r.message}).\n")
+    return "\n".join(lines)

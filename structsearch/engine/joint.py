@@ -1,0 +1,106 @@
+"""Several separable problems on the same samples, sharing nonlinear parameters by name, as one separable
+problem (a joint fit of C_L, C_D and C_m whose separation states are the same).
+
+Each block b keeps its own linear coefficients; the blocks' rows are weighted by sqrt(w_b) and interleaved
+sample by sample (row b + B t is block b's sample t), so that a maneuver's rows stay contiguous: the
+per-maneuver covariances (``hac-maneuver``, ``cluster``) then see one maneuver as one record across every
+coefficient, and the Bartlett weight between two rows is that of their time lag. The regression matrix is
+block-diagonal; its derivative columns are the blocks' own, mapped to the shared parameters. The problem
+is separable, so :func:`structsearch.engine.fit.fit_problem` solves it by variable projection unchanged.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..data.errors import DeclarationError
+from .snls import Evaluation
+
+
+@dataclass(frozen=True, eq=False)
+class JointProblem:
+    """Blocks (each a bound separable problem: ``evaluate``, ``nonlinear_names``, ``linear_names``) over the
+    same ``n_samples`` samples, weighted by ``weights``."""
+
+    blocks: tuple
+    weights: np.ndarray
+    n_samples: int
+
+    def __post_init__(self):
+        linear = [n for b in self.blocks for n in b.linear_names]
+        twice = sorted({n for n in linear if linear.count(n) > 1})
+        if twice:
+            raise DeclarationError(f"a joint problem needs distinct linear coefficients; {', '.join(twice)} "
+                                   "appear in more than one block")
+        if len(self.weights) != len(self.blocks) or not np.all(np.asarray(self.weights) > 0):
+            raise DeclarationError("a joint problem needs one positive weight per block")
+
+    @property
+    def nonlinear_names(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(n for b in self.blocks for n in b.nonlinear_names))
+
+    @property
+    def linear_names(self) -> tuple[str, ...]:
+        return tuple(n for b in self.blocks for n in b.linear_names)
+
+    @property
+    def n_blocks(self) -> int:
+        return len(self.blocks)
+
+    def interleave(self, values: Sequence[np.ndarray]) -> np.ndarray:
+        """The blocks' sample vectors as the joint rows (weighted)."""
+        out = np.empty(self.n_blocks * self.n_samples)
+        for b, v in enumerate(values):
+            out[b::self.n_blocks] = np.sqrt(self.weights[b]) * np.asarray(v, float)
+        return out
+
+    def block_rows(self, b: int) -> slice:
+        return slice(b, self.n_blocks * self.n_samples, self.n_blocks)
+
+    def boundaries(self, boundaries: np.ndarray) -> np.ndarray:
+        """The joint rows' maneuver boundaries from the samples' (each maneuver's rows contiguous)."""
+        return np.asarray(boundaries, int) * self.n_blocks
+
+    def block_theta(self, b: int, theta: np.ndarray) -> np.ndarray:
+        names = self.nonlinear_names
+        return np.array([theta[names.index(n)] for n in self.blocks[b].nonlinear_names], float)
+
+    def evaluate(self, theta: np.ndarray) -> Evaluation:
+        theta = np.asarray(theta, float)
+        names = self.nonlinear_names
+        rows_total = self.n_blocks * self.n_samples
+        phi = np.zeros((rows_total, len(self.linear_names)))
+        dcols, rows, params = [], [], []
+        offset = 0
+        for b, block in enumerate(self.blocks):
+            ev = block.evaluate(self.block_theta(b, theta))
+            scale = np.sqrt(self.weights[b])
+            where = self.block_rows(b)
+            n_lin = len(block.linear_names)
+            phi[where, offset:offset + n_lin] = scale * ev.phi
+            if ev.dphi.shape[1]:
+                d = np.zeros((rows_total, ev.dphi.shape[1]))
+                d[where] = scale * ev.dphi
+                dcols.append(d)
+                rows.append(np.asarray(ev.rows, int) + offset)
+                index = np.array([names.index(n) for n in block.nonlinear_names], int)
+                params.append(index[np.asarray(ev.params, int)])
+            offset += n_lin
+        dphi = np.hstack(dcols) if dcols else np.zeros((rows_total, 0))
+        return Evaluation(phi, dphi, np.concatenate(rows) if rows else np.zeros(0, int),
+                          np.concatenate(params) if params else np.zeros(0, int))
+
+    def identifiability(self, theta: np.ndarray) -> dict[str, str]:
+        """A shared parameter is not identifiable when no block that has it identifies it (each block's own
+        reasons: a state its regressors cannot see, ...); the first block's reason is kept."""
+        reasons: dict[str, list[str]] = {}
+        having: dict[str, int] = {}
+        for b, block in enumerate(self.blocks):
+            for n in block.nonlinear_names:
+                having[n] = having.get(n, 0) + 1
+            if hasattr(block, "identifiability"):
+                for n, why in block.identifiability(self.block_theta(b, theta)).items():
+                    reasons.setdefault(n, []).append(why)
+        return {n: whys[0] for n, whys in reasons.items() if len(whys) == having.get(n, 1)}

@@ -1,0 +1,314 @@
+"""C_L, C_D and C_m identified together: one separable problem in which the coefficients share the separation
+parameters of their common states (a*, tau1, tau2, ...) and each keeps its own linear block
+(:class:`structsearch.engine.joint.JointProblem`).
+
+Weights. Each coefficient's rows are weighted by 1 / s_b^2, its residual variance, re-estimated from the joint
+fit until the weights settle (relative change below ``tol``): the relaxation algorithm of output-error
+methods with an estimated noise covariance (Jategaonkar, FVSysID), whose fixed point maximises the likelihood
+concentrated on a diagonal noise covariance. The covariance is kept diagonal: the coefficients' noises are
+nearly independent here (different sensors and reductions), and off-diagonal terms would couple the blocks'
+linear solves (a GLS across coefficients) and lose the block-separable projection.
+
+C_L in drag and pitch. As in the sequential fit, drag and pitch read the lift model's output, not the measured
+C_L (buffet noise would bias them as errors in variables). In the joint fit it is the lift block's output at
+the current iterate: the weight iteration updates it with the weights, so at the fixed point drag and pitch
+see the C_L of the jointly estimated lift model. Its dependence on the shared parameters is not
+differentiated through (the drag and pitch blocks treat it as data within one solve, as the sequential
+two-step does).
+
+Statistics are the stacked problem's, with the options' covariance (``hac-maneuver`` by default: a maneuver's
+rows of every coefficient are one record), identifiability, convergence and bound flags as in every fit.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..data.errors import DeclarationError
+from ..data.flightdata import FlightData
+from ..engine.fit import fit_problem
+from ..engine.joint import JointProblem
+from ..engine.defaults import STALL_DEFAULTS
+from ..engine.regressors import declare
+from ..engine.results import FitResult
+from ..engine.scores import ManeuverScores
+from ..engine.separation import SeparationState
+from ..engine.snls import solve
+from ..engine.stallmodel import StallModel
+from .bands import curve_bands, merged_bands
+from .candidate_fit import fit_staged
+from .candidate_result import SplitScores
+from .candidates import Candidate
+from .lift_fit import LiftFit
+from .models import build_model, with_lift_prediction
+from .options import FitOptions
+from .specs import load_grid
+
+MAX_ITERATIONS = 20
+WEIGHT_TOLERANCE = 1e-3
+
+
+@dataclass(frozen=True)
+class CoefficientFit:
+    """One coefficient of a joint fit: its structure, parameters (shared ones included), their standard
+    deviations, MSE and R^2 on both splits."""
+
+    coefficient: str
+    model: str
+    params: Mapping[str, float]
+    stderr: Mapping[str, float]
+    train: SplitScores
+    validation: SplitScores
+    weight: float
+
+    def to_dict(self) -> dict:
+        return {"model": self.model, "parameters": dict(self.params), "stderr": dict(self.stderr),
+                "mse": {"train": self.train.mse, "validation": self.validation.mse},
+                "r2": {"train": self.train.r2.as_dict(), "validation": self.validation.r2.as_dict()},
+                "weight": self.weight}
+
+
+@dataclass(frozen=True)
+class JointFit:
+    """A joint fit: the stacked problem's result (every parameter's estimate and covariance), the per-coefficient
+    view, and how the weight iteration went."""
+
+    candidates: tuple[Candidate, ...]
+    result: FitResult
+    coefficients: tuple[CoefficientFit, ...]
+    shared: tuple[str, ...]                 # the separation parameters the coefficients share
+    iterations: int
+    weights_settled: bool
+    lift: Candidate | None = None           # the lift structure whose output drag and pitch read
+    seconds: float = float("nan")
+    bands: tuple = ()                       # per coefficient, its static curve's StaticBands (the joint covariance)
+    history: tuple[Mapping[str, float], ...] = field(default=(), repr=False)   # weights per iteration
+
+    @property
+    def name(self) -> str:
+        return " + ".join(c.name for c in self.candidates)
+
+    def coefficient(self, coef: str) -> CoefficientFit:
+        return next(c for c in self.coefficients if c.coefficient == coef)
+
+    def to_dict(self) -> dict:
+        """``fit.json`` of a joint fit (docs/interfaces.md 6.3): the single-fit fields for the shared parameters
+        and ``coefficients``, one entry per coefficient."""
+        r = self.result
+        shared = list(self.shared)
+        pick = (lambda d: {n: d[n] for n in shared})
+        return {"model": self.name, "coefficient": "+".join(c.coefficient for c in self.coefficients),
+                "joint": True, "params": pick(r.params), "stderr": pick(r.stderr),
+                "p_values": pick(r.p_values), "reference_dof": pick(r.reference_dof),
+                "at_bound": {n: v for n, v in r.at_bound.items() if n in shared},
+                "high_correlations": [list(p) for p in r.high_correlations],
+                "converged": r.converged, "message": r.message, "nfev": r.nfev,
+                "identifiable": r.identifiable, "not_identifiable": dict(r.not_identifiable),
+                "condition_number": r.condition_number,
+                "covariance": {"kind": r.covariance_kind, "bandwidth": r.estimates.bandwidth,
+                               "reference_dof": dict(r.reference_dof)},
+                "weights": {c.coefficient: c.weight for c in self.coefficients},
+                "weight_iterations": self.iterations, "weights_settled": self.weights_settled,
+                "coefficients": {c.coefficient: c.to_dict() for c in self.coefficients},
+                **({"bands": merged_bands(list(self.bands))} if self.bands else {}),
+                "seconds": self.seconds}
+
+
+def _states_used(c: Candidate) -> dict[str, str]:
+    states = dict(c.states)
+    symbols = {SeparationState(n, k).symbol: n for n, k in states.items()}
+    used = {s for name, text in c.regressors for s in declare(name, text, states=list(symbols)).states}
+    return {symbols[s]: states[symbols[s]] for s in symbols if s in used}
+
+
+def _free_model(c: Candidate) -> StallModel:
+    """A drag or pitch candidate with its (lift model's) states free: the joint fit estimates them."""
+    states = _states_used(c)
+    own = {p for n, k in states.items() for p in SeparationState(n, k).parameters}
+    return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states,
+                              bounds={k: v for k, v in c.bounds if k in own})
+
+
+def check_joint(candidates: Sequence[Candidate]) -> tuple[Candidate | None, list[Candidate]]:
+    """The lift structure (or None) and the drag and pitch ones; one clear error for a joint fit that cannot be."""
+    if len(candidates) < 2:
+        raise DeclarationError("a joint fit needs two or three structures (lift, drag, pitch)")
+    coefs = [c.coefficient for c in candidates]
+    twice = sorted({c for c in coefs if coefs.count(c) > 1})
+    if twice:
+        raise DeclarationError(f"a joint fit names the coefficient {twice[0]} twice "
+                               f"({', '.join(c.name for c in candidates if c.coefficient == twice[0])})")
+    lifts = [c for c in candidates if c.coefficient == "CL"]
+    lift = lifts[0] if lifts else None
+    others = [c for c in candidates if c.coefficient != "CL"]
+    for c in others:
+        if not c.lift:
+            raise DeclarationError(f"{c.name} reads no lift model's states: a joint fit shares separation states")
+        if lift is not None:
+            own = _states_used(c)
+            theirs = dict(lift.states)
+            missing = [n for n, k in own.items() if theirs.get(n) != k]
+            if missing:
+                raise DeclarationError(
+                    f"{c.name} uses the state(s) {', '.join('X_' + n if n else 'X' for n in missing)} of its lift "
+                    f"model {c.lift}, which the joint lift structure {lift.name} does not have with the same kind "
+                    f"({', '.join(f'{n or chr(88)}: {k}' for n, k in theirs.items()) or 'no state'})")
+    shared = set.intersection(*[set(_params_of(c)) for c in candidates])
+    if not shared:
+        raise DeclarationError(f"{', '.join(c.name for c in candidates)} share no separation state: a joint fit "
+                               "would be separate fits")
+    if lift is None and len({c.lift for c in others}) > 1:
+        raise DeclarationError(f"{', '.join(c.name for c in others)} read different lift models "
+                               f"({', '.join(sorted({c.lift for c in others}))})")
+    return lift, others
+
+
+def _params_of(c: Candidate) -> list[str]:
+    states = dict(c.states) if c.coefficient == "CL" else _states_used(c)
+    return [p for n, k in states.items() for p in SeparationState(n, k).parameters]
+
+
+def _scores(y: np.ndarray, pred: np.ndarray, data: FlightData) -> SplitScores:
+    return SplitScores.of(ManeuverScores.of(y, y - pred, data.segment_slices()), None)
+
+
+def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: FlightData,
+              options: FitOptions = FitOptions(), *, max_iterations: int = MAX_ITERATIONS,
+              tol: float = WEIGHT_TOLERANCE) -> JointFit:
+    """Fit ``candidates`` (two or three of lift, drag, pitch) jointly (module docstring). Each is first fitted
+    alone (its estimates start the joint fit, its residual variance gives the first weights)."""
+    t0 = time.perf_counter()
+    lift_c, others = check_joint(candidates)
+    order = ([lift_c] if lift_c is not None else []) + others
+    # the sequential fits: starts and first weights
+    if lift_c is not None:
+        lone = fit_staged(lift_c, train, validation, None, options)
+    else:
+        lift_c_seq = load_grid("lift")[others[0].lift]
+        lone = fit_staged(lift_c_seq, train, validation, None, options)
+    if lone.failed:
+        raise DeclarationError(f"the lift model {lone.name} could not be fitted: {lone.error}")
+    lift_fit = LiftFit(lift_c if lift_c is not None else lift_c_seq, lone)
+    seq = {c.coefficient: (lone if c is lift_c else fit_staged(c, train, validation, lift_fit, options))
+           for c in order}
+    for coef, r in seq.items():
+        if r.failed:
+            raise DeclarationError(f"{coef}: the sequential fit that starts the joint one failed: {r.error}")
+    models = [build_model(lift_c) if c is lift_c else _free_model(c) for c in order]
+    params = dict(lift_fit.params)   # the shared separation parameters start at the lift model's estimate
+    for c in others:
+        params.update(seq[c.coefficient].params)
+    weights = np.array([1.0 / seq[c.coefficient].mse_train for c in order])
+    lift_candidate = lift_fit.candidate
+
+    def lift_params_now(current):
+        """What drag and pitch read: the joint lift block's estimate, or the sequential lift model's when the
+        lift structure is not part of the joint fit."""
+        if lift_c is None:
+            return dict(lift_fit.params)
+        return {n: current[n] for n in lift_fit.params}
+
+    def problem_at(current, w):
+        datas = [train if c is lift_c else with_lift_prediction(train, lift_params_now(current), lift_candidate)
+                 for c in order]
+        problem = JointProblem(tuple(m.bind(d) for m, d in zip(models, datas)), w, train.n_samples)
+        return problem, datas, problem.interleave([d[c.coefficient] for c, d in zip(order, datas)])
+
+    history, settled, iterations = [], False, 0
+    for iterations in range(1, max_iterations + 1):
+        problem, datas, y = problem_at(params, weights)
+        lower, upper = _box(problem, models, train)
+        theta0 = np.clip([params[n] for n in problem.nonlinear_names], lower, upper)
+        outcome = solve(problem, y, theta0, lower, upper, tol=STALL_DEFAULTS.tol)
+        params.update(dict(zip(problem.nonlinear_names, outcome.theta)))
+        params.update(dict(zip(problem.linear_names, outcome.coef)))
+        residual_var = [float(np.mean((d[c.coefficient] - m.predict(d, {n: params[n] for n in
+                                                                        m.nonlinear_names + m.linear_names})) ** 2))
+                        for c, m, d in zip(order, models, datas)]
+        new = 1.0 / np.array(residual_var)
+        history.append({c.coefficient: float(w) for c, w in zip(order, new)})
+        moved = float(np.max(np.abs(outcome.theta - theta0) / (upper - lower)))
+        change = float(np.max(np.abs(new / weights - 1.0)))
+        weights = new
+        # settled: the weights, and the C_L that drag and pitch read (it moves with theta), no longer change
+        if change < tol and moved < tol:
+            settled = True
+            break
+    # the statistics on the settled problem (its C_L and weights), from the settled estimate
+    problem, datas, y = problem_at(params, weights)
+    lower, upper = _box(problem, models, train)
+    theta0 = np.clip([params[n] for n in problem.nonlinear_names], lower, upper)
+    result = fit_problem(problem, y, boundaries=problem.boundaries(train.bounds), segment_names=train.names,
+                         start=theta0, lower=lower, upper=upper, covariance=options.covariance,
+                         model=" + ".join(c.name for c in order), coefficient="joint", source=train.source)
+    params = dict(result.params)
+    coefficients = []
+    for c, m, w in zip(order, models, weights):
+        own = {n: params[n] for n in m.nonlinear_names + m.linear_names}
+        scores = {}
+        for split, data in (("train", train), ("validation", validation)):
+            seen = data if c is lift_c else with_lift_prediction(data, lift_params_now(params), lift_candidate)
+            scores[split] = _scores(seen[c.coefficient], m.predict(seen, own), seen)
+        coefficients.append(CoefficientFit(c.coefficient, c.name, own, {n: result.stderr[n] for n in own},
+                                           scores["train"], scores["validation"], float(w)))
+    shared = tuple(n for n in problem.nonlinear_names if sum(n in m.nonlinear_names for m in models) > 1)
+    # each coefficient's static curve with the joint covariance: drag and pitch through the shared states too
+    read = SimpleNamespace(params=lift_params_now(params), candidate=lift_candidate, failed=False)
+    bands = tuple(curve_bands(c, result.estimates, train, None if c is lift_c else read, m)
+                  for c, m in zip(order, models))
+    return JointFit(tuple(order), result, tuple(coefficients), shared, iterations, settled, lift=lift_candidate,
+                    seconds=time.perf_counter() - t0, bands=bands, history=tuple(history))
+
+
+def _box(problem: JointProblem, models, train):
+    """Each shared parameter's box: that of the first block that has it (the lift model's)."""
+    lower, upper = {}, {}
+    for m in models:
+        lo, hi = m.bound_vectors(train)
+        for n, a, b in zip(m.nonlinear_names, lo, hi):
+            lower.setdefault(n, a)
+            upper.setdefault(n, b)
+    names = problem.nonlinear_names
+    return np.array([lower[n] for n in names]), np.array([upper[n] for n in names])
+
+
+def joint_structures(spec: str) -> list[Candidate]:
+    """The structures of ``fit --joint``: comma-separated names or spec files, or a joint spec file (TOML)::
+
+        [joint]
+        structures = ["CL-VI", "CD-IXr", "Cm-XXXIIIr"]   # names or model spec files
+
+    The structures share the separation states they have in common, by name (X_ss, X_w): a drag or pitch
+    structure's states are its lift model's. One clear error naming the file and the entry otherwise."""
+    from pathlib import Path
+    from .specs import read_toml, resolve_candidate
+    items: list[str]
+    path = Path(spec)
+    if path.suffix == ".toml" and "," not in spec:
+        doc = read_toml(path)
+        joint = doc.get("joint")
+        if not isinstance(joint, dict) or not isinstance(joint.get("structures"), list) or \
+                not all(isinstance(s, str) for s in joint["structures"]):
+            raise DeclarationError(f"{path}: a joint spec needs [joint] structures = [\"LIFT\", \"DRAG\", ...] "
+                                   "(names or model spec files)")
+        items = [s if not s.endswith(".toml") or Path(s).is_absolute() else str(path.parent / s)
+                 for s in joint["structures"]]
+        where = f"{path}: "
+    else:
+        items = [s.strip() for s in spec.split(",") if s.strip()]
+        where = "--joint: "
+    out = []
+    for item in items:
+        try:
+            out.append(resolve_candidate(item))
+        except DeclarationError as exc:
+            raise DeclarationError(f"{where}structure {item!r}: {exc}") from None
+    try:
+        check_joint(out)
+    except DeclarationError as exc:
+        raise DeclarationError(f"{where}{exc}") from None
+    return out
