@@ -35,6 +35,8 @@ def _bench(args) -> int:
         return _calibration(args)
     if args.discovery:
         return _discovery_bench(args)
+    if args.joint:
+        return _joint_bench(args)
     from .experiments.bench import BenchConfig, run, write
     config = BenchConfig(samples=args.samples, repeats=args.repeats, random_starts=args.starts,
                          seed=args.seed, n_jobs=_jobs(args))
@@ -120,4 +122,21 @@ def _discovery_bench(args) -> int:
           f"{fig['story_library_only']['seconds']:.0f} s with the effect library alone ({fig['story_ratio']:.2f}x); "
           + "; ".join(f"discover {c} {d['seconds']:.0f} s" for c, d in fig["discover"].items()))
     print(f"wrote {out / 'discovery_bench.md'} and {out / 'discovery_bench.json'}")
+    return 0
+
+
+def _joint_bench(args) -> int:
+    """``bench --joint``: a joint fit of the final models against the sequential ones (experiments.bench_joint)."""
+    import json
+    from .data.atomic import write_json, write_text
+    from .experiments.bench_joint import markdown, run_joint_bench
+    out = Path(args.out)
+    say = lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True)  # noqa: E731
+    fig = run_joint_bench(seed=args.seed if args.seed != 2025 else 0, progress=say)
+    command = f"structsearch bench --joint --out {out}"
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(out / "joint_bench.md", markdown(fig, command))
+    write_json(out / "joint_bench.json", json.loads(json.dumps(fig, default=float)))
+    print(f"joint fit {fig['joint_seconds']:.1f} s, {fig['cost_ratio']:.2f}x the sequential fits; bands "
+          f"{fig['bands_ratio']:.1%} of a fit; wrote {out / 'joint_bench.md'}")
     return 0

@@ -61,6 +61,9 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     b.add_argument("--calibration", action="store_true",
                    help="instead: Monte Carlo calibration of the covariances on simulated campaigns "
                         "(writes calibration.md and calibration.json)")
+    b.add_argument("--joint", action="store_true",
+                   help="instead: a joint fit of the final models against the sequential fits on the default "
+                        "campaign (cost, validation MSE, shared parameters; writes joint_bench.md and .json)")
     b.add_argument("--discovery", action="store_true",
                    help="instead: the story with the structure search against the effect library alone, and "
                         "discover --from minimal for each coefficient (writes discovery_bench.md and .json)")

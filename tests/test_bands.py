@@ -130,3 +130,17 @@ def test_static_bands_of_the_final_models(fitted_finals):
         assert doc["static"]["conditions"]["de"] == 0.0 and "text" in doc["static"]["conditions"]
         # the grid's noise bins hold every training sample's alpha band
         assert b.noise_bins[0][0] == -np.inf and b.noise_bins[-1][1] == np.inf
+
+
+def test_the_static_jacobian_stays_finite_where_a_state_is_fully_stalled(fitted_finals):
+    """With a steep stall-strip state (a1_ss = 3000) X_ss underflows to 0 beyond the stall; the regressor's value
+    then uses the clipped state, which does not move, so its derivative is 0 there (not d sqrt(X)/dX at the
+    floor, ~1e150, times a rounding-level dX)."""
+    from structsearch.fitting.bands import static_evaluation
+    train, finals = fitted_finals
+    cand, fit = finals["CL"]
+    params = dict(fit.params, a1_ss=3000.0)
+    alpha, out, jac, names, _ = static_evaluation(cand, params, train)
+    assert np.all(np.isfinite(jac)) and np.max(np.abs(jac)) < 1e6
+    stalled = alpha > params["a_star_ss"] + 0.15
+    assert stalled.any() and not np.any(jac[stalled, names.index("a_star_ss")])

@@ -160,3 +160,14 @@ def test_fit_joint_on_the_command_line(campaign_on_disk, tmp_path, run_cli):
     # both --model and --joint, or a coefficient twice: one error line, nothing written
     proc = run_cli("fit", "--data", str(data.directory), "--joint", "CD-IXr,CD-I", "--out", str(tmp_path / "k"))
     assert proc.returncode != 0 and "twice" in proc.stderr and not (tmp_path / "k").exists()
+
+
+@pytest.mark.slow
+def test_the_joint_bench_reports_cost_scores_and_shared_parameters():
+    from structsearch.experiments.bench_joint import markdown, run_joint_bench
+    fig = run_joint_bench(scale=0.05, seed=3, starts=1)
+    assert set(fig["mse_validation"]) == {"CL", "CD", "Cm"} and fig["cost_ratio"] > 0
+    assert set(fig["shared"]) == {"tau1_ss", "tau2_ss", "a1_ss", "a_star_ss", "a1_w", "a_star_w"}
+    assert 0 < fig["bands_ratio"] < 1
+    text = markdown(fig, "structsearch bench --joint --out x")
+    assert "joint sd / lift-only sd" in text and "bench --joint" in text

@@ -202,8 +202,13 @@ class Regressor:
         return np.broadcast_to(np.asarray(out, dtype=float), (n,))
 
     def derivative(self, state: str, data, state_values, n: int) -> np.ndarray:
+        """d value / d state. Where the state lies below X_FLOOR the value uses the clipped state, which does not
+        move: the derivative is 0 there (the chain rule with a rounding-level dX/dtheta would otherwise meet
+        d sqrt(X)/dX ~ 1e150 at the floor: K_L of a fully stalled state)."""
         out = compile_expression(self.derivatives[state], self.argnames)(*self._arguments(data, state_values))
-        return np.broadcast_to(np.asarray(out, dtype=float), (n,))
+        out = np.broadcast_to(np.asarray(out, dtype=float), (n,))
+        clipped = np.asarray(state_values[state]) < X_FLOOR
+        return np.where(clipped, 0.0, out) if np.any(clipped) else out
 
 
 @lru_cache(maxsize=4096)
