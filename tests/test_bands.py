@@ -144,3 +144,39 @@ def test_the_static_jacobian_stays_finite_where_a_state_is_fully_stalled(fitted_
     assert np.all(np.isfinite(jac)) and np.max(np.abs(jac)) < 1e6
     stalled = alpha > params["a_star_ss"] + 0.15
     assert stalled.any() and not np.any(jac[stalled, names.index("a_star_ss")])
+
+
+def test_trace_bands_follow_a_validation_maneuver(fitted_finals, simulated_campaign):
+    from structsearch.fitting.bands import trace_bands
+    from structsearch.fitting.lift_fit import LiftFit
+    from structsearch.fitting.models import predict_candidate
+    train, finals = fitted_finals
+    val = simulated_campaign(seed=3, scale=0.1).split("validation")
+    one = val.select([0])
+    lift = LiftFit(*finals["CL"])
+    for coefficient, (cand, fit) in finals.items():
+        use = lift if cand.lift else None
+        b = trace_bands(cand, fit, train, one, use)
+        assert len(b.estimate) == one.n_samples
+        np.testing.assert_allclose(b.estimate, predict_candidate(cand, fit.params, one, use), rtol=1e-10,
+                                   atol=1e-12)
+        assert np.all(b.confidence_low <= b.estimate) and np.all(b.prediction_high > b.confidence_high)
+        assert np.all(b.dof >= 1.0)
+
+
+def test_bands_of_a_drag_structure_without_a_c_l_term(fitted_finals):
+    """A drag structure fed a lift model's states but no C_L term (a discovered one): its grid still gets the lift
+    model's C_L column, which the lift prediction replaces."""
+    import dataclasses
+    from structsearch.fitting.bands import static_bands
+    from structsearch.fitting.candidate_fit import fit_candidate
+    from structsearch.fitting.lift_fit import LiftFit
+    from structsearch.fitting.options import FitOptions
+    train, finals = fitted_finals
+    cand = finals["CD"][0]
+    no_cl = dataclasses.replace(cand, name="CD without CL", regressors=tuple(
+        (n, e) for n, e in cand.regressors if "CL" not in e))
+    lift = LiftFit(*finals["CL"])
+    fit = fit_candidate(no_cl, train, train, lift, FitOptions(n_starts=1, cv_folds=0))
+    b = static_bands(no_cl, fit, train, lift)
+    assert np.all(np.isfinite(b.band.estimate)) and "CL" not in b.held

@@ -88,27 +88,37 @@ def band(estimate: np.ndarray, jacobian: np.ndarray, covariance: np.ndarray, noi
     return Band(estimate, estimate - half_c, estimate + half_c, estimate - half_p, estimate + half_p, level, dof)
 
 
-def point_effective_maneuvers(jac: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, kind: str,
-                              gradients: np.ndarray, bandwidth: float | None = None) -> np.ndarray:
-    """Effective number of maneuvers behind the variance of each combination g^T p (rows of ``gradients``,
-    in the columns of ``jac``): (sum_g c_g)^2 / sum_g c_g^2 with c_g maneuver g's share of the sandwich
-    variance of g^T p, as :func:`structsearch.engine.sandwich.effective_maneuvers` does for a parameter.
-    ``jac`` is the model Jacobian on the fitted samples and ``residual`` the fit's residual there."""
+def maneuver_meats(jac: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, kind: str,
+                   bandwidth: float | None = None) -> np.ndarray:
+    """Each maneuver's share of the sandwich's meat in the influence space, (G, k, k): S_g such that the
+    per-maneuver covariance of g^T p is sum_g g^T S_g g (before the small-sample factor). ``jac`` is the model
+    Jacobian on the fitted samples and ``residual`` the fit's residual there."""
     r_inv = inverse_factor(jac)
-    u = ((jac * residual[:, None]) @ (r_inv @ r_inv.T)) @ np.asarray(gradients, float).T   # (m, points)
+    u = (jac * residual[:, None]) @ (r_inv @ r_inv.T)          # (m, k): each sample's influence
     boundaries = np.asarray(boundaries, int)
     starts = boundaries[:-1]
     if kind == "cluster":
-        share = np.add.reduceat(u, starts, axis=0) ** 2
-    else:   # a Bartlett kernel inside each maneuver (hac-maneuver: the whole maneuver as bandwidth)
-        longest = int(np.max(np.diff(boundaries))) - 1
-        b = float(longest + 1) if bandwidth is None else float(bandwidth)
-        if b >= longest:
-            share = bartlett_maneuver_sums(u, boundaries, b, diagonal=True)
-        else:
-            lags = min(int(np.ceil(b)), longest)
-            share = np.add.reduceat(u * toeplitz_product(u, kernel_weights("bartlett", b, lags), boundaries),
-                                    starts, axis=0)
+        sums = np.add.reduceat(u, starts, axis=0)
+        return sums[:, :, None] * sums[:, None, :]
+    longest = int(np.max(np.diff(boundaries))) - 1
+    b = float(longest + 1) if bandwidth is None else float(bandwidth)
+    if b >= longest:   # hac-maneuver: the whole maneuver as bandwidth
+        return bartlett_maneuver_sums(u, boundaries, b)
+    lags = min(int(np.ceil(b)), longest)
+    weighted = toeplitz_product(u, kernel_weights("bartlett", b, lags), boundaries)
+    return np.add.reduceat(u[:, :, None] * weighted[:, None, :], starts, axis=0)
+
+
+def point_effective_maneuvers(jac: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, kind: str,
+                              gradients: np.ndarray, bandwidth: float | None = None,
+                              meats: np.ndarray | None = None) -> np.ndarray:
+    """Effective number of maneuvers behind the variance of each combination g^T p (rows of ``gradients``,
+    in the columns of ``jac``): (sum_g c_g)^2 / sum_g c_g^2 with c_g = g^T S_g g maneuver g's share of the
+    sandwich variance of g^T p (:func:`maneuver_meats`), as :func:`structsearch.engine.sandwich.effective_maneuvers`
+    does for a parameter. ``meats``: those matrices when the caller has them (many points, one fit)."""
+    meats = maneuver_meats(jac, residual, boundaries, kind, bandwidth) if meats is None else meats
+    g = np.asarray(gradients, float)
+    share = np.einsum("pk,gkl,pl->gp", g, meats, g)            # (G, points)
     total, square = share.sum(axis=0), (share ** 2).sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         return np.where(square > 0, total ** 2 / square, np.nan)

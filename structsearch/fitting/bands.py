@@ -123,8 +123,8 @@ def static_evaluation(c: Candidate, params: Mapping[str, float], train: FlightDa
     model = model if model is not None else build_model(c, lift)
     alpha = np.linspace(float(np.min(train["alpha"])), float(np.max(train["alpha"])), points)
     columns = set(model.required_columns)
-    if c.lift and lift is not None:   # the lift model's C_L on the grid reads its own columns
-        columns |= set(build_model(lift.candidate).required_columns)
+    if c.lift and lift is not None:   # the lift model's C_L on the grid reads its own columns (and replaces CL)
+        columns |= set(build_model(lift.candidate).required_columns) | {"CL"}
     grid, held = static_grid(sorted(columns), train, alpha)
     if c.lift and lift is not None:
         grid = with_lift_prediction(grid, lift.params, lift.candidate)
@@ -154,6 +154,26 @@ def curve_bands(c: Candidate, est, train: FlightData, lift, model, level: float 
     """The bands of ``model``'s static curve with the estimates ``est`` (ParameterEstimates holding at least the
     model's parameters: a single fit's, or a joint fit's whose covariance also spans the shared states)."""
     alpha, out, jac, names, held = static_evaluation(c, est.params, train, lift, points, model=model)
+    b, reasons, table = _band(c, est, train, lift, model, names, out, jac, alpha, level)
+    return StaticBands(c.coefficient, alpha, b, held, reasons, table)
+
+
+def trace_bands(c: Candidate, result: CandidateResult, train: FlightData, data: FlightData,
+                lift: LiftFit | None = None, level: float = LEVEL) -> Band:
+    """Confidence and prediction bands of a fitted candidate's output on ``data`` (a maneuver's time traces, the
+    dynamic model with its states as flown): the same delta method, dof and alpha-binned noise as the static
+    curve's. The residual's colour does not change one sample's variance: a band is pointwise."""
+    est = result.estimates
+    model = build_model(c, lift)
+    view = _training_view(c, data, lift)
+    jac, out = model.jacobian(view, est.params)
+    names = model.nonlinear_names + model.linear_names
+    return _band(c, est, train, lift, model, names, out, jac, view["alpha"], level)[0]
+
+
+def _band(c, est, train, lift, model, names, out, jac, alpha, level):
+    """The band of ``out`` (Jacobian ``jac`` in ``names``) at the points ``alpha``: covariance, each point's dof
+    from the training maneuvers' meats, the training residual's variance in each point's alpha bin."""
     order = [est.names.index(n) for n in names]
     cov = est.covariance[np.ix_(order, order)]
     acting = np.any(jac != 0.0, axis=0)
@@ -168,9 +188,8 @@ def curve_bands(c: Candidate, est, train: FlightData, lift, model, level: float 
                                               jac[:, ok], est.bandwidth)
         dof = np.array([kind.reference_dof(est.n_samples, est.n_params, g) for g in effective])
     else:
-        dof = np.full(len(alpha), kind.reference_dof(est.n_samples, est.n_params, float(est.n_maneuvers)))
-    noise, table = noise_variance(train["alpha"], residual, alpha)
-    b = band(out, jac, cov, noise, level, dof)
+        dof = np.full(len(out), kind.reference_dof(est.n_samples, est.n_params, float(est.n_maneuvers)))
+    noise, table = noise_variance(train["alpha"], residual, np.asarray(alpha))
     reasons = tuple(f"{n}: {est.not_identifiable[n]}" for n, a in zip(names, acting)
                     if a and n in est.not_identifiable)
-    return StaticBands(c.coefficient, alpha, b, held, reasons, table)
+    return band(out, jac, cov, noise, level, dof), reasons, table

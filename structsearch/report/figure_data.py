@@ -102,8 +102,10 @@ def derived_pitch(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, 
             "depends_on_CL": bool(np.any(l_cp != 0))}
 
 
-def trace_selection(ms: ModelSet, data: FlightData) -> dict[str, list[dict]]:
-    """Per coefficient, the best, median and worst maneuver of ``data`` by R^2, with their traces."""
+def trace_selection(ms: ModelSet, data: FlightData, train: FlightData | None = None) -> dict[str, list[dict]]:
+    """Per coefficient, the best, median and worst maneuver of ``data`` by R^2, with their traces (and, given the
+    training maneuvers, the model's 95 % confidence and prediction bands along them)."""
+    from ..fitting.bands import trace_bands
     out = {}
     for coef in COEFFICIENTS:
         pred = ms.predict(coef, data)
@@ -113,7 +115,10 @@ def trace_selection(ms: ModelSet, data: FlightData) -> dict[str, list[dict]]:
         scored.sort(key=lambda s: -s[0] if np.isfinite(s[0]) else np.inf)
         picks = [("best", scored[0]), ("median", scored[len(scored) // 2]), ("worst", scored[-1])]
         out[coef] = [{"which": which, "maneuver": name, "r2": score, "t": data["t"][sl] - data["t"][sl][0],
-                      "measured": data[coef][sl], "model": pred[sl]}
+                      "measured": data[coef][sl], "model": pred[sl],
+                      "band": None if train is None else trace_bands(
+                          ms.candidates[coef], ms.summaries[coef], train, data.select([data.names.index(name)]),
+                          ms.lift if coef != "CL" else None)}
                      for which, (score, name, sl) in picks]
     return out
 

@@ -128,6 +128,12 @@ def traces(selection: dict):
     for row, (coef, picks) in enumerate(selection.items()):
         for col, p in enumerate(picks):
             ax = axes[row][col]
+            b = p.get("band")
+            if b is not None:
+                ax.fill_between(p["t"], b.prediction_low, b.prediction_high, color=COLOURS["model"], alpha=0.12,
+                                lw=0, label=f"{b.level:.0%} prediction band")
+                ax.fill_between(p["t"], b.confidence_low, b.confidence_high, color=COLOURS["model"], alpha=0.4,
+                                lw=0, label=f"{b.level:.0%} confidence band")
             ax.plot(p["t"], p["measured"], color=COLOURS["measured"], lw=0.8, label="measured")
             ax.plot(p["t"], p["model"], color=COLOURS["model"], lw=1.2, label="model")
             ax.set_title(f"{coef}: {p['which']} ({p['maneuver']}, R^2 = {p['r2']:.3f})", fontsize=9)

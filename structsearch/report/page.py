@@ -210,10 +210,13 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
          "Elevator effectiveness",
          f"C_m_delta_e*(alpha) = dC_m/d delta_e of {names['Cm']} (Eq. 33) and of {VAN_INGEN_MODEL_NAMES['Cm']}, whose "
          "max(1/2, X) term forces a 50 % loss, with the separation states at equilibrium (thesis Fig. 10).")
-    selection = rd.trace_selection(ms, val)
+    selection = rd.trace_selection(ms, val, train)
     emit(fg.traces(selection), "time_traces.png", "Measured and modelled coefficients",
          "Validation maneuvers with the best, median and worst R^2 of each coefficient (one row per coefficient; "
-         f"models {names['CL']}, {names['CD']}, {names['Cm']} fitted on the training maneuvers) (thesis Fig. 13).")
+         f"models {names['CL']}, {names['CD']}, {names['Cm']} fitted on the training maneuvers) (thesis Fig. 13). "
+         "Shaded: the model's 95 % confidence band along the flown maneuver (the delta method through the "
+         "separation states, as flown) and, lighter, its 95 % prediction band (plus the training residual's "
+         "variance in each sample's alpha band); drag and pitch on the lift model's C_L at its estimate.")
     hyst = rd.hysteresis(ms, campaign, ref)
     emit(fg.hysteresis_loop(hyst), "hysteresis.png", "Dynamic stall hysteresis",
          f"C_L against alpha during maneuver {hyst['maneuver']} ({hyst['kind']}, {hyst['split']}): the separation "
