@@ -81,6 +81,10 @@ def test_calibration_command_end_to_end(tmp_path):
         assert 0.0 <= band["campaign_min"] <= band["coverage95"] <= band["campaign_max"] <= 1.0
         assert band["mean_half_width"] > 0
     assert "Static curves: 95 % confidence bands against the truth" in text
+    # the joint fit's parameters (issue 29): every final-model parameter once, the shared ones from the joint fit
+    joint = {r["parameter"]: r for r in doc["joint"]}
+    assert set(joint) == {p for c in TRUTH for p in TRUTH[c]} and all(r["n"] == 2 for r in joint.values())
+    assert "## Joint fit of the three final models" in text
     assert "best calibrated" in out.stdout
 
 

@@ -60,6 +60,10 @@ class CampaignDraw:
     # alpha grid: coefficient -> per grid point, covered or not (issue 29)
     band_hits: Mapping[str, tuple[bool, ...]] = field(default_factory=dict)
     band_widths: Mapping[str, float] = field(default_factory=dict)   # coefficient -> mean half width
+    # the joint fit of the three final models (default covariance, from the default start): parameter -> value
+    joint_estimates: Mapping[str, float] = field(default_factory=dict)
+    joint_stderr: Mapping[str, float] = field(default_factory=dict)
+    joint_dof: Mapping[str, float] = field(default_factory=dict)
 
 
 def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
@@ -86,7 +90,20 @@ def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
             gap[kind][cand.name] = float("nan") if sat.failed else wald_p_value(sat, names)
         if kind == DEFAULT_COVARIANCE:
             hits, widths = band_coverage(finals, train)
-    return CampaignDraw(seed, train.n_samples, estimates, stderr, gap, dof, hits, widths)
+            joint = joint_draw(train, val, options)
+    if DEFAULT_COVARIANCE not in kinds:
+        joint = ({}, {}, {})
+    return CampaignDraw(seed, train.n_samples, estimates, stderr, gap, dof, hits, widths, *joint)
+
+
+def joint_draw(train, val, options) -> tuple[dict, dict, dict]:
+    """The joint fit of the three final models on one campaign (from the default start, as ``fit --joint``):
+    every parameter's estimate, standard deviation and reference dof."""
+    from ..fitting.joint import fit_joint
+    from ..fitting.specs import find_candidate
+    joint = fit_joint([find_candidate(n) for n in FINAL_MODEL_NAMES.values()], train, val, options)
+    r = joint.result
+    return dict(r.params), dict(r.stderr), dict(r.reference_dof)
 
 
 def truth_lift() -> LiftFit:
@@ -235,6 +252,36 @@ class Calibration:
         return min(self.kinds, key=lambda k: (not k.meets_goals, k.score))
 
 
+def _parameter_row(model: str, p: str, truth: float, est: np.ndarray, sd: np.ndarray,
+                   dof: np.ndarray) -> ParameterCalibration:
+    """One parameter's coverage and standard-deviation ratio over the campaigns (Student-t quantiles with each
+    fit's reference dof; the normal ones for m - p)."""
+    ok = np.isfinite(sd)
+    miss = np.abs(est - truth)
+    z68, z95 = stats.t.ppf(0.5 + 0.6827 / 2, dof), stats.t.ppf(0.975, dof)
+    return ParameterCalibration(
+        model, p, float(truth), float(est.mean()), float(est.std(ddof=1)),
+        float(sd[ok].mean()) if ok.any() else float("nan"),
+        float(np.mean(miss[ok] <= z68[ok] * sd[ok])) if ok.any() else float("nan"),
+        float(np.mean(miss[ok] <= z95[ok] * sd[ok])) if ok.any() else float("nan"), int(ok.sum()),
+        float(np.mean(np.abs(est - est.mean())[ok] <= z95[ok] * sd[ok])) if ok.any() else float("nan"))
+
+
+def joint_rows(draws: Sequence[CampaignDraw]) -> tuple[ParameterCalibration, ...]:
+    """The joint fit's parameters calibrated as the single fits' are (none when no draw has a joint fit)."""
+    if not draws or not all(d.joint_estimates for d in draws):
+        return ()
+    rows = []
+    for coef in TRUTH:
+        for p, truth in TRUTH[coef].items():
+            if coef != "CL" and p in TRUTH["CL"]:
+                continue
+            rows.append(_parameter_row("joint", p, truth, np.array([d.joint_estimates[p] for d in draws]),
+                                       np.array([d.joint_stderr[p] for d in draws]),
+                                       np.array([d.joint_dof.get(p, LARGE_DOF) for d in draws], float)))
+    return tuple(rows)
+
+
 def summarise(draws: Sequence[CampaignDraw], scale: float, seconds: float = 0.0) -> Calibration:
     """Coverage, standard-deviation ratios and gap-test rejections from the per-campaign draws."""
     kinds = tuple(draws[0].stderr)
@@ -243,19 +290,10 @@ def summarise(draws: Sequence[CampaignDraw], scale: float, seconds: float = 0.0)
         rows = []
         for coef, name in FINAL_MODEL_NAMES.items():
             for p, truth in TRUTH[coef].items():
-                est = np.array([d.estimates[name][p] for d in draws])
-                sd = np.array([d.stderr[kind][name][p] for d in draws])
-                ok = np.isfinite(sd)
-                miss = np.abs(est - truth)
-                # Student-t quantiles with each fit's reference dof (the normal ones for m - p)
-                dof = np.array([d.dof.get(kind, {}).get(name, {}).get(p, LARGE_DOF) for d in draws], float)
-                z68, z95 = stats.t.ppf(0.5 + 0.6827 / 2, dof), stats.t.ppf(0.975, dof)
-                rows.append(ParameterCalibration(
-                    name, p, float(truth), float(est.mean()), float(est.std(ddof=1)),
-                    float(sd[ok].mean()) if ok.any() else float("nan"),
-                    float(np.mean(miss[ok] <= z68[ok] * sd[ok])) if ok.any() else float("nan"),
-                    float(np.mean(miss[ok] <= z95[ok] * sd[ok])) if ok.any() else float("nan"), int(ok.sum()),
-                    float(np.mean(np.abs(est - est.mean())[ok] <= z95[ok] * sd[ok])) if ok.any() else float("nan")))
+                rows.append(_parameter_row(
+                    name, p, truth, np.array([d.estimates[name][p] for d in draws]),
+                    np.array([d.stderr[kind][name][p] for d in draws]),
+                    np.array([d.dof.get(kind, {}).get(name, {}).get(p, LARGE_DOF) for d in draws], float)))
         ps = np.array([d.gap_p[kind][name] for d in draws for name in FINAL_MODEL_NAMES.values()])
         finite = np.isfinite(ps)
         out.append(KindCalibration(kind, tuple(rows), int(np.sum(ps[finite] < GAP_LEVEL)), int(finite.sum()),
