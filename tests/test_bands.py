@@ -126,10 +126,11 @@ def test_static_bands_of_the_final_models(fitted_finals):
         # per-maneuver covariance (the default): each point's dof from its effective maneuvers, at least 1
         assert np.all(band_.dof >= 1.0) and len(set(np.round(band_.dof, 6))) > 1
         doc = b.to_dict()
-        assert doc["level"] == 0.95 and set(doc["static"]) >= {"alpha", "conditions", "dof", coefficient}
-        assert doc["static"]["conditions"]["de"] == 0.0 and "text" in doc["static"]["conditions"]
-        # the grid's noise bins hold every training sample's alpha band
-        assert b.noise_bins[0][0] == -np.inf and b.noise_bins[-1][1] == np.inf
+        assert doc["level"] == 0.95 and set(doc["static"]) >= {"alpha", "conditions", coefficient}
+        assert len(doc["static"][coefficient]["dof"]) == len(doc["static"]["alpha"])
+        # the noise variance of each alpha bin is the training residual's there: positive, larger in the stall
+        noise = np.array([v for _, _, v in b.noise_bins])
+        assert np.all(noise > 0) and noise[-1] > noise[0]
 
 
 def test_the_static_jacobian_stays_finite_where_a_state_is_fully_stalled(fitted_finals):

@@ -199,6 +199,10 @@ def test_cli_fit_search_and_dask(tiny, tmp_path):
         assert all(lo <= e <= hi for lo, e, hi in zip(static["CD"][low], static["CD"]["estimate"], static["CD"][high]))
     assert static["conditions"]["CT"] == 0.0 and "V" in static["conditions"]["held_at_training_mean"]
     assert "Static curve and its bands" in (tmp_path / "fit" / "fit.md").read_text()
+    # what produced the standard errors: the kind, the maneuvers it groups, each parameter's reference dof
+    cov = doc["covariance"]
+    assert cov["kind"] == "hac-maneuver" and cov["groups"] > 1 and set(cov["reference_dof"]) == set(doc["params"])
+    assert all(1 <= d <= cov["groups"] - 1 for d in cov["reference_dof"].values())
     proc = run_cli("search", "--data", data, "--grid", "lift", "--out", str(tmp_path / "s"), "--jobs", "2")
     assert proc.returncode == 0, proc.stderr
     rows = list(csv.DictReader((tmp_path / "s" / "ranking.csv").open()))

@@ -306,7 +306,6 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
     # unexplained (a move's shrink is capped at 1 instead)
     if len(path) > 1:
         floors.append(_Floor(path[-1].result.validation.mse, None, path[-1].candidate.name, node=path[-1]))
-    if len(path) > 1:
         say("library-free floor of the final model's residual")
         flexible, sig_train, sig_val, x_val_final = _flexible(final_fit, final_fit.candidate, ctx.lift_of(
             final_fit.candidate), train, val, seed)

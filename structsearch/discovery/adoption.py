@@ -106,7 +106,6 @@ def move_test(parent: CandidateResult, child: CandidateResult, alpha: float, n_m
               new_parameters: tuple[str, ...] = (), statistics: bool = True) -> MoveTest:
     """The child against the parent (module docstring); ``new_parameters`` are those a nested move adds (their
     Wald test decides, when the child has ``statistics``)."""
-
     test = _paired(parent, child, alpha, n_moves)
     if new_parameters and statistics and not child.failed:
         wald = child.wald_test([n for n in new_parameters if n in child.params]).p_value

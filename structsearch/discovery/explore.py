@@ -148,7 +148,6 @@ def _hard(n: Node) -> set[str]:
 def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool = True) -> Node:
     """The child's status against its anchor; a screened child (``judged`` False: no statistics yet) passes
     every condition on the reasons against it, which its full fit then decides."""
-
     if child.result.failed:
         return dataclasses.replace(child, status="failed", anchor=anchor)
     # a move from the anchor itself that only adds parameters is nested: its Wald test decides (fitted in full)
@@ -240,7 +239,6 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
     """Search structures from ``start`` (module docstring); ``lifts`` are the lift models a drag or pitch
     structure may be fed (by name; the start's own among them). Without ``simplify`` no move is adopted for
     simplifying alone (the diagnosis asks what is missing, not what the data cannot support)."""
-
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     lifts = dict(lifts or {})
@@ -356,9 +354,8 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
 def _repair_step(current: Node, index: int, campaign, library, lift_candidates, visited, cache_dir, lifts, options,
                  n_jobs, backend, node, alpha) -> tuple[Step, int]:
     """One repair of a structure that is not admissible: every removing or simplifying move fitted in full; the
-    child with the fewest reasons against it (then the fewest parameters, the lowest held-out MSE) is kept if it has
-    fewer than
-    ``current`` and no new hard reason."""
+    child with the fewest reasons against it (then the fewest parameters, the lowest held-out MSE) is kept if it
+    has fewer than ``current`` and no new hard reason."""
     pending = []
     for move, child in generate(current.candidate, library, lift_candidates, REPAIR_KINDS):
         key = structure_key(child)
@@ -387,12 +384,13 @@ def _repair_step(current: Node, index: int, campaign, library, lift_candidates, 
 def choose(confirmed: Sequence[Node], alpha: float = DEFAULT_ALPHA, admissible_first: bool = False) -> Node:
     """The structure the search ends with: of every adopted one (each branch of the beam), the fewest parameters
     within one standard error of the lowest held-out MSE (the ranking's one-standard-error rule), then the move that
-    names the effect (:func:`_preference`), then the lower MSE. With ``admissible_first`` (a discovery), among the admissible structures when there are any, as the
-    ranking ranks admissible candidates first."""
+    names the effect (:func:`_preference`), then the lower MSE. With ``admissible_first`` (a discovery), among the
+    admissible structures when there are any, as the ranking ranks admissible candidates first; when none is,
+    among those with the fewest reasons against them."""
     pool = list(confirmed)
-    if admissible_first:   # the admissible ones; when none is, those with the fewest reasons against them
-        fewest = min(len(n.reasons) + n.result.failed for n in pool)
-        pool = [n for n in pool if len(n.reasons) + n.result.failed == fewest]
+    if admissible_first:   # adopted structures never failed: the reasons alone decide
+        fewest = min(len(n.reasons) for n in pool)
+        pool = [n for n in pool if len(n.reasons) == fewest]
     best = min(pool, key=lambda n: n.mse)
     near = [n for n in pool if n is best or move_test(best.result, n.result, alpha, 1).within_one_se]
     return min(near, key=lambda n: (n.n_params, _preference(n), n.mse))

@@ -27,9 +27,8 @@ from ..fitting.specs import BUILTIN_GRIDS, load_grid, read_toml
 
 COEFFICIENTS = ("CL", "CD", "Cm")
 # a separation state's symbol in an expression: X (the single state) or X_<name>
-_STATE = re.compile(r"\bX(?:_([A-Za-z0-9]+))?\b")
+STATE_SYMBOL = re.compile(r"\bX(?:_([A-Za-z0-9]+))?\b")
 _PLACEHOLDER = "{X}"
-STATE_SYMBOL = _STATE   # the pattern of a state's symbol, for the moves
 
 
 @dataclass(frozen=True)
@@ -81,13 +80,13 @@ def normalise(expression: str) -> str:
 
 def template_of(name: str, expression: str) -> Term | None:
     """The template of a declared regressor; None when it mixes two separation states."""
-    states = {m.group(1) or "" for m in _STATE.finditer(expression)}
+    states = {m.group(1) or "" for m in STATE_SYMBOL.finditer(expression)}
     if not states:
         return Term(name, expression)
     if len(states) > 1:
         return None
     (s,) = states
-    expr = _STATE.sub(_PLACEHOLDER, expression)
+    expr = STATE_SYMBOL.sub(_PLACEHOLDER, expression)
     if s and f"_{s}" in name:
         i = name.index(f"_{s}")
         name = name[:i] + "{s}" + name[i + len(s) + 1:]
@@ -134,10 +133,7 @@ def shipped_terms(coefficient: str) -> list[Term]:
 def read_terms(path: str | Path, coefficient: str) -> list[Term]:
     """A user's term file (TOML, module docstring); every error names the file and the term."""
     path = Path(path)
-    try:
-        doc = read_toml(path)
-    except UnicodeDecodeError as exc:   # read_toml reads text: a binary file is not a term file either
-        raise DeclarationError(f"{path}: not a UTF-8 text file: {exc}") from None
+    doc = read_toml(path)
     declared = doc.get("coefficient", coefficient)
     if declared != coefficient:
         raise DeclarationError(f"{path}: the terms are for {declared}, not {coefficient}")
@@ -151,7 +147,7 @@ def read_terms(path: str | Path, coefficient: str) -> list[Term]:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
             raise DeclarationError(f"{path}: term {name!r}: a name is letters, digits and underscores")
         try:
-            parse(_STATE.sub("X", expr), known=())
+            parse(STATE_SYMBOL.sub("X", expr), known=())
         except DeclarationError as exc:
             # one line: sympy's messages span several
             raise DeclarationError(f"{path}: term {name!r}: {' '.join(str(exc).split())}") from None
@@ -164,8 +160,8 @@ def read_terms(path: str | Path, coefficient: str) -> list[Term]:
 
 def columns_of(expression: str) -> set[str]:
     """The campaign columns (or constants) a term reads: its free symbols other than states and helpers."""
-    names = symbol_names(_STATE.sub("X", expression.replace(_PLACEHOLDER, "X")))
-    return {n for n in names if not _STATE.fullmatch(n) and n not in HELPERS and n not in NAMED_EXPRESSIONS}
+    names = symbol_names(STATE_SYMBOL.sub("X", expression.replace(_PLACEHOLDER, "X")))
+    return {n for n in names if not STATE_SYMBOL.fullmatch(n) and n not in HELPERS and n not in NAMED_EXPRESSIONS}
 
 
 # what a drag or pitch structure's lift model gives it, whether or not the campaign logs it
@@ -199,4 +195,4 @@ def library_for(coefficient: str, data, user_terms: str | Path | None = None) ->
 
 
 def uses_state(c: Candidate, symbol: str) -> bool:
-    return any(symbol in {m.group(0) for m in _STATE.finditer(expr)} for _, expr in c.regressors)
+    return any(symbol in {m.group(0) for m in STATE_SYMBOL.finditer(expr)} for _, expr in c.regressors)

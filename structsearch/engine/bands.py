@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from .sandwich import bartlett_maneuver_sums, inverse_factor, kernel_weights, toeplitz_product
+from .sandwich import inverse_factor, maneuver_shares, satterthwaite
 
 
 @dataclass(frozen=True)
@@ -65,14 +65,13 @@ def output_variance(jacobian: np.ndarray, covariance: np.ndarray) -> np.ndarray:
 
 
 def quantile(level: float, dof) -> np.ndarray:
-    """The two-sided t quantile of ``level`` at ``dof`` (each point's; inf: the normal one)."""
+    """The two-sided t quantile of ``level`` at ``dof`` (each point's; inf: the normal one; NaN: NaN)."""
     if not 0.0 < level < 1.0:
         raise ValueError(f"a band's level is in (0, 1), not {level}")
     tail = 0.5 + level / 2.0
     dof = np.asarray(dof, float)
-    with np.errstate(invalid="ignore"):
-        return np.where(np.isfinite(dof), stats.t.ppf(tail, np.maximum(np.nan_to_num(dof, nan=1.0), 1.0)),
-                        stats.norm.ppf(tail))
+    # NaN dof (no maneuver's share could be computed): NaN, never a quantile the data do not support
+    return np.where(np.isinf(dof), stats.norm.ppf(tail), stats.t.ppf(tail, np.maximum(dof, 1.0)))
 
 
 def band(estimate: np.ndarray, jacobian: np.ndarray, covariance: np.ndarray, noise_variance: np.ndarray,
@@ -95,30 +94,15 @@ def maneuver_meats(jac: np.ndarray, residual: np.ndarray, boundaries: np.ndarray
     Jacobian on the fitted samples and ``residual`` the fit's residual there."""
     r_inv = inverse_factor(jac)
     u = (jac * residual[:, None]) @ (r_inv @ r_inv.T)          # (m, k): each sample's influence
-    boundaries = np.asarray(boundaries, int)
-    starts = boundaries[:-1]
-    if kind == "cluster":
-        sums = np.add.reduceat(u, starts, axis=0)
-        return sums[:, :, None] * sums[:, None, :]
-    longest = int(np.max(np.diff(boundaries))) - 1
-    b = float(longest + 1) if bandwidth is None else float(bandwidth)
-    if b >= longest:   # hac-maneuver: the whole maneuver as bandwidth
-        return bartlett_maneuver_sums(u, boundaries, b)
-    lags = min(int(np.ceil(b)), longest)
-    weighted = toeplitz_product(u, kernel_weights("bartlett", b, lags), boundaries)
-    return np.add.reduceat(u[:, :, None] * weighted[:, None, :], starts, axis=0)
+    return maneuver_shares(u, boundaries, kind, bandwidth, diagonal=False)
 
 
 def point_effective_maneuvers(jac: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, kind: str,
-                              gradients: np.ndarray, bandwidth: float | None = None,
-                              meats: np.ndarray | None = None) -> np.ndarray:
+                              gradients: np.ndarray, bandwidth: float | None = None) -> np.ndarray:
     """Effective number of maneuvers behind the variance of each combination g^T p (rows of ``gradients``,
-    in the columns of ``jac``): (sum_g c_g)^2 / sum_g c_g^2 with c_g = g^T S_g g maneuver g's share of the
-    sandwich variance of g^T p (:func:`maneuver_meats`), as :func:`structsearch.engine.sandwich.effective_maneuvers`
-    does for a parameter. ``meats``: those matrices when the caller has them (many points, one fit)."""
-    meats = maneuver_meats(jac, residual, boundaries, kind, bandwidth) if meats is None else meats
+    in the columns of ``jac``): Satterthwaite's rule on c_g = g^T S_g g, maneuver g's share of the sandwich
+    variance of g^T p (:func:`maneuver_meats`), as :func:`structsearch.engine.sandwich.effective_maneuvers`
+    does for a parameter."""
     g = np.asarray(gradients, float)
-    share = np.einsum("pk,gkl,pl->gp", g, meats, g)            # (G, points)
-    total, square = share.sum(axis=0), (share ** 2).sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        return np.where(square > 0, total ** 2 / square, np.nan)
+    meats = maneuver_meats(jac, residual, boundaries, kind, bandwidth)
+    return satterthwaite(np.einsum("pk,gkl,pl->gp", g, meats, g))

@@ -273,6 +273,15 @@ class ParameterEstimates:
         dof = min(finite)
         return WaldTest(names, w, q, float(dof), float(stats.f.sf(w / q, q, dof)))
 
+    def covariance_record(self) -> dict[str, Any]:
+        """What produced the standard errors and p-values (``fit.json``'s ``covariance``, docs/interfaces.md 6.4):
+        the kind, its bandwidth (HAC kinds) or groups (the maneuvers of the per-maneuver kinds), the lags of a
+        Toeplitz estimate, and each parameter's reference degrees of freedom."""
+        kind = covariance_kind(self.covariance_kind)
+        return json_ready({"kind": self.covariance_kind, "bandwidth": self.bandwidth,
+                           "groups": self.n_maneuvers if kind.per_maneuver else None, "max_lag": self.max_lag,
+                           "reference_dof": dict(self.reference_dof)})
+
     # ----- serialisation -----------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: every array as lists, what is not finite as null (an infinite bound or condition

@@ -269,6 +269,28 @@ def cluster_covariance(jac: np.ndarray, residual: np.ndarray, boundaries: np.nda
 
 
 
+def maneuver_shares(u: np.ndarray, boundaries: np.ndarray, kind: str, bandwidth: float | None = None,
+                    diagonal: bool = True) -> np.ndarray:
+    """Each maneuver's share of a per-maneuver sandwich's meat, for the influences ``u`` (one row per sample):
+    (G, k) diagonals, or (G, k, k) matrices without ``diagonal`` (the share of any combination g^T p is then
+    g^T S_g g). ``cluster``: the maneuver sums' outer products; else a Bartlett kernel inside each maneuver
+    (``hac-maneuver``: the whole maneuver as bandwidth), positive semi-definite, so every share is >= 0."""
+    boundaries = np.asarray(boundaries)
+    starts = np.asarray(boundaries[:-1], int)
+    if kind == "cluster":
+        sums = np.add.reduceat(u, starts, axis=0)
+        return sums ** 2 if diagonal else sums[:, :, None] * sums[:, None, :]
+    b = float(np.max(np.diff(boundaries))) if bandwidth is None else float(bandwidth)
+    longest = int(np.max(np.diff(boundaries))) - 1
+    if b >= longest:
+        return bartlett_maneuver_sums(u, boundaries, b, diagonal=diagonal)
+    lags = min(int(np.ceil(b)), longest)
+    weighted = toeplitz_product(u, kernel_weights("bartlett", b, lags), boundaries)
+    if diagonal:
+        return np.add.reduceat(u * weighted, starts, axis=0)
+    return np.add.reduceat(u[:, :, None] * weighted[:, None, :], starts, axis=0)
+
+
 def effective_maneuvers(jac: np.ndarray, scores: np.ndarray, boundaries: np.ndarray, kind: str,
                         bandwidth: float | None = None, r_inv: np.ndarray | None = None) -> np.ndarray:
     """Effective number of maneuvers behind each parameter's variance (Satterthwaite 1946; the
@@ -277,20 +299,11 @@ def effective_maneuvers(jac: np.ndarray, scores: np.ndarray, boundaries: np.ndar
     parameter equally, about 1 when one maneuver does (a deep-stall term seen in one maneuver)."""
     r_inv = inverse_factor(jac) if r_inv is None else r_inv
     u = scores @ (r_inv @ r_inv.T)                  # (A^-1 g_t)^T per sample
-    starts = np.asarray(boundaries[:-1], int)
-    if kind == "cluster":
-        share = np.add.reduceat(u, starts, axis=0) ** 2
-    else:  # a positive semi-definite kernel inside each maneuver: every share is >= 0
-        b = float(np.max(np.diff(boundaries))) if bandwidth is None else float(bandwidth)
-        longest = int(np.max(np.diff(boundaries))) - 1
-        if b >= longest:
-            share = bartlett_maneuver_sums(u, boundaries, b, diagonal=True)
-        else:
-            lags = min(int(np.ceil(b)), longest)
-            share = np.add.reduceat(u * toeplitz_product(u, kernel_weights("bartlett", b, lags), boundaries), starts,
-                                    axis=0)
+    return satterthwaite(maneuver_shares(u, boundaries, kind, bandwidth))
+
+
+def satterthwaite(share: np.ndarray) -> np.ndarray:
+    """(sum_g c_g)^2 / sum_g c_g^2 over the maneuvers (axis 0); NaN where every share is 0."""
     total, square = share.sum(axis=0), (share ** 2).sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         return np.where(square > 0, total ** 2 / square, np.nan)
-
-

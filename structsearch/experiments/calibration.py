@@ -71,6 +71,7 @@ def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
     campaign = build_campaign(seed=seed, scale=scale)
     train, val = campaign.split("train"), campaign.split("validation")
     estimates, stderr, gap, dof, hits, widths = {}, {}, {}, {}, {}, {}
+    joint = ({}, {}, {})   # the joint fit's, with the default covariance only
     starts = {coef: dict(TRUTH[coef]) for coef in TRUTH}
     for kind in kinds:
         options = FitOptions(n_starts=1, covariance=kind, cv_folds=0)
@@ -91,8 +92,6 @@ def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
         if kind == DEFAULT_COVARIANCE:
             hits, widths = band_coverage(finals, train)
             joint = joint_draw(train, val, options)
-    if DEFAULT_COVARIANCE not in kinds:
-        joint = ({}, {}, {})
     return CampaignDraw(seed, train.n_samples, estimates, stderr, gap, dof, hits, widths, *joint)
 
 
@@ -106,12 +105,11 @@ def joint_draw(train, val, options) -> tuple[dict, dict, dict]:
     return dict(r.params), dict(r.stderr), dict(r.reference_dof)
 
 
-def truth_lift() -> LiftFit:
+def truth_lift():
     """The simulator's lift model as a drag or pitch curve's lift model: its structure and true parameters."""
-    from types import SimpleNamespace
+    from ..fitting.lift_fit import LiftAt
     from ..fitting.specs import find_candidate
-    return SimpleNamespace(params=dict(TRUTH["CL"]), candidate=find_candidate(FINAL_MODEL_NAMES["CL"]),
-                           failed=False, name=FINAL_MODEL_NAMES["CL"])
+    return LiftAt(find_candidate(FINAL_MODEL_NAMES["CL"]), dict(TRUTH["CL"]))
 
 
 def band_coverage(finals, train) -> tuple[dict, dict]:

@@ -20,7 +20,7 @@ not change a single point's variance.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -58,29 +58,23 @@ class StaticBands:
         return self.band.level
 
     def to_dict(self) -> dict:
-        """``fit.json``'s ``bands`` (docs/interfaces.md 6.3): level, and the static curve per coefficient."""
-        return {"level": self.level, "static": {
-            "alpha": self.alpha.tolist(),
-            "conditions": {"text": CONDITIONS_TEXT, **{c: 0.0 for c in ZERO_COLUMNS}, "held_at_training_mean":
-                           dict(self.held)},
-            "dof": self.band.dof.tolist(), "reasons": list(self.reasons),
-            self.coefficient: self.band.to_dict()}}
+        """``fit.json``'s ``bands`` (docs/interfaces.md 6.3 and 6.7) of this one curve."""
+        return bands_document([self])
 
 
-def merged_bands(bands: "list[StaticBands]") -> dict:
-    """``fit.json``'s ``bands`` for several coefficients on the same grid (a joint fit): one ``static`` with each
-    coefficient's band, and the dof per coefficient."""
-    doc = bands[0].to_dict()
-    static = doc["static"]
-    static["dof"] = {bands[0].coefficient: static["dof"]}
-    static["reasons"] = {bands[0].coefficient: static["reasons"]}
-    for b in bands[1:]:
-        other = b.to_dict()["static"]
-        static[b.coefficient] = other[b.coefficient]
-        static["dof"][b.coefficient] = other["dof"]
-        static["reasons"][b.coefficient] = other["reasons"]
-        static["conditions"]["held_at_training_mean"].update(other["conditions"]["held_at_training_mean"])
-    return doc
+def bands_document(bands: "Sequence[StaticBands]") -> dict:
+    """``fit.json``'s ``bands`` for one or several coefficients on the same grid (a joint fit): the level, the
+    alpha grid, the conditions, and per coefficient its band with each point's dof and the reasons it is null
+    somewhere."""
+    held: dict[str, float] = {}
+    for b in bands:
+        held.update(b.held)
+    static = {"alpha": bands[0].alpha.tolist(),
+              "conditions": {"text": CONDITIONS_TEXT, **{c: 0.0 for c in ZERO_COLUMNS},
+                             "held_at_training_mean": held}}
+    for b in bands:
+        static[b.coefficient] = {**b.band.to_dict(), "dof": b.band.dof.tolist(), "reasons": list(b.reasons)}
+    return {"level": bands[0].level, "static": static}
 
 
 def static_grid(model_columns, train: FlightData, alpha: np.ndarray) -> tuple[FlightData, dict[str, float]]:

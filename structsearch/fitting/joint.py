@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from types import SimpleNamespace
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -33,18 +32,16 @@ from ..data.flightdata import FlightData
 from ..engine.fit import fit_problem
 from ..engine.joint import JointProblem
 from ..engine.defaults import STALL_DEFAULTS
-from ..engine.regressors import declare
 from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores
 from ..engine.separation import SeparationState
 from ..engine.snls import solve
-from ..engine.stallmodel import StallModel
-from .bands import curve_bands, merged_bands
+from .bands import bands_document, curve_bands
 from .candidate_fit import fit_staged
 from .candidate_result import SplitScores
 from .candidates import Candidate
-from .lift_fit import LiftFit
-from .models import build_model, with_lift_prediction
+from .lift_fit import LiftAt, LiftFit
+from .models import build_model, model_with_lift, used_states, with_lift_prediction
 from .options import FitOptions
 from .specs import load_grid
 
@@ -84,6 +81,7 @@ class JointFit:
     iterations: int
     weights_settled: bool
     lift: Candidate | None = None           # the lift structure whose output drag and pitch read
+    lift_params: Mapping[str, float] = field(default_factory=dict)   # ... at these values (the joint estimate)
     seconds: float = float("nan")
     bands: tuple = ()                       # per coefficient, its static curve's StaticBands (the joint covariance)
     history: tuple[Mapping[str, float], ...] = field(default=(), repr=False)   # weights per iteration
@@ -91,9 +89,6 @@ class JointFit:
     @property
     def name(self) -> str:
         return " + ".join(c.name for c in self.candidates)
-
-    def coefficient(self, coef: str) -> CoefficientFit:
-        return next(c for c in self.coefficients if c.coefficient == coef)
 
     def to_dict(self) -> dict:
         """``fit.json`` of a joint fit (docs/interfaces.md 6.3): the single-fit fields for the shared parameters
@@ -109,28 +104,15 @@ class JointFit:
                 "converged": r.converged, "message": r.message, "nfev": r.nfev,
                 "identifiable": r.identifiable, "not_identifiable": dict(r.not_identifiable),
                 "condition_number": r.condition_number,
-                "covariance": {"kind": r.covariance_kind, "bandwidth": r.estimates.bandwidth,
-                               "reference_dof": dict(r.reference_dof)},
+                "insignificant": [n for n in shared if not r.significant[n]],
+                "n_starts": r.n_starts, "n_reached_best": r.n_reached_best,
+                "lift": None if self.lift is None else {"model": self.lift.name, "params": dict(self.lift_params)},
+                "covariance": r.estimates.covariance_record(),
                 "weights": {c.coefficient: c.weight for c in self.coefficients},
                 "weight_iterations": self.iterations, "weights_settled": self.weights_settled,
                 "coefficients": {c.coefficient: c.to_dict() for c in self.coefficients},
-                **({"bands": merged_bands(list(self.bands))} if self.bands else {}),
+                **({"bands": bands_document(self.bands)} if self.bands else {}),
                 "seconds": self.seconds}
-
-
-def _states_used(c: Candidate) -> dict[str, str]:
-    states = dict(c.states)
-    symbols = {SeparationState(n, k).symbol: n for n, k in states.items()}
-    used = {s for name, text in c.regressors for s in declare(name, text, states=list(symbols)).states}
-    return {symbols[s]: states[symbols[s]] for s in symbols if s in used}
-
-
-def _free_model(c: Candidate) -> StallModel:
-    """A drag or pitch candidate with its (lift model's) states free: the joint fit estimates them."""
-    states = _states_used(c)
-    own = {p for n, k in states.items() for p in SeparationState(n, k).parameters}
-    return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states,
-                              bounds={k: v for k, v in c.bounds if k in own})
 
 
 def check_joint(candidates: Sequence[Candidate]) -> tuple[Candidate | None, list[Candidate]]:
@@ -149,7 +131,7 @@ def check_joint(candidates: Sequence[Candidate]) -> tuple[Candidate | None, list
         if not c.lift:
             raise DeclarationError(f"{c.name} reads no lift model's states: a joint fit shares separation states")
         if lift is not None:
-            own = _states_used(c)
+            own = used_states(c)
             theirs = dict(lift.states)
             missing = [n for n, k in own.items() if theirs.get(n) != k]
             if missing:
@@ -168,7 +150,7 @@ def check_joint(candidates: Sequence[Candidate]) -> tuple[Candidate | None, list
 
 
 def _params_of(c: Candidate) -> list[str]:
-    states = dict(c.states) if c.coefficient == "CL" else _states_used(c)
+    states = dict(c.states) if c.coefficient == "CL" else used_states(c)
     return [p for n, k in states.items() for p in SeparationState(n, k).parameters]
 
 
@@ -198,7 +180,8 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
     for coef, r in seq.items():
         if r.failed:
             raise DeclarationError(f"{coef}: the sequential fit that starts the joint one failed: {r.error}")
-    models = [build_model(lift_c) if c is lift_c else _free_model(c) for c in order]
+    # drag and pitch with their (the lift model's) states free: the joint fit estimates them
+    models = [build_model(lift_c) if c is lift_c else model_with_lift(c, {}) for c in order]
     params = dict(lift_fit.params)   # the shared separation parameters start at the lift model's estimate
     for c in others:
         params.update(seq[c.coefficient].params)
@@ -257,10 +240,11 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
                                            scores["train"], scores["validation"], float(w)))
     shared = tuple(n for n in problem.nonlinear_names if sum(n in m.nonlinear_names for m in models) > 1)
     # each coefficient's static curve with the joint covariance: drag and pitch through the shared states too
-    read = SimpleNamespace(params=lift_params_now(params), candidate=lift_candidate, failed=False)
+    read = LiftAt(lift_candidate, lift_params_now(params))   # what drag and pitch read at the settled estimate
     bands = tuple(curve_bands(c, result.estimates, train, None if c is lift_c else read, m)
                   for c, m in zip(order, models))
     return JointFit(tuple(order), result, tuple(coefficients), shared, iterations, settled, lift=lift_candidate,
+                    lift_params=dict(read.params),
                     seconds=time.perf_counter() - t0, bands=bands, history=tuple(history))
 
 

@@ -7,6 +7,7 @@ its candidate and its result.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Mapping
 
 from .candidate_result import CandidateResult
 from .candidates import Candidate
@@ -31,3 +32,17 @@ class LiftFit:
     def failed(self) -> bool:
         return self.result.failed
 
+
+
+@dataclass(frozen=True)
+class LiftAt:
+    """A lift structure at given parameter values (the simulator's truth, a joint fit's estimate): what drag and
+    pitch read, in the shape of a :class:`LiftFit` (``candidate``, ``params``, ``name``, ``failed``)."""
+
+    candidate: Candidate
+    params: Mapping[str, float]
+    failed: bool = False
+
+    @property
+    def name(self) -> str:
+        return self.candidate.name

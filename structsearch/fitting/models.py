@@ -21,17 +21,23 @@ def build_model(c: Candidate, lift: LiftFit | None = None) -> StallModel:
     return model_with_lift(c, lift.params if c.lift else None)
 
 
+def used_states(c: Candidate) -> dict[str, str]:
+    """The states (name -> kind) ``c``'s regressors use: of a drag or pitch candidate, the lift model's states it
+    reads (CD-X reads none)."""
+    states = dict(c.states)
+    symbols = {SeparationState(n, k).symbol: n for n, k in states.items()}
+    used = {s for name, text in c.regressors for s in declare(name, text, states=list(symbols)).states}
+    return {symbols[s]: states[symbols[s]] for s in symbols if s in used}
+
+
 def model_with_lift(c: Candidate, lift_params: Mapping[str, float] | None) -> StallModel:
     """The StallModel of a candidate whose lift-model states take the separation parameters in
-    ``lift_params`` (a drag or pitch candidate; ignored for the others)."""
+    ``lift_params`` (a drag or pitch candidate; ignored for the others). With ``lift_params`` empty the states'
+    parameters are free (a joint fit estimates them with the lift model's)."""
     fixed = None
     states = dict(c.states)
     if c.lift:
-        # only the lift model's states this candidate's regressors use (CD-X has none)
-        symbols = {SeparationState(n, k).symbol: n for n, k in states.items()}
-        used = {s for name, text in c.regressors
-                for s in declare(name, text, states=list(symbols)).states}
-        states = {symbols[s]: states[symbols[s]] for s in symbols if s in used}
+        states = used_states(c)
         own = {p for n, k in states.items() for p in SeparationState(n, k).parameters}
         fixed = {k: v for k, v in lift_params.items() if k in own}
     free_bounds = {k: v for k, v in c.bounds if not fixed or k not in fixed}

@@ -25,6 +25,7 @@ def fit_document(fit: CandidateResult, lift: LiftFit | None, bands=None) -> dict
         "identifiable": fit.identifiable, "not_identifiable": fit.not_identifiable,
         "condition_number": fit.condition_number,
         "lift": lift and {"model": lift.name, "params": lift.params},
+        "covariance": fit.estimates.covariance_record(),
     }
     if bands is not None:
         doc["bands"] = bands.to_dict()
