@@ -181,3 +181,12 @@ def test_bands_of_a_drag_structure_without_a_c_l_term(fitted_finals):
     fit = fit_candidate(no_cl, train, train, lift, FitOptions(n_starts=1, cv_folds=0))
     b = static_bands(no_cl, fit, train, lift)
     assert np.all(np.isfinite(b.band.estimate)) and "CL" not in b.held
+
+
+def test_a_point_without_degrees_of_freedom_has_no_band():
+    """NaN dof (no maneuver's share computable): a NaN band, never the normal quantile's."""
+    b = band(np.array([1.0, 2.0]), np.eye(2), np.diag([0.04, 0.09]), np.array([0.01, 0.01]), 0.95,
+             np.array([np.nan, 5.0]))
+    assert np.isnan(b.confidence_low[0]) and np.isnan(b.prediction_high[0])
+    assert np.isfinite(b.confidence_low[1]) and b.confidence_half_width[1] == pytest.approx(
+        stats.t.ppf(0.975, 5.0) * 0.3)

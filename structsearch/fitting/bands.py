@@ -186,4 +186,8 @@ def _band(c, est, train, lift, model, names, out, jac, alpha, level):
     noise, table = noise_variance(train["alpha"], residual, np.asarray(alpha))
     reasons = tuple(f"{n}: {est.not_identifiable[n]}" for n, a in zip(names, acting)
                     if a and n in est.not_identifiable)
+    unknown_dof = int(np.sum(np.isnan(dof)))
+    if unknown_dof:
+        reasons += (f"{unknown_dof} point(s): no maneuver's share of their variance could be computed, so their "
+                    "degrees of freedom (and band) cannot be",)
     return band(out, jac, cov, noise, level, dof), reasons, table
