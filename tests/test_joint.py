@@ -10,7 +10,7 @@ from structsearch.data.errors import DeclarationError
 from structsearch.engine.fit import fit_problem
 from structsearch.engine.joint import JointProblem
 from structsearch.engine.separable import SeparableModel
-from structsearch.engine.snls import model_jacobian
+from structsearch.engine.snls import model_jacobian, reduce
 
 from conftest import central_difference
 
@@ -37,6 +37,36 @@ def test_the_joint_evaluation_is_the_blocks_weighted_and_interleaved_and_its_der
     fd = central_difference(lambda t: problem.evaluate(t).phi @ coef, theta)
     np.testing.assert_allclose(jac, fd, rtol=1e-6, atol=1e-9)
     np.testing.assert_array_equal(problem.boundaries(np.array([0, 60, 120])), [0, 120, 240])
+
+
+class _Stacked:
+    """The joint problem without its block reduction: the generic projection of the stacked matrix."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        self.nonlinear_names, self.linear_names = problem.nonlinear_names, problem.linear_names
+
+    def evaluate(self, theta):
+        return self.problem.evaluate(theta)
+
+
+def test_the_block_reduction_equals_the_stacked_projection():
+    rng = np.random.default_rng(5)
+    a, b = _blocks()
+    c = SeparableModel({"c0": "x", "c1": "exp(-j*x)*x**2"}, variables=["x"]).bind({"x": X})
+    problem = JointProblem((a, b, c), np.array([4.0, 0.25, 1.7]), len(X))
+    y = rng.standard_normal(3 * len(X))
+    theta = np.array([0.7, 1.4])
+    blockwise = reduce(problem, theta, y, 2)
+    stacked = reduce(_Stacked(problem), theta, y, 2)
+    np.testing.assert_allclose(blockwise.coef, stacked.coef, rtol=1e-10)
+    # the block reduction's rows come block after block, the stacked problem's interleaved
+    order = np.concatenate([np.arange(b, 3 * len(X), 3) for b in range(3)])
+    np.testing.assert_allclose(blockwise.residual, stacked.residual[order], atol=1e-12)
+    np.testing.assert_allclose(blockwise.jacobian, stacked.jacobian[order], atol=1e-10)
+    # and both are the derivative of the projected residual
+    fd = central_difference(lambda t: reduce(problem, t, y, 2).residual, theta)
+    np.testing.assert_allclose(blockwise.jacobian, fd, rtol=1e-5, atol=1e-8)
 
 
 def test_blocks_that_share_nothing_fit_as_they_fit_alone():
@@ -171,3 +201,21 @@ def test_the_joint_bench_reports_cost_scores_and_shared_parameters():
     assert 0 < fig["bands_ratio"] < 1
     text = markdown(fig, "structsearch bench --joint --out x")
     assert "joint sd / lift-only sd" in text and "bench --joint" in text
+
+
+def test_statistics_at_a_given_solution_equal_those_of_a_solve_that_ends_there():
+    from structsearch.engine.snls import solve
+    rng = np.random.default_rng(8)
+    a, b = _blocks()
+    problem = JointProblem((a, b), np.array([2.0, 0.5]), len(X))
+    y = problem.interleave([0.3 + 1.1 * np.exp(-0.7 * X) + 0.01 * rng.standard_normal(len(X)),
+                            -0.4 + 2.0 * X * np.exp(-0.7 * X) + 0.01 * rng.standard_normal(len(X))])
+    outcome = solve(problem, y, [1.0], [0.01], [5.0])
+    kw = dict(boundaries=np.array([0, 2 * len(X)]), segment_names=("m",), lower=[0.01], upper=[5.0],
+              covariance="hac")
+    given = fit_problem(problem, y, solution=outcome, **kw)
+    solved = fit_problem(problem, y, start=outcome.theta, **kw)
+    assert given.nfev == outcome.nfev and given.converged == outcome.success
+    for n in problem.nonlinear_names + problem.linear_names:
+        assert given.params[n] == pytest.approx(solved.params[n], rel=1e-8), n
+        assert given.stderr[n] == pytest.approx(solved.stderr[n], rel=1e-6), n

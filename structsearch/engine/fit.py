@@ -8,7 +8,7 @@ from .ols import solved
 from .estimates import ParameterEstimates
 from .results import FitResult
 from .identifiability import covariance_basis, rank_reasons
-from .snls import SeparableProblem, model_jacobian, multistart, project
+from .snls import Outcome, SeparableProblem, model_jacobian, multistart, project
 from .scores import ManeuverScores, slices_of
 from .defaults import SEPARABLE_DEFAULTS, STALL_DEFAULTS
 from .statistics import (COVARIANCE_KINDS, Covariances, scaled_condition_number, scaled_factor,
@@ -32,8 +32,12 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
                 segment_names, start=None, lower=None, upper=None, n_starts: int = 1,
                 seed: int = 0, n_jobs: int = 1, covariance: str = SEPARABLE_DEFAULTS.covariance, max_lag=None,
                 tol: float = STALL_DEFAULTS.tol, max_nfev: int | None = None, also=(), model: str = "model",
-                coefficient: str | None = None, source: str = "<memory>") -> FitResult:
+                coefficient: str | None = None, source: str = "<memory>",
+                solution: Outcome | None = None) -> FitResult:
     """Estimate all parameters and their statistics.
+
+    ``solution``, an optimum already found on this problem and these observations (a joint fit's last weight
+    iteration), skips the solve: only its statistics are computed.
 
     ``boundaries`` are the maneuver boundaries ``[0, ..., m]``; they delimit the
     residual autocorrelation and the per-maneuver R^2. ``lower``/``upper`` are the box of the nonlinear
@@ -43,6 +47,8 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
         raise FitError(f"covariance must be one of {COVARIANCE_KINDS}, not {covariance!r}")
     y = check_observed(y, boundaries, segment_names, source, coefficient or "y")
     k = len(problem.nonlinear_names)
+    if solution is not None:
+        start = solution.theta
     with np.errstate(all="ignore"):
         ev0 = problem.evaluate(np.asarray(start if k else np.zeros(0), float))
     bad = np.argwhere(~np.isfinite(ev0.phi))
@@ -62,15 +68,20 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
         lower = upper = np.zeros(0)
     else:
         lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-        ms = multistart(problem, y, start, lower, upper, n_starts=n_starts, seed=seed,
-                        n_jobs=n_jobs, tol=tol, max_nfev=max_nfev, also=also)
-        outcome, n_starts_used, reached = ms.best, len(ms.outcomes), ms.n_reached_best
-        ev = problem.evaluate(outcome.theta)
-        proj = project(ev.phi, y)
-    jac = model_jacobian(ev, proj.coef, k)
-    residual = proj.residual
+        if solution is not None:
+            outcome, n_starts_used, reached, ev = solution, 1, 1, ev0
+        else:
+            ms = multistart(problem, y, start, lower, upper, n_starts=n_starts, seed=seed,
+                            n_jobs=n_jobs, tol=tol, max_nfev=max_nfev, also=also)
+            outcome, n_starts_used, reached = ms.best, len(ms.outcomes), ms.n_reached_best
+            ev = problem.evaluate(outcome.theta)
+        # the solve's coefficients are Phi^+ y at its theta already: no second projection of Phi
+        proj = None
+    coef = outcome.coef
+    jac = model_jacobian(ev, coef, k)
+    residual = proj.residual if proj is not None else y - ev.phi @ coef
     if hasattr(problem, "extended_residual"):
-        residual = problem.extended_residual(outcome.theta, proj.coef, y)
+        residual = problem.extended_residual(outcome.theta, coef, y)
     names = tuple(problem.nonlinear_names) + tuple(problem.linear_names)
     reasons = dict(problem.identifiability(outcome.theta)) if hasattr(problem, "identifiability") else {}
     # one QR of the m x p Jacobian serves the rank test, condition and covariance; an OLS Jacobian is Phi,
@@ -86,7 +97,7 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
     segments = ManeuverScores.of(y, residual, slices_of(boundaries))
     estimates = ParameterEstimates(
         nonlinear_names=tuple(problem.nonlinear_names), linear_names=tuple(problem.linear_names),
-        values=np.concatenate([outcome.theta, proj.coef]), lower=lower, upper=upper,
+        values=np.concatenate([outcome.theta, coef]), lower=lower, upper=upper,
         covariance=estimate.covariance, covariance_kind=covariance, n_samples=int(segments.counts.sum()),
         n_maneuvers=len(segment_names), white_covariance=estimate.white, max_lag=estimate.max_lag,
         bandwidth=estimate.bandwidth, effective_maneuvers=estimate.effective_maneuvers,

@@ -119,6 +119,33 @@ def model_jacobian(ev: Evaluation, coef: np.ndarray, k: int) -> np.ndarray:
     return np.hstack([_dphi_times_coef(ev, coef, k), ev.phi])
 
 
+@dataclass(frozen=True)
+class Reduced:
+    """What the optimiser needs at one theta: the linear coefficients, the projected residual and its
+    Golub-Pereyra Jacobian (m x k). Their rows may come in any order the problem finds cheap (the same for
+    both): the optimiser sees only the residual's norm, J^T r and J^T J."""
+
+    coef: np.ndarray
+    residual: np.ndarray
+    jacobian: np.ndarray
+
+
+def reduce(problem: SeparableProblem, theta: np.ndarray, y: np.ndarray, k: int) -> Reduced | None:
+    """The reduced problem at ``theta`` (None where Phi, its derivative or the Jacobian is not finite).
+
+    A problem with structure to exploit offers its own ``reduce(theta, y)`` (a joint problem's block-diagonal
+    Phi projects block by block, never forming the stacked matrix)."""
+    own = getattr(problem, "reduce", None)
+    if own is not None:
+        return own(theta, y)
+    ev = problem.evaluate(theta)
+    if not (np.all(np.isfinite(ev.phi)) and np.all(np.isfinite(ev.dphi))):
+        return None
+    proj = project(ev.phi, y)
+    jac = residual_jacobian(ev, proj, k)
+    return Reduced(proj.coef, proj.residual, jac) if np.all(np.isfinite(jac)) else None
+
+
 # Slow but steady starts (NIST Rat42 from start 1 needs ~380 evaluations) should finish.
 DEFAULT_MAX_NFEV = 1000
 
@@ -143,33 +170,28 @@ class _Objective:
     def _at(self, theta):
         if self._theta is None or not np.array_equal(theta, self._theta):
             with np.errstate(all="ignore"):
-                ev = self.problem.evaluate(theta)
-            if np.all(np.isfinite(ev.phi)) and np.all(np.isfinite(ev.dphi)):
-                proj = project(ev.phi, self.y)
-                jac = residual_jacobian(ev, proj, self.k)
-                if np.all(np.isfinite(jac)):
-                    q_j, r_j = qr(np.asfortranarray(jac), mode="economic", overwrite_a=True,
-                                  check_finite=False)
-                    head = q_j.T @ proj.residual
-                    rest = max(float(proj.residual @ proj.residual - head @ head), 0.0)
-                    self._cached = (ev, proj, np.append(head, np.sqrt(rest)),
-                                    np.vstack([r_j, np.zeros((1, self.k))]))
-                else:
-                    self._cached = (ev, None, None, None)
+                reduced = reduce(self.problem, theta, self.y, self.k)
+            if reduced is not None:
+                q_j, r_j = qr(np.asfortranarray(reduced.jacobian), mode="economic", overwrite_a=True,
+                              check_finite=False)
+                head = q_j.T @ reduced.residual
+                rest = max(float(reduced.residual @ reduced.residual - head @ head), 0.0)
+                self._cached = (reduced, np.append(head, np.sqrt(rest)),
+                                np.vstack([r_j, np.zeros((1, self.k))]))
             else:
-                self._cached = (ev, None, None, None)
+                self._cached = (None, None, None)
             self._theta = np.array(theta, copy=True)
             self.evaluations += 1
         return self._cached
 
     def residual(self, theta):
-        compressed = self._at(theta)[2]
+        compressed = self._at(theta)[1]
         # the trust-region solver shrinks its step when it meets a non-finite residual
         return np.full(self.k + 1, np.inf) if compressed is None else compressed
 
     def jacobian(self, theta):
-        ev, proj, _, compressed_jac = self._at(theta)
-        if proj is None:
+        reduced, _, compressed_jac = self._at(theta)
+        if reduced is None:
             raise FitError("the regression matrix or its derivative is not finite at theta = "
                            + _fmt(self.problem.nonlinear_names, theta))
         return compressed_jac
@@ -224,11 +246,12 @@ def solve(problem: SeparableProblem, y: np.ndarray, start, lower, upper, *,
         sol = least_squares(objective.residual, x0, jac=objective.jacobian, bounds=(lower, upper),
                             method="trf", x_scale=span, ftol=tol, xtol=tol, gtol=tol,
                             max_nfev=max_nfev if max_nfev is not None else DEFAULT_MAX_NFEV)
-    proj = objective._at(sol.x)[1]
-    if proj is None:
+    reduced = objective._at(sol.x)[0]
+    if reduced is None:
         raise FitError("the solver stopped where the regression matrix is not finite: theta = "
                        + _fmt(problem.nonlinear_names, sol.x))
-    return Outcome(start=start, theta=sol.x, coef=proj.coef, cost=float(0.5 * proj.residual @ proj.residual),
+    return Outcome(start=start, theta=sol.x, coef=reduced.coef,
+                   cost=float(0.5 * reduced.residual @ reduced.residual),
                    nfev=int(sol.nfev), njev=int(sol.njev or 0), status=int(sol.status),
                    message=str(sol.message), success=bool(sol.status > 0))
 
