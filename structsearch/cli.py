@@ -131,7 +131,13 @@ def _search(args) -> int:
     ranking = search(args.data, args.grid, out=args.out, jobs=_jobs(args), starts=args.starts, seed=args.seed,
                      covariance=args.covariance, bounds=_bounds(args), cv_method=args.cv_method,
                      backend=args.backend, scheduler=args.scheduler, max_correlation=args.max_correlation,
-                     progress=_progress(args))
+                     progress=_progress(args), joint_lift=args.joint_lift)
+    if ranking.joint is not None:
+        j = ranking.joint
+        print(f"joint lift model: {j.name}, {j.iterations} weight iterations"
+              f"{'' if j.weights_settled else ' (weights did NOT settle)'}"
+              f"{'' if j.result.converged else '; optimizer did NOT converge'}; "
+              f"wrote {Path(args.out) / 'joint_lift.json'}")
     _print_winners(ranking)
     print(f"wrote {Path(args.out) / 'ranking.csv'} and the tables of each grid")
     return 0

@@ -142,6 +142,10 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                    help="loky: local processes; dask: a dask.distributed cluster")
     r.add_argument("--scheduler", default=None,
                    help="dask scheduler address (default: start a local cluster of --jobs workers)")
+    r.add_argument("--joint-lift", metavar="LIFT,DRAG[,PITCH]", default=None,
+                   help="fit these structures jointly first (names, spec files, or a joint spec file); drag and "
+                        "pitch candidates that name its lift structure read the joint estimate, and their "
+                        "two-step covariance has the joint fit as first step (writes joint_lift.json)")
     r.add_argument("--quiet", action="store_true", help="no progress lines")
     _admissibility_options(r)
     r.set_defaults(func=handlers["search"])

@@ -219,3 +219,49 @@ def test_statistics_at_a_given_solution_equal_those_of_a_solve_that_ends_there()
     for n in problem.nonlinear_names + problem.linear_names:
         assert given.params[n] == pytest.approx(solved.params[n], rel=1e-8), n
         assert given.stderr[n] == pytest.approx(solved.stderr[n], rel=1e-6), n
+
+
+def test_drag_and_pitch_under_the_joint_lift_model(joint_and_sequential, simulated_campaign):
+    """A drag or pitch candidate fitted on the joint lift (search --joint-lift) reproduces the joint fit's own
+    block (given the lift estimate, both are the same least-squares problem), and its two-step covariance has
+    the joint fit as first step."""
+    from structsearch.fitting.candidate_fit import fit_candidate
+    from structsearch.fitting.joint import joint_lift
+    from structsearch.fitting.options import FitOptions
+    from structsearch.fitting.specs import find_candidate
+    joint, seq = joint_and_sequential
+    campaign = simulated_campaign(seed=4, scale=0.1)
+    train, val = campaign.split("train"), campaign.split("validation")
+    read = joint_lift(joint)
+    assert read.name == "CL-VI" and read.partners == ("CD-IXr", "Cm-XXXIIIr")
+    assert read.influence.shape == (train.n_samples, len(read.influence_names))
+    assert read.cache_key != dict(read.params)      # never served a sequential lift's cached fits
+    for name in ("CD-IXr", "Cm-XXXIIIr"):
+        c = find_candidate(name)
+        r = fit_candidate(c, train, val, read, FitOptions(n_starts=1))
+        block = next(cf for cf in joint.coefficients if cf.model == name)
+        for n in r.params:
+            assert r.params[n] == pytest.approx(block.params[n], rel=2e-2, abs=1e-3 * abs(block.params[n]) + 1e-6), n
+        assert "joint fit" in r.estimates.generated_regressors
+        assert all(np.isfinite(v) and v > 0 for v in r.stderr.values())
+        # the lift model's error enters: the two-step standard deviations exceed the conditional (white) ones
+        conditional = fit_candidate(c, train, val, read, FitOptions(n_starts=1, covariance="hac-maneuver",
+                                                                    scores_only=True))
+        assert any(r.stderr[n] > conditional.stderr[n] for n in r.stderr)
+
+
+@pytest.mark.slow
+def test_search_under_a_joint_lift_on_the_command_line(campaign_on_disk, tmp_path, run_cli):
+    data = campaign_on_disk(seed=2, scale=0.05)
+    out = tmp_path / "s"
+    proc = run_cli("search", "--data", str(data.directory), "--grid", "drag", "--joint-lift", "CL-VI,CD-IXr",
+                   "--starts", "1", "--out", str(out), "--jobs", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert "joint lift model: CL-VI + CD-IXr" in proc.stdout
+    doc = json.loads((out / "joint_lift.json").read_text())
+    assert doc["joint"] is True and set(doc["coefficients"]) == {"CL", "CD"}
+    assert (out / "ranking.csv").exists()
+    proc = run_cli("search", "--data", str(data.directory), "--grid", "drag", "--joint-lift", "CL-VI,CD-IXr",
+                   "--covariance", "white", "--out", str(tmp_path / "w"))
+    assert proc.returncode != 0 and "--joint-lift with --covariance white" in proc.stderr
+    assert not (tmp_path / "w").exists()

@@ -72,7 +72,8 @@ def test_study_to_dict_is_plain_json():
     text = json.dumps(doc)   # no default: a numpy value or a tuple key would raise here
     assert math.isnan(json.loads(text)["dynamic_stalls"]["full"]["sd"][1])
     assert list(doc) == ["models", "scores", "dynamic_stalls", "separation", "derived", "collinearity", "estimators",
-                         "search_tables"]
+                         "search_tables", "joint"]
+    assert doc["joint"] is None       # a study built without the joint comparison says so
     assert doc["scores"][0]["r2_mean"] == scores[0].r2_mean == pytest.approx(0.85)
     assert doc["dynamic_stalls"]["called_out"][0] == {"a": "tau1_ss", "b": "tau2_ss", "rho_quasi_steady": 0.7,
                                                       "rho_full": 0.7}

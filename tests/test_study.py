@@ -11,7 +11,7 @@ from structsearch.data.flightdata import from_segments
 
 STEMS = ("legacy_vs_snls", "legacy_vs_snls_parameters", "final_vs_van_ingen", "final_vs_van_ingen_published", "dynamic_stalls", "correlation_quasi_steady",
          "correlation_full", "separation_matrix", "derived", "collinearity", "lift_thesis", "drag_thesis",
-         "pitch_thesis")
+         "pitch_thesis", "joint_vs_sequential", "joint_vs_sequential_parameters")
 
 
 @pytest.fixture(scope="module")
@@ -81,3 +81,21 @@ def test_r2_and_percent_difference_against_hand_values():
     r2 = per_maneuver_r2(y, p, data)
     assert r2[0] == pytest.approx(1 - 1 / 5) and np.isnan(r2[1])   # a constant coefficient: no R^2
     assert percent_difference(0.75, 1.0) == pytest.approx(-25.0) and np.isnan(percent_difference(1.0, 0.0))
+
+
+def test_the_study_sets_the_joint_fit_against_the_sequential_one(studied):
+    search_out, out = studied
+    ranking = {r["model"]: r for r in csv.DictReader((search_out / "ranking.csv").open())}
+    scores = {r["coefficient"]: r for r in _csv(out / "joint_vs_sequential.csv")}
+    assert set(scores) == {"CL", "CD", "Cm"}
+    # the sequential column is the search's own fit
+    assert float(scores["CL"]["MSE val. sequential"]) == pytest.approx(float(ranking["CL-VI"]["mse_validation"]),
+                                                                      rel=1e-9)
+    for r in scores.values():   # the target: every coefficient within 2 % of its sequential fit or better
+        assert float(r["% difference"]) <= 2.0, r
+    params = {r["parameter"]: r for r in _csv(out / "joint_vs_sequential_parameters.csv")}
+    assert params["tau1_ss"]["coefficient"] == "CL" and "CD_0" not in params or params["CD_0"]["coefficient"] == "CD"
+    # drag and pitch bring information on the shared states: their joint standard deviation is the smaller
+    for n in ("tau1_ss", "tau2_ss", "a_star_ss"):
+        assert float(params[n]["sd joint"]) < float(params[n]["sd sequential"]), n
+    assert "rho(tau1_ss, tau2_ss)" in (out / "joint_vs_sequential.md").read_text()

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from ..data.campaign import Campaign, read_campaign
+from ..data.atomic import write_json
 from ..data.errors import DeclarationError
 from ..engine.statistics import DEFAULT_COVARIANCE
 from ..fitting.options import FitOptions, check_box_names
@@ -104,26 +105,45 @@ def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, out: st
            cache: str | os.PathLike | None = None, jobs: int = 0, starts: int = 4, seed: int = 0,
            covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None, cv_method: str = "refit",
            backend: str = "loky", scheduler: str | None = None, max_correlation: float = MAX_CORRELATION,
-           refine: bool = True, progress: Progress = None) -> Ranking:
+           refine: bool = True, progress: Progress = None, joint_lift: str | Sequence[str] | None = None) -> Ranking:
     """Fit and rank every candidate of ``grid`` as ``structsearch search`` does. ``cache``: the directory whose
     ``cache/`` holds the fits (default ``out``, else a temporary directory); ``out``: also write
-    ``ranking.csv`` and the tables there."""
+    ``ranking.csv`` and the tables there (and ``joint_lift.json``, the joint fit, with ``joint_lift``).
+    ``joint_lift``: structures fitted jointly first ("CL-VI,CD-IXr,Cm-XXXIIIr", a list or a joint spec
+    file); drag and pitch candidates read its lift block (``search --joint-lift``)."""
     from ..search.pipeline import search as run_search
     campaign = as_campaign(campaign)
     options = fit_options(starts, seed, covariance, bounds, cv_method=cv_method)
     check_box_names(options.parameter_boxes, search_candidates(grid))
+    joint = ()
+    if joint_lift:
+        from ..engine.twostep import SCORE_KINDS
+        from ..fitting.joint import joint_structures
+        joint = joint_structures(joint_lift if isinstance(joint_lift, str) else ",".join(joint_lift))
+        if not any(c.coefficient == "CL" for c in joint):
+            raise DeclarationError("--joint-lift: the joint structures need a lift structure (CL-...) for drag "
+                                   "and pitch to read")
+        if covariance not in SCORE_KINDS:
+            raise DeclarationError(f"--joint-lift with --covariance {covariance}: the two-step covariance with a "
+                                   f"joint first step needs one of {', '.join(SCORE_KINDS)} ({covariance} models "
+                                   "the first step's residual series, which a joint fit of three coefficients "
+                                   "does not have as one)")
+        check_box_names(options.parameter_boxes, joint)
+        joint = [c.with_bounds(options.parameter_boxes) for c in joint]
     client = dask_client(scheduler, process_count(jobs)) if backend == "dask" else None
     try:
         with cache_directory(cache if cache is not None else out) as where:
             result = run_search(campaign, grid, where, n_jobs=process_count(jobs), options=options,
                                 backend=backend, max_correlation=max_correlation, progress=progress,
-                                do_refine=refine)
+                                do_refine=refine, joint_lift=joint)
     finally:
         if client is not None:
             client.close()
-    ranking = Ranking(result.grids, result.seconds, result.refinements)
+    ranking = Ranking(result.grids, result.seconds, result.refinements, joint=result.joint)
     if out is not None:
         write_search_tables(ranking, campaign, Path(out))
+        if result.joint is not None:
+            write_json(Path(out) / "joint_lift.json", result.joint.to_dict())
     return ranking
 
 

@@ -50,6 +50,7 @@ class Ranking:
     grids: dict[str, list[CandidateResult]]
     seconds: dict[str, float]
     refinements: dict[str, list] = field(default_factory=dict)
+    joint: Any = None       # the JointFit whose lift block drag and pitch read (``search(joint_lift=...)``)
 
     def best(self, grid: str) -> CandidateResult | None:
         """The grid's rank-1 candidate that did not fail (None if every one failed)."""
@@ -68,7 +69,8 @@ class Ranking:
         """Per grid the rows of ``ranking.csv`` (None where a cell is empty), and the seconds per grid."""
         from ..report.tables import table_row
         return {"grids": {g: [table_row(r) for r in ranked] for g, ranked in self.grids.items()},
-                "seconds": dict(self.seconds)}
+                "seconds": dict(self.seconds),
+                **({"joint_lift": self.joint.to_dict()} if self.joint is not None else {})}
 
 
 @dataclass(frozen=True)

@@ -54,14 +54,9 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
     carry = -(jac1 @ gain.T)                                    # multiplies e1 in u_t
     lags = bandwidth = None
     scores = jac2 * residual2[:, None] + carry * residual1[:, None]   # u_t
-    if kind in HAC_KERNELS:
-        meat, bandwidth = hac_meat(scores, boundaries, kind)
-        meat *= m / max(m - p2, 1)
-    elif kind == "cluster":
-        if not cluster_estimable(boundaries, p2):
-            return np.full((p2, p2), np.nan), lags, bandwidth, np.full(p2, np.nan)
-        meat = cluster_meat(scores, boundaries) * ((m - 1) / max(m - p2, 1))
-    elif kind == "white":
+    if kind in SCORE_KINDS:
+        return _from_scores(jac2, scores, boundaries, kind, r2_inv)
+    if kind == "white":
         s22 = float(residual2 @ residual2) / max(m - p2, 1)
         s11 = float(residual1 @ residual1) / max(m - jac1.shape[1], 1)
         s12 = float(residual1 @ residual2) / m
@@ -81,6 +76,51 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
                 + jac2.T @ shifted_product(carry, gamma12[::-1], boundaries))
     else:
         raise ValueError(f"unknown covariance kind {kind!r}")
+    return _sandwich(jac2, meat, r2_inv), lags, bandwidth, np.full(p2, np.nan)
+
+
+# the kinds that estimate the variance of sum_t u_t from the corrected scores alone (not from residual series)
+SCORE_KINDS = (*HAC_KERNELS, "cluster")
+
+
+def _from_scores(jac2: np.ndarray, scores: np.ndarray, boundaries: np.ndarray, kind: str, r2_inv: np.ndarray):
+    m, p2 = jac2.shape
+    bandwidth = None
+    if kind in HAC_KERNELS:
+        meat, bandwidth = hac_meat(scores, boundaries, kind)
+        meat *= m / max(m - p2, 1)
+    else:
+        if not cluster_estimable(boundaries, p2):
+            return np.full((p2, p2), np.nan), None, bandwidth, np.full(p2, np.nan)
+        meat = cluster_meat(scores, boundaries) * ((m - 1) / max(m - p2, 1))
     effective = (effective_maneuvers(jac2, scores, boundaries, kind, bandwidth, r2_inv) if kind in PER_MANEUVER_KINDS
                  else np.full(p2, np.nan))
-    return _sandwich(jac2, meat, r2_inv), lags, bandwidth, effective
+    return _sandwich(jac2, meat, r2_inv), None, bandwidth, effective
+
+
+def influence_covariance(jac2: np.ndarray, residual2: np.ndarray, influence1: np.ndarray, sensitivity: np.ndarray,
+                         boundaries: np.ndarray, kind: str, r2_inv: np.ndarray | None = None):
+    """The same covariance when the first step is given by its influence series: ``influence1`` (m x p1) holds,
+    per sample t, that sample's share of beta1_hat - beta1 (H1^-1 times the first step's scores, summed over
+    every row of sample t). A first step that is not one least-squares problem on the same samples (a joint
+    fit of C_L, C_D and C_m: three rows per sample, weighted) enters this way; then u_t = F2_t e2_t -
+    F2^T G21 psi_t. Only the kinds that work on the scores alone are available (``SCORE_KINDS``): ``white``
+    and ``colored`` model the two residual series, which a joint first step does not have."""
+    if kind not in SCORE_KINDS:
+        raise ValueError(f"the {kind!r} covariance needs the first step's residual series; with a first step "
+                         f"given by its influence use one of {', '.join(SCORE_KINDS)}")
+    r2_inv = inverse_factor(jac2) if r2_inv is None else r2_inv
+    scores = jac2 * residual2[:, None] - influence1 @ (jac2.T @ sensitivity).T
+    return _from_scores(jac2, scores, boundaries, kind, r2_inv)
+
+
+def influence_series(jac1: np.ndarray, residual1: np.ndarray, a1_inv: np.ndarray | None = None,
+                     rows_per_sample: int = 1) -> np.ndarray:
+    """Per sample, its share of a least-squares estimate's error: psi_t = H1^-1 sum_r F1_r e1_r over the rows r of
+    sample t (``rows_per_sample`` consecutive rows each: a joint problem interleaves its blocks sample by sample),
+    m x p1. ``a1_inv``: the first step's inverse factor when the caller has it (H1^-1 = a1_inv a1_inv^T)."""
+    a1_inv = inverse_factor(jac1) if a1_inv is None else a1_inv
+    scores = jac1 * residual1[:, None]
+    if rows_per_sample > 1:
+        scores = scores.reshape(-1, rows_per_sample, scores.shape[1]).sum(axis=1)
+    return (scores @ a1_inv) @ a1_inv.T

@@ -35,12 +35,13 @@ from ..engine.defaults import STALL_DEFAULTS
 from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores
 from ..engine.separation import SeparationState
-from ..engine.snls import solve
+from ..engine.snls import model_jacobian, solve
+from ..engine.twostep import influence_series
 from .bands import bands_document, curve_bands
 from .candidate_fit import fit_staged
 from .candidate_result import SplitScores
 from .candidates import Candidate
-from .lift_fit import LiftAt, LiftFit
+from .lift_fit import JointLift, LiftAt, LiftFit
 from .models import build_model, model_with_lift, used_states, with_lift_prediction
 from .options import FitOptions
 from .specs import load_grid
@@ -85,6 +86,7 @@ class JointFit:
     seconds: float = float("nan")
     bands: tuple = ()                       # per coefficient, its static curve's StaticBands (the joint covariance)
     history: tuple[Mapping[str, float], ...] = field(default=(), repr=False)   # weights per iteration
+    problem: JointProblem | None = field(default=None, repr=False)           # the settled stacked problem
 
     @property
     def name(self) -> str:
@@ -246,7 +248,31 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
                   for c, m in zip(order, models))
     return JointFit(tuple(order), result, tuple(coefficients), shared, iterations, settled, lift=lift_candidate,
                     lift_params=dict(read.params),
-                    seconds=time.perf_counter() - t0, bands=bands, history=tuple(history))
+                    seconds=time.perf_counter() - t0, bands=bands, history=tuple(history), problem=problem)
+
+
+def joint_lift(joint: JointFit) -> JointLift:
+    """The lift block of ``joint`` as the lift model of drag and pitch candidates (``search --joint-lift``): the
+    lift structure at the joint estimate, and the joint estimator's influence series of the lift parameters on
+    the training samples, psi_t = H^-1 (sum over sample t's rows of J_r e_r) restricted to them, for the
+    candidates' two-step covariance. Parameters the joint fit cannot identify are left out (and named)."""
+    lift = next((c for c in joint.candidates if c.coefficient == "CL"), None)
+    if lift is None:
+        raise DeclarationError(f"{joint.name} has no lift structure: drag and pitch would read a sequential lift "
+                               "model, not a joint one")
+    r, problem = joint.result, joint.problem
+    theta = np.array([r.params[n] for n in problem.nonlinear_names])
+    coef = np.array([r.params[n] for n in problem.linear_names])
+    jac = model_jacobian(problem.evaluate(theta), coef, len(theta))
+    names = r.names
+    basis = np.asarray(r.covariance_basis, bool)
+    psi = influence_series(jac[:, basis], np.asarray(r.residuals), r.jacobian_inverse_factor, problem.n_blocks)
+    kept = [n for n, keep in zip(names, basis) if keep]
+    own = [n for n in build_model(lift).nonlinear_names + build_model(lift).linear_names]
+    columns = [kept.index(n) for n in own if n in kept]
+    return JointLift(lift, {n: r.params[n] for n in own}, tuple(c.name for c in joint.candidates if c is not lift),
+                     psi[:, columns], tuple(n for n in own if n in kept),
+                     {n: why for n, why in r.not_identifiable.items() if n in own})
 
 
 def _box(problem: JointProblem, models, train):

@@ -29,6 +29,8 @@ class LiftContext:
     jacobian: np.ndarray           # model Jacobian on the measured training maneuvers, all parameters
     residual: np.ndarray           # measured C_L minus the lift model's output (training)
     basis: np.ndarray              # the parameters its covariance is computed on
+    influence: np.ndarray | None = None   # a joint lift's influence series on the basis (else the two-step
+    #                                       covariance uses ``jacobian`` and ``residual``)
     measured: tuple = ()           # the measured splits: held so that their ids (the memo's key) stay unique
 
     @property
@@ -43,7 +45,7 @@ class LiftContext:
 
 def lift_context(train: FlightData, validation: FlightData, lift: LiftFit) -> LiftContext:
     """The :class:`LiftContext` of ``lift`` on these splits, computed once per process."""
-    key = (id(train), id(validation), lift.name, tuple(sorted(lift.params.items())))
+    key = (id(train), id(validation), lift.name, tuple(sorted(lift.cache_key.items())))
     if key not in _CONTEXTS:
         if len(_CONTEXTS) >= 4:  # a search has few lift models; keep the memory bounded all the same
             _CONTEXTS.pop(next(iter(_CONTEXTS)))
@@ -51,11 +53,19 @@ def lift_context(train: FlightData, validation: FlightData, lift: LiftFit) -> Li
         jacobian, output = model.jacobian(train, lift.params)
         residual = train["CL"] - output
         names = model.nonlinear_names + model.linear_names
-        basis = covariance_basis(jacobian, names, lift.result.not_identifiable, len(model.nonlinear_names))
+        if lift.influence is None:
+            basis = covariance_basis(jacobian, names, lift.not_identifiable, len(model.nonlinear_names))
+        else:  # a joint lift: the parameters its joint fit identifies, in the order of its influence series
+            basis = np.array([n in lift.influence_names for n in names])
+            order = [lift.influence_names.index(n) for n in names if n in lift.influence_names]
+            if len(order) != len(lift.influence_names):
+                raise ValueError(f"the joint lift's influence names {lift.influence_names} are not {lift.name}'s")
         # the key holds the splits' ids: keep them alive with the entry so that no id is reused
         _CONTEXTS[key] = LiftContext(model, with_lift_prediction(train, lift.params, lift.candidate),
                                      with_lift_prediction(validation, lift.params, lift.candidate), jacobian,
-                                     residual, basis, (train, validation))
+                                     residual, basis,
+                                     None if lift.influence is None else np.asarray(lift.influence)[:, order],
+                                     (train, validation))
     return _CONTEXTS[key]
 
 

@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping
 
+import numpy as np
+
 from .candidate_result import CandidateResult
 from .candidates import Candidate
 
@@ -32,6 +34,16 @@ class LiftFit:
     def failed(self) -> bool:
         return self.result.failed
 
+    @property
+    def not_identifiable(self) -> Mapping[str, str]:
+        return self.result.not_identifiable
+
+    @property
+    def cache_key(self) -> dict:
+        """What the fits of drag and pitch candidates on this lift model depend on (their cache key)."""
+        return dict(self.params)
+
+    influence = None   # the two-step covariance uses the lift model's own Jacobian and residual
 
 
 @dataclass(frozen=True)
@@ -46,3 +58,27 @@ class LiftAt:
     @property
     def name(self) -> str:
         return self.candidate.name
+
+
+@dataclass(frozen=True, eq=False)
+class JointLift:
+    """The lift block of a joint fit as drag and pitch candidates read it (``search --joint-lift``): the lift
+    structure at the joint estimate, in the shape of a :class:`LiftFit`, with the joint estimator's influence
+    series for the two-step covariance of the candidates (the joint fit is their first step:
+    :func:`structsearch.engine.twostep.influence_covariance`)."""
+
+    candidate: Candidate
+    params: Mapping[str, float]
+    partners: tuple[str, ...]               # the structures fitted jointly with it
+    influence: np.ndarray                   # (training samples, len(influence_names))
+    influence_names: tuple[str, ...]        # the lift parameters the joint fit identifies
+    not_identifiable: Mapping[str, str]
+    failed: bool = False
+
+    @property
+    def name(self) -> str:
+        return self.candidate.name
+
+    @property
+    def cache_key(self) -> dict:
+        return {**self.params, "joint with": " + ".join(self.partners)}

@@ -23,7 +23,7 @@ from ..engine.results import FitResult
 from ..engine.snls import model_jacobian
 from ..engine.stallmodel import StallModel
 from ..engine.statistics import Covariances
-from ..engine.twostep import generated_regressor_covariance
+from ..engine.twostep import generated_regressor_covariance, influence_covariance
 
 if TYPE_CHECKING:
     from .lift_context import LiftContext
@@ -81,9 +81,15 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
     sensitivity = lift_sensitivity(model, result.params, predicted, jac1, context.names, lift.params,
                                    [n for n, keep in zip(context.names, basis1) if keep])
     cov = np.full((result.n_params, result.n_params), np.nan)
-    block, lags, bandwidth, effective_block = generated_regressor_covariance(
-        jac2[:, basis2], result.residuals, jac1[:, basis1], residual1, sensitivity, train.bounds,
-        kind, a1_inv=context.jacobian_inverse_factor, r2_inv=r2_inv)
+    if context.influence is None:
+        block, lags, bandwidth, effective_block = generated_regressor_covariance(
+            jac2[:, basis2], result.residuals, jac1[:, basis1], residual1, sensitivity, train.bounds,
+            kind, a1_inv=context.jacobian_inverse_factor, r2_inv=r2_inv)
+        first = "two-step, Murphy-Topel"
+    else:  # a joint lift: the joint fit is the first step, given by its influence series
+        block, lags, bandwidth, effective_block = influence_covariance(
+            jac2[:, basis2], result.residuals, context.influence, sensitivity, train.bounds, kind, r2_inv=r2_inv)
+        first = "the joint fit's influence, Murphy-Topel"
     cov[np.ix_(basis2, basis2)] = block
     effective = np.full(result.n_params, np.nan)
     effective[basis2] = effective_block
@@ -93,5 +99,4 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
         result, covariance=estimate.covariance, covariance_kind=kind, max_lag=estimate.max_lag,
         bandwidth=estimate.bandwidth,
         effective_maneuvers=estimate.effective_maneuvers,
-        generated_regressors=f"includes the estimation error of the lift model {lift.name} "
-                             "(two-step, Murphy-Topel)")
+        generated_regressors=f"includes the estimation error of the lift model {lift.name} ({first})")

@@ -278,7 +278,9 @@ STUDY_TABLES = {"legacy_vs_snls": "The legacy estimator against SNLS (Table 7)",
                 "final_vs_van_ingen_published": "Final lift model against Van Ingen's as published",
                 "dynamic_stalls": "CL-VI with and without the dynamic stalls (Tables 10.1-10.3)",
                 "separation_matrix": "Separation kinds, training MSE (Table 8)",
-                "derived": "Derived quantities", "collinearity": "Collinearity of the lift regressors"}
+                "derived": "Derived quantities", "collinearity": "Collinearity of the lift regressors",
+                "joint_vs_sequential": "The final models fitted jointly against sequentially (MSE)",
+                "joint_vs_sequential_parameters": "Their parameters and standard deviations, joint and sequential"}
 
 
 def _ranking_table(out: Path, grid: str, top: int = 10) -> str | None:

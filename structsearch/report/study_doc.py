@@ -74,9 +74,39 @@ def _estimators(study: Study, out: Path, command: str) -> list[Path]:
     return written
 
 
+def _joint(study: Study, out: Path, command: str) -> list[Path]:
+    j = study.joint
+    rows = [[s.coefficient, s.structure, s.sequential_validation, s.joint_validation,
+             100.0 * (s.joint_validation / s.sequential_validation - 1.0), s.sequential_train, s.joint_train]
+            for s in j.scores]
+    seq_rho, joint_rho = j.tau_correlation
+    note = (f"{' + '.join(j.structures)} fitted jointly: one separable problem in which the three coefficients share "
+            f"the separation parameters, each its own linear block, weighted by its inverse residual variance "
+            f"(settled after {j.iterations} iterations{'' if j.weights_settled else ': NOT settled'}"
+            f"{'' if j.converged else '; the optimizer did NOT converge'}). Sequential: the lift model alone, then "
+            f"drag and pitch on its states. rho(tau1_ss, tau2_ss) {_fmt(seq_rho, '+.2f')} (lift only) -> "
+            f"{_fmt(joint_rho, '+.2f')} (joint), with the {j.covariance} covariance of each fit.")
+    written = write_table(out, "joint_vs_sequential", "The final models fitted jointly against sequentially (MSE)",
+                          ["coefficient", "structure", "MSE val. sequential", "MSE val. joint", "% difference",
+                           "MSE train sequential", "MSE train joint"], rows, command, note)
+    rows = [[p.coefficient, p.name, p.sequential, p.sequential_sd, p.joint, p.joint_sd,
+             p.joint_sd / p.sequential_sd if p.sequential_sd > 0 else float("nan")] for p in j.parameters]
+    note = ("Standard deviations with each fit's covariance: the lift-only fit's own; drag and pitch sequential: "
+            "two-step on the lift-only model (its estimation error included); joint: the stacked problem's. A shared "
+            "separation parameter is listed under the lift model. Drag and pitch read the lift model's C_L in both; "
+            "the joint covariance treats that C_L as data (the weight iteration updates it), the two-step one "
+            "carries its error.")
+    written += write_table(out, "joint_vs_sequential_parameters", "Parameters of the final models, joint and "
+                           "sequential", ["coefficient", "parameter", "sequential", "sd sequential", "joint", "sd joint",
+                                          "sd joint / sequential"], rows, command, note)
+    return written
+
+
 def write(study: Study, out: Path, command: str, figures: bool = True) -> list[Path]:
     out = Path(out)
     written = _estimators(study, out, command)
+    if study.joint is not None:
+        written += _joint(study, out, command)
     written += _comparison(study, out, command, VAN_INGEN_REFITTED, "final_vs_van_ingen",
                           "Final models against Van Ingen's structures refitted (thesis Tables 17 and 11.1)")
     written += _comparison(study, out, command, VAN_INGEN_PUBLISHED, "final_vs_van_ingen_published",

@@ -4,7 +4,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 from ..data.campaign import Campaign
 from ..fitting.candidate_result import CandidateResult
@@ -15,7 +15,7 @@ from .refinement import Refinement, refine, structure_key
 from ..fitting.lift_fit import LiftFit
 from ..fitting.options import FitOptions
 from .runner import run
-from ..fitting.candidates import Grid
+from ..fitting.candidates import Candidate, Grid
 from ..fitting.specs import load_grid
 
 
@@ -26,6 +26,7 @@ class SearchResult:
     grids: dict[str, list[CandidateResult]]
     seconds: dict[str, float]
     refinements: dict[str, list[Refinement]] = field(default_factory=dict)
+    joint: object | None = None     # the JointFit whose lift block drag and pitch read (``joint_lift``)
 
 
 def grids_for(spec: str) -> list[Grid]:
@@ -63,14 +64,25 @@ def rules_for(campaign: Campaign, max_correlation: float = MAX_CORRELATION) -> A
 
 def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, options: FitOptions = FitOptions(),
            backend: str = "loky", progress: Callable[[str], None] | None = None,
-           do_refine: bool = True, max_correlation: float = MAX_CORRELATION) -> SearchResult:
-    """Fit and rank the grids of ``grid_spec``, refining each grid's best; ``out`` holds the cache."""
+           do_refine: bool = True, max_correlation: float = MAX_CORRELATION,
+           joint_lift: Sequence[Candidate] = ()) -> SearchResult:
+    """Fit and rank the grids of ``grid_spec``, refining each grid's best; ``out`` holds the cache.
+    ``joint_lift``: structures (a lift one among them) fitted jointly first; drag and pitch candidates that
+    name that lift structure read its joint estimate, and their two-step covariance has the joint fit as
+    its first step (:func:`structsearch.fitting.joint.joint_lift`)."""
     say = progress or (lambda m: None)
     rules = rules_for(campaign, max_correlation)
     grids = grids_for(grid_spec)
     ranked_by_grid, seconds = {}, {}
     refinements: dict[str, list[Refinement]] = {}
-    lifts: dict[str, LiftFit] = {}
+    lifts: dict = {}
+    joint = None
+    if joint_lift:
+        from ..fitting.joint import fit_joint, joint_lift as lift_of
+        say("joint lift model: " + " + ".join(c.name for c in joint_lift))
+        joint = fit_joint(list(joint_lift), campaign.split("train"), campaign.split("validation"), options)
+        read = lift_of(joint)
+        lifts[read.name] = read
     by_grid_results: dict[str, list[CandidateResult]] = {}
 
     def ensure_lift(names):
@@ -96,7 +108,8 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, op
         by_grid_results[grid.name] = results
         if grid.name == "lift":
             for c, s in zip(grid.candidates, results):
-                lifts[c.name] = LiftFit(c, s)
+                if c.name not in lifts or not joint_lift:   # a joint lift stays what drag and pitch read
+                    lifts[c.name] = LiftFit(c, s)
         by_name = {c.name: c for c in grid.candidates}
 
         def judge(result, by_name=by_name):
@@ -124,4 +137,4 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, op
                 ranked = rank(results + [s for _, s in extra], judge)
         ranked_by_grid[grid.name] = ranked
         seconds[grid.name] = time.perf_counter() - t0
-    return SearchResult(ranked_by_grid, seconds, refinements)
+    return SearchResult(ranked_by_grid, seconds, refinements, joint)

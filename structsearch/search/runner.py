@@ -93,7 +93,8 @@ def may_be_nonlinear(c: Candidate, lift_params: dict | None) -> bool:
 
 
 def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, options: FitOptions) -> Path:
-    """Where the fit of ``c`` on this data, lift model and options is cached. A warm start is not part of
+    """Where the fit of ``c`` on this data, lift model (``lift_params``: its ``cache_key``, the parameters, and a
+    joint lift's partners) and options is cached. A warm start is not part of
     the key: it chooses where the solver begins, not the question (the study and the report are served
     the search's fits, however they were started). The cross-validation method is, for a candidate that
     may have nonlinear parameters: the study and the report use "refit", so after a search with
@@ -133,7 +134,7 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     paths = {}
     for i, c in enumerate(candidates):
         lift = lifts.get(c.lift) if c.lift else None
-        paths[i] = cache_path(out, c, data_key, lift.params if lift else None, options)
+        paths[i] = cache_path(out, c, data_key, lift.cache_key if lift else None, options)
         results[i] = _read_cached(paths[i], say)
     cached = sum(r is not None for r in results)
     if cached:
@@ -144,7 +145,7 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
         # the lift grid's CL-VI is the separation grid's X_ss/X_w U/S: served the twin's fit as cached
         # under this run's key (the same data, options, lift model and code), never an object from elsewhere
         twin_lift = lifts.get(twin.lift) if twin.lift else None
-        fitted = _read_cached(cache_path(out, twin, data_key, twin_lift.params if twin_lift else None, options),
+        fitted = _read_cached(cache_path(out, twin, data_key, twin_lift.cache_key if twin_lift else None, options),
                               say)
         if fitted is not None and not fitted.failed:
             results[i] = dataclasses.replace(fitted, name=candidates[i].name, grid=candidates[i].grid)

@@ -1,6 +1,7 @@
 """The thesis' comparison tables regenerated on a campaign (issue 16): the legacy estimator against SNLS on Van
 Ingen's structures (Table 7), final models against Van Ingen's (as published and refitted), the dynamic-stall identifiability study, the separation grid as a 3 x 3 matrix, the
-final lift model's derived quantities and the collinearity of its regressors. Numerics only; the tables are
+final lift model's derived quantities and the collinearity of its regressors, and the final structures fitted
+jointly against sequentially (issue 29). Numerics only; the tables are
 rendered by :mod:`structsearch.report.study_doc`.
 """
 from __future__ import annotations
@@ -18,6 +19,7 @@ from ..fitting.specs import load_grid
 from .comparison import CoefficientScores, score_set
 from .derived import Collinearity, DerivedQuantity, collinearity, physical_quantities, separation_matrix
 from .dynamic_stalls import DynamicStallStudy, dynamic_stall_study
+from .joint_comparison import JointComparison, compare_joint
 from .legacy import EstimatorComparison, compare_estimators
 from .search_tables import ThesisTable, thesis_table
 from .model_set import fit_model_set
@@ -38,6 +40,7 @@ class Study:
     collinearity: Collinearity
     estimators: EstimatorComparison
     search_tables: tuple[ThesisTable, ...]
+    joint: JointComparison | None = None     # the final structures fitted jointly against sequentially
 
     def to_dict(self) -> dict:
         """Everything the study holds as plain JSON values (NaN where a number could not be computed; write it
@@ -50,7 +53,8 @@ class Study:
                 "derived": [d.to_dict() for d in self.derived],
                 "collinearity": self.collinearity.to_dict(),
                 "estimators": self.estimators.to_dict(),
-                "search_tables": [t.to_dict() for t in self.search_tables]}
+                "search_tables": [t.to_dict() for t in self.search_tables],
+                "joint": None if self.joint is None else self.joint.to_dict()}
 
 
 def run_study(campaign: Campaign, cache: Path, options: FitOptions = FitOptions(), n_jobs: int = 1,
@@ -60,6 +64,8 @@ def run_study(campaign: Campaign, cache: Path, options: FitOptions = FitOptions(
     say = progress or (lambda m: None)
     say("study: the final model set")
     final = fit_model_set(FINAL, FINAL_MODEL_NAMES, campaign, cache, options, n_jobs=n_jobs, progress=progress)
+    say("study: the final structures fitted jointly")
+    joint = compare_joint(final, campaign, options)
     say("study: Van Ingen's structures refitted")
     refitted = fit_model_set(VAN_INGEN_REFITTED, VAN_INGEN_MODEL_NAMES, campaign, cache, options, n_jobs=n_jobs,
                              progress=progress)
@@ -94,4 +100,5 @@ def run_study(campaign: Campaign, cache: Path, options: FitOptions = FitOptions(
                                     seed=options.seed, progress=progress)
     models = {FINAL: dict(FINAL_MODEL_NAMES), VAN_INGEN_REFITTED: dict(VAN_INGEN_MODEL_NAMES),
               VAN_INGEN_PUBLISHED: {"CL": VAN_INGEN_MODEL_NAMES["CL"]}}
-    return Study(models, tuple(scores), dynamic, kinds, matrix, tuple(derived), coll, estimators, tuple(tables))
+    return Study(models, tuple(scores), dynamic, kinds, matrix, tuple(derived), coll, estimators, tuple(tables),
+                 joint)
