@@ -94,8 +94,10 @@ def _fit(args) -> int:
     from .report.tables import parameter_table
     if args.joint:
         return _fit_joint(args)
+    if args.replay_maneuver is not None:
+        raise_error("--replay-maneuver goes with --joint (a replay flies C_L, C_D and C_m)")
     res = fit(args.data, args.model, starts=args.starts, seed=args.seed, covariance=args.covariance,
-              bounds=_bounds(args))
+              bounds=_bounds(args), band_samples=args.band_samples)
     summary, out = res.result, Path(args.out)
     write_json(out / "fit.json", res.to_dict())
     from .report.documents import bands_table
@@ -113,7 +115,8 @@ def _fit_joint(args) -> int:
     from .data.atomic import write_json, write_text
     from .report.documents import joint_markdown
     res = fit_joint(args.data, args.joint, starts=args.starts, seed=args.seed, covariance=args.covariance,
-                    bounds=_bounds(args))
+                    bounds=_bounds(args), band_samples=args.band_samples, replay_maneuver=args.replay_maneuver,
+                    progress=_progress(args))
     out = Path(args.out)
     write_json(out / "fit.json", res.to_dict())
     write_text(out / "fit.md", joint_markdown(res))

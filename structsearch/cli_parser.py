@@ -128,6 +128,12 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     which.add_argument("--joint", metavar="LIFT,DRAG,PITCH",
                        help="fit two or three structures jointly, sharing their separation states: names or spec "
                             "files, comma-separated, or a joint spec file ([joint] structures = [...])")
+    f.add_argument("--band-samples", type=_non_negative, default=0, metavar="N",
+                   help="cross-check the static curves' confidence bands by N parameter draws (seeded by --seed); "
+                        "with --joint of C_L, C_D and C_m also a validation maneuver's forward replay with its "
+                        "sampled band (default 0: delta method only)")
+    f.add_argument("--replay-maneuver", metavar="NAME", default=None,
+                   help="the validation maneuver the joint fit's sampled replay flies (default: the deepest)")
     f.set_defaults(func=handlers["fit"])
 
     r = sub.add_parser("search", help="fit and rank every candidate of a grid")

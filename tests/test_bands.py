@@ -190,3 +190,43 @@ def test_a_point_without_degrees_of_freedom_has_no_band():
     assert np.isnan(b.confidence_low[0]) and np.isnan(b.prediction_high[0])
     assert np.isfinite(b.confidence_low[1]) and b.confidence_half_width[1] == pytest.approx(
         stats.t.ppf(0.975, 5.0) * 0.3)
+
+
+def test_parameter_draws_have_the_estimates_mean_and_covariance_and_hold_what_cannot_be_estimated():
+    from structsearch.engine.bands import parameter_draws
+    values = np.array([1.0, -2.0, 0.5])
+    cov = np.array([[0.04, 0.018, np.nan], [0.018, 0.09, np.nan], [np.nan, np.nan, np.nan]])
+    draws = parameter_draws(values, cov, 20_000, seed=1)
+    assert draws.shape == (20_000, 3) and np.all(draws[:, 2] == 0.5)
+    np.testing.assert_allclose(draws[:, :2].mean(axis=0), values[:2], atol=4 * 0.3 / np.sqrt(20_000))
+    np.testing.assert_allclose(np.cov(draws[:, :2].T), cov[:2, :2], rtol=0.05)
+    # the same seed, the same draws
+    np.testing.assert_array_equal(parameter_draws(values, cov, 5, seed=7), parameter_draws(values, cov, 5, seed=7))
+    with pytest.raises(ValueError, match="at least 2"):
+        parameter_draws(values, cov, 1, seed=0)
+
+
+def test_sampled_limits_are_null_where_a_draw_is_not_finite():
+    from structsearch.engine.bands import sampled_limits
+    samples = np.random.default_rng(0).standard_normal((1000, 3))
+    samples[5, 1] = np.inf
+    low, high = sampled_limits(samples, 0.95)
+    assert np.isnan(low[1]) and np.isnan(high[1])
+    np.testing.assert_allclose([low[0], high[0]], [-1.96, 1.96], atol=0.15)
+
+
+def test_sampling_agrees_with_the_delta_method_where_the_curve_is_linear(fitted_finals):
+    """A drag or pitch structure on its lift model's states is linear in its own parameters: parameter sampling
+    must give the delta method's band (at the normal quantile) up to Monte Carlo error; the lift curve is not."""
+    from structsearch.fitting.bands import static_bands
+    from structsearch.fitting.lift_fit import LiftFit
+    train, finals = fitted_finals
+    lift = LiftFit(*finals["CL"])
+    for coefficient in ("CD", "Cm"):
+        cand, fit = finals[coefficient]
+        b = static_bands(cand, fit, train, lift, samples=400, seed=2)
+        ratio = b.sampled.ratio_to_delta
+        # the 2.5 % and 97.5 % quantiles of 400 normal draws: within ~10 % of the exact ones
+        assert np.nanmedian(ratio) == pytest.approx(1.0, abs=0.06) and np.nanmax(np.abs(ratio - 1)) < 0.2, coefficient
+        doc = b.to_dict()["static"][coefficient]["sampled"]
+        assert doc["draws"] == 400 and doc["seed"] == 2 and len(doc["confidence_low"]) == len(b.alpha)

@@ -265,3 +265,45 @@ def test_search_under_a_joint_lift_on_the_command_line(campaign_on_disk, tmp_pat
                    "--covariance", "white", "--out", str(tmp_path / "w"))
     assert proc.returncode != 0 and "--joint-lift with --covariance white" in proc.stderr
     assert not (tmp_path / "w").exists()
+
+
+def test_a_joint_fits_forward_replay_with_its_sampled_band(joint_and_sequential, simulated_campaign):
+    from structsearch.flight.replay import replay
+    from structsearch.flight.replay_bands import deepest_maneuver, joint_aero, replay_band
+    joint, _ = joint_and_sequential
+    val = simulated_campaign(seed=4, scale=0.1).split("validation")
+    rb = replay_band(joint, val, samples=16, seed=1)
+    index = deepest_maneuver(val)
+    assert rb.maneuver == val.names[index]
+    direct = replay(val.select([index]), joint_aero(joint, joint.result.params), rb.window_s)[0]
+    for s in ("alpha", "q", "theta", "V"):
+        np.testing.assert_array_equal(rb.estimate[s], direct.simulated[s])
+        assert len(rb.low[s]) == len(rb.t) and np.all(rb.low[s] <= rb.high[s])
+        # the band is the spread the parameters cause around the replay at the estimate: it holds it nearly always
+        inside = (rb.estimate[s] >= rb.low[s] - 1e-12) & (rb.estimate[s] <= rb.high[s] + 1e-12)
+        assert inside.mean() > 0.8, s
+    assert rb.diverged == 0 and rb.draws == 16
+    doc = rb.to_dict()
+    assert set(doc["states"]["alpha"]) == {"measured", "estimate", "confidence_low", "confidence_high"}
+    again = replay_band(joint, val, samples=16, seed=1)
+    np.testing.assert_array_equal(again.low["alpha"], rb.low["alpha"])
+    with pytest.raises(DeclarationError, match="no such maneuver"):
+        replay_band(joint, val, maneuver="nope", samples=4)
+
+
+@pytest.mark.slow
+def test_fit_joint_with_sampled_bands_on_the_command_line(campaign_on_disk, tmp_path, run_cli):
+    data = campaign_on_disk(seed=2, scale=0.05)
+    out = tmp_path / "j"
+    proc = run_cli("fit", "--data", str(data.directory), "--joint", "CL-VI,CD-IXr,Cm-XXXIIIr", "--starts", "1",
+                   "--band-samples", "8", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    bands = json.loads((out / "fit.json").read_text())["bands"]
+    assert bands["replay"]["draws"] == 8 and "alpha" in bands["replay"]["states"]
+    assert bands["static"]["CL"]["sampled"]["draws"] == 8
+    text = (out / "fit.md").read_text()
+    assert "Forward replay of" in text and "Cross-check by parameter sampling (8 draws" in text
+    proc = run_cli("fit", "--data", str(data.directory), "--model", "CL-VI", "--replay-maneuver", "x",
+                   "--out", str(tmp_path / "k"))
+    assert proc.returncode != 0 and "--replay-maneuver goes with --joint" in proc.stderr
+    assert not (tmp_path / "k").exists()

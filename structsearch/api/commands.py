@@ -56,10 +56,13 @@ def cache_directory(cache: str | os.PathLike | None) -> Iterator[Path]:
 
 
 def fit(campaign: Campaign | str | os.PathLike, model: str, *, starts: int = 4, seed: int = 0,
-        covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None, progress: Progress = None) -> FitOutcome:
+        covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None, progress: Progress = None,
+        band_samples: int = 0) -> FitOutcome:
     """Fit one candidate (a catalogue name such as ``"CD-IXr"`` or a spec file) as ``structsearch fit`` does:
     a drag or pitch candidate first fits the lift model it names, on the training maneuvers. The outcome holds
-    the static curve's 95 % confidence and prediction bands (``.bands``)."""
+    the static curve's 95 % confidence and prediction bands (``.bands``); ``band_samples`` > 0 adds their
+    cross-check by parameter sampling (that many draws, seeded by ``seed``)."""
+    _check_samples(band_samples)
     from ..fitting.candidate_fit import fit_lift_model, fit_staged
     from ..fitting.specs import resolve_candidate
     campaign = as_campaign(campaign)
@@ -74,16 +77,25 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, starts: int = 4, 
     if result.failed:
         raise DeclarationError(result.error)
     from ..fitting.bands import static_bands
-    return FitOutcome(candidate, result, lift, static_bands(candidate, result, train, lift))
+    return FitOutcome(candidate, result, lift, static_bands(candidate, result, train, lift, samples=band_samples,
+                                                            seed=seed))
+
+
+def _check_samples(band_samples: int) -> None:
+    if band_samples != 0 and band_samples < 2:
+        raise DeclarationError(f"--band-samples {band_samples}: parameter sampling needs at least 2 draws (0: none)")
 
 
 def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence[str], *, starts: int = 4,
               seed: int = 0, covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None,
-              progress: Progress = None):
+              progress: Progress = None, band_samples: int = 0, replay_maneuver: str | None = None):
     """Fit two or three structures (lift, drag, pitch) jointly, sharing their separation states, as
     ``structsearch fit --joint`` does: ``structures`` is "CL-VI,CD-IXr,Cm-XXXIIIr", a list of names or spec
     files, or a joint spec file. Returns the typed :class:`structsearch.fitting.joint.JointFit` (``to_dict()``
-    is its ``fit.json``)."""
+    is its ``fit.json``). ``band_samples`` > 0: the static bands' cross-check by parameter sampling and, for a
+    fit of all three coefficients, a validation maneuver's forward replay with its sampled band
+    (``replay_maneuver``, default the one that flies deepest; :mod:`structsearch.flight.replay_bands`)."""
+    _check_samples(band_samples)
     from ..fitting.joint import fit_joint as run, joint_structures
     campaign = as_campaign(campaign)
     candidates = joint_structures(structures if isinstance(structures, str) else ",".join(structures))
@@ -92,7 +104,17 @@ def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence
     candidates = [c.with_bounds(options.parameter_boxes) for c in candidates]
     if progress is not None:
         progress("fit: " + " + ".join(c.name for c in candidates) + " jointly")
-    return run(candidates, campaign.split("train"), campaign.split("validation"), options)
+    joint = run(candidates, campaign.split("train"), campaign.split("validation"), options, band_samples=band_samples)
+    if band_samples and {c.coefficient for c in candidates} == {"CL", "CD", "Cm"}:
+        import dataclasses
+        from ..flight.replay_bands import replay_band
+        if progress is not None:
+            progress(f"fit: the forward replay with {band_samples} parameter draws")
+        joint = dataclasses.replace(joint, replay=replay_band(joint, campaign.split("validation"), replay_maneuver,
+                                                             band_samples, seed))
+    elif replay_maneuver is not None:
+        raise DeclarationError("--replay-maneuver needs --band-samples and a joint fit of C_L, C_D and C_m")
+    return joint
 
 
 def search_candidates(grid: str) -> list:

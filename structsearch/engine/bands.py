@@ -106,3 +106,32 @@ def point_effective_maneuvers(jac: np.ndarray, residual: np.ndarray, boundaries:
     g = np.asarray(gradients, float)
     meats = maneuver_meats(jac, residual, boundaries, kind, bandwidth)
     return satterthwaite(np.einsum("pk,gkl,pl->gp", g, meats, g))
+
+
+def parameter_draws(values: np.ndarray, covariance: np.ndarray, n_draws: int, seed: int) -> np.ndarray:
+    """``n_draws`` parameter vectors from the normal distribution of the estimate (``values``, ``covariance``),
+    (n_draws, k): the cross-check of the delta method by parameter sampling. A parameter whose variance cannot be
+    estimated (NaN) is held at its estimate (a band it acts on is null by :func:`output_variance`; a sampled one
+    must say so too). The covariance's rounding-level negative eigenvalues are clipped to zero."""
+    values = np.asarray(values, float)
+    covariance = np.asarray(covariance, float)
+    if n_draws < 2:
+        raise ValueError(f"parameter sampling needs at least 2 draws, not {n_draws}")
+    finite = np.isfinite(np.diag(covariance))
+    sub = covariance[np.ix_(finite, finite)]
+    w, v = np.linalg.eigh(0.5 * (sub + sub.T)) if sub.size else (np.zeros(0), np.zeros((0, 0)))
+    root = v * np.sqrt(np.maximum(w, 0.0))
+    z = np.random.default_rng(seed).standard_normal((n_draws, int(finite.sum())))
+    draws = np.tile(values, (n_draws, 1))
+    draws[:, finite] += z @ root.T
+    return draws
+
+
+def sampled_limits(samples: np.ndarray, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+    """The pointwise equal-tailed ``level`` interval of sampled outputs (draws x points); NaN where a draw is
+    not finite (a diverged replay, say)."""
+    samples = np.asarray(samples, float)
+    tail = 100.0 * (0.5 - level / 2.0)
+    low, high = np.percentile(samples, [tail, 100.0 - tail], axis=0)
+    bad = ~np.all(np.isfinite(samples), axis=0)
+    return np.where(bad, np.nan, low), np.where(bad, np.nan, high)

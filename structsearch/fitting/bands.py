@@ -19,13 +19,14 @@ not change a single point's variance.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Mapping, Sequence
 
 import numpy as np
 
 from ..data.flightdata import FlightData
-from ..engine.bands import Band, band, point_effective_maneuvers
+from ..engine.bands import (Band, band, output_variance, parameter_draws, point_effective_maneuvers, quantile,
+                            sampled_limits)
 from ..engine.statistics import covariance_kind
 from .candidate_result import CandidateResult
 from .candidates import Candidate
@@ -43,6 +44,31 @@ CONDITIONS_TEXT = ("q* = 0, delta_e = 0, C_T = 0, alpha_dot = 0 (separation stat
 
 
 @dataclass(frozen=True)
+class SampledBand:
+    """A confidence band by parameter sampling: the outputs of ``draws`` parameter vectors drawn from the
+    estimate's normal distribution, and their pointwise equal-tailed interval. It needs no linearisation (the
+    separation states are nonlinear in a*, a1, tau), so where it departs from the delta method's band the
+    curve is not linear in its parameters over their uncertainty."""
+
+    low: np.ndarray
+    high: np.ndarray
+    draws: int
+    seed: int
+    held: tuple[str, ...] = ()     # parameters held at their estimate (their variance cannot be estimated)
+    # sampled half width / the delta method's at the normal quantile, per point: 1 where the curve is linear in
+    # its parameters over their uncertainty. (The delta band itself uses each point's t quantile: a point resting
+    # on few maneuvers is wider by t/z, which sampling from a normal does not know.)
+    ratio_to_delta: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def to_dict(self) -> dict:
+        r = self.ratio_to_delta[np.isfinite(self.ratio_to_delta)] if self.ratio_to_delta.size else np.zeros(0)
+        return {"confidence_low": self.low.tolist(), "confidence_high": self.high.tolist(), "draws": self.draws,
+                "seed": self.seed, "held_at_estimate": list(self.held),
+                "half_width_ratio_to_delta_normal": ({"median": float(np.median(r)), "min": float(r.min()),
+                                                      "max": float(r.max())} if r.size else None)}
+
+
+@dataclass(frozen=True)
 class StaticBands:
     """A fitted model's static curve with its bands on an alpha grid (rad)."""
 
@@ -52,6 +78,7 @@ class StaticBands:
     held: Mapping[str, float]            # the other columns the model reads, at their training means
     reasons: tuple[str, ...] = ()        # why a band is NaN somewhere (a parameter the data cannot identify)
     noise_bins: tuple[tuple[float, float, float], ...] = field(default=(), repr=False)  # (lo, hi, variance)
+    sampled: "SampledBand | None" = None  # the parameter-sampling cross-check of the confidence band
 
     @property
     def level(self) -> float:
@@ -73,7 +100,8 @@ def bands_document(bands: "Sequence[StaticBands]") -> dict:
               "conditions": {"text": CONDITIONS_TEXT, **{c: 0.0 for c in ZERO_COLUMNS},
                              "held_at_training_mean": held}}
     for b in bands:
-        static[b.coefficient] = {**b.band.to_dict(), "dof": b.band.dof.tolist(), "reasons": list(b.reasons)}
+        static[b.coefficient] = {**b.band.to_dict(), "dof": b.band.dof.tolist(), "reasons": list(b.reasons),
+                                 **({"sampled": b.sampled.to_dict()} if b.sampled is not None else {})}
     return {"level": bands[0].level, "static": static}
 
 
@@ -136,20 +164,47 @@ def _training_view(c: Candidate, train: FlightData, lift: LiftFit | None) -> Fli
 
 
 def static_bands(c: Candidate, result: CandidateResult, train: FlightData, lift: LiftFit | None = None,
-                 level: float = LEVEL, points: int = GRID_POINTS) -> StaticBands:
-    """The static curve of a fitted candidate with its confidence and prediction bands (module docstring)."""
+                 level: float = LEVEL, points: int = GRID_POINTS, samples: int = 0, seed: int = 0) -> StaticBands:
+    """The static curve of a fitted candidate with its confidence and prediction bands (module docstring);
+    ``samples`` > 0: with the parameter-sampling cross-check."""
     if result.failed or result.estimates is None:
         raise ValueError(f"{c.name}: a failed fit has no bands")
-    return curve_bands(c, result.estimates, train, lift, build_model(c, lift), level, points)
+    return curve_bands(c, result.estimates, train, lift, build_model(c, lift), level, points, samples, seed)
 
 
 def curve_bands(c: Candidate, est, train: FlightData, lift, model, level: float = LEVEL,
-                points: int = GRID_POINTS) -> StaticBands:
+                points: int = GRID_POINTS, samples: int = 0, seed: int = 0) -> StaticBands:
     """The bands of ``model``'s static curve with the estimates ``est`` (ParameterEstimates holding at least the
-    model's parameters: a single fit's, or a joint fit's whose covariance also spans the shared states)."""
+    model's parameters: a single fit's, or a joint fit's whose covariance also spans the shared states).
+    ``samples`` > 0 adds the parameter-sampling cross-check of the confidence band (:class:`SampledBand`)."""
     alpha, out, jac, names, held = static_evaluation(c, est.params, train, lift, points, model=model)
     b, reasons, table = _band(c, est, train, lift, model, names, out, jac, alpha, level)
-    return StaticBands(c.coefficient, alpha, b, held, reasons, table)
+    sampled = None
+    if samples:
+        sampled = sampled_curve(c, est, train, lift, model, samples, seed, level, points)
+        normal_half = np.sqrt(output_variance(jac, est.covariance[np.ix_(*[[est.names.index(n) for n in names]] * 2)])) \
+            * quantile(level, np.inf)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = 0.5 * (sampled.high - sampled.low) / normal_half
+        sampled = replace(sampled, ratio_to_delta=np.where(normal_half > 0, ratio, np.nan))
+    return StaticBands(c.coefficient, alpha, b, held, reasons, table, sampled)
+
+
+def sampled_curve(c: Candidate, est, train: FlightData, lift, model, samples: int, seed: int = 0,
+                  level: float = LEVEL, points: int = GRID_POINTS) -> SampledBand:
+    """The static curve of ``model`` for ``samples`` parameter vectors drawn from ``est`` (all its parameters,
+    jointly), and their pointwise interval."""
+    draws = parameter_draws(est.values, est.covariance, samples, seed)
+    names = model.nonlinear_names + model.linear_names
+    index = [est.names.index(n) for n in names]
+    curves = []
+    for d in draws:
+        with np.errstate(all="ignore"):
+            curves.append(static_evaluation(c, dict(zip(names, d[index])), train, lift, points, jacobian=False,
+                                            model=model)[1])
+    low, high = sampled_limits(np.array(curves), level)
+    held = tuple(n for n in names if not np.isfinite(est.covariance[est.names.index(n), est.names.index(n)]))
+    return SampledBand(low, high, samples, seed, held)
 
 
 def trace_bands(c: Candidate, result: CandidateResult, train: FlightData, data: FlightData,

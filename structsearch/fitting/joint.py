@@ -87,6 +87,7 @@ class JointFit:
     bands: tuple = ()                       # per coefficient, its static curve's StaticBands (the joint covariance)
     history: tuple[Mapping[str, float], ...] = field(default=(), repr=False)   # weights per iteration
     problem: JointProblem | None = field(default=None, repr=False)           # the settled stacked problem
+    replay: object | None = None            # a maneuver's forward replay with its sampled band (flight.replay_bands)
 
     @property
     def name(self) -> str:
@@ -113,7 +114,9 @@ class JointFit:
                 "weights": {c.coefficient: c.weight for c in self.coefficients},
                 "weight_iterations": self.iterations, "weights_settled": self.weights_settled,
                 "coefficients": {c.coefficient: c.to_dict() for c in self.coefficients},
-                **({"bands": bands_document(self.bands)} if self.bands else {}),
+                **({"bands": {**bands_document(self.bands),
+                              **({"replay": self.replay.to_dict()} if self.replay is not None else {})}}
+                   if self.bands else {}),
                 "seconds": self.seconds}
 
 
@@ -162,7 +165,7 @@ def _scores(y: np.ndarray, pred: np.ndarray, data: FlightData) -> SplitScores:
 
 def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: FlightData,
               options: FitOptions = FitOptions(), *, max_iterations: int = MAX_ITERATIONS,
-              tol: float = WEIGHT_TOLERANCE) -> JointFit:
+              tol: float = WEIGHT_TOLERANCE, band_samples: int = 0) -> JointFit:
     """Fit ``candidates`` (two or three of lift, drag, pitch) jointly (module docstring). Each is first fitted
     alone (its estimates start the joint fit, its residual variance gives the first weights)."""
     t0 = time.perf_counter()
@@ -244,7 +247,8 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
     shared = tuple(n for n in problem.nonlinear_names if sum(n in m.nonlinear_names for m in models) > 1)
     # each coefficient's static curve with the joint covariance: drag and pitch through the shared states too
     read = LiftAt(lift_candidate, lift_params_now(params))   # what drag and pitch read at the settled estimate
-    bands = tuple(curve_bands(c, result.estimates, train, None if c is lift_c else read, m)
+    bands = tuple(curve_bands(c, result.estimates, train, None if c is lift_c else read, m, samples=band_samples,
+                              seed=options.seed)
                   for c, m in zip(order, models))
     return JointFit(tuple(order), result, tuple(coefficients), shared, iterations, settled, lift=lift_candidate,
                     lift_params=dict(read.params),

@@ -46,11 +46,50 @@ def bands_table(bands, every: int = 6) -> str:
     from ..fitting.bands import CONDITIONS_TEXT
     held = ", ".join(f"{k} = {v:.4g}" for k, v in bands.held.items())
     reasons = ("\n\nNot estimable where these act: " + "; ".join(bands.reasons)) if bands.reasons else ""
-    return (f"## Static curve and its bands\n\nConditions: {CONDITIONS_TEXT}" + (f" ({held})" if held else "")
+    return (f"## Static curve of {bands.coefficient} and its bands\n\nConditions: {CONDITIONS_TEXT}"
+            + (f" ({held})" if held else "")
             + ". Confidence: where the true static curve lies (the delta method on the parameters' covariance); "
             "prediction: where a new measurement at that alpha lies (plus the training residual's variance in "
             "that alpha band). Each point's t quantile has its own degrees of freedom (its effective number of "
-            f"maneuvers minus one).\n\n{table}{reasons}\n")
+            f"maneuvers minus one).\n\n{table}{reasons}\n" + sampled_sentence(bands))
+
+
+def sampled_sentence(bands) -> str:
+    """The parameter-sampling cross-check of a static band, in one paragraph (empty without one)."""
+    s = bands.sampled
+    if s is None:
+        return ""
+    r = s.to_dict()["half_width_ratio_to_delta_normal"]
+    ratio = ("no point to compare" if r is None else
+             f"its half width is {r['median']:.2f} times the delta method's at the normal quantile (median over the "
+             f"grid; {r['min']:.2f} to {r['max']:.2f})")
+    held = f" Held at their estimates (no variance): {', '.join(s.held)}." if s.held else ""
+    return (f"\nCross-check by parameter sampling ({s.draws} draws from the estimate's normal distribution, seed "
+            f"{s.seed}): {ratio}. A ratio near 1 says the curve is linear in its parameters over their uncertainty; "
+            "the table's t quantiles are wider than the normal one where a point rests on few maneuvers."
+            f"{held}\n")
+
+
+def replay_paragraph(rb) -> str:
+    """A joint fit's sampled forward replay in ``fit.md``: per state the band's mean half width and the replay's
+    RMS error against the measurement."""
+    from tabulate import tabulate
+    rows = []
+    for s in ("alpha", "q", "theta", "V"):
+        half = 0.5 * (rb.high[s] - rb.low[s])
+        err = rb.estimate[s] - rb.measured[s]
+        inside = (rb.measured[s] >= rb.low[s]) & (rb.measured[s] <= rb.high[s])
+        rows.append([s, f"{np.sqrt(np.mean(err ** 2)):.4g}", f"{np.nanmean(half):.4g}", f"{np.mean(inside):.0%}"])
+    return "\n".join([
+        f"## Forward replay of {rb.maneuver} and its band", "",
+        f"The validation maneuver replayed through the simulator in {rb.window_s:g} s windows (each started from the "
+        f"measured states, driven open loop by the recorded elevator and thrust), at the joint estimate and for "
+        f"{rb.draws} parameter vectors drawn from the joint covariance (seed {rb.seed}; {rb.diverged} diverged and "
+        f"left out). The {rb.level:.0%} band is the spread the parameters' uncertainty alone causes: it does not hold "
+        "the aircraft's unmodelled forcing (turbulence, buffet, the coefficients' coloured residual), so the "
+        "measurement may lie outside it.", "",
+        tabulate(rows, headers=["state", "RMS error of the replay", "mean band half width", "measured inside band"],
+                 tablefmt="github"), ""])
 
 
 def joint_markdown(joint) -> str:
@@ -72,6 +111,9 @@ def joint_markdown(joint) -> str:
              tabulate(rows, headers=["coefficient", "structure", "MSE train", "MSE validation",
                                      "R^2 validation (mean)", "weight"], tablefmt="github"), "",
              "## Every parameter", "", parameter_table(r, "md"), ""]
+    lines += [sampled_sentence(b) for b in joint.bands if b.sampled is not None]
+    if joint.replay is not None:
+        lines.append(replay_paragraph(joint.replay))
     if not r.converged:
         lines.insert(2, f"**The optimizer did not converge** ({r.message}).\n")
     return "\n".join(lines)
