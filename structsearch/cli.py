@@ -68,6 +68,8 @@ def _preprocess(args) -> int:
     res = preprocess(args.raw, args.out, cutoffs=dict(args.cutoff or []), suggested_cutoffs=args.cutoffs == "spectra",
                      stall_alpha=args.stall_alpha, stall_state=args.stall_state, figures=not args.no_figures,
                      command=command, progress=None if args.quiet else progress)
+    for warning in res.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
     errors = ", ".join(f"{e.name} {e.estimate:.4g} +- {e.sd:.2g}" for e in res.preprocessed.reconstruction.errors)
     print(f"sensor errors: {errors}")
     if res.worst_r2:

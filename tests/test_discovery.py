@@ -227,6 +227,22 @@ def _move_to(parent, expression, **kw):
     return [(m, c) for m, c in moves if expression in {e for _, e in c.regressors} - {e for _, e in parent.regressors}]
 
 
+def test_a_term_is_replaced_by_a_modulated_pair_of_library_terms():
+    """The centre-of-pressure model replaces Cm_alpha by C_L and x_cg C_L together (either alone fits worse than
+    alpha): a replacement by two terms A and A*s, s a signal. Two unrelated signals are not such a pair."""
+    from structsearch.discovery.moves import modulated_pairs
+    cm = find_candidate("Cm-I")
+    moves = {m.label: c for m, c in generate(cm, _library("Cm"), _lifts())}
+    child = moves["replace Cm_alpha by Cm_CL = CL and Cm_xcgCL = x_cg/cbar*CL"]
+    assert "Cm_alpha" not in dict(child.regressors)
+    assert dict(child.regressors)["Cm_CL"] == "CL" and dict(child.regressors)["Cm_xcgCL"] == "x_cg/cbar*CL"
+    pairs = {(a[1], b[1]) for a, b in modulated_pairs(tuple(_library("Cm").instances(("ss", "w"))))}
+    assert ("CL", "x_cg/cbar*CL") in pairs and ("1 - X_w", "(1 - X_w)*CL") in pairs
+    assert ("qstar", "de") not in pairs and ("de", "Xde") not in pairs        # two signals; a state's ratio
+    assert not any(b == "max_half(X_ss)*de" for _, b in pairs)              # de * a state is not a modulation
+    assert ("CL", "CL**2") in {(a[1], b[1]) for a, b in modulated_pairs(tuple(_library("CD").instances(("ss",))))}
+
+
 def test_an_add_that_equals_a_library_effect_carries_its_name():
     cd = find_candidate("CD-I")
     ((move, child),) = [(m, c) for m, c in _move_to(cd, "CL**2") if m.kind == "add"]

@@ -192,6 +192,21 @@ def test_preprocess_command_end_to_end(tmp_path, capsys):
     assert main(["fit", "--data", str(out), "--model", "CL-I", "--out", str(tmp_path / "fit")]) == 0
 
 
+def test_preprocess_without_matplotlib_writes_everything_but_the_figures(small_raw, tmp_path, capsys, monkeypatch):
+    """Issue 30: without the figures extra, the campaign and the record are written, the figures skipped with one
+    warning line (before: one error, and the coefficients asked for were not written)."""
+    from structsearch.report import figures
+    monkeypatch.setattr(figures, "plt", None)
+    out = tmp_path / "std"
+    assert main(["preprocess", "--raw", str(small_raw), "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    warnings = [line for line in err.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1 and "matplotlib" in warnings[0]
+    assert {"CL", "CD", "Cm"} <= set(read_campaign(out).data.columns)
+    md = (out / "preprocess.md").read_text()
+    assert "Spectra figures not drawn" in md and not list(out.glob("*.png"))
+
+
 @pytest.fixture(scope="module")
 def small_raw(tmp_path_factory):
     return write_campaign(build_campaign(seed=5, scale=0.05, raw=True), tmp_path_factory.mktemp("raw") / "c")

@@ -248,15 +248,18 @@ def preprocess(raw: Campaign | str | os.PathLike, out: str | os.PathLike | None 
                             stall_alpha_rad=None if stall_alpha is None else np.deg2rad(stall_alpha),
                             stall_state=stall_state, progress=progress)
     directory = markdown = None
+    warnings: tuple[str, ...] = ()
     if out is not None:
-        from ..report.preprocess_doc import write
+        from ..report.preprocess_doc import NO_FIGURES, figures_available, write
+        if figures and not figures_available():
+            warnings = (f"figures skipped: {NO_FIGURES}; the campaign and preprocess.md are written",)
         directory = write_campaign(result.campaign, Path(out))
         markdown = write(result, directory, command or f"structsearch preprocess --raw {raw} --out {out}",
                          time.perf_counter() - started, figures=figures)
     worst: dict[str, float] = {}
     for _, name, r2 in truth_agreement(result.campaign):
         worst[name] = np.fmin(worst.get(name, np.inf), r2)   # a NaN R^2 (constant truth) does not hide others
-    return PreprocessOutcome(result, directory, markdown, worst, time.perf_counter() - started)
+    return PreprocessOutcome(result, directory, markdown, worst, time.perf_counter() - started, warnings)
 
 
 def study(campaign: Campaign | str | os.PathLike, *, out: str | os.PathLike | None = None,

@@ -83,6 +83,7 @@ class PreprocessOutcome:
     markdown: Path | None
     worst_r2: dict[str, float]
     seconds: float
+    warnings: tuple[str, ...] = ()   # what was skipped, and why (the figures without matplotlib)
 
     @property
     def campaign(self) -> Campaign:

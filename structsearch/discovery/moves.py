@@ -2,7 +2,10 @@
 
 * ``add`` a term of the term library, ``drop`` a term, ``replace`` one term by another (a term on a state by a
   term on the same state, a term on signals by a term on signals: the structural replacements of the thesis,
-  alpha -> C_L^2 in drag, a Cm_alpha term -> a centre-of-pressure term);
+  alpha -> C_L^2 in drag, a Cm_alpha term -> a centre-of-pressure term), or one term by a *modulated pair*:
+  two library terms A and A * s whose ratio s is a signal (no separation state), such as C_L and x_cg C_L: the
+  centre-of-pressure model Cm = C_L (x_cg - x_cp) / cbar replaces Cm_alpha alpha only as a pair, since
+  either term alone in its place fits worse than alpha;
 * ``state kind``: a separation state's kind one step along S <-> Q <-> U (own states only: a drag or pitch
   candidate takes its states from its lift model);
 * ``add state`` / ``remove state``: a separation state with its own K term (K_L, 1 - X, (1 - X) C_L), or a state
@@ -20,9 +23,11 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Mapping
 
 from ..data.errors import DeclarationError
+from ..engine.regressors import parse, symbol_names
 from ..engine.separation import SeparationState
 from ..fitting.candidates import Candidate
 from ..search.refinement import structure_key  # noqa: F401  (what makes two structures the same model)
@@ -130,7 +135,47 @@ def _term_moves(c: Candidate, library: TermLibrary) -> list[tuple[Move, Candidat
             new_name = _unique(new_name, {n for n, _ in rest})
             label = f"replace {name} by {new_name} = {new_expr}"
             out.append((Move("replace", label), _child(c, label, rest[:i] + ((new_name, new_expr),) + rest[i:])))
+        for (a_name, a_expr), (b_name, b_expr) in modulated_pairs(tuple(options)):
+            if normalise(expr) in (normalise(a_expr), normalise(b_expr)):
+                continue
+            a_name = _unique(a_name, {n for n, _ in rest})
+            b_name = _unique(b_name, {n for n, _ in rest} | {a_name})
+            label = f"replace {name} by {a_name} = {a_expr} and {b_name} = {b_expr}"
+            out.append((Move("replace", label),
+                        _child(c, label, rest[:i] + ((a_name, a_expr), (b_name, b_expr)) + rest[i:])))
     return out
+
+
+@lru_cache(maxsize=256)
+def modulated_pairs(options: tuple[tuple[str, str], ...]) -> tuple[tuple[tuple[str, str], tuple[str, str]], ...]:
+    """The pairs (A, B) of library instances with B = A * s for a signal s: B / A cancels to an expression of data
+    columns that is not a number and holds no separation state (C_L and x_cg/cbar*C_L; not de and X*de, whose
+    ratio is a state's). The intercept pairs with every term and is left out."""
+    import sympy as sp
+    parsed = []
+    for name, expr in options:
+        if normalise(expr) == "1":
+            continue
+        try:
+            parsed.append((name, expr, parse(expr, known=symbol_names(expr))))
+        except DeclarationError:
+            continue
+    out = []
+    for a_name, a_expr, a in parsed:
+        for b_name, b_expr, b in parsed:
+            if a_name == b_name:
+                continue
+            ratio = sp.cancel(b / a)
+            free = {str(x) for x in ratio.free_symbols}
+            # a helper of a state (max_half(X), K2(X, 1)) holds the state's symbol: a free symbol of the ratio
+            if not free or any(STATE_SYMBOL.fullmatch(x) for x in free):
+                continue
+            # B holds A as a factor: the ratio divides by none of A's symbols (qstar / de is two signals, not a
+            # modulation of one; x_cg / cbar divides by a constant)
+            if sp.fraction(ratio)[1].free_symbols & a.free_symbols:
+                continue
+            out.append(((a_name, a_expr), (b_name, b_expr)))
+    return tuple(out)
 
 
 def _state_of(expr: str) -> str:

@@ -37,7 +37,7 @@ def _errors_table(rec: Reconstruction, injected: dict) -> str:
     return tabulate(rows, headers, tablefmt="github", disable_numparse=True)
 
 
-def markdown(p: Preprocessed, command: str, seconds: float | None = None) -> str:
+def markdown(p: Preprocessed, command: str, seconds: float | None = None, figures: bool = True) -> str:
     rec = p.reconstruction
     injected = {k: float(v) for k, v in p.raw.extra.items() if str(k).startswith("injected_")}
     lines = [f"# Preprocessing of {p.raw.name}", "", f"Command: `{command}`", ""]
@@ -60,9 +60,12 @@ def markdown(p: Preprocessed, command: str, seconds: float | None = None) -> str
                      c.source])
     lines += [tabulate(rows, ["channel", "buffet peaks [Hz]", "rigid-body bandwidth [Hz]", "Table 5 / default [Hz]",
                               "suggested [Hz]", "applied [Hz]", "from"], tablefmt="github", disable_numparse=True), ""]
-    for group in CHANNEL_GROUPS:
-        if any(c in spectra for c in CHANNEL_GROUPS[group]):
-            lines.append(f"![{group}]({_group_file(group)})")
+    if figures:
+        for group in CHANNEL_GROUPS:
+            if any(c in spectra for c in CHANNEL_GROUPS[group]):
+                lines.append(f"![{group}]({_group_file(group)})")
+    else:
+        lines.append(f"(Spectra figures not drawn: {NO_FIGURES}.)")
     lines += ["", "## Flight-path reconstruction", "",
               f"Extended Kalman filter and RTS smoother over u, w, theta, h with the sensor errors as constant "
               f"states shared by all maneuvers; step {rec.step_s:g} s ({rec.n_steps} steps); every channel "
@@ -94,15 +97,26 @@ def markdown(p: Preprocessed, command: str, seconds: float | None = None) -> str
     return "\n".join(lines) + "\n"
 
 
+NO_FIGURES = "matplotlib, an optional dependency, is not installed (pip install 'structsearch[figures]')"
+
+
+def figures_available() -> bool:
+    from . import figures as fig
+    return fig.plt is not None
+
+
 def write(p: Preprocessed, out: Path, command: str, seconds: float | None = None, figures: bool = True) -> Path:
+    """``preprocess.md`` and, with ``figures``, the spectra figures under ``out``. Without matplotlib the figures
+    are skipped (the caller warns: :func:`figures_available`) and the record says so; the campaign and the record
+    are written all the same."""
     out = Path(out)
+    figures = figures and figures_available()
     if figures:
         from . import figures as fig
-        fig.require()
         spectra = {s.channel: s for s in p.spectra}
         applied = {c.channel: c.applied_hz for c in p.cutoffs}
         for group, channels in CHANNEL_GROUPS.items():
             present = {c: spectra[c] for c in channels if c in spectra}
             if present:
                 fig.save(fig.spectra(group, present, applied), out / _group_file(group))
-    return write_text(out / "preprocess.md", markdown(p, command, seconds))
+    return write_text(out / "preprocess.md", markdown(p, command, seconds, figures))
