@@ -102,8 +102,9 @@ def _fit(args) -> int:
               bounds=_bounds(args), band_samples=args.band_samples)
     summary, out = res.result, Path(args.out)
     write_json(out / "fit.json", res.to_dict())
-    from .report.documents import bands_table
-    write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + parameter_table(summary, "md")
+    from .report.documents import bands_table, covariance_sentence
+    write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + covariance_sentence(summary.estimates.covariance_record())
+               + "\n" + parameter_table(summary, "md")
                + ("\n\n" + bands_table(res.bands) if res.bands is not None else ""))
     not_converged = "" if summary.converged else f"; the optimizer did NOT converge ({summary.message})"
     print(f"{res.candidate.name}: MSE train {summary.mse_train:.4g}, validation {summary.mse_validation:.4g}; "

@@ -43,6 +43,23 @@ def test_fit_report_formats(flagged_fit, fmt):
         assert "at lower bound" in text and "|rho| > 0.9" in text and "t-test accepts 0" in text
 
 
+def test_the_parameter_table_gives_each_reference_dof_and_flags_few_maneuvers(flagged_fit):
+    """Issue 30: the t reference's degrees of freedom beside each standard deviation, and a flag where it is
+    below FEW_DOF (the few maneuvers behind it make the standard deviation itself uncertain)."""
+    import dataclasses
+    from structsearch.engine.summary import FEW_DOF, parameter_rows, parameter_table
+    rows = {r[0]: r for r in parameter_rows(flagged_fit)}
+    for name, dof in flagged_fit.reference_dof.items():
+        assert rows[name][4] == pytest.approx(dof)
+    assert "ref. dof" in parameter_table(flagged_fit, "md")
+    few = dataclasses.replace(flagged_fit.estimates, stated={**flagged_fit.estimates.stated,
+                                                             "reference_dof": {**flagged_fit.reference_dof, "c0": 2.0}})
+    fit = dataclasses.replace(flagged_fit, estimates=few)
+    flags = {r[0]: r[-1] for r in parameter_rows(fit)}
+    assert "few maneuvers (t dof 2.0)" in flags["c0"]
+    assert not any("few maneuvers" in f for n, f in flags.items() if fit.reference_dof[n] >= FEW_DOF)
+
+
 def test_result_is_immutable_and_serialises(flagged_fit):
     with pytest.raises(AttributeError):
         flagged_fit.model = "other"

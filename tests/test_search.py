@@ -9,6 +9,7 @@ from structsearch.data.flightdata import FlightData
 from structsearch.engine.scores import R2Summary
 from structsearch.report.tables import write_tables
 from structsearch.fitting.candidate_result import CandidateResult, SplitScores
+from structsearch.fitting.candidates import Candidate
 from structsearch.search.ranking import rank
 from structsearch.search.runner import run
 from structsearch.fitting.lift_fit import LiftFit
@@ -198,7 +199,10 @@ def test_cli_fit_search_and_dask(tiny, tmp_path):
     for low, high in (("confidence_low", "confidence_high"), ("prediction_low", "prediction_high")):
         assert all(lo <= e <= hi for lo, e, hi in zip(static["CD"][low], static["CD"]["estimate"], static["CD"][high]))
     assert static["conditions"]["CT"] == 0.0 and "V" in static["conditions"]["held_at_training_mean"]
-    assert "Static curve and its bands" in (tmp_path / "fit" / "fit.md").read_text()
+    md = (tmp_path / "fit" / "fit.md").read_text()
+    assert "Static curve of CD and its bands" in md
+    # fit.md says which covariance made the standard deviations, and each reference dof (issue 30)
+    assert "the `hac-maneuver` covariance (per maneuver" in md and "ref. dof" in md
     # what produced the standard errors: the kind, the maneuvers it groups, each parameter's reference dof
     cov = doc["covariance"]
     assert cov["kind"] == "hac-maneuver" and cov["groups"] > 1 and set(cov["reference_dof"]) == set(doc["params"])
@@ -385,3 +389,70 @@ def test_fit_prints_no_numpy_warnings(tiny, tmp_path):
                                "--data", str(tiny.directory), "--out", str(tmp_path / args[0])],
                               capture_output=True, text=True, timeout=600)
         assert proc.returncode == 0 and "Warning" not in proc.stderr, proc.stderr
+
+
+def _stub(names, p, corr=None, centred=None, mse=1.0):
+    """What refinement reads of a fitted candidate, without a fit."""
+    from types import SimpleNamespace
+    corr = np.eye(len(names)) if corr is None else np.asarray(corr, float)
+    return SimpleNamespace(names=tuple(names), p_values=dict(zip(names, p)), correlation_matrix=corr,
+                           centred_correlation=() if centred is None else tuple(map(tuple, centred)),
+                           insignificant=[n for n, v in zip(names, p) if v > 0.05], failed=False,
+                           comparison=SimpleNamespace(mse=mse), error=None)
+
+
+def test_refinement_tries_every_insignificant_term_before_a_correlated_pair_read_centred():
+    """Issue 30's case: an insignificant term that has a correlated partner is tried first (before: skipped for
+    the pair, whose dropping cost 4857 % and ended the refinement); a pair the centred correlation forgives (C_L
+    with x_cg C_L) is not chased."""
+    from structsearch.search.refinement import _options, refine
+    c = Candidate("P", "pitch", "Cm", (("c0", "1"), ("cl", "CL"), ("xcl", "x_cg/cbar*CL"), ("xde", "X_w*de"),
+                                       ("de", "de")), (), "CL-VI")
+    names = ["c0", "cl", "xcl", "xde", "de"]
+    raw = np.eye(5)
+    raw[1, 2] = raw[2, 1] = 0.98          # C_L and x_cg C_L, uncentred
+    raw[3, 4] = raw[4, 3] = 0.85          # the insignificant term has a partner
+    centred = raw.copy()
+    centred[1, 2] = centred[2, 1] = 0.3   # centring x_cg dissolves the first pair
+    summary = _stub(names, [1e-9, 1e-6, 1e-5, 0.4, 1e-8], raw, centred)
+    options = _options(c, summary)
+    assert options[0][0] == "xde" and options[0][1].startswith("t-test accepts 0")
+    assert "cl" not in {n for n, _ in options} and "xcl" not in {n for n, _ in options}
+    # read as estimated (no centred correlation), the C_L pair comes after the insignificant term
+    assert [n for n, _ in _options(c, _stub(names, [1e-9, 1e-6, 1e-5, 0.4, 1e-8], raw))][:2] == ["xde", "xcl"]
+    fitted = []
+
+    def fit(cand):
+        fitted.append(cand.name)
+        return _stub([n for n, _ in cand.regressors], [1e-9] * len(cand.regressors), mse=1.001)
+    done = refine(c, summary, fit)
+    assert [dict(s.regressors).keys() for s, _ in done.steps] == [{"c0", "cl", "xcl", "de"}]
+    assert fitted == ["Pr-auto"] and done.stopped == "nothing left to drop"
+
+
+def test_refinement_tries_the_next_term_when_one_costs_and_says_why_it_stopped():
+    from structsearch.search.refinement import refine
+    c = Candidate("Q", "lift", "CL", (("c0", "1"), ("a", "alpha"), ("b", "de"), ("k", "K_L(X)")), (("", "U"),),
+                  None, "", (("a_star", (0.1, 0.3)),))
+    summary = _stub(["tau1", "tau2", "a1", "a_star", "c0", "a", "b", "k"], [0.0] * 4 + [1e-9, 0.5, 0.3, 1e-9])
+
+    def fit(cand):   # dropping a costs 5 %, dropping b 0.5 %
+        kept = {n for n, _ in cand.regressors}
+        mse = 1.05 if "a" not in kept else 1.005
+        return _stub(["tau1", "tau2", "a1", "a_star"] + sorted(kept), [0.0] * 4 + [1e-9] * len(kept), mse=mse)
+    done = refine(c, summary, fit)
+    ((step, _),) = done.steps
+    assert "b" not in dict(step.regressors) and "a" in dict(step.regressors)
+
+
+def test_refinement_drops_a_state_with_its_last_regressor():
+    from structsearch.search.refinement import _refined
+    c = Candidate("S", "lift", "CL", (("c0", "1"), ("k", "K_L(X_ss)"), ("w", "K_L(X_w)")),
+                  (("ss", "U"), ("w", "S")), None, "", (("a_star_ss", (0.05, 0.27)), ("a_star_w", (0.22, 0.45))))
+    refined = _refined(c, ["w"], "r-auto")
+    assert refined.states == (("ss", "U"),) and dict(refined.bounds) == {"a_star_ss": (0.05, 0.27)}
+    assert "X_w" in refined.note
+    # a drag or pitch candidate keeps its lift model's states
+    d = Candidate("D", "drag", "CD", (("c0", "1"), ("x", "1 - X_w"), ("s", "1 - X_ss")), (("ss", "U"), ("w", "S")),
+                  "CL-VI")
+    assert _refined(d, ["x"], "r-auto").states == d.states

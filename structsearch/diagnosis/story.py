@@ -89,6 +89,18 @@ def _step_words(name: str, share: float, effect: bool) -> str:
     return f"{what} closes {share:.0%} of that gap"
 
 
+def _reached(doc: Diagnosis) -> str:
+    """The structure a story ends with, by its terms (a long path's name is a hash: it would tell a reader
+    nothing)."""
+    structure = doc.final_structure
+    if not structure or not doc.rounds or doc.rounds[-1].baseline == doc.baseline:
+        return doc.final_model
+    terms = " + ".join(expr for expr in structure["regressors"].values())
+    states = ", ".join(f"{'X_' + n if n else 'X'} {k}" for n, k in structure["states"].items())
+    lift = f" on {structure['lift']}" if structure.get("lift") else ""
+    return f"the structure reached, {doc.coefficient} = {terms} ({states or 'no separation state'}{lift}),"
+
+
 def _above(mse: float, floor: float) -> str:
     return f"{mse / floor - 1:.0%}" if floor > 0 else "n/a"
 
@@ -107,7 +119,7 @@ def story_lines(docs: Mapping[str, Diagnosis]) -> list[str]:
             text += "; " + ", then ".join(_step_words(name, share, name in effects) for name, share in steps)
         verdict = ("at the floor" if doc.explained else
                    f"still {_above(doc.final_mse, floor)} above the floor")
-        text += f"; {doc.final_model} is {verdict}"
+        text += f"; {_reached(doc)} is {verdict}"
         sl = doc.state_level
         if sl is not None and not sl.failed:
             text += (f" (replayed alpha RMS {sl.before.alpha:.4f} -> {sl.after.alpha:.4f} rad with the "

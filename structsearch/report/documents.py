@@ -54,6 +54,23 @@ def bands_table(bands, every: int = 6) -> str:
             f"maneuvers minus one).\n\n{table}{reasons}\n" + sampled_sentence(bands))
 
 
+def covariance_sentence(record: dict) -> str:
+    """What produced a fit's standard deviations and p-values (its ``covariance`` record), in one line of
+    ``fit.md``."""
+    from ..engine.summary import FEW_DOF
+    how = []
+    if record.get("groups") is not None:
+        how.append(f"per maneuver, {record['groups']} maneuvers")
+    if record.get("bandwidth") is not None:
+        how.append(f"Bartlett bandwidth {record['bandwidth']:.1f} samples")
+    if record.get("max_lag") is not None:
+        how.append(f"lags up to {record['max_lag']}")
+    return (f"Standard deviations and p-values: the `{record['kind']}` covariance"
+            + (f" ({'; '.join(how)})" if how else "")
+            + f"; each parameter's t reference has the degrees of freedom in the column `ref. dof` (its effective "
+            f"maneuvers minus one with a per-maneuver covariance), flagged \"few maneuvers\" below {FEW_DOF:g}.\n")
+
+
 def sampled_sentence(bands) -> str:
     """The parameter-sampling cross-check of a static band, in one paragraph (empty without one)."""
     s = bands.sampled
@@ -110,7 +127,8 @@ def joint_markdown(joint) -> str:
              "record).", "",
              tabulate(rows, headers=["coefficient", "structure", "MSE train", "MSE validation",
                                      "R^2 validation (mean)", "weight"], tablefmt="github"), "",
-             "## Every parameter", "", parameter_table(r, "md"), ""]
+             "## Every parameter", "", covariance_sentence(r.estimates.covariance_record()),
+             parameter_table(r, "md"), ""]
     lines += [sampled_sentence(b) for b in joint.bands if b.sampled is not None]
     if joint.replay is not None:
         lines.append(replay_paragraph(joint.replay))

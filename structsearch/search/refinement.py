@@ -1,15 +1,23 @@
 """Refinement (thesis chapter 10): drop what the data cannot support while the fit barely changes.
 
-A well-fitting candidate that is not admissible because some of its terms are insignificant or
-strongly correlated is refined step by step, one term at a time: first the least significant
-linear term whose t-test accepts zero and that has no partner correlated above |rho| = 0.8 (a
-partner inflates its variance, so such terms are judged as a pair), then the less significant of
-the most correlated pair above 0.8 (the thesis' threshold, read from the full correlation
-matrix), as long as the held-out MSE (cross-validation, else validation) rises by less than 1 %.
-A step that would leave a separation state without a regressor is not taken; the refinement
-says so. Pairs are read from the correlations as estimated (the thesis' rule: C_L and C_L^2 are a
-pair), not from the datum-free ones admissibility judges, where centring C_L dissolves that pair. A refined structure that equals a candidate already fitted (the thesis'
-declared CD-IXr, for one) reuses that result and is reported as reached.
+A well-fitting candidate that is not admissible because some of its terms are insignificant or strongly
+correlated is refined step by step, one term at a time. Each step tries, in this order, until one is taken:
+
+1. every linear term whose t-test accepts zero, least significant first (correlated or not: issue 30, where a
+   term insignificant only because a partner shares its variance was skipped for the pair, whose dropping then
+   cost 4857 % and ended the refinement before the insignificant term was ever tried);
+2. the less significant member of each pair correlated above |rho| = 0.8 (the thesis' threshold), most
+   correlated first. Correlations are read as admissibility reads them: with the data columns centred where
+   centring keeps the model (``CandidateResult.centred_correlation``), else as estimated. A pair the ranking
+   forgave (C_L with x_cg C_L, one column times another) is not chased.
+
+A drop is taken when the held-out MSE (cross-validation, else validation) rises by less than 1 %. A drop that
+removes a separation state's last regressor removes the state too (its parameters and box): the state can no
+longer be identified, and keeping it would end the refinement (a drag or pitch candidate keeps its lift model's
+states, whose parameters it does not estimate). Every structure a step takes is a candidate of the
+ranking (the search adds them), so the best admissible one it passes through is kept. A refined structure that
+equals a candidate already fitted (the thesis' declared CD-IXr, for one) reuses that result and is reported as
+reached.
 """
 from __future__ import annotations
 
@@ -41,10 +49,20 @@ class Refinement:
 
 
 def _refined(c: Candidate, drop: list[str], suffix: str) -> Candidate:
-    """``c`` without the regressors in ``drop`` (all drops so far, relative to ``c``)."""
+    """``c`` without the regressors in ``drop`` (all drops so far, relative to ``c``), and without the separation
+    states no remaining regressor uses (with their parameters' boxes)."""
     regs = tuple(r for r in c.regressors if r[0] not in drop)
-    return Candidate(f"{c.name}{suffix}", c.grid, c.coefficient, regs, c.states, c.lift,
-                     f"refined from {c.name}: dropped {', '.join(drop)}", c.bounds)
+    # a drag or pitch candidate reads its lift model's states (their parameters fixed): one it no longer uses
+    # costs nothing, and its states must stay the lift model's
+    orphans = set() if c.lift else set(_orphans(c, drop))
+    states = tuple((n, k) for n, k in c.states if SeparationState(n, k).symbol not in orphans)
+    kept = {p for n, k in states for p in SeparationState(n, k).parameters}
+    gone = {p for n, k in c.states for p in SeparationState(n, k).parameters} - kept
+    bounds = tuple((name, box) for name, box in c.bounds if name not in gone)
+    note = f"refined from {c.name}: dropped {', '.join(drop)}"
+    if orphans:
+        note += f" and the state(s) {', '.join(sorted(orphans))} they left without a regressor"
+    return Candidate(f"{c.name}{suffix}", c.grid, c.coefficient, regs, states, c.lift, note, bounds)
 
 
 def structure_key(c: Candidate) -> tuple:
@@ -67,11 +85,30 @@ def _p(summary: CandidateResult, name: str) -> float:
 
 
 def _correlated_pairs(summary: CandidateResult, linear: list[str]) -> list[tuple[str, str, float]]:
-    corr = summary.correlation_matrix
+    """Pairs of ``linear`` correlated above REFINE_CORRELATION, most correlated first, read as admissibility reads
+    them (data columns centred where that keeps the model, else as estimated)."""
+    centred = summary.centred_correlation
+    corr = np.asarray(centred, float) if len(centred) else summary.correlation_matrix
     names = list(summary.names)
     pairs = [(a, b, float(corr[names.index(a), names.index(b)])) for i, a in enumerate(linear)
              for b in linear[i + 1:]]
     return sorted((p for p in pairs if np.isfinite(p[2]) and abs(p[2]) > REFINE_CORRELATION), key=lambda p: -abs(p[2]))
+
+
+def _options(current: Candidate, summary: CandidateResult) -> list[tuple[str, str]]:
+    """The drops a step tries, in order (module docstring): (term, why)."""
+    linear = [r[0] for r in current.regressors]
+    constant = linear[0] if current.regressors[0][1].strip() == "1" else None
+    weak = sorted((n for n in summary.insignificant if n in linear and n != constant),
+                  key=lambda n: -_p(summary, n))
+    out = [(n, f"t-test accepts 0, p = {_p(summary, n):.2g}") for n in weak]
+    for a, b, rho in _correlated_pairs(summary, linear):
+        if constant in (a, b):
+            continue
+        n = max((a, b), key=lambda x: _p(summary, x))
+        if n not in {o for o, _ in out}:
+            out.append((n, f"|rho({a}, {b})| = {abs(rho):.2f} > {REFINE_CORRELATION}"))
+    return out
 
 
 def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], CandidateResult],
@@ -83,45 +120,40 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
     current, current_summary, dropped = c, summary, []
     stopped = "nothing left to drop"
     for step in range(1, MAX_STEPS + 1):
-        linear = [r[0] for r in current.regressors]
-        constant = linear[0] if current.regressors[0][1].strip() == "1" else None
-        # backward elimination, one term per step: first the least significant term that has no strongly
-        # correlated partner (a partner inflates a t-test's variance, so the pair is judged together),
-        # then the less significant member of the most correlated pair
-        pairs = [p for p in _correlated_pairs(current_summary, linear) if constant not in p[:2]]
-        paired = {n for a, b, _ in pairs for n in (a, b)}
-        weak = [n for n in current_summary.insignificant if n in linear and n != constant and n not in paired]
-        if weak:
-            drop = [max(weak, key=lambda n: _p(current_summary, n))]
-            why = f"t-test accepts 0, p = {_p(current_summary, drop[0]):.2g}"
-        elif pairs:
-            a, b, rho = pairs[0]
-            drop = [max((a, b), key=lambda n: _p(current_summary, n))]
-            why = f"|rho({a}, {b})| = {abs(rho):.2f} > {REFINE_CORRELATION}"
-        else:
+        options = _options(current, current_summary)
+        if not options:
+            stopped = "nothing left to drop"
             break
-        orphans = _orphans(c, dropped + drop)
-        if orphans:
-            stopped = (f"dropping {', '.join(drop)} ({why}) would leave {', '.join(orphans)} without a regressor; "
-                       "not taken")
+        refused = []
+        taken = None
+        for name, why in options:
+            drop = dropped + [name]
+            if len(drop) >= len(c.regressors):
+                refused.append(f"dropping {name} ({why}) would leave no term")
+                continue
+            candidate = _refined(c, drop, "r" + ("" if step == 1 else str(step)) + "-auto")
+            same = known.get(structure_key(candidate))
+            candidate, result = same if same is not None else (candidate, fit(candidate))
+            if result.failed:
+                refused.append(f"the refined {candidate.name} (without {name}) failed: {result.error}")
+                continue
+            rise = result.comparison.mse / current_summary.comparison.mse - 1
+            if not np.isfinite(rise):
+                refused.append(f"the held-out MSE without {name} cannot be compared (not finite)")
+                continue
+            if rise > REFINE_TOLERANCE:
+                refused.append(f"dropping {name} ({why}) raises the held-out MSE by {rise:.1%}")
+                continue
+            taken = (candidate, result, name, same is not None)
             break
-        candidate = _refined(c, dropped + drop, "r" + ("" if step == 1 else str(step)) + "-auto")
-        same = known.get(structure_key(candidate))
-        candidate, result = same if same is not None else (candidate, fit(candidate))
-        if result.failed:
-            stopped = f"the refined {candidate.name} failed: {result.error}"
+        if taken is None:
+            stopped = "; ".join(refused) + "; not taken"
             break
-        rise = result.comparison.mse / current_summary.comparison.mse - 1
-        if not np.isfinite(rise):
-            stopped = f"the held-out MSE of {candidate.name} cannot be compared (not finite); not taken"
-            break
-        if rise > REFINE_TOLERANCE:
-            stopped = f"dropping {', '.join(drop)} ({why}) raises the held-out MSE by {rise:.1%}; not taken"
-            break
+        candidate, result, name, was_known = taken
         steps.append((candidate, result))
-        if same is not None:
+        if was_known:
             reached.append(candidate.name)
-        current, current_summary, dropped = candidate, result, dropped + drop
+        current, current_summary, dropped = candidate, result, dropped + [name]
     else:
         stopped = f"stopped after {MAX_STEPS} steps"
     return Refinement(c.name, tuple(steps), stopped, tuple(reached))
