@@ -159,7 +159,16 @@ def test_refinement_drops_the_insignificant_then_one_of_a_pair_above_0_8():
     assert done.reached == ("D-IXr",)
 
 
-def test_refinement_that_would_orphan_a_state_says_so():
+def test_refinement_drops_a_state_with_its_last_regressor():
+    """Issue 30: the state the dropped term leaves without a regressor goes with it (before: the refinement
+    stopped there)."""
     start = _fitted(DRAG, {"CD_1mX": 0.5})
-    done = refine(DRAG, start, lambda c: pytest.fail("nothing may be fitted"))
-    assert done.steps == () and "would leave X without a regressor" in done.stopped
+    fitted = []
+
+    def fit(c):
+        fitted.append(c)
+        base = result(c)
+        return CandidateResult(**{**base.__dict__, "name": c.name})
+    done = refine(DRAG, start, fit)
+    ((step, _),) = done.steps[:1]
+    assert step.states == () and "CD_1mX" not in dict(step.regressors) and "state(s) X" in step.note

@@ -300,7 +300,7 @@ def test_diagnosis_to_dict_is_the_interface_document(withheld_elevator):
     assert {"stopped", "structures_fitted", "steps", "terms"} <= set(doc["search"])
     assert doc["search"]["structures_fitted"] >= 1 + len(doc["effects"])
     assert {"share", "noise_floor", "signals"} <= set(doc["unexplained"])
-    assert list(doc["state_level"]) == ["before", "after", "window_s", "reduction"]
+    assert list(doc["state_level"]) == ["before", "after", "window_s", "reduction", "diverged"]
     # the first round's parts at the top level, and the document survives JSON
     assert doc["effects"] == doc["rounds"][0]["effects"] and doc["where"] == doc["rounds"][0]["where"]
     assert doc["gap_explained_by_baseline"] == doc["rounds"][0]["explained_before"] is False
@@ -310,6 +310,28 @@ def test_diagnosis_to_dict_is_the_interface_document(withheld_elevator):
     written = public(d)
     assert [w["share_std"] for w in written["where"] if w["dimension"] == "maneuver"][0] is None
     assert written == public(doc)
+
+
+def test_a_replay_that_diverges_is_named_not_averaged():
+    """Issue 31: a replay whose alpha leaves the flight (or is not finite) is reported as diverged, where and why,
+    and left out of the RMS."""
+    from structsearch.diagnosis.results import Divergence, StateLevel, StateRms
+    from structsearch.diagnosis.state_level import divergence
+    from structsearch.flight.replay import Replay
+    t = np.linspace(0.0, 10.0, 1001)
+    measured = {s: np.zeros_like(t) for s in ("V", "alpha", "q", "theta", "h")}
+    good = {s: v + 0.01 for s, v in measured.items()}
+    assert divergence(Replay("m1", t, measured, good, np.array([0]))) is None
+    far = dict(good, alpha=np.where(t > 3.0, 0.8, 0.01))
+    d = divergence(Replay("m2", t, measured, far, np.array([0])))
+    assert d.maneuver == "m2" and d.t == pytest.approx(3.01) and "alpha more than 20 deg" in d.why
+    lost = dict(good, q=np.where(t > 6.0, np.nan, 0.0), alpha=np.where(t > 7.0, 0.8, 0.01))
+    assert divergence(Replay("m3", t, measured, lost, np.array([0]))).why == "q not finite"
+    rms = StateRms(0.02, 0.01, 0.01, 0.3)
+    sl = StateLevel(rms, rms, 5.0, rms, diverged_before=(Divergence("m2", 3.0, "alpha more than 20 deg from the "
+                                                                    "measurement"),))
+    assert "the replay before it diverged on 1 maneuver(s), left out: m2 at 3.0 s" in sl.words()
+    assert StateLevel.from_dict(json.loads(json.dumps(sl.to_dict()))) == sl
 
 
 def test_failures_stay_recorded_in_the_document():
@@ -325,7 +347,11 @@ def test_failures_stay_recorded_in_the_document():
     assert EffectRow.from_dict(json.loads(json.dumps(failed.to_dict()))) == failed
     assert "state_level" not in _story_diagnosis().to_dict()    # not asked for: absent, as before
     assert "Not available: state-level comparison: no Cm column" in markdown(d)
-    head, = diagnosis_console_lines(d, ("x.json", "x.md"))
+    # the inner error reaches the console and the story's line too (issue 31: only story.json had it)
+    head, replay_line = diagnosis_console_lines(d, ("x.json", "x.md"))
+    assert replay_line == "warning: the state-level replay failed: state-level comparison: no Cm column"
+    from structsearch.diagnosis.story import story_lines
+    assert "the state-level replay failed: state-level comparison: no Cm column" in story_lines({"CL": d})[0]
     # the best effect's shrink is None (made by hand without one): nothing to quote
     assert head == "CL CL-I: no effect fitted; final model CL-I + a + b; explained: yes; wrote x.json and x.md"
 

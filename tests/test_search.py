@@ -456,3 +456,38 @@ def test_refinement_drops_a_state_with_its_last_regressor():
     d = Candidate("D", "drag", "CD", (("c0", "1"), ("x", "1 - X_w"), ("s", "1 - X_ss")), (("ss", "U"), ("w", "S")),
                   "CL-VI")
     assert _refined(d, ["x"], "r-auto").states == d.states
+
+
+def _violations(candidates, results, rtol=0.0):
+    from structsearch.fitting.staging import contains
+    fitted = [(c, r) for c, r in zip(candidates, results) if not r.failed]
+    return [(outer.name, inner.name, ro.mse_train, ri.mse_train) for outer, ro in fitted for inner, ri in fitted
+            if contains(outer, inner) and ro.mse_train > ri.mse_train * (1 + rtol)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("aircraft", ["citation", "transport"])
+def test_every_grid_is_monotone_over_nesting(simulated_campaign, tmp_path, aircraft):
+    """Issue 30: a structure never fits worse than one it contains (U/Q against the Q/Q it holds with tau1 -> 0):
+    every fit also starts from the best contained structure's optimum, its extra time constants at their nesting
+    values."""
+    campaign = simulated_campaign(seed=6, scale=0.05, aircraft=aircraft)
+    for name in ("separation", "lift"):
+        grid = load_grid(name)
+        results = run(grid.candidates, campaign, tmp_path / name, n_jobs=2)
+        assert not _violations(grid.candidates, results), name
+
+
+def test_a_fit_starts_from_the_contained_structures_optimum_with_the_added_time_constant_at_zero():
+    from structsearch.fitting.staging import best_contained, contains, nested_start
+    sep = load_grid("separation")
+    uq, qq, uu = sep["X_ss/X_w U/Q"], sep["X_ss/X_w Q/Q"], sep["X_ss/X_w U/U"]
+    assert contains(uq, qq) and contains(uu, uq) and not contains(qq, uq) and not contains(uq, uq)
+    start = nested_start(uq, {"tau2_ss": 0.3, "a1_ss": 50.0, "a_star_ss": 0.2, "tau2_w": 0.1, "a1_w": 12.0,
+                              "a_star_w": 0.33})
+    assert start["tau1_ss"] == 0.0 and start["tau2_ss"] == 0.3 and start["a_star_w"] == 0.33
+    from types import SimpleNamespace
+    good = SimpleNamespace(failed=False, mse_train=1.0, params={"tau2_ss": 0.3, "tau2_w": 0.2})
+    worse = SimpleNamespace(failed=False, mse_train=2.0, params={"tau2_ss": 0.9, "tau2_w": 0.9})
+    got = best_contained(uq, [(sep["X_ss/X_w S/Q"], worse), (qq, good), (uu, good)])
+    assert got["tau2_ss"] == 0.3 and got["tau1_ss"] == 0.0    # U/U is not contained in U/Q: not a donor

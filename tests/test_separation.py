@@ -144,3 +144,21 @@ def test_a_long_time_gap_inside_a_maneuver_gives_finite_exact_states(tau):
     h = 1e-6 * tau
     fd = (reference_lag(t, u, tau + h) - reference_lag(t, u, tau - h)) / (2 * h)
     np.testing.assert_allclose(dtau, fd, rtol=1e-5, atol=1e-7)
+
+
+@pytest.mark.parametrize("uniform", [True, False])
+def test_a_lag_at_tau1_zero_is_the_quasi_steady_state_and_its_derivative_is_the_limit(uniform):
+    """Issue 30: tau1 -> 0 is where an unsteady state nests the quasi-steady one, so the box starts at 0: the lag
+    is then X = u, and dX/dtau1 its limit -(u_k - u_{k-1}) / dt, which lags of a few microseconds approach."""
+    rng = np.random.default_rng(4)
+    t = np.linspace(0.0, 3.0, 301) if uniform else np.sort(rng.uniform(0.0, 3.0, 301))
+    u = np.sin(2 * t) + 0.1 * t
+    bounds = np.array([0, 120, 301])
+    x, dx, dtau = first_order_lag(t, u, u[:, None].copy(), 0.0, bounds)
+    np.testing.assert_array_equal(x, u)
+    np.testing.assert_array_equal(dx[:, 0], u)
+    assert dtau[0] == 0.0 and dtau[120] == 0.0
+    tiny = 1e-6
+    x_tiny, _, _ = first_order_lag(t, u, u[:, None].copy(), tiny, bounds)
+    # the limit derivative is the one-sided difference quotient at 0, to O(tau1 / dt)
+    np.testing.assert_allclose((x_tiny - x) / tiny, dtau, rtol=1e-3, atol=1e-3 * np.max(np.abs(dtau)))

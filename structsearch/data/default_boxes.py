@@ -10,7 +10,7 @@ import numpy as np
 
 # Physical search box for each parameter kind [s, s, 1/rad, rad].
 DEFAULT_BOUNDS = {
-    "tau1": (0.005, 2.0),
+    "tau1": (0.0, 2.0),
     "tau2": (0.0, 1.0),
     "a1": (2.0, 200.0),
     "a_star": (0.05, 0.45),

@@ -249,6 +249,21 @@ class StateRms:
 
 
 @dataclass(frozen=True)
+class Divergence:
+    """A replay that left the flight: the maneuver, the time into it (s) and why."""
+
+    maneuver: str
+    t: float
+    why: str
+
+    def to_dict(self) -> dict:
+        return {"maneuver": self.maneuver, "t": self.t, "why": self.why}
+
+    def words(self) -> str:
+        return f"{self.maneuver} at {self.t:.1f} s ({self.why})"
+
+
+@dataclass(frozen=True)
 class StateLevel:
     """The forward-simulated state error on the validation maneuvers before and after the first adopted effect,
     or why it could not be computed (``error``; then the other fields are None)."""
@@ -258,6 +273,9 @@ class StateLevel:
     window_s: float | None = None
     reduction: StateRms | None = None
     error: str | None = None
+    # replays that diverged, left out of the RMS (:func:`structsearch.diagnosis.state_level.divergence`)
+    diverged_before: tuple[Divergence, ...] = ()
+    diverged_after: tuple[Divergence, ...] = ()
 
     @property
     def failed(self) -> bool:
@@ -267,14 +285,30 @@ class StateLevel:
         if self.failed:
             return {"error": self.error}
         return {"before": self.before.to_dict(), "after": self.after.to_dict(), "window_s": self.window_s,
-                "reduction": self.reduction.to_dict()}
+                "reduction": self.reduction.to_dict(),
+                "diverged": {"before": [d.to_dict() for d in self.diverged_before],
+                             "after": [d.to_dict() for d in self.diverged_after]}}
 
     @classmethod
     def from_dict(cls, d: Mapping) -> StateLevel:
         if "error" in d:
             return cls(error=d["error"])
+        gone = d.get("diverged") or {}
         return cls(StateRms.from_dict(d["before"]), StateRms.from_dict(d["after"]), d["window_s"],
-                   StateRms.from_dict(d["reduction"]))
+                   StateRms.from_dict(d["reduction"]),
+                   diverged_before=tuple(Divergence(**x) for x in gone.get("before", ())),
+                   diverged_after=tuple(Divergence(**x) for x in gone.get("after", ())))
+
+    def words(self) -> str:
+        """The replay comparison in words: the RMS alpha error before and after, and the replays that diverged."""
+        if self.failed:
+            return f"the state-level replay failed: {self.error}"
+        text = f"replayed alpha RMS {self.before.alpha:.4f} -> {self.after.alpha:.4f} rad with the first effect"
+        for label, gone in (("before", self.diverged_before), ("after", self.diverged_after)):
+            if gone:
+                text += (f"; the replay {label} it diverged on {len(gone)} maneuver(s), left out: "
+                         + ", ".join(d.words() for d in gone[:3]) + (", ..." if len(gone) > 3 else ""))
+        return text
 
 
 @dataclass(frozen=True)

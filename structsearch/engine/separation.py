@@ -74,7 +74,12 @@ def static_separation(alpha, a1, a_star):
 
 
 def _lag_coefficients(dt: np.ndarray, tau1: float):
-    """Coefficients of X_k = a X_{k-1} + b0 u_{k-1} + b1 u_k and their tau1-derivatives."""
+    """Coefficients of X_k = a X_{k-1} + b0 u_{k-1} + b1 u_k and their tau1-derivatives. At tau1 = 0 (the
+    quasi-steady state a lag nests) their limits: X = u, dX/dtau1 = -(u_k - u_{k-1}) / dt."""
+    dt = np.asarray(dt, float)
+    if tau1 == 0.0:
+        zero, one = np.zeros_like(dt), np.ones_like(dt)
+        return zero, zero, one, zero, one / dt, -one / dt
     x = dt / tau1
     a = np.exp(-x)
     one_minus_a = -np.expm1(-x)
@@ -166,7 +171,7 @@ def _lag_common_step(t, u, du, tau1, bounds, step):
     starts = bounds[:-1]
     length = int(min(np.ceil(_CORRECTION_TAUS * tau1 / step) + 1, np.max(np.diff(bounds))))
     index, segment, offsets = _segment_heads(bounds.tobytes(), length)
-    decay = np.exp(offsets * (-step / tau1))
+    decay = np.exp(offsets * (-step / tau1)) if tau1 > 0 else (offsets == 0).astype(float)
     x = lfilter([b1, b0], [1.0, -a], u)
     x[index] -= decay * (x[starts] - u[starts])[segment]
     if du is None:
@@ -181,6 +186,22 @@ def _lag_common_step(t, u, du, tau1, bounds, step):
     return x, dx, dtau
 
 
+# A lag shorter than this (s) is its tau1 -> 0 limit: X = u, dX/dtau1 = -(u_k - u_{k-1}) / dt (the error is
+# tau1 / dt of one sample's change). tau1 -> 0 is where an unsteady state nests the quasi-steady one, and the
+# optimiser's start just inside a box that begins at 0 lies here.
+INSTANT_LAG = 1e-9
+
+
+def _instant_lag(t, u, du, bounds):
+    x = np.array(u, float, copy=True)
+    if du is None:
+        return x, None, None
+    dtau = np.zeros_like(x)
+    dtau[1:] = -np.diff(x) / np.diff(t)
+    dtau[bounds[:-1]] = 0.0          # every maneuver starts at X = u
+    return x, np.array(du, float, copy=True), dtau
+
+
 def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
                     bounds: np.ndarray, step: float | None | bool = False):
     """tau1 dX/dt + X = u on every maneuver, each starting at X = u(t0).
@@ -190,6 +211,8 @@ def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
     result of :func:`common_step` for this grid (it is found here otherwise).
     """
     bounds = np.asarray(bounds, dtype=np.int64)
+    if tau1 < INSTANT_LAG:
+        return _instant_lag(t, u, du, bounds)
     if step is False:
         step = common_step(t, bounds)
     if step is not None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -141,9 +141,11 @@ class StallModel:
                                 f"{', '.join(sorted(data.columns))})", source=data.source, column=col)
         return StallProblem(self, data)
 
-    def _prepared(self, data: FlightData, start: Mapping[str, float] | None, declared_too: bool = False):
+    def _prepared(self, data: FlightData, start: Mapping[str, float] | None, declared_too: bool = False,
+                  more: Sequence[Mapping[str, float]] = ()):
         """The bound problem, observations, start vector, bounds and further starts of a fit on ``data``:
-        with ``declared_too``, the declared start follows a given ``start`` (a warm start)."""
+        with ``declared_too``, the declared start follows a given ``start`` (a warm start); each of ``more``
+        (values of some nonlinear parameters, the others declared; moved into the box) follows too."""
         problem = self.bind(data)
         lower, upper = self.bound_vectors(data)
         # a default start outside the data's box (alpha* of a low-alpha campaign) begins on its nearest
@@ -155,17 +157,26 @@ class StallModel:
                 raise DeclarationError(f"model {self.name!r}: {key!r} is not one of its nonlinear parameters")
             theta0[self.nonlinear_names.index(key)] = value
         also = [declared] if declared_too and not np.array_equal(declared, theta0) else []
+        for point in more:
+            theta = declared.copy()
+            for key, value in point.items():
+                if key in self.nonlinear_names:
+                    theta[self.nonlinear_names.index(key)] = value
+            theta = np.clip(theta, lower, upper)
+            if not any(np.array_equal(theta, a) for a in [theta0] + also):
+                also.append(theta)
         return problem, data[self.coefficient], theta0, lower, upper, also
 
     def fit(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
             seed: int = 0, n_jobs: int = 1, covariance: str = STALL_DEFAULTS.covariance, max_lag=None,
-            tol: float = STALL_DEFAULTS.tol, max_nfev: int | None = None, declared_too: bool = False) -> FitResult:
+            tol: float = STALL_DEFAULTS.tol, max_nfev: int | None = None, declared_too: bool = False,
+            more_starts: Sequence[Mapping[str, float]] = ()) -> FitResult:
         """Fit the coefficient column of ``data``: SNLS when there are separation states, else OLS.
         The covariance defaults to the project's best-calibrated one (per-maneuver HAC), the tolerance to
         1e-10 (:data:`~.defaults.STALL_DEFAULTS`, which says why they differ from a SeparableModel's). The box
         is the declared one (``declare(bounds=...)``), else the default box of each parameter kind. With
-        ``declared_too`` the declared start is tried after a given ``start``."""
-        problem, y, theta0, lower, upper, also = self._prepared(data, start, declared_too)
+        ``declared_too`` the declared start is tried after a given ``start``, and so is each of ``more_starts``."""
+        problem, y, theta0, lower, upper, also = self._prepared(data, start, declared_too, more_starts)
         return fit_problem(problem, y, boundaries=data.bounds, segment_names=data.names, start=theta0,
                            lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
                            covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev, also=also,

@@ -21,7 +21,7 @@ from .lift_uncertainty import with_lift_uncertainty
 from .models import build_model
 from .options import FitOptions
 from .specs import load_grid
-from .staging import STAGE_STARTS, WARM_STARTS, stages
+from .staging import nested_start, STAGE_STARTS, WARM_STARTS, stages
 
 
 def body_axis_errors(coef: str, predicted: np.ndarray, data: FlightData,
@@ -45,10 +45,11 @@ def body_axis_errors(coef: str, predicted: np.ndarray, data: FlightData,
 
 def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift: LiftFit | None,
                   options: FitOptions, start: Mapping[str, float] | None = None, n_starts: int | None = None,
-                  declared_too: bool = False) -> CandidateResult:
+                  declared_too: bool = False, nested: Mapping[str, float] | None = None) -> CandidateResult:
     """Fit one candidate on the training maneuvers and score it on both splits; ``start`` (a warm start)
     is the first of ``n_starts`` starts (default ``options.n_starts``), followed by the declared start
-    with ``declared_too``. ``lift`` is the fitted lift model a drag or pitch candidate names. A failure
+    with ``declared_too``, and by ``nested`` (a contained structure's optimum, :func:`.staging.best_contained`).
+    ``lift`` is the fitted lift model a drag or pitch candidate names. A failure
     that follows from the data or the declaration is returned as a failed result with its reason."""
     t0 = time.perf_counter()
     c = c.with_bounds(options.parameter_boxes)
@@ -69,7 +70,8 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         result = model.fit(train, start=warm or None, n_starts=starts if model.nonlinear_names else 1,
                            seed=options.seed,
                            covariance="white" if context is not None or options.scores_only else options.covariance,
-                           declared_too=declared_too)
+                           declared_too=declared_too,
+                           more_starts=[model.inside(train, nested)] if nested and model.nonlinear_names else ())
         if context is not None and not options.scores_only:
             result = with_lift_uncertainty(result, model, measured, lift, context, options.covariance)
         scores = {}
@@ -100,18 +102,21 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
 
 def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: LiftFit | None,
                options: FitOptions, start: Mapping[str, float] | None = None, *,
-               stage_starts: int = STAGE_STARTS, declared_too: bool = True) -> CandidateResult:
+               stage_starts: int = STAGE_STARTS, declared_too: bool = True,
+               nested: Mapping[str, float] | None = None) -> CandidateResult:
     """:func:`fit_candidate` from a warm start (a donor's estimates) and the declared start when a warm
     start is given. Else from ``options.n_starts`` starts (declared and quasi-random) plus, for a
     candidate with unsteady states, the estimates of its quasi-steady stage (:func:`.staging.stages`,
     fitted from ``stage_starts`` starts: :data:`.staging.STAGE_STARTS` unless a caller asks for fewer).
     Without ``declared_too`` the declared start does not follow a warm start or the stage's estimates
     (a single fit that trusts its stage; the search always keeps it); nor does it follow a warm start in a
-    screening (``options.scores_only``: the structure search's first look at a child of a fitted parent)."""
+    screening (``options.scores_only``: the structure search's first look at a child of a fitted parent).
+    ``nested``: a contained structure's optimum (its time constants at their nesting values), one more start, so
+    that the fit never ends above that structure's; a stage is contained in ``c``, so its estimates give one too."""
     if start is not None:
         # a screening (scores only) trusts its warm start; the full fit of a structure worth it adds the declared one
         return fit_candidate(c, train, validation, lift, options, start=start, n_starts=WARM_STARTS,
-                             declared_too=declared_too and not options.scores_only)
+                             declared_too=declared_too and not options.scores_only, nested=nested)
     for stage in stages(c):
         model = build_model(stage.with_bounds(options.parameter_boxes))
         try:
@@ -119,8 +124,12 @@ def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: Li
         except (StructSearchError, np.linalg.LinAlgError, FloatingPointError):
             break  # a stage the data cannot fit gives no start: c keeps its usual starts
         start = {k: params[k] for k in model.nonlinear_names}
+        # the stage is c with its unsteady states quasi-steady: its optimum with tau1 at its nesting value is
+        # c's point as good as the stage (the stage's tau2 alone, tau1 declared, may start c in another basin)
+        if nested is None:
+            nested = nested_start(c, params)
     return fit_candidate(c, train, validation, lift, options, start=start,
-                         declared_too=declared_too and start is not None)
+                         declared_too=declared_too and start is not None, nested=nested)
 
 
 def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, options: FitOptions) -> LiftFit | None:

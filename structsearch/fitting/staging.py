@@ -18,7 +18,7 @@ Drag and pitch candidates take their states from the lift model (nothing to stag
 """
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -84,6 +84,51 @@ def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResult]]
         return None
     donor, result = min(donors, key=lambda dr: (-len(dr[0].state_parameters), dr[1].mse_train))
     return {k: result.params[k] for k in c.state_parameters if k in result.params}
+
+
+# The value of a separation parameter at which a state of a higher kind is the lower kind's (tau1 -> 0: U is Q;
+# tau2 -> 0: Q is S); clipped into the box.
+NESTING_VALUES = {"tau1": 0.0, "tau2": 0.0}
+
+
+def contains(outer: Candidate, inner: Candidate) -> bool:
+    """Whether ``inner`` is ``outer`` with some terms at zero and some states' kinds lowered (each of its states is
+    one of ``outer``'s, of the same or a lower kind): its optimum, with ``outer``'s extra time constants at their
+    nesting values, is a point of ``outer``'s parameter space as good as ``inner``'s fit."""
+    if inner.name == outer.name or inner.coefficient != outer.coefficient or inner.lift != outer.lift:
+        return False
+    if not _regressors(inner) <= _regressors(outer):
+        return False
+    kinds = dict(outer.states)
+    return all(n in kinds and KIND_ORDER[k] <= KIND_ORDER[kinds[n]] for n, k in inner.states)
+
+
+def nested_start(c: Candidate, inner_params: Mapping[str, float]) -> dict[str, float]:
+    """``c``'s separation parameters at a contained structure's optimum: the ones it shares take the inner
+    estimates, a time constant it adds its nesting value (:data:`NESTING_VALUES`); the rest are left to the
+    declared start."""
+    out = {}
+    for n, k in c.states:
+        state = SeparationState(n, k)
+        for base in state.base_parameters:
+            name = state.parameter_name(base)
+            if name in inner_params:
+                out[name] = float(inner_params[name])
+            elif base in NESTING_VALUES:
+                out[name] = NESTING_VALUES[base]
+    return out
+
+
+def best_contained(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResult]]) -> dict[str, float] | None:
+    """The nested start (:func:`nested_start`) from the fitted structure contained in ``c`` with the lowest training
+    MSE: a fit that also starts there never ends above it (issue 30: U/Q ended above the Q/Q it contains)."""
+    if not _stageable(c):
+        return None
+    inner = [(d, r) for d, r in fitted if contains(c, d) and not r.failed and np.isfinite(r.mse_train)]
+    if not inner:
+        return None
+    d, r = min(inner, key=lambda dr: dr[1].mse_train)
+    return nested_start(c, r.params)
 
 
 def demoted(c: Candidate, highest: str) -> Candidate:

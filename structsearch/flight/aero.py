@@ -8,6 +8,8 @@ unsteady states and evaluates the steady and quasi-steady ones algebraically.
 """
 from __future__ import annotations
 
+import dataclasses
+
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
@@ -109,6 +111,14 @@ class AeroModel:
         if r.name in self._factors:
             return sp.Float(self.params[r.name]) * self._factors[r.name] * r.expr
         return sp.Float(self.params[r.name]) * r.expr
+
+    def with_quasi_steady(self, specs) -> "AeroModel":
+        """This model with the unsteady states ``specs`` flown quasi-steady (their tau1 -> 0 limit)."""
+        import copy
+        out = copy.copy(self)
+        symbols = {s.symbol for s in specs}
+        out.states = tuple(dataclasses.replace(s, kind="Q") if s.symbol in symbols else s for s in self.states)
+        return out
 
     @property
     def columns(self) -> frozenset[str]:

@@ -145,6 +145,11 @@ def _alpha_dot_with_states(model, aircraft, V, alpha, q, theta, h, de, throttle,
     return X, v_dot, alpha_dot, q_dot, extra
 
 
+# A separation lag shorter than this many integration steps is flown as its tau1 -> 0 limit, the quasi-steady
+# state (a fit may end there: tau1 -> 0 is where an unsteady state nests the quasi-steady one).
+FAST_LAG_STEPS = 0.5
+
+
 def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: np.ndarray,
              dt: float = 0.01, aircraft: Aircraft = CITATION, lengths: np.ndarray | None = None) -> Trajectory:
     """Integrate all maneuvers of a batch for ``len(pilot.alpha_ref)`` steps.
@@ -156,6 +161,9 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
     their last values, say), so that what follows its end stays finite; the trajectory past a
     maneuver's length is not part of it.
     """
+    fast = [s for s in model.unsteady if s.tau1 < FAST_LAG_STEPS * dt]
+    if fast:   # a lag much shorter than the step: its quasi-steady limit (RK4 would be unstable below dt / 2.78)
+        model = model.with_quasi_steady(fast)
     lagged_names = [s.symbol for s in model.unsteady]
     n_steps, n_man = pilot.alpha_ref.shape
     y = np.vstack([y0["V"], y0["alpha"], y0["q"], y0["theta"], y0["h"], np.zeros(n_man)]

@@ -133,6 +133,10 @@ def markdown(doc: Diagnosis) -> str:
                       f"the baseline and with the best effect added:", "",
                       tabulate(body, headers=["state", "unit", "before", "after", "reduction"], tablefmt="github"),
                       ""]
+            for label, gone in (("baseline", sl.diverged_before), ("model with the effect", sl.diverged_after)):
+                if gone:
+                    lines += [f"The replay with the {label} **diverged** on {len(gone)} maneuver(s), left out of "
+                              "its RMS: " + "; ".join(d.words() for d in gone) + ".", ""]
     return "\n".join(lines)
 
 
@@ -192,7 +196,13 @@ def diagnosis_console_lines(diagnosis: Diagnosis, written: tuple[Path, Path] | N
             f"{'yes' if d.explained else 'no'}")
     if written is not None:
         head += f"; wrote {written[0]} and {written[1]}"
-    return [head] + [line for line in [unexplained_sentence(d)] + [f"warning: {w}" for w in d.warnings] if line]
+    sl = d.state_level
+    replay = []
+    if sl is not None and (sl.failed or sl.diverged_before or sl.diverged_after):
+        # an error inside the command reaches the console, not only the json (issue 31)
+        replay = [f"warning: {sl.words()}"]
+    return [head] + [line for line in [unexplained_sentence(d)] + [f"warning: {w}" for w in d.warnings] + replay
+                     if line]
 
 
 def story_console_lines(story: Story) -> list[str]:

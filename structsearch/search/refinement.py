@@ -3,9 +3,9 @@
 A well-fitting candidate that is not admissible because some of its terms are insignificant or strongly
 correlated is refined step by step, one term at a time. Each step tries, in this order, until one is taken:
 
-1. every linear term whose t-test accepts zero, least significant first (correlated or not: issue 30, where a
-   term insignificant only because a partner shares its variance was skipped for the pair, whose dropping then
-   cost 4857 % and ended the refinement before the insignificant term was ever tried);
+1. every linear term whose t-test accepts zero: first those without a correlated partner, then those with one
+   (issue 30: such a term was skipped for the pair, whose dropping then cost 4857 % and ended the refinement
+   before the insignificant term was ever tried), each group least significant first;
 2. the less significant member of each pair correlated above |rho| = 0.8 (the thesis' threshold), most
    correlated first. Correlations are read as admissibility reads them: with the data columns centred where
    centring keeps the model (``CandidateResult.centred_correlation``), else as estimated. A pair the ranking
@@ -99,12 +99,14 @@ def _options(current: Candidate, summary: CandidateResult) -> list[tuple[str, st
     """The drops a step tries, in order (module docstring): (term, why)."""
     linear = [r[0] for r in current.regressors]
     constant = linear[0] if current.regressors[0][1].strip() == "1" else None
-    weak = sorted((n for n in summary.insignificant if n in linear and n != constant),
-                  key=lambda n: -_p(summary, n))
-    out = [(n, f"t-test accepts 0, p = {_p(summary, n):.2g}") for n in weak]
-    for a, b, rho in _correlated_pairs(summary, linear):
-        if constant in (a, b):
-            continue
+    pairs = [p for p in _correlated_pairs(summary, linear) if constant not in p[:2]]
+    paired = {n for a, b, _ in pairs for n in (a, b)}
+    weak = [n for n in summary.insignificant if n in linear and n != constant]
+    # the insignificant terms without a correlated partner first (their t-tests are not inflated by one: the
+    # thesis' q* before C_L in CD-IX), then those with one, each least significant first; then the pairs
+    ordered = sorted(weak, key=lambda n: (n in paired, -_p(summary, n)))
+    out = [(n, f"t-test accepts 0, p = {_p(summary, n):.2g}") for n in ordered]
+    for a, b, rho in pairs:
         n = max((a, b), key=lambda x: _p(summary, x))
         if n not in {o for o, _ in out}:
             out.append((n, f"|rho({a}, {b})| = {abs(rho):.2f} > {REFINE_CORRELATION}"))

@@ -29,7 +29,7 @@ from ..fitting.candidate_result import JSON_LAYOUT, CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
 from ..fitting.options import FitOptions
-from ..fitting.staging import may_donate, warm_start, waves
+from ..fitting.staging import best_contained, may_donate, warm_start, waves
 from .shared_data import LOCAL_PROCESS_BACKENDS, resolve_splits, shared_splits
 
 
@@ -157,9 +157,11 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
         return results
 
     def start_of(i):
-        return warm_start(candidates[i], list(fitted_before) + [(candidates[j], results[j]) for j in needs[i]])
+        fitted = list(fitted_before) + [(candidates[j], results[j]) for j in needs[i]]
+        return warm_start(candidates[i], fitted), best_contained(candidates[i], fitted)
 
-    def done(i, summary, finished, t0, warm):
+    def done(i, summary, finished, t0, starts):
+        warm = starts[0] is not None
         if not summary.failed or summary.error.startswith(CACHED_FAILURES):
             write_json(paths[i], summary.to_json(), indent=1)
         results[i] = summary
@@ -199,11 +201,13 @@ class _Task:
     def __init__(self, candidates, splits, lifts, options):
         self.candidates, self.splits, self.lifts, self.options = candidates, splits, lifts, options
 
-    def __call__(self, i, start):
+    def __call__(self, i, starts):
+        """``starts``: the warm start (a donor's estimates) and the nested one (the best contained structure's)."""
         c = self.candidates[i]
         train, validation = resolve_splits(self.splits)
+        warm, nested = starts
         return i, fit_staged(c, train, validation, self.lifts.get(c.lift) if c.lift else None, self.options,
-                             start=start)
+                             start=warm, nested=nested)
 
 
 def _fit_as_ready(todo, needs, start_of, task, n_jobs, done) -> None:
