@@ -336,7 +336,8 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
     if states and len(fits) > 1:
         say("state level: replaying the validation maneuvers before and after")
         try:
-            sl = state_level(campaign, base_fit, fits[1], ctx.lift_of(fits[1].candidate) or lift, options)
+            sl = state_level(campaign, base_fit, fits[1], ctx.lift_of(base_fit.candidate) or lift, options,
+                             lift_after=ctx.lift_of(fits[1].candidate) or lift)
         except (DeclarationError, DataError) as exc:
             sl = StateLevel(error=str(exc))
     search_doc = {"stopped": ex.stopped, "structures_fitted": ex.n_fitted, "steps": len(ex.steps), "beam": beam,

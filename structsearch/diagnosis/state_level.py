@@ -46,19 +46,20 @@ def divergence(run) -> Divergence | None:
 
 
 def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options: FitOptions,
-                window_s: float = 5.0) -> StateLevel:
+                window_s: float = 5.0, lift_after=None) -> StateLevel:
     """Forward-simulated state error on the validation maneuvers with the model before and after.
 
     The diagnosed coefficient uses the baseline (before) or improved (after) fit; the other two use
     the final structures of the thesis refitted on the training maneuvers with the same separation
-    states, so that the three form one simulator.
+    states, so that the three form one simulator. ``lift`` is the lift model the baseline reads; ``lift_after``
+    the one the model after the effect reads, when the effect changed it (a drag model fed another lift model).
     """
     from ..flight.aero import AeroModel
     from ..flight.replay import replay
     train, val = campaign.split("train"), campaign.split("validation")
     coef = before.candidate.coefficient
 
-    def aero(fitted: Fitted) -> AeroModel:
+    def aero(fitted: Fitted, lift) -> AeroModel:
         # the simulator's lift model: the diagnosed one, or the lift model the drag or pitch candidate names
         lift_fit = LiftFit(fitted.candidate, fitted.summary) if coef == "CL" else lift
         lift_cand = lift_fit.candidate
@@ -92,9 +93,9 @@ def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options
         return AeroModel(models["CL"], models["CD"], models["Cm"], params, name=fitted.candidate.name)
 
     rms, diverged = {}, {}
-    for label, fitted in (("before", before), ("after", after)):
+    for label, fitted, read in (("before", before, lift), ("after", after, lift_after or lift)):
         with np.errstate(all="ignore"):   # a diverging replay overflows; it is named below, not warned about
-            runs = replay(val, aero(fitted), window_s=window_s)
+            runs = replay(val, aero(fitted, read), window_s=window_s)
         gone = [d for d in map(divergence, runs) if d is not None]
         diverged[label] = tuple(gone)
         kept = [r for r in runs if r.name not in {d.maneuver for d in gone}]

@@ -81,6 +81,7 @@ def centred_correlation(candidate: Candidate, model, data, fit) -> np.ndarray | 
     t = np.eye(len(fit.values))
     t[k:, k:] = inverse
     cov = t @ fit.covariance @ t.T
-    sd = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore"):   # a negative variance: NaN, judged as not estimable below
+        sd = np.sqrt(np.diag(cov))
     with np.errstate(divide="ignore", invalid="ignore"):
         return cov / np.outer(sd, sd)
