@@ -330,7 +330,7 @@ def test_a_replay_that_diverges_is_named_not_averaged():
     rms = StateRms(0.02, 0.01, 0.01, 0.3)
     sl = StateLevel(rms, rms, 5.0, rms, diverged_before=(Divergence("m2", 3.0, "alpha more than 20 deg from the "
                                                                     "measurement"),))
-    assert "the replay before it diverged on 1 maneuver(s), left out: m2 at 3.0 s" in sl.words()
+    assert "the replay before it diverged on 1 maneuver(s), left out of both: m2 at 3.0 s" in sl.words()
     assert StateLevel.from_dict(json.loads(json.dumps(sl.to_dict()))) == sl
 
 

@@ -491,3 +491,12 @@ def test_a_fit_starts_from_the_contained_structures_optimum_with_the_added_time_
     worse = SimpleNamespace(failed=False, mse_train=2.0, params={"tau2_ss": 0.9, "tau2_w": 0.9})
     got = best_contained(uq, [(sep["X_ss/X_w S/Q"], worse), (qq, good), (uu, good)])
     assert got["tau2_ss"] == 0.3 and got["tau1_ss"] == 0.0    # U/U is not contained in U/Q: not a donor
+
+
+def test_a_pair_tries_its_other_member_when_the_less_significant_was_tried_as_insignificant():
+    from structsearch.search.refinement import _options
+    c = Candidate("P", "pitch", "Cm", (("c0", "1"), ("a", "alpha"), ("b", "de")), (), "CL-VI")
+    corr = np.eye(3)
+    corr[1, 2] = corr[2, 1] = 0.95
+    options = _options(c, _stub(["c0", "a", "b"], [1e-9, 0.01, 0.3], corr))
+    assert [n for n, _ in options] == ["b", "a"] and options[1][1].startswith("|rho(a, b)|")

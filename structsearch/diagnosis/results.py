@@ -306,7 +306,7 @@ class StateLevel:
         text = f"replayed alpha RMS {self.before.alpha:.4f} -> {self.after.alpha:.4f} rad with the first effect"
         for label, gone in (("before", self.diverged_before), ("after", self.diverged_after)):
             if gone:
-                text += (f"; the replay {label} it diverged on {len(gone)} maneuver(s), left out: "
+                text += (f"; the replay {label} it diverged on {len(gone)} maneuver(s), left out of both: "
                          + ", ".join(d.words() for d in gone[:3]) + (", ..." if len(gone) > 3 else ""))
         return text
 

@@ -1,9 +1,10 @@
 """The diagnosis at the state level: the validation maneuvers replayed through the simulator with the model
 before and after the first adopted effect, and the RMS state errors of both.
 
-A replay that diverges (a state not finite, or alpha more than :data:`DIVERGED_ALPHA` from the measurement: each
-window restarts from the measured states, so a model that flies the aircraft keeps well inside it) is not a state
-error to average: the maneuver is named, with where and in which state it left, and left out of the RMS.
+A replay that diverges (a state not finite, or alpha more than
+:data:`structsearch.flight.replay.DIVERGED_ALPHA` from the measurement) is not a state error to average: the
+maneuver is named, with where and in which state it left, and left out of both RMS (the same maneuvers before
+and after).
 (Issue 31: the story printed "replayed alpha RMS 0.78 rad" for a replay that had diverged.)"""
 from __future__ import annotations
 
@@ -22,27 +23,11 @@ from ..flight.reference import FINAL_MODEL_NAMES
 from .fitted import Fitted
 from .results import STATES, Divergence, StateLevel, StateRms
 
-# A replayed alpha this far (rad, 20 deg) from the measured one has left the flight: diverged, not an error to average
-DIVERGED_ALPHA = 0.35
-
-
 def divergence(run) -> Divergence | None:
-    """Where and why a replay diverged (None when it did not): the first sample at which a state is not finite
-    or alpha is more than DIVERGED_ALPHA from the measurement."""
-    bad = np.zeros(len(run.t), bool)
-    why = ""
-    for s in STATES:
-        off = ~np.isfinite(run.simulated[s])
-        if off.any() and (not bad.any() or np.argmax(off) < np.argmax(bad)):
-            bad, why = off, f"{s} not finite"
-    far = np.abs(run.simulated["alpha"] - run.measured["alpha"]) > DIVERGED_ALPHA
-    far &= np.isfinite(run.simulated["alpha"])
-    if far.any() and (not bad.any() or np.argmax(far) < np.argmax(bad)):
-        bad, why = far, f"alpha more than {np.degrees(DIVERGED_ALPHA):.0f} deg from the measurement"
-    if not bad.any():
-        return None
-    k = int(np.argmax(bad))
-    return Divergence(run.name, float(run.t[k] - run.t[0]), why)
+    """Where and why a replay diverged (None when it did not): :func:`structsearch.flight.replay.divergence`."""
+    from ..flight.replay import divergence as where
+    found = where(run)
+    return None if found is None else Divergence(run.name, *found)
 
 
 def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options: FitOptions,
@@ -92,13 +77,17 @@ def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options
             params.update({k: v for k, v in s.params.items() if k not in lift_fit.result.nonlinear_names})
         return AeroModel(models["CL"], models["CD"], models["Cm"], params, name=fitted.candidate.name)
 
-    rms, diverged = {}, {}
+    runs, diverged = {}, {}
     for label, fitted, read in (("before", before, lift), ("after", after, lift_after or lift)):
         with np.errstate(all="ignore"):   # a diverging replay overflows; it is named below, not warned about
-            runs = replay(val, aero(fitted, read), window_s=window_s)
-        gone = [d for d in map(divergence, runs) if d is not None]
-        diverged[label] = tuple(gone)
-        kept = [r for r in runs if r.name not in {d.maneuver for d in gone}]
+            runs[label] = replay(val, aero(fitted, read), window_s=window_s)
+        diverged[label] = tuple(d for d in map(divergence, runs[label]) if d is not None)
+    # both RMS over the same maneuvers: those neither model diverged on (a model that diverges on the hardest one
+    # must not look better for it)
+    gone = {d.maneuver for ds in diverged.values() for d in ds}
+    rms = {}
+    for label, label_runs in runs.items():
+        kept = [r for r in label_runs if r.name not in gone]
         n = sum(len(r.t) for r in kept)
         rms[label] = StateRms(*(float(np.sqrt(sum(r.rms[s] ** 2 * len(r.t) for r in kept) / n)) if n
                                 else float("nan") for s in STATES))

@@ -135,9 +135,8 @@ def _term_moves(c: Candidate, library: TermLibrary) -> list[tuple[Move, Candidat
             new_name = _unique(new_name, {n for n, _ in rest})
             label = f"replace {name} by {new_name} = {new_expr}"
             out.append((Move("replace", label), _child(c, label, rest[:i] + ((new_name, new_expr),) + rest[i:])))
+        # the pairs of terms the candidate does not have yet (``options``): one it has makes the pair an add
         for (a_name, a_expr), (b_name, b_expr) in modulated_pairs(tuple(options)):
-            if normalise(expr) in (normalise(a_expr), normalise(b_expr)):
-                continue
             a_name = _unique(a_name, {n for n, _ in rest})
             b_name = _unique(b_name, {n for n, _ in rest} | {a_name})
             label = f"replace {name} by {a_name} = {a_expr} and {b_name} = {b_expr}"

@@ -38,6 +38,30 @@ class Replay:
         return {s: float(np.sqrt(np.mean((self.simulated[s] - self.measured[s]) ** 2))) for s in STATES}
 
 
+# A replayed alpha this far (rad, 20 deg) from the measured one has left the flight: each window restarts from the
+# measured states, so a model that flies the aircraft keeps well inside it
+DIVERGED_ALPHA = 0.35
+
+
+def divergence(run: Replay) -> tuple[float, str] | None:
+    """Where (seconds into the maneuver) and why a replay diverged, or None: the first sample at which a state is
+    not finite or alpha is more than DIVERGED_ALPHA from the measurement."""
+    bad = np.zeros(len(run.t), bool)
+    why = ""
+    for s in ("V", "alpha", "q", "theta"):
+        off = ~np.isfinite(run.simulated[s])
+        if off.any() and (not bad.any() or np.argmax(off) < np.argmax(bad)):
+            bad, why = off, f"{s} not finite"
+    far = np.abs(run.simulated["alpha"] - run.measured["alpha"]) > DIVERGED_ALPHA
+    far &= np.isfinite(run.simulated["alpha"])
+    if far.any() and (not bad.any() or np.argmax(far) < np.argmax(bad)):
+        bad, why = far, f"alpha more than {np.degrees(DIVERGED_ALPHA):.0f} deg from the measurement"
+    if not bad.any():
+        return None
+    k = int(np.argmax(bad))
+    return float(run.t[k] - run.t[0]), why
+
+
 def replay(data: FlightData, model: AeroModel, window_s: float = 10.0) -> list[Replay]:
     """Replay every maneuver of ``data`` in windows of ``window_s`` seconds; the aircraft's S, cbar and
     pitch inertia Iyy come from the campaign (``data.constants``), x_cg only when the model uses it."""

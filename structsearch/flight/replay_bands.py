@@ -13,7 +13,8 @@ parameters: only the joint covariance draws them together.
 What the band does not hold: the aircraft's own unmodelled forcing (turbulence, buffet, the coefficients'
 coloured residual), which an open-loop replay cannot be given as it was flown; the band covers the replay the
 model would give with the true parameters, not the measured trajectory. A draw whose replay is not finite
-(diverged) is left out of the interval and counted.
+(diverged: a state not finite or alpha 20 deg from the measurement) is left out of the interval and counted; with more
+than a tenth of the draws diverged the band is null.
 """
 from __future__ import annotations
 
@@ -27,9 +28,12 @@ from ..data.flightdata import FlightData
 from ..engine.bands import parameter_draws
 from ..fitting.models import build_model, model_with_lift
 from .aero import AeroModel
-from .replay import STATES, replay
+from .replay import STATES, divergence, replay
 
 DEFAULT_WINDOW_S = 5.0
+# The share of draws that may diverge (a state not finite, alpha 20 deg off: flight.replay.divergence) before the
+# band is null
+MAX_DIVERGED = 0.1
 
 
 @dataclass(frozen=True)
@@ -94,11 +98,17 @@ def replay_band(joint, data: FlightData, maneuver: str | None = None, samples: i
         except (DeclarationError, FloatingPointError, ValueError):
             continue   # a draw the simulator cannot fly (a state kind's parameter out of its domain): diverged
         runs.append(run)
-    finite = [r for r in runs if all(np.all(np.isfinite(r.simulated[s])) for s in STATES)]
+    if divergence(at_estimate) is not None:
+        raise DeclarationError(f"the replay of {at_estimate.name} at the joint estimate diverges "
+                               f"({divergence(at_estimate)[1]} at {divergence(at_estimate)[0]:.1f} s): it has no band")
+    finite = [r for r in runs if divergence(r) is None]
     tail = 100.0 * (0.5 - level / 2.0)
     low, high = {}, {}
+    # an interval over the draws that stayed in the flight is conditional on staying there: with more than a tenth
+    # of the draws gone it would not be the parameters' band, so it is null (and says how many diverged)
+    usable = len(finite) >= 2 and samples - len(finite) <= MAX_DIVERGED * samples
     for s in STATES:
-        if len(finite) >= 2:
+        if usable:
             low[s], high[s] = np.percentile(np.array([r.simulated[s] for r in finite]), [tail, 100.0 - tail], axis=0)
         else:
             low[s] = high[s] = np.full(len(at_estimate.t), np.nan)

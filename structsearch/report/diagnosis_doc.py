@@ -136,7 +136,7 @@ def markdown(doc: Diagnosis) -> str:
             for label, gone in (("baseline", sl.diverged_before), ("model with the effect", sl.diverged_after)):
                 if gone:
                     lines += [f"The replay with the {label} **diverged** on {len(gone)} maneuver(s), left out of "
-                              "its RMS: " + "; ".join(d.words() for d in gone) + ".", ""]
+                              "both RMS: " + "; ".join(d.words() for d in gone) + ".", ""]
     return "\n".join(lines)
 
 

@@ -81,7 +81,18 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, op
         from ..fitting.joint import fit_joint, joint_lift as lift_of
         say("joint lift model: " + " + ".join(c.name for c in joint_lift))
         joint = fit_joint(list(joint_lift), campaign.split("train"), campaign.split("validation"), options)
+        if not joint.weights_settled or not joint.result.converged:
+            say(f"warning: the joint lift model {joint.name} "
+                + ("did NOT settle its weights" if not joint.weights_settled else "did NOT converge")
+                + "; drag and pitch read it all the same")
         read = lift_of(joint)
+        if not read.influence_names:
+            from ..data.errors import FitError
+            raise FitError(f"the joint fit {joint.name} identifies none of the lift model's parameters: drag and "
+                           "pitch cannot read it")
+        if read.not_identifiable:
+            say(f"warning: the joint lift model cannot identify {', '.join(read.not_identifiable)}: held at their "
+                "estimates in the drag and pitch candidates' two-step covariance")
         lifts[read.name] = read
     by_grid_results: dict[str, list[CandidateResult]] = {}
 

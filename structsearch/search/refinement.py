@@ -107,9 +107,12 @@ def _options(current: Candidate, summary: CandidateResult) -> list[tuple[str, st
     ordered = sorted(weak, key=lambda n: (n in paired, -_p(summary, n)))
     out = [(n, f"t-test accepts 0, p = {_p(summary, n):.2g}") for n in ordered]
     for a, b, rho in pairs:
-        n = max((a, b), key=lambda x: _p(summary, x))
-        if n not in {o for o, _ in out}:
-            out.append((n, f"|rho({a}, {b})| = {abs(rho):.2f} > {REFINE_CORRELATION}"))
+        # the less significant member first; the other when that one was tried already (as insignificant)
+        tried = {o for o, _ in out}
+        for n in sorted((a, b), key=lambda x: -_p(summary, x)):
+            if n not in tried:
+                out.append((n, f"|rho({a}, {b})| = {abs(rho):.2f} > {REFINE_CORRELATION}"))
+                break
     return out
 
 
