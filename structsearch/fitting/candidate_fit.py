@@ -114,9 +114,12 @@ def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: Li
     ``nested``: a contained structure's optimum (its time constants at their nesting values), one more start, so
     that the fit never ends above that structure's; a stage is contained in ``c``, so its estimates give one too."""
     if start is not None:
-        # a screening (scores only) trusts its warm start; the full fit of a structure worth it adds the declared one
+        if options.scores_only:
+            # a screening trusts one start: the contained structure's optimum when there is one (never worse than
+            # that structure), else the warm start; the full fit of a structure worth it adds the others
+            return fit_candidate(c, train, validation, lift, options, start=nested or start, n_starts=WARM_STARTS)
         return fit_candidate(c, train, validation, lift, options, start=start, n_starts=WARM_STARTS,
-                             declared_too=declared_too and not options.scores_only, nested=nested)
+                             declared_too=declared_too, nested=nested)
     for stage in stages(c):
         model = build_model(stage.with_bounds(options.parameter_boxes))
         try:
