@@ -272,7 +272,7 @@ def test_a_joint_fits_forward_replay_with_its_sampled_band(joint_and_sequential,
     from structsearch.flight.replay_bands import deepest_maneuver, joint_aero, replay_band
     joint, _ = joint_and_sequential
     val = simulated_campaign(seed=4, scale=0.1).split("validation")
-    rb = replay_band(joint, val, samples=16, seed=1)
+    rb = replay_band(joint, val, samples=8, seed=1)
     index = deepest_maneuver(val)
     assert rb.maneuver == val.names[index]
     direct = replay(val.select([index]), joint_aero(joint, joint.result.params), rb.window_s)[0]
@@ -282,10 +282,10 @@ def test_a_joint_fits_forward_replay_with_its_sampled_band(joint_and_sequential,
         # the band is the spread the parameters cause around the replay at the estimate: it holds it nearly always
         inside = (rb.estimate[s] >= rb.low[s] - 1e-12) & (rb.estimate[s] <= rb.high[s] + 1e-12)
         assert inside.mean() > 0.8, s
-    assert rb.diverged == 0 and rb.draws == 16
+    assert rb.diverged == 0 and rb.draws == 8
     doc = rb.to_dict()
     assert set(doc["states"]["alpha"]) == {"measured", "estimate", "confidence_low", "confidence_high"}
-    again = replay_band(joint, val, samples=16, seed=1)
+    again = replay_band(joint, val, samples=8, seed=1)
     np.testing.assert_array_equal(again.low["alpha"], rb.low["alpha"])
     with pytest.raises(DeclarationError, match="no such maneuver"):
         replay_band(joint, val, maneuver="nope", samples=4)

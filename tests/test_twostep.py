@@ -208,7 +208,7 @@ def _joint_two_step(seed):
 
 
 def test_a_joint_first_steps_influence_matches_monte_carlo():
-    runs = [_joint_two_step(seed) for seed in range(300)]
+    runs = [_joint_two_step(seed) for seed in range(200)]
     spread = np.array([r[0] for r in runs]).std(axis=0, ddof=1)
     reported = np.array([r[1] for r in runs]).mean(axis=0)
     # the correction is large here (b's one-step error ignores f_hat's); within Monte Carlo and small-sample error
