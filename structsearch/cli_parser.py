@@ -34,7 +34,8 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
     p.add_argument("--data", required=data_required, help="campaign directory")
     p.add_argument("--out", default="results", help="output directory (default: results)")
     p.add_argument("--starts", type=_count, default=starts, help="starts per nonlinear fit (1: the default start)")
-    p.add_argument("--seed", type=_non_negative, default=0)
+    p.add_argument("--seed", type=_non_negative, default=0,
+                   help="seed of the random starts beyond the default one (default 0; same seed, same fits)")
     p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI", type=_bound,
                    help="search box of a nonlinear parameter, over the declared one (repeatable), "
                         "e.g. --bound tau2_ss=0:5")
@@ -53,7 +54,7 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     b.add_argument("--samples", type=_count, default=250_000, help="samples in the benchmark campaign")
     b.add_argument("--repeats", type=_count, default=3, help="repeats of every single-start timing (every method alike)")
     b.add_argument("--starts", type=_count, default=20, help="random starts for the success rate")
-    b.add_argument("--seed", type=_non_negative, default=2025)
+    b.add_argument("--seed", type=_non_negative, default=2025, help="seed of the benchmarks' random draws (default 2025)")
     b.add_argument("--jobs", type=_non_negative, default=2, help="processes for the random starts and the search")
     b.add_argument("--no-search", action="store_true", help="skip the search --grid all benchmark")
     b.add_argument("--staged", type=_count, default=None, metavar="CAMPAIGNS",
@@ -85,7 +86,8 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     s.add_argument("--scale", type=_fraction, default=1.0,
                    help="fraction of the maneuvers of each kind to fly (small test campaigns)")
     s.add_argument("--extras", action="store_true", help="add pullups, pushovers and phugoids")
-    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.add_argument("--format", choices=("csv", "parquet"), default="csv",
+                   help="maneuver file format (default csv; parquet needs pyarrow)")
     s.add_argument("--slow-errors", type=_non_negative_float, default=1.0, metavar="F",
                    help="scale of the slow reconstruction errors of a standard campaign (1, the default: realistic; "
                         "0: only sensor noise, buffet and residual biases, like a raw campaign's channels)")
@@ -168,12 +170,12 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                    help="benchmark: which parts, comma-separated: withheld, anomalies, null (default: all)")
     g.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
     _structure_search_options(g)
-    g.add_argument("--quiet", action="store_true")
+    g.add_argument("--quiet", action="store_true", help="no progress lines")
     g.set_defaults(func=handlers["diagnose"])
 
     d = sub.add_parser("discover", help="search model structures over moves from a minimal or named structure")
     _campaign_options(d, starts=2)
-    d.add_argument("--coefficient", choices=("CL", "CD", "Cm"), required=True)
+    d.add_argument("--coefficient", choices=("CL", "CD", "Cm"), required=True, help="the coefficient to model")
     d.add_argument("--from", dest="start", default="minimal",
                    help="the structure to start from: 'minimal' (default), a candidate name or a spec file")
     d.add_argument("--lift", action="append", default=[], metavar="NAME",
@@ -193,15 +195,15 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                    help="coefficient whose gap breakdown is shown (default Cm; none: skip the diagnosis)")
     p.add_argument("--model", action="append", metavar="NAME",
                    help="use this lift, drag or pitch structure instead of the search's winner (repeatable)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=handlers["report"])
 
     d = sub.add_parser("demo", help="simulate the default campaign, search every grid, write all tables and the report")
     d.add_argument("--out", default="results", help="output directory (default: results)")
     d.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default: all cores)")
-    d.add_argument("--starts", type=_count, default=4)
+    d.add_argument("--starts", type=_count, default=4, help="starts per nonlinear fit (default 4)")
     d.add_argument("--scale", type=_fraction, default=1.0, help="fraction of the campaign to fly (quick looks)")
-    d.add_argument("--quiet", action="store_true")
+    d.add_argument("--quiet", action="store_true", help="no progress lines (the story's lines are still printed)")
     _admissibility_options(d)
     d.set_defaults(func=handlers["demo"])
     return parser

@@ -85,3 +85,31 @@ def test_bad_counts_and_ranges_are_named(argv, message, capsys):
     assert info.value.code == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+def test_every_option_of_every_command_says_what_it_does():
+    """Issue 31: `structsearch demo --help` showed `--starts` and `--quiet` without a word."""
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    silent = [f"{command} {action.option_strings[0]}" for command, subparser in sub.choices.items()
+              for action in subparser._actions if action.option_strings and action.dest != "help" and not action.help]
+    assert silent == []
+
+
+@pytest.mark.parametrize("argv,hint", [
+    (["search", "--data", MISSING, "--grid", "lifts"], "did you mean 'lift'?"),
+    (["fit", "--data", MISSING, "--model", "CL-VII"], "did you mean 'CL-VI'?"),
+    (["fit", "--data", MISSING, "--model", "cd-ixr"], "did you mean 'CD-IXr'?"),
+])
+def test_a_misspelled_grid_or_model_gets_the_close_match(argv, hint, tmp_path, capsys):
+    """Issue 31: a misspelled name is answered with the shipped name it is closest to (the names are resolved
+    before the campaign is read: the campaign here does not exist)."""
+    code = main(argv + ["--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and hint in err and err.count("\n") == 1
+
+
+def test_a_name_far_from_every_shipped_one_gets_no_guess(tmp_path, capsys):
+    code = main(["fit", "--data", MISSING, "--model", "xyz", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "no candidate named 'xyz'" in err and "did you mean" not in err

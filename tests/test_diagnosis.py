@@ -261,7 +261,7 @@ def test_story_lines_tell_the_adopted_effects_in_order():
     from structsearch.diagnosis.story import story_lines
     line, = story_lines({"CL": _story_diagnosis()})
     assert "misses the flight data by 100% above the noise floor" in line
-    assert "adding a closes 50% of that gap, then adding b closes 50% of that gap" in line
+    assert "adding a closes 50% of the baseline's gap, then adding b closes 50% of the baseline's gap" in line
     assert line.endswith("CL-I + a + b is at the floor.")
     doc = _story_diagnosis(explained=False, final_mse=1.25,
                            unexplained=Unexplained(1.0, 3, 0.25, signals=(SignalShare("V", 0.9, None),)))
@@ -269,11 +269,42 @@ def test_story_lines_tell_the_adopted_effects_in_order():
     assert "still 25% above the floor" in line and "(25% of the gap) and follows V" in line
 
 
+def test_the_story_says_closes_one_way_in_its_line_and_its_table():
+    """Issue 31: the line said "closes 30% of that gap" where the table's shrink read 0.68 "(of this round's
+    gap)". Both now give the share of the baseline's gap: in the hand-made diagnosis the second move takes the
+    MSE from 1.5 to 1.0 of a baseline gap of 1.0 (2.0 against a floor of 1.0), i.e. 50 %, not its round's 100 %."""
+    from structsearch.diagnosis.story import Story, story_lines
+    from structsearch.report.diagnosis_doc import story_markdown
+    doc = _story_diagnosis()
+    text = story_markdown(Story({"CL": doc}, tuple(story_lines({"CL": doc}))), "test")
+    table = [row for row in text.splitlines() if row.startswith("|")]
+    assert "closes (of the baseline's gap)" in table[0] and "this round's gap" not in text
+    assert [row.split("|")[5].strip() for row in table[2:4]] == ["50%", "50%"]
+
+
+def test_a_story_from_an_inadmissible_baseline_says_so_first():
+    """Issue 31: CL-I as fitted on the default campaign has tau1 and a_star on their bounds and a_star outside the
+    flown range; the story told it as a plain baseline."""
+    from structsearch.diagnosis.story import Story, story_lines
+    from structsearch.report.diagnosis_doc import story_markdown
+    why = ("tau1 at its lower bound", "a_star at its lower bound", "a_star = 1.1 deg outside the alpha range flown")
+    doc = _story_diagnosis(baseline_reasons=why)
+    line, = story_lines({"CL": doc})
+    assert line.startswith("CL: the Van Ingen model CL-I (as fitted here NOT admissible: tau1 at its lower bound; "
+                           "a_star at its lower bound; 1 more in story.md) misses")
+    text = story_markdown(Story({"CL": doc}, (line,)), "test")
+    head = text.split("\n- CL:")[0]
+    assert "not admissible as fitted here" in head and why[2] in head
+    assert not doc.baseline_admissible and doc.to_dict()["baseline_reasons"] == list(why)
+    assert _story_diagnosis().baseline_admissible and "NOT admissible" not in story_lines({"CL": _story_diagnosis()})[0]
+
+
 # the keys docs/interfaces.md sections 3 and 5.4 fix (extend, never rename), and the extensions written since
 INTERFACE_KEYS = ["coefficient", "baseline", "mse", "noise_floor", "floor_source", "noise_floor_library",
                   "noise_floor_spectral", "where", "effects", "explained", "gap_explained_by_baseline",
                   "final_excess_over_floor", "final_excess_se", "rounds", "final_model", "final_mse", "unexplained",
-                  "warnings", "state_level", "final_structure", "search", "seconds"]
+                  "warnings", "baseline_admissible", "baseline_reasons", "state_level", "final_structure", "search",
+                  "seconds"]
 # what each effect row says of the move that made it (issue 28)
 MOVE_KEYS = {"kind", "effect", "verdict", "test"}
 

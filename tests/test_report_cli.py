@@ -47,10 +47,10 @@ def test_the_parameter_table_gives_each_reference_dof_and_flags_few_maneuvers(fl
     """Issue 30: the t reference's degrees of freedom beside each standard deviation, and a flag where it is
     below FEW_DOF (the few maneuvers behind it make the standard deviation itself uncertain)."""
     import dataclasses
-    from structsearch.engine.summary import FEW_DOF, parameter_rows, parameter_table
+    from structsearch.engine.summary import FEW_DOF, PARAMETER_HEADERS, parameter_rows, parameter_table
     rows = {r[0]: r for r in parameter_rows(flagged_fit)}
     for name, dof in flagged_fit.reference_dof.items():
-        assert rows[name][4] == pytest.approx(dof)
+        assert rows[name][PARAMETER_HEADERS.index("ref. dof")] == pytest.approx(dof)
     assert "ref. dof" in parameter_table(flagged_fit, "md")
     few = dataclasses.replace(flagged_fit.estimates, stated={**flagged_fit.estimates.stated,
                                                              "reference_dof": {**flagged_fit.reference_dof, "c0": 2.0}})

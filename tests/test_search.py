@@ -106,6 +106,26 @@ def test_ranking_rule_prefers_the_smaller_model_within_noise():
     assert ranked[1].within_noise and not ranked[2].within_noise
 
 
+def test_a_rejected_candidate_is_measured_against_the_winner_not_the_best_rejected():
+    """Issue 31: CL-I (inadmissible, 25 % worse than CL-VI) read "within noise of best: yes, gap 0" because its gap
+    was measured within the rejected group, where it was the best."""
+    from structsearch.report.tables import grid_table
+
+    def summary(name, per):
+        scores = SplitScores(float(np.mean(per)), tuple(per), (100,) * len(per), R2Summary(0.9, 0.8, 1.0))
+        return CandidateResult(name, "g", "CL", None, 0.0, names=("p0", "p1"), train=scores, validation=scores)
+    ranked = rank([summary("winner", [1.0, 2.0, 3.0]), summary("rejected best", [1.25, 2.5, 3.75]),
+                   summary("rejected worse", [1.5, 3.0, 4.5])],
+                  lambda s: () if s.name == "winner" else ("not admissible",))
+    by_name = {r.name: r for r in ranked}
+    assert [r.name for r in ranked] == ["winner", "rejected best", "rejected worse"]
+    assert by_name["rejected best"].gap == pytest.approx(0.25) and not by_name["rejected best"].within_noise
+    assert by_name["rejected worse"].gap == pytest.approx(0.5)
+    assert "over the best-fitting admissible candidate, winner" in grid_table(ranked, "md")
+    alone = rank([summary("a", [1.0, 2.0, 3.0]), summary("b", [1.0, 2.0, 3.01])], lambda s: ("no",))
+    assert alone[0].gap == 0.0 and "none is admissible" in grid_table(alone, "md")
+
+
 @pytest.fixture(scope="module")
 def tiny(campaign_on_disk):
     # the search's mechanics on a laboratory-clean campaign (no slow reconstruction errors): at 5 % of
@@ -232,7 +252,7 @@ def test_cli_demo_small(tmp_path):
     # the demo ends with the report (matplotlib is part of the test extra), which opens with the story of the
     # Van Ingen model against the flight data, also printed and written to story.md
     assert (tmp_path / "report.html").exists() and (tmp_path / "figures" / "lift_static.png").exists()
-    assert "the Van Ingen model CL-I misses the flight data" in proc.stdout
+    assert "the Van Ingen model CL-I" in proc.stdout and "misses the flight data" in proc.stdout
     assert "the Van Ingen model Cm-I" in (tmp_path / "story.md").read_text()
     page = (tmp_path / "report.html").read_text()
     assert page.index("From the Van Ingen simulator model to the final model") < page.index("<h2>Figures</h2>")

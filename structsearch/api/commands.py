@@ -65,8 +65,8 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, starts: int = 4, 
     _check_samples(band_samples)
     from ..fitting.candidate_fit import fit_lift_model, fit_staged
     from ..fitting.specs import resolve_candidate
+    candidate = resolve_candidate(model)   # a misspelled name is answered before the campaign is read
     campaign = as_campaign(campaign)
-    candidate = resolve_candidate(model)
     options = fit_options(starts, seed, covariance, bounds)
     check_box_names(options.parameter_boxes, [candidate])
     train, validation = campaign.split("train"), campaign.split("validation")
@@ -134,9 +134,10 @@ def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, out: st
     ``joint_lift``: structures fitted jointly first ("CL-VI,CD-IXr,Cm-XXXIIIr", a list or a joint spec
     file); drag and pitch candidates read its lift block (``search --joint-lift``)."""
     from ..search.pipeline import search as run_search
+    candidates = search_candidates(grid)   # a misspelled grid is answered before the campaign is read
     campaign = as_campaign(campaign)
     options = fit_options(starts, seed, covariance, bounds, cv_method=cv_method)
-    check_box_names(options.parameter_boxes, search_candidates(grid))
+    check_box_names(options.parameter_boxes, candidates)
     joint = ()
     if joint_lift:
         from ..engine.twostep import SCORE_KINDS

@@ -275,6 +275,11 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
     if base_result.failed:
         raise DeclarationError(f"fitting {baseline.name} failed: {base_result.error}")
     base_fit = Fitted(baseline, base_result, *_residuals(ctx, baseline, base_result))
+    judge = judge_for(campaign)
+    baseline_reasons = tuple(judge(base_result, baseline))
+    if baseline_reasons:
+        warnings.append(f"the baseline {baseline.name} as fitted here is not admissible: "
+                        + "; ".join(baseline_reasons))
     say(f"library-free floor of {baseline.name}'s residual; the saturated library model")
     flexible, sig_train, sig_val, x_val = _flexible(base_fit, baseline, lift, train, val, seed)
     first_floor = (base_fit, flexible, sig_train, sig_val)
@@ -296,7 +301,7 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
     # and the search would stop early; it stops when no move passes, and the verdict is taken at the end
     say(f"structure search from {baseline.name}: {len(library.terms)} term templates, beam {beam}")
     ex = explore(baseline, campaign, library, cache, lifts=ctx.lifts, options=options, beam=beam, alpha=alpha,
-                 max_steps=max_rounds, judge=judge_for(campaign), kinds=kinds, simplify=simplify,
+                 max_steps=max_rounds, judge=judge, kinds=kinds, simplify=simplify,
                  n_jobs=n_jobs, backend=backend, progress=say)
     path = ex.final.path()
     fits = [base_fit] + [ctx.fitted(n) for n in path[1:]]
@@ -346,7 +351,8 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
     return Diagnosis(baseline.coefficient, baseline.name, floor.mse, floor.source,
                      min(f.mse for f in floors if not f.library_free), explained, final_excess, final_excess_se,
                      tuple(rounds), final_fit.candidate.name, float(np.mean(final_fit.residual ** 2)), block,
-                     tuple(warnings), sl, time.perf_counter() - t0, final_fit.candidate.to_dict(), search_doc), ex
+                     tuple(warnings), sl, time.perf_counter() - t0, final_fit.candidate.to_dict(), search_doc,
+                     baseline_reasons), ex
 
 
 def _residuals(ctx: _Context, c: Candidate, r) -> tuple[np.ndarray, np.ndarray]:

@@ -335,6 +335,23 @@ class Diagnosis:
     # the structure reached (Candidate.to_dict(): terms, states, lift model), the structure search's numbers
     final_structure: Mapping[str, Any] | None = None
     search: Mapping[str, Any] | None = None
+    # why the baseline, as fitted on this campaign, is not admissible by the ranking's rules (empty: it is); a
+    # story told from a degenerate fit says so (issue 31)
+    baseline_reasons: tuple[str, ...] = ()
+
+    @property
+    def baseline_admissible(self) -> bool:
+        return not self.baseline_reasons
+
+    def closes(self, round_index: int, effect: EffectRow | None) -> float:
+        """The share of the baseline's gap (its validation MSE above the noise floor) that ``effect``, tried in
+        round ``round_index``, closes: the one definition of "closes" in every story and diagnosis text
+        (negative: it costs). NaN when there is no gap or no effect. The JSON's ``shrink`` is the share of the
+        round's own gap, capped to [0, 1] (docs/interfaces.md section 3)."""
+        gap = self.first.mse.validation - self.noise_floor
+        if effect is None or effect.failed or not gap > 0:
+            return float("nan")
+        return (self.rounds[round_index].mse.validation - effect.mse_validation_after) / gap
 
     @property
     def first(self) -> Round:
@@ -375,7 +392,8 @@ class Diagnosis:
                "final_excess_over_floor": self.final_excess_over_floor, "final_excess_se": self.final_excess_se,
                "rounds": [r.to_dict() for r in self.rounds], "final_model": self.final_model,
                "final_mse": self.final_mse, "unexplained": self.unexplained.to_dict(),
-               "warnings": list(self.warnings)}
+               "warnings": list(self.warnings), "baseline_admissible": self.baseline_admissible,
+               "baseline_reasons": list(self.baseline_reasons)}
         if self.state_level is not None:
             out["state_level"] = self.state_level.to_dict()
         if self.final_structure is not None:
@@ -395,4 +413,4 @@ class Diagnosis:
                    tuple(Round.from_dict(r) for r in d["rounds"]), d["final_model"], d["final_mse"],
                    Unexplained.from_dict(d["unexplained"]), tuple(d.get("warnings", ())),
                    None if sl is None else StateLevel.from_dict(sl), d.get("seconds", float("nan")),
-                   d.get("final_structure"), d.get("search"))
+                   d.get("final_structure"), d.get("search"), tuple(d.get("baseline_reasons", ())))

@@ -73,15 +73,9 @@ def van_ingen_story(campaign: Campaign, options: FitOptions = DIAGNOSIS_OPTIONS,
 
 
 def _steps(doc: Diagnosis) -> list[tuple[str, float]]:
-    """(move adopted, fraction of the first round's gap it closed; negative: it cost, as a look-ahead's first move
-    may), round by round."""
-    gap = doc.rounds[0].mse.validation - doc.noise_floor
-    out = []
-    for r in doc.rounds:
-        if r.adopted:
-            after = r.effect(r.adopted).mse_validation_after
-            out.append((r.adopted, (r.mse.validation - after) / gap if gap > 0 else float("nan")))
-    return out
+    """(move adopted, share of the baseline's gap it closed (:meth:`Diagnosis.closes`; negative: it cost, as a
+    look-ahead's first move may)), round by round."""
+    return [(r.adopted, doc.closes(i, r.effect(r.adopted))) for i, r in enumerate(doc.rounds) if r.adopted]
 
 
 def _step_words(name: str, share: float, effect: bool) -> str:
@@ -89,8 +83,21 @@ def _step_words(name: str, share: float, effect: bool) -> str:
     if not np.isfinite(share):
         return f"{what} (no gap to close)"
     if share < 0:
-        return f"{what} costs {-share:.0%} of it (a first move that the next builds on)"
-    return f"{what} closes {share:.0%} of that gap"
+        return f"{what} costs {-share:.0%} of the baseline's gap (a first move that the next builds on)"
+    return f"{what} closes {share:.0%} of the baseline's gap"
+
+
+# the reasons against an inadmissible baseline a story line names (story.md lists them all)
+REASONS_IN_LINE = 2
+
+
+def baseline_words(doc: Diagnosis) -> str:
+    """" (as fitted here NOT admissible: ...)" after an inadmissible baseline's name, else ""."""
+    why = doc.baseline_reasons
+    if not why:
+        return ""
+    more = f"; {len(why) - REASONS_IN_LINE} more in story.md" if len(why) > REASONS_IN_LINE else ""
+    return f" (as fitted here NOT admissible: {'; '.join(why[:REASONS_IN_LINE])}{more})"
 
 
 def _reached(doc: Diagnosis) -> str:
@@ -114,7 +121,8 @@ def story_lines(docs: Mapping[str, Diagnosis]) -> list[str]:
     lines = []
     for coef, doc in docs.items():
         mse, floor = doc.mse.validation, doc.noise_floor
-        text = (f"{coef}: the Van Ingen model {doc.baseline} misses the flight data by {_above(mse, floor)} "
+        text = (f"{coef}: the Van Ingen model {doc.baseline}{baseline_words(doc)} misses the flight data by "
+                f"{_above(mse, floor)} "
                 f"above the noise floor (validation MSE {mse:.3g} against {floor:.3g})")
         steps = _steps(doc)
         effects = {r.adopted for r in doc.rounds if r.adopted and (r.effect(r.adopted).effect or

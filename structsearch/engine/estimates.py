@@ -80,6 +80,8 @@ class ParameterEstimates:
     generated_regressors: str | None = None
     # statistics given rather than derived (a result rebuilt from a summary; names in STATABLE)
     stated: Mapping[str, Any] = field(default_factory=dict)
+    # each parameter's unit ("1/rad", "s", "-"; .units), where the fitted model could tell it
+    units: Mapping[str, str] = field(default_factory=dict)
 
     # ----- sizes -------------------------------------------------------------
     @property
@@ -298,7 +300,7 @@ class ParameterEstimates:
                                     else json_ready(self.effective_maneuvers.tolist())),
             "significance": self.significance, "unidentifiable": dict(self.unidentifiable),
             "condition_number": _finite_or_inf([self.condition_number])[0],
-            "generated_regressors": self.generated_regressors,
+            "generated_regressors": self.generated_regressors, "units": dict(self.units),
             "stated": json_ready({k: (np.asarray(v).tolist() if k == "correlation" else
                                       [list(p) for p in v] if k == "high_correlations" else dict(v))
                                   for k, v in self.stated.items()}),
@@ -332,7 +334,8 @@ class ParameterEstimates:
                    effective_maneuvers=array(doc.get("effective_maneuvers")),
                    significance=float(doc["significance"]), unidentifiable=dict(doc.get("unidentifiable") or {}),
                    condition_number=_float(doc.get("condition_number")),
-                   generated_regressors=doc.get("generated_regressors"), stated=stated)
+                   generated_regressors=doc.get("generated_regressors"), stated=stated,
+                   units=dict(doc.get("units") or {}))
 
     def __eq__(self, other) -> bool:
         return isinstance(other, ParameterEstimates) and self.to_dict() == other.to_dict()

@@ -101,7 +101,8 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
         covariance=estimate.covariance, covariance_kind=covariance, n_samples=int(segments.counts.sum()),
         n_maneuvers=len(segment_names), white_covariance=estimate.white, max_lag=estimate.max_lag,
         bandwidth=estimate.bandwidth, effective_maneuvers=estimate.effective_maneuvers,
-        condition_number=scaled_condition_number(jac, factor[0]), unidentifiable=reasons)
+        condition_number=scaled_condition_number(jac, factor[0]), unidentifiable=reasons,
+        units=dict(getattr(problem, "units", None) or {}))
     return FitResult(
         model=model, coefficient=coefficient, estimates=estimates,
         residuals=residual, segment_names=tuple(segment_names),

@@ -46,6 +46,10 @@ class JointProblem:
         return tuple(n for b in self.blocks for n in b.linear_names)
 
     @property
+    def units(self) -> dict[str, str]:
+        return {n: u for b in self.blocks for n, u in (getattr(b, "units", None) or {}).items()}
+
+    @property
     def n_blocks(self) -> int:
         return len(self.blocks)
 

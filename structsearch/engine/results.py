@@ -103,6 +103,7 @@ class FitResult:
     unidentifiable = _delegate("unidentifiable")
     condition_number = _delegate("condition_number")
     generated_regressors = _delegate("generated_regressors")
+    units = _delegate("units")
     n_params = _delegate("n_params")
     params = _delegate("params")
     stderr = _delegate("stderr")
@@ -211,6 +212,7 @@ class FitResult:
             "correlation": {"names": list(self.names), "matrix": self.correlation.tolist()},
             "covariance": self.covariance_kind,
             "reference_dof": self.reference_dof,
+            "units": dict(self.units),
             "generated_regressors": self.generated_regressors,
             "max_lag": self.max_lag,
             "bandwidth": self.bandwidth,

@@ -30,6 +30,7 @@ from .separation import SeparationState, common_step, evaluate_state
 from .ols import ols
 from .snls import BoundProblem, Evaluation, model_jacobian, multistart
 from .defaults import STALL_DEFAULTS
+from .units import coefficient_unit, separation_unit
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,6 +95,14 @@ class StallModel:
     @property
     def linear_names(self) -> tuple[str, ...]:
         return tuple(r.name for r in self.regressors)
+
+    @property
+    def units(self) -> dict[str, str]:
+        """Each parameter's unit (:mod:`.units`): tau in s, a1 per rad, a_star in rad; a linear coefficient's
+        is the inverse of its regressor's (the coefficient it builds is dimensionless)."""
+        symbols = tuple(s.symbol for s in self.states)
+        return {**{p: separation_unit(p) for p in self.nonlinear_names},
+                **{r.name: coefficient_unit(r.expr, symbols) for r in self.regressors}}
 
     @property
     def state_inputs(self) -> tuple[str, ...]:
@@ -221,6 +230,10 @@ class StallProblem(BoundProblem):
 
     model: StallModel
     data: FlightData
+
+    @property
+    def units(self) -> dict[str, str]:
+        return self.model.units
 
     @cached_property
     def _step(self) -> float | None:

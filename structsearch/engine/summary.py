@@ -53,7 +53,8 @@ def with_newline(text: str, fmt: str) -> str:
 
 
 # ----- the parameters of one fit -----------------------------------------------------------------
-PARAMETER_HEADERS = ["parameter", "kind", "estimate", "std. dev.", "ref. dof", "t", "p (two-sided)", "flags"]
+PARAMETER_HEADERS = ["parameter", "unit", "kind", "estimate", "std. dev.", "ref. dof", "t", "p (two-sided)",
+                     "flags"]
 # A parameter whose t reference has fewer degrees of freedom than this rests on few maneuvers: its interval is
 # wide by the t quantile (t_0.975(4) = 2.78 against 1.96), and its standard deviation itself, a per-maneuver sum
 # over few terms, is uncertain and on the simulated campaigns tends to be too small (bench --calibration: reported
@@ -84,9 +85,19 @@ def parameter_rows(fit) -> list[list]:
         value, se = fit.params[name], fit.stderr[name]
         t = value / se if se > 0 else math.nan  # no standard deviation, no t
         kind = "nonlinear" if name in fit.nonlinear_names else "linear"
-        rows.append([name, kind, value, se, _reference_dof(fit, name), t, fit.p_values[name],
-                     "; ".join(parameter_flags(fit, name))])
+        rows.append([name, parameter_unit(fit, name), kind, value, se, _reference_dof(fit, name), t,
+                     fit.p_values[name], "; ".join(parameter_flags(fit, name))])
     return rows
+
+
+def parameter_unit(fit, name: str) -> str:
+    """The parameter's unit as the fit records it ("unknown" when it does not); an angle in rad also in deg, the
+    way flight-test engineers read a_star."""
+    unit = (getattr(fit, "units", None) or {}).get(name, "unknown")
+    value = fit.params[name]
+    if unit == "rad" and math.isfinite(value):
+        return f"rad ({math.degrees(value):.2f} deg)"
+    return unit
 
 
 def _reference_dof(fit, name: str) -> float:

@@ -180,6 +180,7 @@ class CandidateResult:
     t_values = _delegate("t_values")
     at_bound = _delegate("at_bound")
     reference_dof = _delegate("reference_dof")
+    units = _delegate("units", {})
     not_identifiable = _delegate("not_identifiable")
     significant = _delegate("significant")
     significance = _delegate("significance", 0.05)
@@ -340,4 +341,5 @@ def _restated(base: ParameterEstimates | None, stated: dict, train: SplitScores 
         unidentifiable=dict(base.unidentifiable) if same else {},
         condition_number=_nan_if_none(stated.get("condition_number",
                                                  base.condition_number if base is not None else None)),
-        generated_regressors=base.generated_regressors if base is not None else None, stated=carried)
+        generated_regressors=base.generated_regressors if base is not None else None, stated=carried,
+        units=dict(base.units) if base is not None else {})

@@ -20,6 +20,7 @@ whose name is prefix + Roman numeral also advance the count.
 """
 from __future__ import annotations
 
+import difflib
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -33,11 +34,20 @@ SPEC_DIR = resources.files("structsearch") / "model_specs"
 BUILTIN_GRIDS = ("separation", "lift", "drag", "pitch")
 
 
+def suggestion(name: str, known) -> str:
+    """" (did you mean 'lift'?)" for a close match among ``known`` (case ignored), else ""."""
+    by_lower = {k.lower(): k for k in known}
+    close = difflib.get_close_matches(name.lower(), list(by_lower), n=1, cutoff=0.6)
+    return f" (did you mean {by_lower[close[0]]!r}?)" if close else ""
+
+
 def read_toml(path) -> dict:
     try:
         return tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise DeclarationError(f"model spec file {path} not found") from None
+        hint = suggestion(str(path), BUILTIN_GRIDS) if Path(str(path)).suffix == "" else ""
+        raise DeclarationError(f"model spec file {path} not found"
+                               + (hint + ": a shipped grid is named without a path" if hint else "")) from None
     except tomllib.TOMLDecodeError as exc:
         raise DeclarationError(f"{path}: not valid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
@@ -73,12 +83,15 @@ def _with_lift_states(c: Candidate, lift_grid: Grid) -> Candidate:
 def find_candidate(name: str) -> Candidate:
     """A candidate of the shipped grids by name (``CL-VI``, ``CD-IXr``, ``Cm-XXXIII``, ``U/S``)."""
     lift = load_grid("lift")
+    known = []
     for grid_name in BUILTIN_GRIDS:
         grid = lift if grid_name == "lift" else load_grid(grid_name, lift)
         for c in grid.candidates:
             if c.name == name or c.name.split(" ")[-1] == name:
                 return c
-    raise DeclarationError(f"no candidate named {name!r} in the shipped grids ({', '.join(BUILTIN_GRIDS)})")
+            known.append(c.name.split(" ")[-1])
+    raise DeclarationError(f"no candidate named {name!r} in the shipped grids ({', '.join(BUILTIN_GRIDS)})"
+                           + suggestion(name, known))
 
 
 def resolve_candidate(name_or_path: str, coefficient: str | None = None) -> Candidate:

@@ -50,6 +50,17 @@ def _pct(x) -> str:
     return "n/a" if x is None or not np.isfinite(x) else f"{x:.0%}"
 
 
+# one definition of the share a move closes, in every story and diagnosis text (issue 31)
+CLOSES_DEFINITION = ("the share of the baseline's gap (its validation MSE above the noise floor) a move closes: the "
+                     "validation MSE before the move minus after it, over the baseline's validation MSE minus the "
+                     "floor; negative when a move costs. The moves of one path add up to the share of the gap "
+                     "closed. (diagnosis.json's `shrink` is each move's share of its own round's gap.)")
+
+
+def _share(x) -> str:
+    return "n/a" if x is None or not np.isfinite(x) else f"{x:.0%}"
+
+
 def _num(x, fmt=".2f") -> str:
     return "n/a" if x is None or not np.isfinite(x) else format(x, fmt)
 
@@ -86,19 +97,21 @@ def markdown(doc: Diagnosis) -> str:
         if e.failed:
             body.append([e.name, e.verdict or "failed", "-", "-", "-", "-", "-", "-", e.error])
         else:
-            body.append([e.name, e.verdict or "-", _num(e.shrink), f"{e.mse_validation_after:.4g}",
+            body.append([e.name, e.verdict or "-", _share(doc.closes(0, e)), f"{e.mse_validation_after:.4g}",
                          _num(_test_p(e), ".2g"), _num(e.p_value, ".2g"), _num(e.overlap),
                          (e.acts_in or {}).get("phase", "-"), "at floor" if e.at_floor else ""])
-    lines += [tabulate(body, headers=["move", "verdict", "shrink", "validation MSE after", "p (test)", "p (Wald)",
+    lines += [tabulate(body, headers=["move", "verdict", "closes (of the baseline's gap)", "validation MSE after",
+                                      "p (test)", "p (Wald)",
                                       "overlap with gap", "acts most in", ""], tablefmt="github"), ""]
     if len(doc.effects) > len(shown):
         lines += [f"{len(doc.effects) - len(shown)} more moves in diagnosis.json. p (test): the structure search's "
                   "adoption test; p (Wald): the test of the parameters a nested move adds (fitted in full).", ""]
-    lines += ["## How far it shrinks", ""]
+    lines += ["## How far it shrinks", "", f"\"Closes\": {CLOSES_DEFINITION}", ""]
     for i, r in enumerate(doc.rounds):
         best = r.effect(r.adopted) if r.adopted else None
         step = ("at the floor" if r.explained_before and not r.adopted else
-                f"adopted {r.adopted} ({best.verdict}), which closes {_pct(best.shrink)} of the gap "
+                f"adopted {r.adopted} ({best.verdict}), which closes {_share(doc.closes(i, best))} of the "
+                "baseline's gap "
                 f"(p = {_num(_test_p(best), '.2g')}, adoption test)"
                 if best is not None else "no move passes the adoption test")
         lines.append(f"{i + 1}. {r.baseline}: validation MSE {r.mse.validation:.4g} (floor of this "
@@ -150,18 +163,26 @@ def write(doc: Diagnosis, out: Path) -> tuple[Path, Path]:
 def story_markdown(story: Story, command: str) -> str:
     """The Van Ingen -> final story: the lines, then each coefficient's rounds."""
     lines = ["# From the Van Ingen simulator model to the final model", "", f"Made by `{command}`.", ""]
+    degenerate = [d for d in story.diagnoses.values() if d.baseline_reasons]
+    if degenerate:
+        lines += ["**The story starts from a baseline that is not admissible as fitted here** ("
+                  + ", ".join(d.baseline for d in degenerate) + "): its gap is that of a degenerate fit, and "
+                  "the first moves partly repair the fit rather than add an effect. Why (the ranking's rules):", ""]
+        lines += [f"- {d.baseline}: " + "; ".join(d.baseline_reasons) for d in degenerate] + [""]
     lines += [f"- {line}" for line in story.lines] + [""]
+    lines += [f"\"Closes\": {CLOSES_DEFINITION}", ""]
     for coef, doc in story.diagnoses.items():
         lines += [f"## {coef}: {doc.baseline} -> {doc.final_model}", ""]
         body = []
         for i, r in enumerate(doc.rounds):
             best = r.effect(r.adopted) if r.adopted else r.best
+            closes = doc.closes(i, best) if best is not None else float("nan")
             body.append([i + 1, r.baseline, f"{r.mse.validation:.4g}",
-                         "-" if best is None else best.name, "-" if best is None else _num(best.shrink),
+                         "-" if best is None else best.name, "-" if best is None else _share(closes),
                          "-" if best is None else _num(_test_p(best), ".2g"), r.adopted or "-",
                          "yes" if r.explained_before else "no"])
         lines += [tabulate(body, headers=["round", "model", "validation MSE", "best move",
-                                          "shrink (of this round's gap)", "p (test)", "adopted", "at the floor"],
+                                          "closes (of the baseline's gap)", "p (test)", "adopted", "at the floor"],
                            tablefmt="github"), "",
                   f"Noise floor {doc.noise_floor:.4g}; explained: {'yes' if doc.explained else 'no'}. "
                   + unexplained_sentence(doc), ""]
@@ -190,7 +211,8 @@ def diagnosis_console_lines(diagnosis: Diagnosis, written: tuple[Path, Path] | N
     d = diagnosis
     best = d.best_effect
     verdict = ("the baseline is at the noise floor" if d.gap_explained_by_baseline else
-               f"best effect {best.name} closes {best.shrink:.0%} of the gap" if best and best.shrink is not None
+               f"best effect {best.name} closes {_share(d.closes(0, best))} of the baseline's gap"
+               if best and best.shrink is not None
                else "no effect fitted")
     head = (f"{d.coefficient} {d.baseline}: {verdict}; final model {d.final_model}; explained: "
             f"{'yes' if d.explained else 'no'}")

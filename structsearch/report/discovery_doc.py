@@ -28,6 +28,16 @@ def spec_name(found: Discovery) -> str:
     return f"{found.coefficient}_discovered.toml"
 
 
+def closed_shares(found: Discovery) -> list[float]:
+    """Each adopted move's share of the start's gap (the one definition of "closes"; NaN without a gap)."""
+    gap = found.start_mse_validation - found.noise_floor
+    before, out = found.start_mse_validation, []
+    for p in found.path:
+        out.append((before - p.mse_validation) / gap if gap > 0 else float("nan"))
+        before = p.mse_validation
+    return out
+
+
 def path_rows(found: Discovery) -> list[list]:
     rows = []
     for i, p in enumerate(found.path, 1):
@@ -58,19 +68,24 @@ def markdown(found: Discovery, command: str = "") -> str:
               f"{len(found.steps)} steps ({found.seconds:.0f} s); the search stopped: {found.stopped}.", "",
               "## Path", ""]
     if found.path:
+        closes = closed_shares(found)
         body = [[i, p.move, p.effect or "", p.verdict, _g(p.mse_validation), _g(p.mse_cv), _g(p.p_value, ".2g"),
-                 _g(p.shrink, ".0%"), (p.where or {}).get("phase", ""), (p.where or {}).get("alpha_band", "")]
-                for i, p in enumerate(found.path, 1)]
+                 _g(c, ".0%"), (p.where or {}).get("phase", ""), (p.where or {}).get("alpha_band", "")]
+                for i, (p, c) in enumerate(zip(found.path, closes), 1)]
         lines += [tabulate(body, headers=["step", "move", "effect", "verdict", "validation MSE", "CV MSE",
-                                          "p (test)", "shrink", "phase", "alpha band"], tablefmt="github"), ""]
+                                          "p (test)", "closes (of the start's gap)", "phase", "alpha band"],
+                           tablefmt="github"), ""]
         tests = sorted({(p.test or {}).get("test", "") for p in found.path} - {""})
         stands = [f"{p.move} stands for {p.test['stands_for']}" for p in found.path
                   if p.test and p.test.get("stands_for")]
         lines += ["Tests: " + "; ".join(tests) + ". A move improves when its test passes (or, a library effect, "
                   "when it is within one standard error of a move whose test passed"
                   + (": " + ", ".join(stands) if stands else "") + "); it simplifies with fewer parameters within "
-                  "one standard error; it repairs when it removes a reason against admissibility. Shrink: the share "
-                  f"of the gap from the start to the floor ({_g(found.noise_floor)}) the move closes.", ""]
+                  "one standard error; it repairs when it removes a reason against admissibility. Closes: the share "
+                  f"of the start's gap (its validation MSE above the floor, {_g(found.noise_floor)}) the move closes, "
+                  "as in every story and diagnosis: the validation MSE before the move minus after it, over the "
+                  "start's minus the floor (negative: it costs); the steps add up to the share closed. "
+                  "(discover.json's and path.csv's `shrink` is each move's share of its own step's gap.)", ""]
     else:
         lines += ["No move passed the test: the start is the structure found.", ""]
     f = found.final
@@ -124,9 +139,9 @@ def discovery_console_lines(found: Discovery, out: Path) -> list[str]:
              f"(validation MSE {_g(found.start_mse_validation)} -> {_g(f.mse_validation)}; "
              f"{'admissible' if f.admissible else 'not admissible'}; {found.structures_fitted} structures, "
              f"{found.seconds:.0f} s)"]
-    for i, p in enumerate(found.path, 1):
+    for i, (p, c) in enumerate(zip(found.path, closed_shares(found)), 1):
         lines.append(f"  {i}. {p.move} ({'' if p.verdict == 'improves' else p.verdict + ', '}"
-                     f"p {_g(p.p_value, '.2g')}, shrink {_g(p.shrink, '.0%')})")
+                     f"p {_g(p.p_value, '.2g')}, closes {_g(c, '.0%')} of the start's gap)")
     for c in found.comparison[1:]:
         lines.append(f"  against {c.role} {c.name}: excess {_g(c.excess, '+.1%')} +- {_g(c.excess_se, '.1%')}, "
                      f"within noise: {'n/a' if c.within_noise is None else 'yes' if c.within_noise else 'no'}")

@@ -68,7 +68,9 @@ def covariance_sentence(record: dict) -> str:
     return (f"Standard deviations and p-values: the `{record['kind']}` covariance"
             + (f" ({'; '.join(how)})" if how else "")
             + f"; each parameter's t reference has the degrees of freedom in the column `ref. dof` (its effective "
-            f"maneuvers minus one with a per-maneuver covariance), flagged \"few maneuvers\" below {FEW_DOF:g}.\n")
+            f"maneuvers minus one with a per-maneuver covariance), flagged \"few maneuvers\" below {FEW_DOF:g}. "
+            "Units: the column `unit` (a linear coefficient's is the inverse of its regressor's, since the "
+            "coefficient it builds is dimensionless; \"-\": dimensionless).\n")
 
 
 def sampled_sentence(bands) -> str:

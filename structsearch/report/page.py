@@ -26,6 +26,7 @@ from ..data.errors import DataError, DeclarationError
 from ..data.atomic import write_text
 from .tables import parameter_table, render_table
 from .diagnosis_doc import unexplained_sentence
+from ..diagnosis.results import Diagnosis
 from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_MODEL_NAMES
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
@@ -230,10 +231,11 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
         if fits.effect is not None:
             best, changed, fitted = fits.effect
             g = rd.with_effect(ms, diagnose_coefficient, changed, fitted, campaign)
-            shrink = next(e["shrink"] for e in diagnosis["effects"] if e["name"] == best)
+            row = next(e for e in fits.diagnosis.effects if e.name == best)
+            closes = fits.diagnosis.closes(0, row)
             verdict = ("the baseline is at the noise floor, so little changes"
-                       if diagnosis["gap_explained_by_baseline"] or shrink is None
-                       else f"the gap shrinks by {shrink:.0%}")
+                       if diagnosis["gap_explained_by_baseline"] or not np.isfinite(closes)
+                       else f"the move closes {closes:.0%} of the baseline's gap")
             emit(fg.gap(g["before"], g["after"], g["maneuvers"], g["bands"],
                         (f"before: {g['baseline']} (MSE {g['mse_before']:.3g})",
                          f"after adding {best}: {g['model']} (MSE {g['mse_after']:.3g})")),
@@ -335,10 +337,12 @@ def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, di
                      f"<p>Validation MSE {diagnosis['mse']['validation']:.4g}, noise floor "
                      f"{diagnosis['noise_floor']:.4g}; final model {html.escape(diagnosis['final_model'])}; explained: "
                      f"{'yes' if diagnosis['explained'] else 'no'}. {html.escape(unexplained_sentence(diagnosis))}</p>")
-        rows = [[e["name"], _or_nan(e.get("shrink")), _or_nan(e.get("p_value")),
-                 (e.get("acts_in") or {}).get("phase", "-"), e.get("error", "")] for e in diagnosis["effects"]]
-        parts.append(render_table(rows, ["effect", "shrink", "p-value", "acts most in (phase)", "error"], "html",
-                                  floatfmt=".3g"))
+        typed = Diagnosis.from_dict(diagnosis)
+        rows = [[e["name"], typed.closes(0, row), _or_nan(e.get("p_value")),
+                 (e.get("acts_in") or {}).get("phase", "-"), e.get("error", "")]
+                for e, row in zip(diagnosis["effects"], typed.effects)]
+        parts.append(render_table(rows, ["effect", "closes (of the baseline's gap)", "p-value", "acts most in (phase)",
+                                         "error"], "html", floatfmt=".3g"))
     study = out / "study"
     study_tables = [(stem, _ranking_table(study, stem, top=40)) for stem in STUDY_TABLES]
     if any(t for _, t in study_tables):

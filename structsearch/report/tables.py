@@ -22,6 +22,7 @@ from ..engine.summary import (CSV_DIGITS, FORMATS, PARAMETER_HEADERS, TABLEFMT, 
                               csv_value, parameter_flags, parameter_rows, parameter_table, render_table)
 from ..engine.summary import with_newline as _with_newline
 from ..fitting.candidate_result import CandidateResult
+from ..search.ranking import gap_reference
 
 
 def correlation_table(fit, fmt: str = "text") -> str:
@@ -91,7 +92,26 @@ def grid_table(ranked: list[CandidateResult], fmt: str) -> str:
     for s in ranked:
         row = table_row(s)
         body.append([_cell(row.get(k)) for k, _ in COLUMNS] + [row["reasons"]])
-    return _with_newline(render_table(body, headers, fmt), fmt)
+    table = _with_newline(render_table(body, headers, fmt), fmt)
+    note = gap_note(ranked)
+    if fmt in ("md", "markdown") and note:
+        return table + "\n" + note + "\n"
+    if fmt in ("tex", "latex") and note:
+        return table + "% " + note + "\n"
+    return table
+
+
+def gap_note(ranked: list[CandidateResult]) -> str:
+    """What "gap to best" and "within noise of best" are measured against (the same for every row)."""
+    reference = gap_reference(ranked)
+    if reference is None:
+        return ""
+    against = ("the best-fitting admissible candidate" if reference.admissible else
+               "the best-fitting candidate (none is admissible)")
+    return (f"Gap to best: each candidate's mean per-maneuver relative excess of held-out MSE over {against}, "
+            f"{reference.name}; within noise of best: a gap below its standard error (or 1 %). "
+            "Rejected candidates are measured against the same candidate, so none looks tied with the winner "
+            "only because it is tied with the best of the rejected.")
 
 
 def ranking_csv(ranked_by_grid: dict[str, list[CandidateResult]]) -> str:

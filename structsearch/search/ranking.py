@@ -60,14 +60,20 @@ def _use_cv(group: list[CandidateResult]) -> bool:
 
 def _placed(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult]:
     """Each fitted candidate with ``gap``, ``gap_se`` and ``within_noise`` against the group's best fit."""
-    best = min(group, key=lambda s: _scores(s, use_cv).mse)
-    placed = []
-    for s in group:
-        gap, se = _paired_gap(s, best, use_cv)
-        # fewer than three maneuvers give no standard error: only the practical tolerance applies
-        bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
-        placed.append(s.ranked(gap=gap, gap_se=se, within_noise=bool(s is best or gap <= bar)))
-    return placed
+    best = _best_fitting(group, use_cv)
+    return [_measured(s, best, use_cv) for s in group]
+
+
+def _best_fitting(group: list[CandidateResult], use_cv: bool) -> CandidateResult:
+    return min(group, key=lambda s: _scores(s, use_cv).mse)
+
+
+def _measured(s: CandidateResult, best: CandidateResult, use_cv: bool) -> CandidateResult:
+    """``s`` with its gap to ``best``, the gap's standard error and whether it is within noise."""
+    gap, se = _paired_gap(s, best, use_cv)
+    # fewer than three maneuvers give no standard error: only the practical tolerance applies
+    bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
+    return s.ranked(gap=gap, gap_se=se, within_noise=bool(s is best or gap <= bar))
 
 
 def _ordered(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult]:
@@ -92,8 +98,24 @@ def rank(results: list[CandidateResult],
     use_cv = _use_cv([s for s in judged if not s.failed])
     admissible = _ordered([s for s in judged if not s.failed and s.admissible], use_cv)
     others = _ordered([s for s in judged if not s.failed and not s.admissible], use_cv)
+    if admissible:
+        # the inadmissible are ordered among themselves, but their gap and "within noise" are measured against
+        # the best-fitting admissible candidate, as everyone's: a rejected candidate never looks tied with the
+        # winner because it is tied with the best of the rejected (issue 31)
+        best = _best_fitting(admissible, use_cv)
+        others = [_measured(s, best, use_cv) for s in others]
     failed = [s for s in judged if s.failed]
     return [s.ranked(rank=i + 1) for i, s in enumerate(admissible + others)] + failed
+
+
+def gap_reference(ranked: list[CandidateResult]) -> CandidateResult | None:
+    """The candidate every gap of a ranking is measured against: the best-fitting admissible one, else the
+    best-fitting one (None when nothing was fitted)."""
+    fitted = [s for s in ranked if not s.failed]
+    if not fitted:
+        return None
+    use_cv = _use_cv(fitted)
+    return _best_fitting([s for s in fitted if s.admissible] or fitted, use_cv)
 
 
 def near_best(results: list[CandidateResult]) -> list[CandidateResult]:
