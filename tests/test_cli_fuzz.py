@@ -113,3 +113,50 @@ def test_a_name_far_from_every_shipped_one_gets_no_guess(tmp_path, capsys):
     code = main(["fit", "--data", MISSING, "--model", "xyz", "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and "no candidate named 'xyz'" in err and "did you mean" not in err
+
+
+def _synopsis():
+    """(command, option, bracketed) for every option of the README's "Command line" synopsis."""
+    import re
+    from pathlib import Path
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    block = readme.split("## Command line", 1)[1].split("\n\n", 2)[1]
+    entries, command = [], None
+    for line in block.splitlines():
+        text = line.strip()
+        if text.startswith("structsearch "):
+            command = text.split()[1]
+            text = text[len("structsearch " + command):]
+        depth = 0
+        for token in re.findall(r"\[|\]|--[a-z][a-z-]*", text):
+            depth += {"[": 1, "]": -1}.get(token, 0)
+            if token.startswith("--"):
+                entries.append((command, token, depth > 0))
+    return entries
+
+
+# required by the command unless another mode is chosen (diagnose --benchmark): checked when it runs
+REQUIRED_UNLESS_MODE = {("diagnose", "--data"), ("diagnose", "--model")}
+
+
+def test_the_readme_synopsis_brackets_exactly_the_optional_options():
+    """Issue 31: the synopsis wrote `--out DIR` as required where it has a default. An option is bracketed in
+    the README exactly when the parser does not require it (flags that choose a mode, such as `bench
+    --discovery`, are written bare)."""
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    entries = _synopsis()
+    assert len(entries) > 40 and ("demo", "--out", True) in entries
+    wrong = []
+    for command, option, bracketed in entries:
+        subparser = sub.choices[command]
+        action = next((a for a in subparser._actions if option in a.option_strings), None)
+        # one of a required group of alternatives (fit --model | --joint) is written bare, as a mode
+        chosen = any(action in g._group_actions and g.required for g in subparser._mutually_exclusive_groups)
+        required = action is not None and (action.required or chosen or (command, option) in REQUIRED_UNLESS_MODE)
+        if action is None:
+            wrong.append(f"{command} {option}: no such option")
+        elif (bracketed and required) or (not bracketed and not required and action.nargs != 0):
+            wrong.append(f"{command} {option}: {'bracketed' if bracketed else 'bare'} but "
+                         f"{'required' if required else 'optional'}")
+    assert wrong == []

@@ -162,3 +162,28 @@ def test_a_ranking_without_its_columns_is_one_clear_error(small, tmp_path):
     proc = run_cli("report", "--data", str(small.directory), "--out", str(tmp_path), "--quiet")
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1
     assert "ranking.csv" in proc.stderr and "'model'" in proc.stderr and "row 1" in proc.stderr
+
+
+def test_a_move_that_changes_little_is_said_to_in_the_gap_figure():
+    """Issue 31: gap_breakdown.png drew two identical panels when the effect changed little; its third panel
+    is the change, whose title says when the maps look alike."""
+    from structsearch.report.figures import LITTLE_CHANGE, gap_change_words
+    before = np.array([[1.0, 2.0], [np.nan, 4.0]])
+    assert "look alike" in gap_change_words(before, before * (1 - LITTLE_CHANGE / 10))
+    words = gap_change_words(before, before * 0.5)
+    assert "look alike" not in words and "-50%" in words
+
+
+def test_a_comparison_curve_away_from_every_point_is_explained_in_the_figure():
+    """Issue 31: in pitch_static.png the refitted Cm-I lay above every measured point with the reason only in the
+    caption; the figure now says why."""
+    from structsearch.report.page import offset_note
+    alpha = np.linspace(0.0, 0.4, 50)
+    points = {"alpha": np.linspace(0.05, 0.35, 200)}
+    points["Cm"] = -0.5 * points["alpha"]
+    above = offset_note("Cm", alpha, {"Cm": -0.5 * alpha + 0.03}, points, "Cm-XXXIIIr", "Cm-I")
+    assert above.startswith("Cm-I lies above 100% of the points") and "delta_e follows alpha" in above
+    assert offset_note("Cm", alpha, {"Cm": -0.5 * alpha - 0.03}, points, "M", "V").startswith("V lies below")
+    wiggle = {"alpha": points["alpha"], "Cm": points["Cm"] + 0.01 * np.sin(40 * points["alpha"])}
+    assert offset_note("Cm", alpha, {"Cm": -0.5 * alpha}, wiggle, "M", "V") is None
+    assert offset_note("Cm", alpha, None, points, "M", "V") is None

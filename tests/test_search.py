@@ -133,6 +133,20 @@ def tiny(campaign_on_disk):
     return campaign_on_disk(seed=1, scale=0.05, slow_errors=0.0)
 
 
+def test_the_same_seed_gives_byte_identical_artefacts(tiny, tmp_path):
+    """Issue 31: running the demo rewrote tracked artefacts. The demo's search (every grid, its tables, the
+    thesis-estimator refits) run twice from empty caches on the same campaign writes the same bytes; what may
+    move between runs is wall-clock time alone (README, section "Reproducibility")."""
+    import structsearch as ss
+    for name in ("a", "b"):
+        ss.search(tiny, "all", out=tmp_path / name, jobs=2)
+    written = sorted(p.name for p in (tmp_path / "a").iterdir() if p.is_file())
+    assert "ranking.csv" in written and "pitch_best_parameters.md" in written and "thesis_stderr.csv" in written
+    assert written == sorted(p.name for p in (tmp_path / "b").iterdir() if p.is_file())
+    changed = [n for n in written if (tmp_path / "a" / n).read_bytes() != (tmp_path / "b" / n).read_bytes()]
+    assert changed == []
+
+
 def test_jobs_do_not_change_results(tiny, tmp_path):
     lift = load_grid("lift")
     one = run(lift.candidates, tiny, tmp_path / "a", n_jobs=1)
@@ -404,7 +418,9 @@ def test_fit_prints_no_numpy_warnings(tiny, tmp_path):
     """Issue 13: no RuntimeWarning (overflow, divide by zero) reaches the terminal of a fit or a diagnosis."""
     import subprocess
     import sys
-    for args in (["fit", "--model", "CL-VI", "--starts", "2"], ["diagnose", "--model", "CL-III", "--quiet"]):
+    # one step of a one-wide search: every kind of fit a diagnosis makes (moves, floor, state level), once
+    for args in (["fit", "--model", "CL-VI", "--starts", "2"],
+                 ["diagnose", "--model", "CL-III", "--quiet", "--beam", "1", "--max-steps", "1"]):
         proc = subprocess.run([sys.executable, "-W", "error::RuntimeWarning", "-m", "structsearch", *args,
                                "--data", str(tiny.directory), "--out", str(tmp_path / args[0])],
                               capture_output=True, text=True, timeout=600)

@@ -7,6 +7,7 @@ radians (the project's unit) with degrees on a secondary axis.
 from __future__ import annotations
 
 import io
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -80,10 +81,14 @@ def _compare(ax, model_xy, van_ingen_xy, names, points_xy=None) -> None:
         ax.plot(*van_ingen_xy, color=COLOURS["van_ingen"], lw=1.8, ls="--", label=f"{names[1]} (Van Ingen structure)")
 
 
-def static_curve(coef: str, alpha, model, van_ingen, points, names, bands=None):
+def static_curve(coef: str, alpha, model, van_ingen, points, names, bands=None, note: str | None = None):
     """The identified static curve (with its 95 % bands when given: a StaticBands), the Van Ingen structure's
-    and the measured points corrected to the static condition."""
+    and the measured points corrected to the static condition; ``note``: a remark drawn in the figure (why a
+    curve lies away from the points), not left to the caption."""
     fig, ax = plt.subplots(figsize=(7, 4.2))
+    if note:
+        ax.text(0.02, 0.03, note, transform=ax.transAxes, fontsize=7, va="bottom", ha="left", wrap=True,
+                bbox=dict(boxstyle="round", facecolor="white", edgecolor="0.7", alpha=0.9))
     if bands is not None:
         b = bands.band
         ax.fill_between(bands.alpha, b.prediction_low, b.prediction_high, color=COLOURS["model"], alpha=0.12,
@@ -172,20 +177,50 @@ def correlations(summaries: dict):
     return fig
 
 
+# a change below this share of the largest cell is "little": the before and after panels then look alike
+LITTLE_CHANGE = 0.05
+
+
+def gap_change_words(before: np.ndarray, after: np.ndarray) -> str:
+    """The third panel's title: how much the move changes the cells, saying so when the two maps look alike."""
+    change = after - before
+    finite = np.isfinite(change)
+    scale = np.nanmax(np.abs(before[np.isfinite(before)])) if np.isfinite(before).any() else np.nan
+    if not finite.any() or not scale > 0:
+        return "change (after - before): none to show"
+    largest = float(np.max(np.abs(change[finite])) / scale)
+    total = float(np.nansum(change) / np.nansum(before)) if np.nansum(before) > 0 else np.nan
+    words = f"change (after - before): MSE summed over cells {total:+.0%}"
+    if largest < LITTLE_CHANGE:
+        words += f";\nlittle changes (every cell by < {LITTLE_CHANGE:.0%} of the largest): the two maps look alike"
+    return words
+
+
 def gap(before: np.ndarray, after: np.ndarray, maneuvers, bands, labels):
-    fig, axes = plt.subplots(1, 2, figsize=(12, 0.9 + 0.32 * len(maneuvers) + 1.5), squeeze=False)
+    """Validation MSE per (maneuver, alpha band) before and after a move, and the change itself (a diverging
+    map), so that a move that changes little shows as little rather than as two identical panels."""
+    fig, axes = plt.subplots(1, 3, figsize=(17, 0.9 + 0.32 * len(maneuvers) + 1.5), squeeze=False)
     finite = np.concatenate([before[np.isfinite(before)], after[np.isfinite(after)]])
     positive = finite[finite > 0]
     norm = LogNorm(vmin=positive.min(), vmax=positive.max()) if positive.size else None
+    extent = (bands[0], bands[-1], len(maneuvers) - 0.5, -0.5)
     image = None
-    for ax, cells, title in zip(axes[0], (before, after), labels):
+    for ax, cells, title in zip(axes[0][:2], (before, after), labels):
         image = ax.imshow(np.ma.masked_invalid(cells), aspect="auto", cmap="viridis", norm=norm,
-                          extent=(bands[0], bands[-1], len(maneuvers) - 0.5, -0.5), interpolation="nearest")
+                          extent=extent, interpolation="nearest")
+        ax.set_title(textwrap.fill(title, 50), fontsize=9)
+    fig.colorbar(image, ax=axes[0][:2].tolist(), label="validation MSE in the cell [-]")
+    change = after - before
+    reach = float(np.nanmax(np.abs(change))) if np.isfinite(change).any() else 1.0
+    diff = axes[0][2].imshow(np.ma.masked_invalid(change), aspect="auto", cmap="RdBu_r", vmin=-reach, vmax=reach,
+                             extent=extent, interpolation="nearest")
+    axes[0][2].set_title("\n".join(textwrap.fill(part, 50) for part in gap_change_words(before, after).split("\n")),
+                         fontsize=9)
+    fig.colorbar(diff, ax=axes[0][2], label="change of the cell's MSE [-] (blue: lower after)")
+    for ax in axes[0]:
         ax.set_yticks(range(len(maneuvers)), maneuvers, fontsize=7)
         ax.set_xlabel("alpha band [rad]")
         ax.set_ylabel("validation maneuver")
-        ax.set_title(title, fontsize=10)
-    fig.colorbar(image, ax=axes[0].tolist(), label="validation MSE in the cell [-]")
     return fig
 
 

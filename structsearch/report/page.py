@@ -182,7 +182,8 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
          f"C_L against C_D of {names['CD']} (with {names['CL']}) and of {VAN_INGEN_MODEL_NAMES['CD']} (with "
          f"{VAN_INGEN_MODEL_NAMES['CL']}) in the {cond}. {corrected} (thesis Fig. 8)")
     emit(fg.static_curve("Cm", alpha, static, static_vi, points, (names["Cm"], VAN_INGEN_MODEL_NAMES["Cm"]),
-                         bands["Cm"]),
+                         bands["Cm"], offset_note("Cm", alpha, static_vi, points, names["Cm"],
+                                                  VAN_INGEN_MODEL_NAMES["Cm"])),
          "pitch_static.png", "Static pitch moment",
          f"C_m(alpha) of {names['Cm']} and {VAN_INGEN_MODEL_NAMES['Cm']} in the {cond}; C_L from the lift model. "
          f"{band_text} "
@@ -241,8 +242,9 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
                          f"after adding {best}: {g['model']} (MSE {g['mse_after']:.3g})")),
                  "gap_breakdown.png", "Where the model misses the data",
                  f"Validation MSE of {diagnose_coefficient} per maneuver and alpha band ({rd.ALPHA_BAND} rad) before "
-                 f"and after the best effect of the library, {best}; noise floor {diagnosis['noise_floor']:.3g}; "
-                 f"{verdict}. Empty cells: the maneuver never flew that band.")
+                 f"and after the best effect of the library, {best}, and the change (right; blue where the cell's MSE "
+                 f"fell); noise floor {diagnosis['noise_floor']:.3g}; {verdict}. Empty cells: the maneuver never flew "
+                 "that band.")
         curves = (diagnosis.get("unexplained") or {}).get("partial_dependence") or []
         if curves and not diagnosis["explained"]:
             emit(fg.partial_dependence(curves, diagnose_coefficient), "unexplained_signals.png",
@@ -301,6 +303,29 @@ def _ranking_table(out: Path, grid: str, top: int = 10) -> str | None:
 STYLE = """body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
 table{border-collapse:collapse;font-size:12px;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:2px 6px}
 figure{margin:1.5em 0}img{max-width:100%}figcaption{font-size:13px;color:#444}.note{color:#8a5a00}"""
+
+
+# share of the corrected points on one side of a comparison curve beyond which the figure says why
+OFFSET_SHARE = 0.9
+
+
+def offset_note(coef: str, alpha, static_vi, points, model: str, van_ingen: str) -> str | None:
+    """Why the Van Ingen curve lies above (or below) nearly every corrected point, in words for the figure; None
+    when it runs through them. The points are corrected to the static condition with the identified model's own
+    terms, so a structure that splits the alpha slope differently between alpha and delta_e (which follows alpha
+    in trimmed flight) draws its delta_e = 0 curve offset from them although it fits the flown data."""
+    if static_vi is None or len(points["alpha"]) == 0:
+        return None
+    curve = np.interp(points["alpha"], alpha, static_vi[coef])
+    above = float(np.mean(curve > points[coef]))
+    if OFFSET_SHARE > above > 1.0 - OFFSET_SHARE:
+        return None
+    side = "above" if above >= OFFSET_SHARE else "below"
+    share = above if side == "above" else 1.0 - above
+    return (f"{van_ingen} lies {side} {share:.0%} of the points: they are corrected to delta_e = 0 with "
+            f"{model}'s terms. In trimmed flight delta_e follows alpha,\nso {van_ingen}'s elevator term carries "
+            f"part of its alpha slope and its delta_e = 0 curve is offset:\nthe offset is in the condition "
+            f"drawn, not in the fit to the flown data (its validation MSE is in the ranking).")
 
 
 def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, diagnosis, story=None) -> str:
