@@ -12,9 +12,11 @@ def _calibration(args) -> int:
     from .data.atomic import write_json, write_text
     from .experiments.calibration_doc import calibration_dict, calibration_markdown
     say = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
-    cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=_jobs(args), progress=say)
+    cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=_jobs(args), progress=say, seeds=args.seeds)
     out = Path(args.out)
-    command = f"structsearch bench --calibration --campaigns {args.campaigns} --scale {args.scale}"
+    command = (f"structsearch bench --calibration --campaigns {args.campaigns} --scale {args.scale}"
+               if args.seeds is None else
+               f"structsearch bench --calibration --seeds {args.seeds[0]}:{args.seeds[-1] + 1} --scale {args.scale}")
     write_text(out / "calibration.md", calibration_markdown(cal, command))
     write_json(out / "calibration.json", calibration_dict(cal), indent=1)
     for k in cal.kinds:

@@ -68,6 +68,17 @@ def _non_negative(text: str) -> int:
     return value
 
 
+def _seed_range(text: str) -> list[int]:
+    """"A:B": the seeds A, A+1, ..., B-1 (at least two: a Monte Carlo spread needs two campaigns)."""
+    first, sep, last = text.partition(":")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"must be A:B (seeds A to B-1), not {text!r}")
+    a, b = _non_negative(first), _non_negative(last)
+    if b - a < 2:
+        raise argparse.ArgumentTypeError(f"must give at least two seeds (A:B with B >= A + 2), not {text!r}")
+    return list(range(a, b))
+
+
 def _integer(text: str) -> int:
     try:
         return int(text)

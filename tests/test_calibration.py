@@ -86,6 +86,33 @@ def test_calibration_command_end_to_end(tmp_path):
     assert set(joint) == {p for c in TRUTH for p in TRUTH[c]} and all(r["n"] == 2 for r in joint.values())
     assert "## Joint fit of the three final models" in text
     assert "best calibrated" in out.stdout
+    # issue 30: held-out seeds by default, the default-start fits apart, the interface's per-parameter names
+    assert doc["seeds"]["held_out"] is True and doc["seeds"]["values"] == [2000, 2001]
+    start = doc["default_start"]
+    assert start["covariance"] == "hac-maneuver" and len(start["parameters"]) == sum(len(t) for t in TRUTH.values())
+    assert all(r["n"] == 2 and r["sd_ratio"] == r["ratio"] and r["coverage_95"] == r["coverage95"]
+               for r in start["parameters"])
+    assert "## From the default start" in text and "held out: disjoint from the seeds 1000-1049" in text
+
+
+def test_held_out_seeds_are_disjoint_from_the_tuning_seeds():
+    from structsearch.experiments.calibration import HELD_OUT_FIRST, TUNING_SEEDS, held_out
+    assert held_out(range(HELD_OUT_FIRST, HELD_OUT_FIRST + 50))
+    assert not held_out([TUNING_SEEDS[-1], TUNING_SEEDS[-1] + 1])
+
+
+def test_default_start_rows_calibrate_like_the_truth_start_ones():
+    """The default-start fits' rows use the same arithmetic as the truth-start ones (3 of 5 inside at 95 %)."""
+    from structsearch.experiments.calibration import default_start_rows
+    offsets = [0.0, 0.5, -1.5, 2.5, -3.0]
+    draws = [CampaignDraw(d.seed, d.samples, d.estimates, d.stderr, d.gap_p, d.dof,
+                          default_estimates=d.estimates, default_stderr=d.stderr["white"],
+                          default_dof={m: {} for m in d.estimates}, other_basin=("CL-VI",) if i == 0 else ())
+             for i, d in enumerate(_draws(offsets))]
+    rows = default_start_rows(draws)
+    assert len(rows) == sum(len(t) for t in TRUTH.values())
+    assert all(p.coverage95 == pytest.approx(3 / 5) and p.coverage68 == pytest.approx(2 / 5) for p in rows)
+    assert default_start_rows(_draws(offsets)) == ()
 
 
 def test_band_coverage_pools_the_points_of_every_campaign():
