@@ -65,3 +65,17 @@ def test_a_fits_table_and_dict_carry_the_units(noise_free_lift):
 
 def test_the_final_models_are_the_ones_checked():
     assert set(FINAL_MODEL_NAMES.values()) == set(EXPECTED)
+
+
+def test_the_pooled_r2_counts_the_differences_between_maneuvers():
+    """Issue 31: the thesis' Table 11.1 gives one R^2 per data set (C_m validation 0.71), which the tables had
+    compared with the mean of the per-maneuver R^2 (0.32). Pooled: 1 - SSE / SST about the mean of all samples.
+    Two maneuvers of 4 samples, values written out by hand."""
+    import numpy as np
+    from structsearch.engine.scores import ManeuverScores
+    observed = np.array([0.0, 1.0, 0.0, 1.0, 10.0, 11.0, 10.0, 11.0])
+    residual = np.array([0.5, -0.5, 0.5, -0.5, 0.5, -0.5, 0.5, -0.5])
+    r2 = ManeuverScores.of(observed, residual, [slice(0, 4), slice(4, 8)]).r2_summary()
+    # each maneuver: SST 1.0, SSE 1.0 -> R^2 0; all samples: mean 5.5, SST 4 * 0.25 + 4 * 0.25 + 8 * 25 = 202
+    assert r2.mean == pytest.approx(0.0) and r2.min == pytest.approx(0.0)
+    assert r2.pooled == pytest.approx(1.0 - 2.0 / 202.0)

@@ -15,14 +15,17 @@ import numpy as np
 
 @dataclass(frozen=True)
 class R2Summary:
-    """Mean, smallest and largest R^2 over maneuvers (NaN when no maneuver has one)."""
+    """Mean, smallest and largest R^2 over maneuvers (NaN when no maneuver has one) and the pooled R^2 of the
+    whole split, 1 - SSE / SST with SST about the split's mean (what a table of one R^2 per data set, such as
+    the thesis' Table 11.1, reports: the differences between maneuvers count as signal there)."""
 
     mean: float
     min: float
     max: float
+    pooled: float = float("nan")
 
     def as_dict(self) -> dict[str, float]:
-        return {"mean": self.mean, "min": self.min, "max": self.max}
+        return {"mean": self.mean, "min": self.min, "max": self.max, "pooled": self.pooled}
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,12 +35,15 @@ class ManeuverScores:
     counts: np.ndarray
     sse: np.ndarray
     sst: np.ndarray
+    total_sst: float = float("nan")   # about the mean of all the maneuvers' samples
 
     @classmethod
     def of(cls, observed: np.ndarray, residual: np.ndarray, slices: Sequence[slice]) -> "ManeuverScores":
         counts = sizes_of(slices)
         sst = np.array([float(np.sum((observed[sl] - observed[sl].mean()) ** 2)) for sl in slices])
-        return cls(counts, maneuver_sse(residual, slices), sst)
+        everything = np.concatenate([np.asarray(observed[sl], float) for sl in slices]) if slices else np.zeros(0)
+        total = float(np.sum((everything - everything.mean()) ** 2)) if everything.size else float("nan")
+        return cls(counts, maneuver_sse(residual, slices), sst, total)
 
     @property
     def mse(self) -> np.ndarray:
@@ -57,9 +63,10 @@ class ManeuverScores:
 
     def r2_summary(self) -> R2Summary:
         r = self.r2[np.isfinite(self.r2)]
+        pooled = 1.0 - float(self.sse.sum()) / self.total_sst if self.total_sst > 0 else float("nan")
         if r.size == 0:
-            return R2Summary(float("nan"), float("nan"), float("nan"))
-        return R2Summary(float(r.mean()), float(r.min()), float(r.max()))
+            return R2Summary(float("nan"), float("nan"), float("nan"), pooled)
+        return R2Summary(float(r.mean()), float(r.min()), float(r.max()), pooled)
 
 
 def maneuver_sse(residual: np.ndarray, slices: Sequence[slice]) -> np.ndarray:

@@ -59,7 +59,8 @@ class SplitScores:
     def from_json(cls, doc: dict) -> "SplitScores":
         r2 = doc["r2"]
         return cls(_nan_if_none(doc["mse"]), tuple(map(_nan_if_none, doc["mse_maneuvers"])), tuple(map(int, doc["n_maneuvers"])),
-                   R2Summary(_nan_if_none(r2["mean"]), _nan_if_none(r2["min"]), _nan_if_none(r2["max"])),
+                   R2Summary(_nan_if_none(r2["mean"]), _nan_if_none(r2["min"]), _nan_if_none(r2["max"]),
+                             _nan_if_none(r2.get("pooled"))),
                    doc.get("mse_cx"), doc.get("mse_cz"))
 
 

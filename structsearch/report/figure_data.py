@@ -102,6 +102,35 @@ def derived_pitch(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, 
             "depends_on_CL": bool(np.any(l_cp != 0))}
 
 
+# thesis Table 11.1, validation data, this work: pooled R^2 and the smallest maneuver's
+THESIS_R2_VALIDATION = {"CL": (0.91, 0.81), "CD": (0.86, 0.75), "Cm": (0.71, 0.18)}
+
+
+def r2_sentence(ms: ModelSet, data: FlightData) -> str:
+    """Each coefficient's validation R^2, pooled (one per data set, as Table 11.1 reports it) and per maneuver, and
+    why the per-maneuver R^2 of C_m is low: within one maneuver C_m varies little against the error the model
+    cannot follow (the validation MSE), so R^2 = 1 - MSE / variance drops where the variance is small."""
+    parts, worst = [], None
+    for coef in COEFFICIENTS:
+        pred = ms.predict(coef, data)
+        scores = ManeuverScores.of(data[coef], data[coef] - pred, data.segment_slices())
+        r2 = scores.r2_summary()
+        thesis = THESIS_R2_VALIDATION.get(coef)
+        parts.append(f"{coef} {r2.pooled:.2f} pooled, per maneuver mean {r2.mean:.2f} and min {r2.min:.2f}"
+                     + (f" (thesis Table 11.1: {thesis[0]:.2f}, min {thesis[1]:.2f})" if thesis else ""))
+        if coef == "Cm" and np.isfinite(scores.r2).any():
+            i = int(np.nanargmin(scores.r2))
+            worst = (data.names[i], scores.sst[i] / scores.counts[i], scores.mse[i], scores.r2[i])
+    text = "Validation R^2: " + "; ".join(parts) + "."
+    if worst is not None:
+        name, var, mse, r2 = worst
+        text += (" What limits the pitch fit within a maneuver: where a maneuver's own C_m varies little, the error "
+                 "no structure follows (the slow reconstruction error of C_m) is a large share of that variation: "
+                 f"the worst maneuver, {name}, varies by {var:.3g} (variance about its mean) against an MSE of "
+                 f"{mse:.3g} (R^2 {r2:.2f}). Across maneuvers C_m varies far more, which the pooled R^2 counts.")
+    return text
+
+
 def trace_selection(ms: ModelSet, data: FlightData, train: FlightData | None = None) -> dict[str, list[dict]]:
     """Per coefficient, the best, median and worst maneuver of ``data`` by R^2, with their traces (and, given the
     training maneuvers, the model's 95 % confidence and prediction bands along them)."""

@@ -218,7 +218,8 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
          f"models {names['CL']}, {names['CD']}, {names['Cm']} fitted on the training maneuvers) (thesis Fig. 13). "
          "Shaded: the model's 95 % confidence band along the flown maneuver (the delta method through the "
          "separation states, as flown) and, lighter, its 95 % prediction band (plus the training residual's "
-         "variance in each sample's alpha band); drag and pitch on the lift model's C_L at its estimate.")
+         "variance in each sample's alpha band); drag and pitch on the lift model's C_L at its estimate. "
+         + rd.r2_sentence(ms, val))
     hyst = rd.hysteresis(ms, campaign, ref)
     emit(fg.hysteresis_loop(hyst), "hysteresis.png", "Dynamic stall hysteresis",
          f"C_L against alpha during maneuver {hyst['maneuver']} ({hyst['kind']}, {hyst['split']}): the separation "

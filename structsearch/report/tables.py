@@ -43,7 +43,7 @@ COLUMNS = [("rank", "rank"), ("model", "model"), ("admissible", "admissible"), (
            ("mse_train", "MSE train"), ("mse_cv", "MSE CV"), ("mse_validation", "MSE validation"),
            ("mse_cx_validation", "MSE C_X val."), ("mse_cz_validation", "MSE C_Z val."),
            ("r2_validation_mean", "R2 val. mean"), ("r2_validation_min", "R2 val. min"),
-           ("r2_validation_max", "R2 val. max"), ("aic", "AIC"), ("n_insignificant", "t-test accepts 0"),
+           ("r2_validation_max", "R2 val. max"), ("r2_validation_pooled", "R2 val. pooled"), ("aic", "AIC"), ("n_insignificant", "t-test accepts 0"),
            ("n_high_corr", f"|rho| > {HIGH_CORRELATION}"), ("within_noise", "within noise of best"),
            ("gap", "gap to best"), ("gap_se", "gap s.e."),
            ("converged", "converged"), ("nfev", "evaluations"), ("identifiable", "identifiable"),
@@ -52,7 +52,7 @@ RANKING_FIELDS = ["grid", "model", "rank", "mse_train", "mse_validation", "n_par
                   "mse_cz_validation", "r2_validation_mean", "r2_validation_min", "r2_validation_max", "aic",
                   "n_insignificant", "n_high_corr", "within_noise", "converged", "nfev", "message", "identifiable",
                   "condition_number", "not_identifiable", "error", "admissible", "reasons", "mse_cv", "cv_folds",
-                  "gap", "gap_se"]
+                  "gap", "gap_se", "r2_validation_pooled"]
 
 
 def table_row(s: CandidateResult) -> dict:
