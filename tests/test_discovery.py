@@ -425,6 +425,53 @@ def test_a_library_effect_within_one_se_of_the_best_passing_move_is_adopted_in_i
     assert _nested_first([best], [best, worse], DEFAULT_ALPHA)[0] is best
 
 
+def test_of_two_library_effects_the_data_cannot_tell_apart_the_one_with_fewer_parameters_is_adopted():
+    from structsearch.discovery.explore import _nested_first
+    from structsearch.discovery.moves import Move
+    start = _node("start", [1.0] * 5, [1.0] * 5, 3, status="start")
+    wide = Move("effect", "elevator_effectiveness_loss", ("CL_Xde_ss", "CL_Xde_w"),
+                effect="elevator_effectiveness_loss")
+    narrow = Move("effect", "elevator", ("CL_de",), effect="elevator")
+    best = _node("best", [0.90] * 4 + [0.91], [0.9] * 5, 5, move=wide, parent=start)
+    best = dataclasses.replace(best, test=move_test(start.result, best.result, DEFAULT_ALPHA, 2))
+    near = _node("near", [0.902] * 4 + [0.908], [0.9] * 5, 4, move=narrow, parent=start)
+    near = dataclasses.replace(near, test=move_test(start.result, near.result, DEFAULT_ALPHA, 2))
+    assert best.mse <= near.mse and move_test(best.result, near.result, DEFAULT_ALPHA, 1).within_one_se
+    first, *rest = _nested_first([best, near], [best, near], DEFAULT_ALPHA)
+    assert first.candidate is near.candidate and rest == [best]
+    # not within one standard error of the best: the best is adopted, however many parameters it adds
+    far = dataclasses.replace(near, result=_result("far", [0.99] * 5, [0.99] * 5, n=4))
+    assert not move_test(best.result, far.result, DEFAULT_ALPHA, 1).within_one_se
+    assert _nested_first([best, far], [best, far], DEFAULT_ALPHA)[0] is best
+
+
+def test_a_move_that_adds_a_separation_state_is_judged_out_of_sample_not_by_its_wald_test(monkeypatch):
+    # with the new state's K term at zero its a1 and a_star are not identified (Davies' problem): the Wald test's
+    # reference fails, so its tiny p-value must not adopt the move; an added term on the same states is nested
+    import structsearch.discovery.explore as ex
+    from structsearch.discovery.moves import Move
+    seen = {}
+
+    def spy(parent, child, alpha, n_moves, new_parameters=(), statistics=True):
+        seen["nested"] = tuple(new_parameters)
+        return move_test(parent, child, alpha, n_moves)
+    monkeypatch.setattr(ex, "move_test", spy)
+    one = dataclasses.replace(find_candidate("CL-II"), name="one state")
+    two = dataclasses.replace(one, name="two states", states=one.states + (("w2", "S"),),
+                              regressors=one.regressors + (("CL_KL_w2", "K_L(X_w2)"),))
+    assert ex.adds_state(one, two) and not ex.adds_state(two, one) and not ex.adds_state(one, one)
+    parent = dataclasses.replace(_node("parent", [1.0] * 5, [1.0] * 5, 3, status="start"), candidate=one)
+    state = Move("add state", "add state X_w2", ("a1_w2", "a_star_w2", "CL_KL_w2"))
+    child = dataclasses.replace(_node("child", [0.9] * 5, [0.9] * 5, 6, move=state, parent=parent), candidate=two)
+    ex._verdict(child, parent, 3, DEFAULT_ALPHA)
+    assert seen["nested"] == ()
+    term = Move("add", "add CL_de = de", ("CL_de",))
+    plus = dataclasses.replace(one, regressors=one.regressors + (("CL_de", "de"),))
+    child = dataclasses.replace(_node("child", [0.9] * 5, [0.9] * 5, 4, move=term, parent=parent), candidate=plus)
+    ex._verdict(child, parent, 3, DEFAULT_ALPHA)
+    assert seen["nested"] == ("CL_de",)
+
+
 def test_a_fit_without_folds_is_compared_on_validation_only():
     parent = _result("parent", [1.0, 2.0, 3.0, 2.0], PARENT_CV)
     child = _result("child", [0.8, 1.6, 2.5, 1.5])    # no cross-validation

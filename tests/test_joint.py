@@ -94,6 +94,27 @@ def test_a_joint_problem_refuses_a_linear_coefficient_in_two_blocks():
         JointProblem(_blocks(), np.array([1.0, 0.0]), len(X))
 
 
+def test_the_gauss_newton_step_predicts_what_a_solve_moves_and_vanishes_at_the_optimum():
+    from structsearch.engine.snls import gauss_newton_step, solve
+    rng = np.random.default_rng(8)
+    a, b = _blocks()
+    ya = 0.3 + 1.1 * np.exp(-0.7 * X) + 0.01 * rng.standard_normal(len(X))
+    yb = -0.4 + 2.0 * X * np.exp(-0.7 * X) + 0.02 * rng.standard_normal(len(X))
+    lower, upper = np.array([0.01]), np.array([5.0])
+    first = JointProblem((a, b), np.array([1.0 / 0.01 ** 2, 1.0 / 0.02 ** 2]), len(X))
+    y1 = first.interleave([ya, yb])
+    optimum = solve(first, y1, [1.0], lower, upper, tol=1e-12)
+    assert abs(gauss_newton_step(first, y1, optimum.theta, lower, upper)[0]) < 1e-8
+    # other weights: the optimum moves, and the step from the old one says by how much (to second order)
+    second = JointProblem((a, b), np.array([1.0 / 0.01 ** 2, 1.0 / 0.005 ** 2]), len(X))
+    y2 = second.interleave([ya, yb])
+    moved = solve(second, y2, optimum.theta, lower, upper, tol=1e-12).theta - optimum.theta
+    step = gauss_newton_step(second, y2, optimum.theta, lower, upper)
+    assert abs(moved[0]) > 1e-4 and step[0] == pytest.approx(moved[0], rel=0.05)
+    # a step that would leave the box stops at its edge
+    assert gauss_newton_step(second, y2, optimum.theta, lower, optimum.theta + 1e-6)[0] == pytest.approx(1e-6)
+
+
 @pytest.fixture(scope="module")
 def joint_and_sequential(simulated_campaign):
     from structsearch.fitting.candidate_fit import fit_staged

@@ -146,6 +146,18 @@ def reduce(problem: SeparableProblem, theta: np.ndarray, y: np.ndarray, k: int) 
     return Reduced(proj.coef, proj.residual, jac) if np.all(np.isfinite(jac)) else None
 
 
+def gauss_newton_step(problem: SeparableProblem, y: np.ndarray, theta, lower, upper) -> np.ndarray | None:
+    """The Gauss-Newton step of the reduced problem from ``theta``, projected on the box (None where the
+    problem is not finite there): what one more solve would move the estimate, to first order, at the cost of
+    one evaluation and no line search. Parameters on a bound that the step pushes outward do not move."""
+    theta = np.asarray(theta, float)
+    reduced = reduce(problem, theta, y, len(theta))
+    if reduced is None:
+        return None
+    step = np.linalg.lstsq(reduced.jacobian, -reduced.residual, rcond=None)[0]
+    return np.clip(theta + step, lower, upper) - theta
+
+
 # Slow but steady starts (NIST Rat42 from start 1 needs ~380 evaluations) should finish.
 DEFAULT_MAX_NFEV = 1000
 
