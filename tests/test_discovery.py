@@ -472,6 +472,30 @@ def test_a_move_that_adds_a_separation_state_is_judged_out_of_sample_not_by_its_
     assert seen["nested"] == ("CL_de",)
 
 
+def test_no_look_ahead_from_a_structure_at_the_floor_of_its_own_residual(monkeypatch, tmp_path):
+    # every replacement predicts a little better without passing its test: a look-ahead, unless the structure's
+    # own residual holds nothing a library-free model predicts (then no pair of moves can pay)
+    import structsearch.discovery.explore as ex
+    start = find_candidate("CD-IXr")
+
+    def fake_fits(candidates, *args, **kw):
+        return [_result(c.name, [1.0] * 5, [1.0] * 5, n=len(c.regressors)) if c is start else
+                _result(c.name, [0.99, 1.0, 0.98, 1.01, 0.995], [0.99, 1.0, 0.98, 1.01, 0.995], n=len(c.regressors))
+                for c in candidates]
+    monkeypatch.setattr(ex, "fit_structures", fake_fits)
+    from types import SimpleNamespace
+    lifts = {"CL-VI": SimpleNamespace(candidate=find_candidate("CL-VI"))}
+    run = dict(campaign=None, library=_library("CD"), cache_dir=tmp_path, lifts=lifts, beam=1,
+               max_steps=2, kinds=("replace",), simplify=False)
+    free = ex.explore(start, **run)
+    assert [n.status for n in free.steps[0].beam] == ["look-ahead"] and len(free.steps) == 2
+    asked = []
+    gated = ex.explore(start, **run, at_floor=lambda n: asked.append(n.candidate.name) or True)
+    assert len(gated.steps) == 1 and not gated.steps[0].beam and asked == [start.name]
+    assert gated.stopped.endswith("at the floor of its own residual, so no look-ahead")
+    assert ex.explore(start, **run, at_floor=lambda n: False).steps[0].beam[0].status == "look-ahead"
+
+
 def test_a_fit_without_folds_is_compared_on_validation_only():
     parent = _result("parent", [1.0, 2.0, 3.0, 2.0], PARENT_CV)
     child = _result("child", [0.8, 1.6, 2.5, 1.5])    # no cross-validation

@@ -41,7 +41,7 @@ from ..data.errors import DataError, DeclarationError
 from ..discovery.adoption import DEFAULT_ALPHA, TEST_NAME
 from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, explore, fit_structures
 from ..discovery.judge import judge_for
-from ..discovery.moves import MOVE_KINDS, generate
+from ..discovery.moves import MOVE_KINDS, generate, structure_key
 from ..discovery.terms import library_for
 from ..fitting.options import FitOptions
 from ..fitting.candidate_fit import fit_lift_model
@@ -300,9 +300,21 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
     # structure reaches (pitch on Van Ingen's single state: the flexible model lacks the lift model's two states),
     # and the search would stop early; it stops when no move passes, and the verdict is taken at the end
     say(f"structure search from {baseline.name}: {len(library.terms)} term templates, beam {beam}")
+    # ... but it gates the look-ahead: from a structure whose own residual a library-free model cannot improve
+    # out of sample, no pair of moves can pay, and the look-ahead (the most expensive step) is not taken
+    own_floor: dict[str, bool] = {}
+
+    def at_own_floor(node) -> bool:
+        key = structure_key(node.candidate)
+        if key not in own_floor:
+            fit_n = ctx.fitted(node)
+            flex = _flexible(fit_n, node.candidate, ctx.lift_of(node.candidate), train, val, seed)[0]
+            own_floor[key] = within_noise(fit_n.residual, flex.residual, val)[0]
+        return own_floor[key]
+
     ex = explore(baseline, campaign, library, cache, lifts=ctx.lifts, options=options, beam=beam, alpha=alpha,
                  max_steps=max_rounds, judge=judge, kinds=kinds, simplify=simplify,
-                 n_jobs=n_jobs, backend=backend, progress=say)
+                 n_jobs=n_jobs, backend=backend, progress=say, at_floor=at_own_floor)
     path = ex.final.path()
     fits = [base_fit] + [ctx.fitted(n) for n in path[1:]]
     final_fit = fits[-1]

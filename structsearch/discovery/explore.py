@@ -249,10 +249,14 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
             beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA, max_steps: int = DEFAULT_MAX_STEPS,
             kinds: Sequence[str] = MOVE_KINDS, judge: Judge | None = None,
             stop: Callable[[Node], bool] | None = None, n_jobs: int = 1, backend: str = "loky",
-            progress: Callable[[str], None] | None = None, simplify: bool = True) -> Exploration:
+            progress: Callable[[str], None] | None = None, simplify: bool = True,
+            at_floor: Callable[[Node], bool] | None = None) -> Exploration:
     """Search structures from ``start`` (module docstring); ``lifts`` are the lift models a drag or pitch
     structure may be fed (by name; the start's own among them). Without ``simplify`` no move is adopted for
-    simplifying alone (the diagnosis asks what is missing, not what the data cannot support)."""
+    simplifying alone (the diagnosis asks what is missing, not what the data cannot support). ``at_floor`` says
+    whether a structure's own residual holds nothing a library-free model predicts out of sample: when no move
+    passes from such a structure, no look-ahead is taken (no pair of moves can pay where nothing is left), and
+    the search stops there."""
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     lifts = dict(lifts or {})
@@ -319,7 +323,8 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
             nxt = improved[:beam]
         elif simpler and simplify:
             nxt = simpler[:1]
-        elif ahead and any(n.status in CONFIRMED for n in current):
+        elif ahead and any(n.status in CONFIRMED for n in current) and not (
+                at_floor is not None and all(at_floor(n) for n in current if n.status in CONFIRMED)):
             # a change of lift model first: it is what the other terms of a drag or pitch model build on
             nxt = sorted(ahead, key=lambda n: (n.move.kind != "lift", n.mse))[:beam]
         else:
@@ -338,7 +343,8 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
             f"{'kept ' + nxt[0].status + ' ' + nxt[0].move.name if nxt else 'no move passes'}; best so far "
             f"{top.candidate.name} (held-out MSE {top.mse:.4g}), {time.perf_counter() - t0:.0f} s")
         if not nxt:
-            stopped = "no move passes the test"
+            stopped = "no move passes the test" + (
+                "; at the floor of its own residual, so no look-ahead" if ahead and at_floor is not None else "")
             break
         if best is not None and stop is not None and stop(best):
             stopped = "good enough"
