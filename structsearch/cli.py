@@ -44,11 +44,13 @@ def _simulate(args) -> int:
     from .api import simulate
     from .data.campaign import write_campaign
     campaign = simulate(seed=args.seed, withhold=args.withhold or (), scale=args.scale, extras=args.extras,
-                        aircraft=args.aircraft, anomaly=args.anomaly, raw=args.raw, slow_errors=args.slow_errors)
+                        aircraft=args.aircraft, anomaly=args.anomaly, raw=args.raw, slow_errors=args.slow_errors,
+                        flights=args.flights)
     out = write_campaign(campaign, Path(args.out), fmt=args.format)
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
-    print(f"wrote {out}: {len(campaign.maneuvers)} maneuvers ({n_val} validation), {d.n_samples} samples; "
+    flown = f" on {args.flights} flights" if args.flights else ""
+    print(f"wrote {out}: {len(campaign.maneuvers)} maneuvers ({n_val} validation){flown}, {d.n_samples} samples; "
           f"truth: {campaign.extra['truth']}")
     return 0
 
@@ -95,21 +97,25 @@ def _fit(args) -> int:
     from .data.atomic import write_json, write_text
     from .report.tables import parameter_table
     if args.joint:
+        if args.profile:
+            raise_error("--profile goes with --model (profile intervals of a joint fit are not built)")
         return _fit_joint(args)
     if args.replay_maneuver is not None:
         raise_error("--replay-maneuver goes with --joint (a replay flies C_L, C_D and C_m)")
     res = fit(args.data, args.model, starts=args.starts, seed=args.seed, covariance=args.covariance,
-              bounds=_bounds(args), band_samples=args.band_samples)
+              bounds=_bounds(args), band_samples=args.band_samples, profile=args.profile, segment=args.segment)
     summary, out = res.result, Path(args.out)
     write_json(out / "fit.json", res.to_dict())
-    from .report.documents import bands_table, covariance_sentence
+    from .report.documents import bands_table, covariance_sentence, held_out_phrase
+    from .report.profile_doc import profile_table
     write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + covariance_sentence(summary.estimates.covariance_record())
                + "\n" + parameter_table(summary, "md")
-               + ("\n\n" + bands_table(res.bands) if res.bands is not None else ""))
+               + ("\n\n" + bands_table(res.bands) if res.bands is not None else "")
+               + ("\n\n" + profile_table(res.profile) if res.profile is not None else ""))
     not_converged = "" if summary.converged else f"; the optimizer did NOT converge ({summary.message})"
-    print(f"{res.candidate.name}: MSE train {summary.mse_train:.4g}, validation {summary.mse_validation:.4g}; "
-          f"{len(summary.insignificant)} parameter(s) accept zero, {len(summary.at_bound)} at a bound"
-          f"{not_converged}; wrote {out / 'fit.json'}")
+    print(f"{res.candidate.name}: MSE train {summary.mse_train:.4g}, validation {summary.mse_validation:.4g}"
+          f"{held_out_phrase(summary)}; {len(summary.insignificant)} parameter(s) accept zero, "
+          f"{len(summary.at_bound)} at a bound{not_converged}; wrote {out / 'fit.json'}")
     return 0
 
 
@@ -119,6 +125,7 @@ def _fit_joint(args) -> int:
     from .report.documents import joint_markdown
     res = fit_joint(args.data, args.joint, starts=args.starts, seed=args.seed, covariance=args.covariance,
                     bounds=_bounds(args), band_samples=args.band_samples, replay_maneuver=args.replay_maneuver,
+                    segment=args.segment,
                     progress=_progress(args))
     out = Path(args.out)
     write_json(out / "fit.json", res.to_dict())
@@ -135,7 +142,7 @@ def _fit_joint(args) -> int:
 def _search(args) -> int:
     from .api import search
     ranking = search(args.data, args.grid, out=args.out, jobs=_jobs(args), starts=args.starts, seed=args.seed,
-                     covariance=args.covariance, bounds=_bounds(args), cv_method=args.cv_method,
+                     covariance=args.covariance, bounds=_bounds(args), cv_method=args.cv_method, segment=args.segment,
                      backend=args.backend, scheduler=args.scheduler, max_correlation=args.max_correlation,
                      progress=_progress(args), joint_lift=args.joint_lift)
     if ranking.joint is not None:
@@ -152,7 +159,8 @@ def _search(args) -> int:
 def _held_out(s) -> str:
     if s.cv is None:
         return "validation"
-    return f"{s.cv_folds}-fold {'one-step ' if s.cv_method == 'one-step' else ''}CV"
+    return (f"{s.cv_folds}-fold {'blocked ' if s.cv_scheme == 'blocks' else ''}"
+            f"{'one-step ' if s.cv_method == 'one-step' else ''}CV")
 
 
 def _print_winners(result) -> None:
@@ -195,6 +203,7 @@ def _report(args) -> int:
     from .api import report
     res = report(args.data, args.out, starts=args.starts, seed=args.seed, covariance=args.covariance,
                  bounds=_bounds(args), jobs=_jobs(args), diagnose=None if args.diagnose == "none" else args.diagnose,
+                 segment=args.segment,
                  models=tuple(args.model or ()), progress=_progress(args))
     _print_report(res)
     return 0
@@ -218,6 +227,7 @@ def _diagnose(args) -> int:
     out = Path(args.out)
     diagnosis = diagnose(args.data, args.model, coefficient=args.coefficient, starts=args.starts, seed=args.seed,
                          covariance=args.covariance, bounds=_bounds(args), jobs=_jobs(args), out=out,
+                         segment=args.segment,
                          progress=_progress(args, "diagnose: "), terms=args.terms, beam=args.beam,
                          max_steps=args.max_steps)
     for line in diagnosis_console_lines(diagnosis, (out / "diagnosis.json", out / "diagnosis.md")):
@@ -232,6 +242,7 @@ def _discover(args) -> int:
     found = discover(args.data, args.coefficient, start=args.start, lifts=args.lift, terms=args.terms,
                      beam=args.beam, max_steps=args.max_steps, starts=args.starts, seed=args.seed,
                      covariance=args.covariance, bounds=_bounds(args), jobs=_jobs(args), backend=args.backend,
+                     segment=args.segment,
                      out=out, progress=_progress(args, "discover: "), command="structsearch " + " ".join(sys.argv[1:]))
     for line in discovery_console_lines(found, out):
         print(line)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .cli_options import _bounds, _jobs
+from .cli_options import PROFILE_CAMPAIGNS, _bounds, _jobs
 
 
 def _calibration(args) -> int:
@@ -12,11 +12,14 @@ def _calibration(args) -> int:
     from .data.atomic import write_json, write_text
     from .experiments.calibration_doc import calibration_dict, calibration_markdown
     say = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
-    cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=_jobs(args), progress=say, seeds=args.seeds)
+    cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=_jobs(args), progress=say, seeds=args.seeds,
+              profile_campaigns=args.profile_campaigns, flight_errors=args.flight_errors)
     out = Path(args.out)
     command = (f"structsearch bench --calibration --campaigns {args.campaigns} --scale {args.scale}"
                if args.seeds is None else
-               f"structsearch bench --calibration --seeds {args.seeds[0]}:{args.seeds[-1] + 1} --scale {args.scale}")
+               f"structsearch bench --calibration --seeds {args.seeds[0]}:{args.seeds[-1] + 1} --scale {args.scale}") \
+        + (f" --profile-campaigns {args.profile_campaigns}" if args.profile_campaigns != PROFILE_CAMPAIGNS else "") \
+        + (" --flight-errors" if args.flight_errors else "")
     write_text(out / "calibration.md", calibration_markdown(cal, command))
     write_json(out / "calibration.json", calibration_dict(cal), indent=1)
     for k in cal.kinds:
@@ -28,6 +31,11 @@ def _calibration(args) -> int:
         print(f"{k.kind}: 95 % coverage {k.pooled95:.3f} (worst {k.worst95.coverage95:.2f} "
               f"{k.worst95.model} {k.worst95.parameter}{missing}), 68 % {k.pooled68:.3f}; gap test rejects "
               f"{k.rejections}/{k.gap_tests}; goals {'met' if k.meets_goals else 'NOT met'}")
+    profile = calibration_dict(cal)["profile"]
+    if profile is not None:
+        print(f"profile intervals ({profile['campaigns']} campaigns): 95 % coverage {profile['pooled_coverage_95']:.3f} "
+              f"(Wald {profile['pooled_wald_coverage_95']:.3f}), 68 % {profile['pooled_coverage_68']:.3f} (Wald "
+              f"{profile['pooled_wald_coverage_68']:.3f})")
     print(f"best calibrated: {cal.best.kind}; wrote {out / 'calibration.md'}")
     return 0
 

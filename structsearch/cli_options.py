@@ -11,11 +11,15 @@ import argparse
 import math
 
 # Copies of the owners' constants (kept equal by a test): structsearch.engine.statistics.COVARIANCE_KINDS and
-# DEFAULT_COVARIANCE, structsearch.search.admissibility.MAX_CORRELATION, structsearch.fitting.options.CV_METHODS.
-COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs", "hac-maneuver", "cluster")
+# DEFAULT_COVARIANCE, structsearch.search.admissibility.MAX_CORRELATION, structsearch.fitting.options.CV_METHODS,
+# structsearch.experiments.calibration_profile.PROFILE_CAMPAIGNS.
+COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs", "hac-maneuver", "cluster", "hac-flight")
 DEFAULT_COVARIANCE = "hac-maneuver"
 MAX_CORRELATION = 0.95
 CV_METHODS = ("refit", "one-step")
+# structsearch.data.records.SEGMENT_CHOICES (--segment)
+SEGMENT_CHOICES = ("cycles", "none")
+PROFILE_CAMPAIGNS = 20
 
 
 def _cutoff(text: str) -> tuple[str, float]:

@@ -5,9 +5,9 @@ import argparse
 from typing import Callable, Mapping
 
 from ._version import __version__
-from .cli_options import (COVARIANCE_KINDS, CV_METHODS, DEFAULT_COVARIANCE, MAX_CORRELATION, _Parser, _angle_degrees,
-                          _bound, _count, _cutoff, _fraction, _non_negative, _non_negative_float,
-                          _seed_range)
+from .cli_options import (COVARIANCE_KINDS, CV_METHODS, DEFAULT_COVARIANCE, MAX_CORRELATION, PROFILE_CAMPAIGNS,
+                          SEGMENT_CHOICES, _Parser, _angle_degrees, _bound, _count, _cutoff, _fraction, _non_negative,
+                          _non_negative_float, _seed_range)
 from .flight.names import AIRCRAFT_NAMES, ANOMALY_NAMES, WITHHOLDABLE
 
 BENCHMARK_PARTS = ("withheld", "anomalies", "null")
@@ -43,6 +43,10 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
     p.add_argument("--covariance", choices=COVARIANCE_KINDS, default=DEFAULT_COVARIANCE,
                    help=f"covariance estimate of every fit (default {DEFAULT_COVARIANCE}, the best calibrated "
                         "by `bench --calibration`)")
+    p.add_argument("--segment", choices=SEGMENT_CHOICES, default=None,
+                   help="cycles: cut every record into its cycles (a `cycle` column, else alpha's minima), each a "
+                        "maneuver (ids m07.c1, m07.c2, ...; same kind and split); none: keep every record whole "
+                        "(default: as campaign.toml's segment keys say, and records with a `cycle` column cut)")
 
 
 def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
@@ -75,6 +79,14 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     b.add_argument("--seeds", type=_seed_range, default=None, metavar="A:B",
                    help="--calibration: the campaigns' seeds A to B-1 instead (overrides --campaigns)")
     b.add_argument("--scale", type=_fraction, default=0.1, help="--calibration: fraction of the maneuvers flown")
+    b.add_argument("--profile-campaigns", type=_non_negative, default=PROFILE_CAMPAIGNS, metavar="N",
+                   help=f"--calibration: the first N campaigns also calibrate the profile intervals of the nonlinear "
+                        f"parameters beside the Wald ones (default {PROFILE_CAMPAIGNS}, ~12 s each at scale 0.25; "
+                        "0: none)")
+    b.add_argument("--flight-errors", action="store_true",
+                   help="--calibration: fly each campaign on flights of about four maneuvers that share a mass, cg, "
+                        "engine-model and vane-calibration error (simulate --flights), and calibrate the "
+                        "flight-grouped covariance hac-flight beside the others")
     b.set_defaults(func=handlers["bench"])
 
     s = sub.add_parser("simulate", help="simulate a flight-test campaign (thesis Table 4) of the Citation II or the "
@@ -98,6 +110,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                         "0: only sensor noise, buffet and residual biases, like a raw campaign's channels)")
     s.add_argument("--raw", action="store_true",
                    help="write the raw sensor channels (docs/interfaces.md 5.2) with the injected sensor errors recorded")
+    s.add_argument("--flights", type=_non_negative, default=0, metavar="N",
+                   help="fly the maneuvers on N flights (consecutive maneuvers of one loading; each maneuver's flight "
+                        "recorded in campaign.toml) that share a mass, cg, engine-model and vane-calibration error on "
+                        "top of the per-maneuver ones; 0, the default: no flights (the campaign of before, bit for "
+                        "bit). Not with --raw")
     s.set_defaults(func=handlers["simulate"])
 
     pp = sub.add_parser("preprocess", help="turn a raw flight-test campaign (docs/interfaces.md 5.2) into a standard one: "
@@ -139,6 +156,10 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                    help="cross-check the static curves' confidence bands by N parameter draws (seeded by --seed); "
                         "with --joint of C_L, C_D and C_m also a validation maneuver's forward replay with its "
                         "sampled band (default 0: delta method only)")
+    f.add_argument("--profile", action="store_true",
+                   help="also the 95 %% and 68 %% profile intervals of the nonlinear parameters (each held on either "
+                        "side of its estimate, the rest refitted; the statistic scaled by the reported over the white "
+                        "variance) beside the Wald ones, in fit.json (profile) and fit.md; not with --joint")
     f.add_argument("--replay-maneuver", metavar="NAME", default=None,
                    help="the validation maneuver the joint fit's sampled replay flies (default: the deepest)")
     f.set_defaults(func=handlers["fit"])

@@ -27,7 +27,7 @@ def simulated_as(directory: Path) -> dict | None:
         doc = tomllib.loads(toml.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError):
         return {"manifest": "unreadable"}
-    return {k: doc.get(k) for k in ("seed", "scale", "withheld", "slow_errors", "extras")}
+    return {k: doc.get(k) for k in ("seed", "scale", "withheld", "slow_errors", "extras", "flights")}
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,8 @@ def demo_campaign(out: Path, scale: float, say: Lines) -> Campaign:
     from .data.campaign import read_campaign, write_campaign
     from .flight.flighttest import build_campaign
     camp_dir = out / "campaign"
-    wanted = {"seed": 0, "scale": float(scale), "withheld": "none", "slow_errors": 1.0, "extras": False}
+    wanted = {"seed": 0, "scale": float(scale), "withheld": "none", "slow_errors": 1.0, "extras": False,
+              "flights": None}
     found = simulated_as(camp_dir)
     if found == wanted:
         say(f"reusing the simulated campaign in {camp_dir}")

@@ -133,8 +133,12 @@ def test_degrees_detected(tmp_path):
 
 
 def test_too_short(tmp_path):
-    _write(tmp_path, _maneuver(n=100))
-    with pytest.raises(DataError, match="too short to fit separation dynamics"):
+    """Issue 30: too short is measured in convective times cbar/V (structsearch.data.records), not seconds: 0.5 s at
+    80 m/s with cbar 2.013 m is 19.9 of them, below the rule's 30."""
+    _write(tmp_path, _maneuver(n=51))
+    with pytest.raises(DataError, match=r"m.csv, column 't': maneuver is too short to fit separation dynamics: 51 "
+                                        r"samples over 0.5 s = 19.9 convective times cbar/V .* at least 20 samples "
+                                        r"and 30 convective times"):
         read_campaign(tmp_path)
 
 

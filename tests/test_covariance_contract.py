@@ -9,8 +9,8 @@ from structsearch.data.atomic import json_ready
 from structsearch.engine.estimates import ParameterEstimates
 from structsearch.engine.snls import model_jacobian
 from structsearch.engine.statistics import (COVARIANCE_KINDS, KINDS, Covariances, cluster_covariance,
-                                            colored_covariance, effective_maneuvers, hac_covariance,
-                                            white_covariance)
+                                            colored_covariance, effective_maneuvers, flight_covariance,
+                                            hac_covariance, white_covariance)
 from structsearch.flight.reference import FINAL_LIFT, final_lift_model
 from structsearch.flight.synthetic import with_coefficient
 
@@ -50,11 +50,13 @@ def _explicit(kind, jac, residual, boundaries):
         return white_covariance(jac, residual)
     if kind == "cluster":
         return cluster_covariance(jac, residual, boundaries)
+    if kind == "hac-flight":
+        return flight_covariance(jac, residual, boundaries, None)[0]
     return hac_covariance(jac, residual, boundaries, kind)[0]
 
 
 def test_the_registry_is_the_command_lines_list():
-    assert COVARIANCE_KINDS == ("colored", "white", "hac", "hac-qs", "hac-maneuver", "cluster")
+    assert COVARIANCE_KINDS == ("colored", "white", "hac", "hac-qs", "hac-maneuver", "cluster", "hac-flight")
     assert all(KINDS[k].name == k and KINDS[k].description for k in COVARIANCE_KINDS)
 
 
@@ -80,6 +82,32 @@ def test_every_kind_keeps_the_contract(kind):
         expected = [float(result.n_samples - p)] * p
     np.testing.assert_allclose(list(result.reference_dof.values()), expected, rtol=1e-12)
     assert KINDS[kind].not_estimable(N_MANEUVERS, p) is None
+
+
+def test_a_kind_that_groups_by_flight_keeps_the_contract_with_flights_recorded():
+    """hac-flight on maneuvers flown two by two on four flights: finite, symmetric, positive semi-definite, the
+    explicit function's estimate, reference dof the effective flights - 1, a record that says flights; without
+    recorded flights it is hac-maneuver to the bit."""
+    x, y, boundaries = _regression()
+    flights = ["F1", "F1", "F2", "F2", "F3", "F3", "F4", None]   # the last maneuver: no flight recorded
+    result = MODEL.fit({"x": x}, y, covariance="hac-flight", segments=list(boundaries[1:-1]), flights=flights)
+    cov = result.covariance
+    d = np.sqrt(np.diag(cov))
+    assert np.all(np.isfinite(cov)) and np.allclose(cov, cov.T, rtol=0, atol=1e-14 * np.abs(cov).max())
+    assert np.linalg.eigvalsh(cov / np.outer(d, d)).min() > -1e-10
+    jac = np.column_stack([np.ones_like(x), x, x ** 2])
+    np.testing.assert_allclose(cov, flight_covariance(jac, result.residuals, boundaries, flights)[0], rtol=1e-10)
+    effective = effective_maneuvers(jac, jac * result.residuals[:, None], boundaries, "hac-flight", flights=flights)
+    assert all(1.0 <= g <= 5.0 for g in effective)          # five flights: four recorded, one maneuver alone
+    np.testing.assert_allclose(list(result.reference_dof.values()), [max(g - 1.0, 1.0) for g in effective],
+                               rtol=1e-12)
+    record = result.estimates.covariance_record()
+    assert record["grouped_by"] == "flights" and record["groups"] == 5
+    alone = MODEL.fit({"x": x}, y, covariance="hac-flight", segments=list(boundaries[1:-1]))
+    same = MODEL.fit({"x": x}, y, covariance="hac-maneuver", segments=list(boundaries[1:-1]))
+    np.testing.assert_array_equal(alone.covariance, same.covariance)
+    assert alone.reference_dof == same.reference_dof
+    assert alone.estimates.covariance_record()["grouped_by"] == "maneuvers"
 
 
 @pytest.mark.parametrize("kind", COVARIANCE_KINDS)

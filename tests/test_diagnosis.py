@@ -169,6 +169,7 @@ def test_final_model_is_explained(campaign):
     assert sat.mse_validation >= 0.99 * d.mse.validation, (sat.mse_validation, d.mse)
 
 
+@pytest.mark.slow
 def test_deterministic(campaign):
     a = diagnose(campaign, baseline_without("induced_drag"), options=OPTIONS, max_rounds=1)
     # the effects fitted on two processes give the same document as on one
@@ -215,6 +216,7 @@ def test_cli_diagnose(campaign, tmp_path):
     assert bad.returncode == 2 and "models CD, not CL" in bad.stderr
 
 
+@pytest.mark.slow
 def test_a_gap_outside_the_library_is_not_explained_and_follows_its_signal():
     """Issue 14: lift slopes that grow with airspeed (no library term uses V). The truth structure CL-VI is
     not at the library-free floor even after what the library adds, and the remainder follows V."""

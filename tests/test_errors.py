@@ -99,7 +99,10 @@ def test_demo_knows_how_its_campaign_was_simulated(tmp_path):
     assert _simulated_as(tmp_path / "none") is None
     write_campaign(build_campaign(seed=0, scale=0.05), tmp_path / "c")
     assert _simulated_as(tmp_path / "c") == {"seed": 0, "scale": 0.05, "withheld": "none", "slow_errors": 1.0,
-                                             "extras": False}
+                                             "extras": False, "flights": None}
+    # a campaign flown on flights with their shared errors is not the demo's
+    write_campaign(build_campaign(seed=0, scale=0.05, flights=3), tmp_path / "f")
+    assert _simulated_as(tmp_path / "f")["flights"] == 3
 
 
 def test_csv_numbers_carry_ten_significant_digits():

@@ -44,6 +44,7 @@ def model_set(small, report_run):
     return fit_model_set("identified", FINAL_MODEL_NAMES, small, report_run[1], FitOptions(n_starts=2))
 
 
+@pytest.mark.slow
 def test_report_writes_every_figure_with_content(report_run):
     from matplotlib.image import imread
     proc, out = report_run

@@ -134,7 +134,7 @@ def test_rigid_body_bandwidth_is_where_motion_meets_the_noise():
     assert rigid_body_bandwidth(freq, p, fs) is None
 
 
-@pytest.fixture(scope="module", params=["citation", "transport"])
+@pytest.fixture(scope="module", params=["citation", pytest.param("transport", marks=pytest.mark.slow)])
 def processed(request):
     raw = build_campaign(seed=4, scale=0.1, raw=True, aircraft=request.param)
     return raw, preprocess(raw, use_suggested=True)

@@ -102,6 +102,7 @@ def test_reconstruction_matches_truth_within_noise(flown):
         assert 1 - np.mean(err ** 2) / np.var(d[f"{coef}_true"]) > r2, coef
 
 
+@pytest.mark.slow
 def test_same_seed_same_campaign_bit_for_bit():
     a = build_campaign(seed=3, scale=0.05)
     b = build_campaign(seed=3, scale=0.05)
@@ -145,6 +146,7 @@ def test_replay_with_truth_tracks_and_withheld_lag_drifts(flown):
                          for r in alone for s in r.simulated)
 
 
+@pytest.mark.slow
 def test_a_maneuver_flies_the_same_alone_or_in_a_batch_with_longer_ones(model):
     """Maneuvers of all durations fly in one batch: the shorter is held once it ends, so neither its
     trajectory nor the longer one's depends on the other."""
@@ -163,6 +165,7 @@ def test_a_maneuver_flies_the_same_alone_or_in_a_batch_with_longer_ones(model):
     assert np.all(both.alpha[n:, 0] == both.alpha[n - 1, 0]) and np.all(np.isfinite(both.Cm))
 
 
+@pytest.mark.slow
 def test_default_campaign_standard_deviations_match_the_thesis():
     """Issue 12 item 5: the simulator's error levels make the final models' standard deviations on the
     default campaign those of thesis Tables 11, 13 and 15 within a factor of 2 (the thesis' real

@@ -50,8 +50,11 @@ def two_step(seed, kind, phi):
         np.array([fit2.stderr["b"], fit2.stderr["g"]])
 
 
-@pytest.mark.parametrize("kind,phi", [("white", 0.0), ("hac", 0.6), ("colored", 0.6), ("cluster", 0.6),
-                                      ("hac-maneuver", 0.6)])
+# the default kind in every run; the others with the end-to-end runs (``-m slow``)
+@pytest.mark.parametrize("kind,phi", [pytest.param("white", 0.0, marks=pytest.mark.slow),
+                                      pytest.param("hac", 0.6, marks=pytest.mark.slow),
+                                      pytest.param("colored", 0.6, marks=pytest.mark.slow),
+                                      pytest.param("cluster", 0.6, marks=pytest.mark.slow), ("hac-maneuver", 0.6)])
 def test_correction_matches_monte_carlo_of_the_two_step_fit(kind, phi):
     runs = [two_step(seed, kind, phi) for seed in range(400)]
     estimates = np.array([r[0] for r in runs])

@@ -23,9 +23,14 @@ Progress = Callable[[str], None] | None
 Bounds = Mapping[str, tuple[float, float]] | Iterable[tuple[str, tuple[float, float]]] | None
 
 
-def as_campaign(campaign: Campaign | str | os.PathLike) -> Campaign:
-    """``campaign`` itself, or the standard campaign read from that directory."""
-    return campaign if isinstance(campaign, Campaign) else read_campaign(campaign)
+def as_campaign(campaign: Campaign | str | os.PathLike, segment: str | None = None) -> Campaign:
+    """``campaign`` itself, or the standard campaign read from that directory. ``segment`` (``--segment``):
+    "cycles" cuts every record into its cycles, "none" keeps each whole, None as campaign.toml says
+    (:mod:`structsearch.data.records`; a campaign in memory: :func:`structsearch.data.cycles.segmented`)."""
+    if isinstance(campaign, Campaign):
+        from ..data.cycles import segmented
+        return segmented(campaign, segment)
+    return read_campaign(campaign, segment=segment)
 
 
 def process_count(jobs: int) -> int:
@@ -40,7 +45,13 @@ def parameter_boxes(bounds: Bounds) -> tuple:
     return tuple(sorted((name, (float(lo), float(hi))) for name, (lo, hi) in pairs.items()))
 
 
-def fit_options(starts: int, seed: int, covariance: str, bounds: Bounds, **more: Any) -> FitOptions:
+def fit_options(starts: int, seed: int, covariance: str, bounds: Bounds, campaign: Campaign | None = None,
+                **more: Any) -> FitOptions:
+    """The commands' FitOptions; with the ``campaign``, its cross-validation folds leave one cycle out when its
+    training maneuvers are cycles of periodic records (:func:`structsearch.fitting.folds.fold_size_for`)."""
+    if campaign is not None and "cv_fold_size" not in more:
+        from ..fitting.folds import fold_size_for
+        more["cv_fold_size"] = fold_size_for(campaign.maneuvers)
     return FitOptions(n_starts=starts, seed=seed, covariance=covariance, parameter_boxes=parameter_boxes(bounds),
                       **more)
 
@@ -57,17 +68,19 @@ def cache_directory(cache: str | os.PathLike | None) -> Iterator[Path]:
 
 def fit(campaign: Campaign | str | os.PathLike, model: str, *, starts: int = 4, seed: int = 0,
         covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None, progress: Progress = None,
-        band_samples: int = 0) -> FitOutcome:
+        band_samples: int = 0, profile: bool = False, segment: str | None = None) -> FitOutcome:
     """Fit one candidate (a catalogue name such as ``"CD-IXr"`` or a spec file) as ``structsearch fit`` does:
     a drag or pitch candidate first fits the lift model it names, on the training maneuvers. The outcome holds
     the static curve's 95 % confidence and prediction bands (``.bands``); ``band_samples`` > 0 adds their
-    cross-check by parameter sampling (that many draws, seeded by ``seed``)."""
+    cross-check by parameter sampling (that many draws, seeded by ``seed``). ``profile``: also the 95 % and 68 %
+    profile intervals of the nonlinear parameters (``.profile``, :mod:`structsearch.engine.profile`).
+    ``segment``: "cycles" fits a periodic record's cycles as maneuvers (:func:`as_campaign`)."""
     _check_samples(band_samples)
     from ..fitting.candidate_fit import fit_lift_model, fit_staged
     from ..fitting.specs import resolve_candidate
     candidate = resolve_candidate(model)   # a misspelled name is answered before the campaign is read
-    campaign = as_campaign(campaign)
-    options = fit_options(starts, seed, covariance, bounds)
+    campaign = as_campaign(campaign, segment)
+    options = fit_options(starts, seed, covariance, bounds, campaign)
     check_box_names(options.parameter_boxes, [candidate])
     train, validation = campaign.split("train"), campaign.split("validation")
     if progress is not None:
@@ -77,8 +90,14 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, starts: int = 4, 
     if result.failed:
         raise DeclarationError(result.error)
     from ..fitting.bands import static_bands
+    profiles = None
+    if profile:
+        from ..fitting.profile import profile_candidate
+        if progress is not None:
+            progress(f"fit: profile intervals of {', '.join(result.nonlinear_names) or 'no nonlinear parameter'}")
+        profiles = profile_candidate(candidate, result, train, lift)
     return FitOutcome(candidate, result, lift, static_bands(candidate, result, train, lift, samples=band_samples,
-                                                            seed=seed))
+                                                            seed=seed), profiles)
 
 
 def _check_samples(band_samples: int) -> None:
@@ -88,7 +107,8 @@ def _check_samples(band_samples: int) -> None:
 
 def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence[str], *, starts: int = 4,
               seed: int = 0, covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None,
-              progress: Progress = None, band_samples: int = 0, replay_maneuver: str | None = None):
+              progress: Progress = None, band_samples: int = 0, replay_maneuver: str | None = None,
+              segment: str | None = None):
     """Fit two or three structures (lift, drag, pitch) jointly, sharing their separation states, as
     ``structsearch fit --joint`` does: ``structures`` is "CL-VI,CD-IXr,Cm-XXXIIIr", a list of names or spec
     files, or a joint spec file. Returns the typed :class:`structsearch.fitting.joint.JointFit` (``to_dict()``
@@ -97,9 +117,9 @@ def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence
     (``replay_maneuver``, default the one that flies deepest; :mod:`structsearch.flight.replay_bands`)."""
     _check_samples(band_samples)
     from ..fitting.joint import fit_joint as run, joint_structures
-    campaign = as_campaign(campaign)
+    campaign = as_campaign(campaign, segment)
     candidates = joint_structures(structures if isinstance(structures, str) else ",".join(structures))
-    options = fit_options(starts, seed, covariance, bounds)
+    options = fit_options(starts, seed, covariance, bounds, campaign)
     check_box_names(options.parameter_boxes, candidates)
     candidates = [c.with_bounds(options.parameter_boxes) for c in candidates]
     if progress is not None:
@@ -127,7 +147,8 @@ def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, out: st
            cache: str | os.PathLike | None = None, jobs: int = 0, starts: int = 4, seed: int = 0,
            covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None, cv_method: str = "refit",
            backend: str = "loky", scheduler: str | None = None, max_correlation: float = MAX_CORRELATION,
-           refine: bool = True, progress: Progress = None, joint_lift: str | Sequence[str] | None = None) -> Ranking:
+           refine: bool = True, progress: Progress = None, joint_lift: str | Sequence[str] | None = None,
+           segment: str | None = None) -> Ranking:
     """Fit and rank every candidate of ``grid`` as ``structsearch search`` does. ``cache``: the directory whose
     ``cache/`` holds the fits (default ``out``, else a temporary directory); ``out``: also write
     ``ranking.csv`` and the tables there (and ``joint_lift.json``, the joint fit, with ``joint_lift``).
@@ -135,8 +156,8 @@ def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, out: st
     file); drag and pitch candidates read its lift block (``search --joint-lift``)."""
     from ..search.pipeline import search as run_search
     candidates = search_candidates(grid)   # a misspelled grid is answered before the campaign is read
-    campaign = as_campaign(campaign)
-    options = fit_options(starts, seed, covariance, bounds, cv_method=cv_method)
+    campaign = as_campaign(campaign, segment)
+    options = fit_options(starts, seed, covariance, bounds, campaign, cv_method=cv_method)
     check_box_names(options.parameter_boxes, candidates)
     joint = ()
     if joint_lift:
@@ -193,7 +214,7 @@ def diagnose(campaign: Campaign | str | os.PathLike, model: str, *, coefficient:
              starts: int = 2, seed: int = 0, covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None,
              jobs: int = 0, out: str | os.PathLike | None = None, progress: Progress = None,
              terms: str | os.PathLike | None = None, beam: int | None = None, max_steps: int | None = None,
-             backend: str = "loky"):
+             backend: str = "loky", segment: str | None = None):
     """Diagnose ``model`` (the baseline) as ``structsearch diagnose`` does: a structure search over moves from it
     (``terms``: a user's term file; ``beam``, ``max_steps``: the search's width and length); with ``out``, also
     write ``diagnosis.json`` and ``diagnosis.md`` there and cache the fits in ``out/cache``. Returns the
@@ -202,10 +223,10 @@ def diagnose(campaign: Campaign | str | os.PathLike, model: str, *, coefficient:
     from ..diagnosis.diagnose import diagnose as run_diagnosis
     from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS
     from ..fitting.specs import resolve_candidate
-    campaign = as_campaign(campaign)
+    campaign = as_campaign(campaign, segment)
     baseline = resolve_candidate(model, coefficient)
     # structures with separation parameters are cross-validated by one-step folds in a structure search
-    options = dataclasses.replace(fit_options(starts, seed, covariance, bounds), cv_method="one-step")
+    options = dataclasses.replace(fit_options(starts, seed, covariance, bounds, campaign), cv_method="one-step")
     check_box_names(options.parameter_boxes, [baseline])
     result = run_diagnosis(campaign, baseline, options=options, n_jobs=process_count(jobs), seed=seed,
                            progress=progress, terms=None if terms is None else str(terms),
@@ -219,13 +240,14 @@ def diagnose(campaign: Campaign | str | os.PathLike, model: str, *, coefficient:
 
 def simulate(*, seed: int = 0, withhold: Iterable[str] = (), scale: float = 1.0, extras: bool = False,
              aircraft: str = "citation", anomaly: str | None = None, raw: bool = False, slow_errors: float = 1.0,
-             out: str | os.PathLike | None = None, format: str = "csv") -> Campaign:
+             out: str | os.PathLike | None = None, format: str = "csv", flights: int = 0) -> Campaign:
     """Simulate a flight-test campaign as ``structsearch simulate`` does (same seed, same campaign bit for bit);
-    with ``out``, also write it there."""
+    with ``out``, also write it there. ``flights`` = N > 0: the maneuvers flown on N flights that share errors
+    (``simulate --flights N``)."""
     from ..data.campaign import write_campaign
     from ..flight.flighttest import build_campaign
     campaign = build_campaign(seed=seed, withhold=tuple(withhold or ()), scale=scale, extras=extras,
-                              aircraft=aircraft, anomaly=anomaly, raw=raw, slow_errors=slow_errors)
+                              aircraft=aircraft, anomaly=anomaly, raw=raw, slow_errors=slow_errors, flights=flights)
     if out is not None:
         write_campaign(campaign, Path(out), fmt=format)
     return campaign

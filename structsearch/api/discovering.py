@@ -15,7 +15,7 @@ def discover(campaign: Campaign | str | os.PathLike, coefficient: str, *, start:
              lifts: Iterable[str] = (), terms: str | os.PathLike | None = None, beam: int | None = None,
              max_steps: int | None = None, starts: int = 2, seed: int = 0, covariance: str | None = None,
              bounds=None, jobs: int = 0, backend: str = "loky", out: str | os.PathLike | None = None,
-             progress: Progress = None, command: str | None = None):
+             progress: Progress = None, command: str | None = None, segment: str | None = None):
     """Search structures for ``coefficient`` from ``start`` ("minimal", a candidate name or a spec file) as
     ``structsearch discover`` does; with ``out``, write discover.json, discover.md, path.csv and the final
     structure's spec file there (fits cached in ``out/cache``). Returns the typed :class:`Discovery`."""
@@ -23,9 +23,9 @@ def discover(campaign: Campaign | str | os.PathLike, coefficient: str, *, start:
     from ..engine.statistics import DEFAULT_COVARIANCE
     from ..study.structure_discovery import discover_structures
     from .commands import as_campaign, fit_options, process_count
-    campaign = as_campaign(campaign)
+    campaign = as_campaign(campaign, segment)
     # structures with separation parameters are cross-validated by one-step folds in a structure search
-    options = dataclasses.replace(fit_options(starts, seed, covariance or DEFAULT_COVARIANCE, bounds),
+    options = dataclasses.replace(fit_options(starts, seed, covariance or DEFAULT_COVARIANCE, bounds, campaign),
                                   cv_method="one-step")
     kw = dict(start=start, lifts=lifts, terms=terms, beam=beam, max_steps=max_steps, options=options,
               n_jobs=process_count(jobs), backend=backend, progress=progress)

@@ -47,13 +47,13 @@ def fit_report_models(campaign: Campaign, out: Path, options: FitOptions, *, job
 def report(campaign: Campaign | str | os.PathLike, out: str | os.PathLike = "results", *, starts: int = 4,
            seed: int = 0, covariance: str = DEFAULT_COVARIANCE, bounds: Bounds = None, jobs: int = 0,
            diagnose: str | None = "Cm", models: tuple[str, ...] = (), story: list[str] | None = None,
-           progress: Progress = None) -> ReportOutcome:
+           progress: Progress = None, segment: str | None = None) -> ReportOutcome:
     """Figures and one self-contained HTML page for a campaign, as ``structsearch report`` writes them in
     ``out`` (``diagnose=None``: no gap breakdown). Needs matplotlib."""
     from ..report.page import build, require_figures
     started = time.perf_counter()
-    campaign = as_campaign(campaign)
-    options = fit_options(starts, seed, covariance, bounds)
+    campaign = as_campaign(campaign, segment)
+    options = fit_options(starts, seed, covariance, bounds, campaign)
     check_box_names(options.parameter_boxes, search_candidates("all"))
     require_figures()
     out = Path(out)

@@ -21,11 +21,15 @@ class FitOutcome:
     result: CandidateResult
     lift: LiftFit | None
     bands: Any = None          # structsearch.fitting.bands.StaticBands: the static curve's bands (None: not made)
+    profile: Any = None        # structsearch.engine.profile.Profiles: profile intervals (None: not asked for)
 
     def to_dict(self) -> dict:
-        """``fit.json`` (docs/interfaces.md sections 2, 5.4 and 6.3)."""
+        """``fit.json`` (docs/interfaces.md sections 2, 5.4 and 6.3; ``profile`` with ``fit(profile=True)``)."""
         from ..report.documents import fit_document
-        return fit_document(self.result, self.lift, self.bands)
+        doc = fit_document(self.result, self.lift, self.bands)
+        if self.profile is not None:
+            doc["profile"] = self.profile.to_dict()
+        return doc
 
     def summary(self) -> Any:
         """The fit's summary (the result's own ``summary()``: text when printed, HTML in a notebook); a plain
@@ -37,7 +41,7 @@ class FitOutcome:
 
     def __getattr__(self, name: str):
         # params, stderr, mse_train, ...: the fit's own attributes, so that ``fit(...).params`` reads naturally
-        if name.startswith("__") or name in ("candidate", "result", "lift", "bands"):
+        if name.startswith("__") or name in ("candidate", "result", "lift", "bands", "profile"):
             raise AttributeError(name)
         return getattr(self.result, name)
 

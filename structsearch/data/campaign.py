@@ -12,7 +12,7 @@ import os
 import shutil
 import tempfile
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -21,6 +21,7 @@ import numpy as np
 from .atomic import exchange_directories, sync_path, umask
 from .flightdata import FlightData, from_segments
 from .errors import DataError
+from . import records
 from .tables import LINE_KEY, read_mat, read_table as _read_table  # noqa: F401  (read_mat: the reader of .mat files)
 
 KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugoid", "other")
@@ -33,9 +34,9 @@ RAW_ANGLES = ("alpha", "de", "theta", "phi", "beta", "da", "dr")
 FORMATS = ("standard", "raw")
 # Largest plausible magnitude of an angle in radians; more looks like degrees.
 MAX_ANGLE_RAD = 1.2
-# Shortest maneuver that leaves room for separation dynamics (tau up to ~1 s).
-MIN_DURATION_S = 2.0
-MIN_SAMPLES = 20
+# The shortest maneuver worth fitting is measured in convective times cbar/V (structsearch.data.records)
+MIN_CONVECTIVE_TIMES = records.MIN_CONVECTIVE_TIMES
+MIN_SAMPLES = records.MIN_SAMPLES
 AIRCRAFT_KEYS = ("S", "cbar", "b")
 # optional aircraft data (docs/interfaces.md 5.1): positive scalars, signed scalars, and vectors of a length
 OPTIONAL_POSITIVE = ("mass", "Ixx", "Iyy", "Izz")
@@ -49,6 +50,11 @@ class Maneuver:
     file: str
     kind: str
     split: str
+    # the flight the maneuver was flown on (docs/interfaces.md 6.4): maneuvers of one flight share its mass,
+    # engine-model and vane-calibration errors; None: not recorded
+    flight: str | None = None
+    # the record (maneuver file) a cycle was cut from (structsearch.data.records); "" for a whole record
+    record: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,6 +68,8 @@ class Campaign:
     directory: Path | None = None
     extra: Mapping[str, object] = field(default_factory=dict)
     cutoffs_hz: Mapping[str, float] = field(default_factory=dict)   # [cutoffs] of a raw campaign: overrides
+    # the shortest maneuver worth fitting, per kind (campaign.toml min_convective_times; structsearch.data.records)
+    length_rules: records.LengthRules = field(default_factory=records.LengthRules)
 
     def split(self, which: str) -> FlightData:
         """The maneuvers of one split ("train" or "validation") as FlightData."""
@@ -125,8 +133,20 @@ def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
         if e["split"] not in SPLITS:
             raise DataError(f"unknown split {e['split']!r}; expected one of {', '.join(SPLITS)}",
                             source=where, column="split")
-        maneuvers.append(Maneuver(e["id"], e["file"], e["kind"], e["split"]))
+        maneuvers.append(Maneuver(e["id"], e["file"], e["kind"], e["split"], _flight(e, where)))
     return str(doc.get("name", "")), parsed, maneuvers
+
+
+def _flight(entry: dict, where: str) -> str | None:
+    """A maneuver's optional ``flight``: a non-empty string naming the flight it was flown on."""
+    if "flight" not in entry:
+        return None
+    value = entry["flight"]
+    if not isinstance(value, str) or not value.strip() or not value.isprintable():
+        hint = f' (quote it: flight = "{value}")' if _number(value) else ""
+        raise DataError(f"maneuver {entry['id']!r}: flight must be a non-empty string of printable characters "
+                        f"naming the flight it was flown on, not {value!r}{hint}", source=where, column="flight")
+    return value
 
 
 def _number(v) -> bool:
@@ -180,9 +200,12 @@ def _row_message(columns: Mapping[str, np.ndarray], row: int) -> str:
     return f" (line {int(lines[row])})" if lines is not None and row < len(lines) else ""
 
 
-def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=REQUIRED, angles=ANGLES) -> None:
+def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=REQUIRED, angles=ANGLES, *,
+                      cbar: float | None = None, rule: records.LengthRule | None = None) -> None:
     """One clear error for the first problem found in a maneuver's columns (``required`` and ``angles``: those
-    of the standard format, or RAW_REQUIRED and RAW_ANGLES for a raw campaign)."""
+    of the standard format, or RAW_REQUIRED and RAW_ANGLES for a raw campaign). With the aircraft's ``cbar``, a
+    maneuver shorter than ``rule`` (default: :class:`structsearch.data.records.LengthRule`) in convective times
+    cbar/V is an error too."""
     source = str(path)
     names = [c for c in columns if c != LINE_KEY]
     for col in required:
@@ -208,14 +231,13 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
     if bad.size:
         raise DataError("time is not strictly increasing" + _row_message(columns, int(bad[0]) + 1),
                         source=source, column="t", row=int(bad[0]) + 1)
-    if t[-1] - t[0] < MIN_DURATION_S:
-        raise DataError(f"maneuver is too short to fit separation dynamics ({n} samples over "
-                        f"{t[-1] - t[0]:.2f} s; need at least {MIN_SAMPLES} samples and "
-                        f"{MIN_DURATION_S} s)", source=source, column="t")
     slow = np.flatnonzero(columns["V"] <= 0)
     if slow.size:
         raise DataError(f"airspeed {columns['V'][slow[0]]:g} m/s is not positive"
                         + _row_message(columns, int(slow[0])), source=source, column="V", row=int(slow[0]))
+    why = None if cbar is None else (rule or records.LengthRule()).problem(t, columns["V"], cbar)
+    if why is not None:
+        raise DataError(f"maneuver is too short to fit separation dynamics: {why}", source=source, column="t")
     for col in angles:
         if col in columns:
             big = np.flatnonzero(np.abs(columns[col]) > MAX_ANGLE_RAD)
@@ -225,10 +247,12 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
                                 row=int(big[0]))
 
 
-def read_campaign(directory: Path | str, fmt: str = "standard") -> Campaign:
+def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | None = None) -> Campaign:
     """Read and validate a campaign directory: a standard one (docs/interfaces.md section 1), or with ``fmt="raw"``
     a raw flight-test campaign (section 5.2). Top-level keys other than the name and format are kept in
-    ``Campaign.extra``."""
+    ``Campaign.extra``. ``segment``: "cycles" cuts every record into its cycles, "none" none; None (default) as
+    each [[maneuver]]'s ``segment`` key says, else the records whose file has a ``cycle`` column
+    (:mod:`structsearch.data.records`)."""
     directory = Path(directory)
     toml = str(directory / "campaign.toml")
     doc = _manifest(directory)
@@ -244,13 +268,24 @@ def read_campaign(directory: Path | str, fmt: str = "standard") -> Campaign:
     cutoffs = _parse_cutoffs(doc.get("cutoffs", {}), toml)
     extra = {k: v for k, v in doc.items() if k not in RESERVED_KEYS and not isinstance(v, (dict, list))}
     required, angles = (RAW_REQUIRED, RAW_ANGLES) if fmt == "raw" else (REQUIRED, ANGLES)
-    segments = []
-    for m in maneuvers:
+    if segment is not None and segment not in records.SEGMENT_CHOICES:
+        raise DataError(f"segment must be one of {', '.join(records.SEGMENT_CHOICES)}, not {segment!r}")
+    rules = records.LengthRules.parse(doc.get("min_convective_times"), KINDS, toml)
+    segments, pieces = [], []
+    for i, m in enumerate(maneuvers):
         path = directory / m.file
         columns = _read_table(path)
-        validate_maneuver(columns, path, required, angles)
-        columns.pop(LINE_KEY, None)
-        segments.append(columns)
+        validate_maneuver(columns, path, required, angles, cbar=aircraft["cbar"], rule=rules.for_kind(m.kind))
+        for piece, cut in _pieces(m, columns, path, doc["maneuver"][i], segment, rules, aircraft["cbar"],
+                                  f"{toml} [[maneuver]] #{i + 1}"):
+            pieces.append(piece)
+            segments.append(cut)
+    ids = [m.id for m in pieces]
+    if len(set(ids)) != len(ids):
+        twice = next(x for x in ids if ids.count(x) > 1)
+        raise DataError(f"maneuver id {twice!r} appears twice once the records are cut into cycles", source=toml,
+                        column="id")
+    maneuvers = pieces
     # keep only the columns every maneuver has: optional columns must be all-or-nothing
     common = set.intersection(*(set(s) for s in segments))
     for m, s in zip(maneuvers, segments):
@@ -260,10 +295,29 @@ def read_campaign(directory: Path | str, fmt: str = "standard") -> Campaign:
                             column=sorted(missing)[0])
     data = from_segments([{k: s[k] for k in sorted(common)} for s in segments],
                          names=[m.id for m in maneuvers], source=str(directory),
-                         constants=scalar_constants(aircraft), derive_alpha_dot=fmt != "raw")
+                         constants=scalar_constants(aircraft), derive_alpha_dot=fmt != "raw",
+                         flights=[m.flight for m in maneuvers])
     if fmt == "raw":
         extra["format"] = "raw"
-    return Campaign(name, aircraft, tuple(maneuvers), data, directory, extra, cutoffs)
+    return Campaign(name, aircraft, tuple(maneuvers), data, directory, extra, cutoffs, rules)
+
+
+def _pieces(m: Maneuver, columns: dict, path: Path, entry: dict, segment: str | None, rules: records.LengthRules,
+            cbar: float, where: str) -> list[tuple[Maneuver, dict]]:
+    """A validated record as the maneuvers it gives: itself, or its cycles (:mod:`structsearch.data.records`)."""
+    lines = columns.pop(LINE_KEY, None)
+    if "record" in entry:   # a cycle written by write_campaign names the record it was cut from
+        if not isinstance(entry["record"], str) or not entry["record"]:
+            raise DataError(f"record must be a non-empty string, not {entry['record']!r}", source=where,
+                            column="record")
+        m = replace(m, record=entry["record"])
+    asked = records.segment_request(entry, where)
+    if m.record or not records.wants_cycles(segment, asked, records.CYCLE_COLUMN in columns):
+        columns.pop(records.CYCLE_COLUMN, None)
+        return [(m, columns)]
+    line_of = None if lines is None else (lambda row: f", line {int(lines[row])}")
+    return [(replace(m, id=piece_id, record=m.id), piece) for piece_id, piece in
+            records.cut_record(columns, m.id, str(path), rules.for_kind(m.kind), cbar, line_of)]
 
 
 def _parse_cutoffs(table, toml: str) -> dict[str, float]:
@@ -309,6 +363,9 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
         lines += [f"{k} = {_toml_value(v)}" for k, v in campaign.aircraft.items() if k not in AIRCRAFT_KEYS]
         for key, value in campaign.extra.items():
             lines.insert(1, f"{key} = {_toml_value(value)}")
+        if not campaign.length_rules.is_default:
+            lines += ["", "[min_convective_times]"] + [f"{k} = {_toml_value(v)}"
+                                                       for k, v in campaign.length_rules.as_table().items()]
         if campaign.cutoffs_hz:
             lines += ["", "[cutoffs]"] + [f"{k} = {_toml_value(v)}" for k, v in campaign.cutoffs_hz.items()]
         slices = campaign.data.segment_slices()
@@ -316,6 +373,10 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
             file = f"{m.id}.{fmt}"
             lines += ["", "[[maneuver]]", f"id = {_toml_value(m.id)}", f"file = {_toml_value(file)}",
                       f"kind = {_toml_value(m.kind)}", f"split = {_toml_value(m.split)}"]
+            if m.flight is not None:
+                lines.append(f"flight = {_toml_value(m.flight)}")
+            if m.record:
+                lines.append(f"record = {_toml_value(m.record)}")
             frame = pd.DataFrame({k: v[sl] for k, v in campaign.data.columns.items()})
             ordered = [c for c in ("t",) + REQUIRED[1:] if c in frame] + sorted(
                 c for c in frame if c not in REQUIRED)
@@ -350,7 +411,7 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
 
 
 # Top-level names of campaign.toml that free-text keys of a campaign may not take.
-RESERVED_KEYS = ("name", "format", "aircraft", "maneuver", "cutoffs")
+RESERVED_KEYS = ("name", "format", "aircraft", "maneuver", "cutoffs", "min_convective_times")
 
 
 def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[Maneuver],
@@ -361,5 +422,6 @@ def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[
         raise DataError(f"campaign key {clash[0]!r} is reserved in campaign.toml ({', '.join(RESERVED_KEYS)})")
     data = from_segments(list(segments), names=[m.id for m in maneuvers], source=name,
                          constants=scalar_constants(aircraft),
-                         derive_alpha_dot=(extra or {}).get("format") != "raw")  # raw: recorded channels only
+                         derive_alpha_dot=(extra or {}).get("format") != "raw",  # raw: recorded channels only
+                         flights=[m.flight for m in maneuvers])
     return Campaign(name, dict(aircraft), tuple(maneuvers), data, None, dict(extra or {}))

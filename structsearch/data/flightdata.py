@@ -23,6 +23,8 @@ class FlightData:
 
     ``columns`` maps a column name to a float array of length ``n_samples``;
     ``starts`` holds the first sample index of every maneuver (``starts[0] == 0``).
+    ``flights``, when the campaign records them, names each maneuver's flight (None: a maneuver whose flight
+    is not recorded, a flight of its own); None when no maneuver's flight is recorded.
     """
 
     columns: Mapping[str, np.ndarray]
@@ -30,6 +32,7 @@ class FlightData:
     names: tuple[str, ...]
     source: str = "<memory>"
     constants: Mapping[str, float] = field(default_factory=dict)
+    flights: tuple[str | None, ...] | None = None
 
     @property
     def n_samples(self) -> int:
@@ -76,7 +79,19 @@ class FlightData:
         starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
         return FlightData({k: v[idx] for k, v in self.columns.items()}, starts,
                           tuple(self.names[i] for i in segment_indices), self.source,
-                          dict(self.constants))
+                          dict(self.constants),
+                          _recorded(None if self.flights is None else [self.flights[i] for i in segment_indices]))
+
+    def with_columns(self, columns: Mapping[str, np.ndarray]) -> "FlightData":
+        """The same maneuvers (boundaries, names, constants, flights) with these columns."""
+        return FlightData(columns, self.starts, self.names, self.source, dict(self.constants), self.flights)
+
+
+def _recorded(flights) -> tuple[str | None, ...] | None:
+    """Each maneuver's flight as stored: None when no maneuver's flight is recorded."""
+    if flights is None or all(f is None for f in flights):
+        return None
+    return tuple(None if f is None else str(f) for f in flights)
 
 
 def _check_column(name: str, values: np.ndarray, source: str, offset: int) -> None:
@@ -88,18 +103,22 @@ def _check_column(name: str, values: np.ndarray, source: str, offset: int) -> No
 
 def from_segments(segments: Sequence[Mapping[str, np.ndarray]], *, names: Sequence[str] | None = None,
                   source: str = "<memory>", constants: Mapping[str, float] | None = None,
-                  derive_alpha_dot: bool = True) -> FlightData:
+                  derive_alpha_dot: bool = True, flights: Sequence[str | None] | None = None) -> FlightData:
     """Stack maneuvers (each a mapping column -> array) into one :class:`FlightData`.
 
     Every maneuver must carry the same columns and a strictly increasing ``t``.
     ``alpha_dot`` is derived from ``alpha`` per maneuver (second-order accurate,
-    non-uniform steps allowed) when it is absent.
+    non-uniform steps allowed) when it is absent. ``flights``: each maneuver's flight (None where not
+    recorded); all None or absent: no flights recorded.
     """
     if not segments:
         raise DataError("no maneuvers given", source=source)
     names = tuple(names) if names is not None else tuple(f"segment{i}" for i in range(len(segments)))
     if len(names) != len(segments):
         raise DataError(f"{len(names)} names for {len(segments)} maneuvers", source=source)
+    if flights is not None and len(flights) != len(segments):
+        raise DataError(f"{len(flights)} flights for {len(segments)} maneuvers", source=source)
+    flights = _recorded(flights)
     keys = set(segments[0])
     if TIME not in keys:
         raise DataError("required column is missing", source=f"{source}:{names[0]}", column=TIME)
@@ -131,7 +150,7 @@ def from_segments(segments: Sequence[Mapping[str, np.ndarray]], *, names: Sequen
         columns["alpha_dot"] = np.concatenate([
             np.gradient(np.asarray(s["alpha"], float), np.asarray(s[TIME], float), edge_order=2)
             for s in segments])
-    return FlightData(columns, starts, names, source, dict(constants or {}))
+    return FlightData(columns, starts, names, source, dict(constants or {}), flights)
 
 
 def single_segment(columns: Mapping[str, np.ndarray], *, source: str = "<memory>",

@@ -88,24 +88,27 @@ def band(estimate: np.ndarray, jacobian: np.ndarray, covariance: np.ndarray, noi
 
 
 def maneuver_meats(jac: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, kind: str,
-                   bandwidth: float | None = None) -> np.ndarray:
+                   bandwidth: float | None = None, flights=None) -> np.ndarray:
     """Each maneuver's share of the sandwich's meat in the influence space, (G, k, k): S_g such that the
     per-maneuver covariance of g^T p is sum_g g^T S_g g (before the small-sample factor). ``jac`` is the model
-    Jacobian on the fitted samples and ``residual`` the fit's residual there."""
+    Jacobian on the fitted samples and ``residual`` the fit's residual there. ``hac-flight``: each flight's share
+    (``flights``: each maneuver's flight)."""
     r_inv = inverse_factor(jac)
     u = (jac * residual[:, None]) @ (r_inv @ r_inv.T)          # (m, k): each sample's influence
-    return maneuver_shares(u, boundaries, kind, bandwidth, diagonal=False)
+    return maneuver_shares(u, boundaries, kind, bandwidth, diagonal=False, flights=flights)
 
 
 def point_effective_maneuvers(jac: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, kind: str,
-                              gradients: np.ndarray, bandwidth: float | None = None) -> np.ndarray:
+                              gradients: np.ndarray, bandwidth: float | None = None, flights=None) -> np.ndarray:
     """Effective number of maneuvers behind the variance of each combination g^T p (rows of ``gradients``,
     in the columns of ``jac``): Satterthwaite's rule on c_g = g^T S_g g, maneuver g's share of the sandwich
     variance of g^T p (:func:`maneuver_meats`), as :func:`structsearch.engine.sandwich.effective_maneuvers`
-    does for a parameter."""
+    does for a parameter. ``hac-flight``: the effective number of flights (a flight's share, not positive
+    semi-definite by construction, is clipped at 0)."""
     g = np.asarray(gradients, float)
-    meats = maneuver_meats(jac, residual, boundaries, kind, bandwidth)
-    return satterthwaite(np.einsum("pk,gkl,pl->gp", g, meats, g))
+    meats = maneuver_meats(jac, residual, boundaries, kind, bandwidth, flights)
+    shares = np.einsum("pk,gkl,pl->gp", g, meats, g)
+    return satterthwaite(np.clip(shares, 0.0, None) if kind == "hac-flight" else shares)
 
 
 def parameter_draws(values: np.ndarray, covariance: np.ndarray, n_draws: int, seed: int) -> np.ndarray:

@@ -82,6 +82,8 @@ class ParameterEstimates:
     stated: Mapping[str, Any] = field(default_factory=dict)
     # each parameter's unit ("1/rad", "s", "-"; .units), where the fitted model could tell it
     units: Mapping[str, str] = field(default_factory=dict)
+    # the flights a covariance that groups by flight (hac-flight) rests on; None: another kind, or none recorded
+    n_flights: int | None = None
 
     # ----- sizes -------------------------------------------------------------
     @property
@@ -278,11 +280,18 @@ class ParameterEstimates:
     def covariance_record(self) -> dict[str, Any]:
         """What produced the standard errors and p-values (``fit.json``'s ``covariance``, docs/interfaces.md 6.4):
         the kind, its bandwidth (HAC kinds) or groups (the maneuvers of the per-maneuver kinds), the lags of a
-        Toeplitz estimate, and each parameter's reference degrees of freedom."""
+        Toeplitz estimate, and each parameter's reference degrees of freedom. A kind that groups by flight also
+        says what it grouped (``grouped_by``: "flights", with ``groups`` the number of flights, or "maneuvers" when
+        the campaign records none)."""
         kind = covariance_kind(self.covariance_kind)
-        return json_ready({"kind": self.covariance_kind, "bandwidth": self.bandwidth,
-                           "groups": self.n_maneuvers if kind.per_maneuver else None, "max_lag": self.max_lag,
-                           "reference_dof": dict(self.reference_dof)})
+        record = {"kind": self.covariance_kind, "bandwidth": self.bandwidth,
+                  "groups": self.n_maneuvers if kind.per_maneuver else None, "max_lag": self.max_lag,
+                  "reference_dof": dict(self.reference_dof)}
+        if kind.by_flight:
+            by_flight = self.n_flights is not None
+            record.update(groups=self.n_flights if by_flight else self.n_maneuvers,
+                          grouped_by="flights" if by_flight else "maneuvers")
+        return json_ready(record)
 
     # ----- serialisation -----------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -301,6 +310,7 @@ class ParameterEstimates:
             "significance": self.significance, "unidentifiable": dict(self.unidentifiable),
             "condition_number": _finite_or_inf([self.condition_number])[0],
             "generated_regressors": self.generated_regressors, "units": dict(self.units),
+            **({} if self.n_flights is None else {"n_flights": self.n_flights}),
             "stated": json_ready({k: (np.asarray(v).tolist() if k == "correlation" else
                                       [list(p) for p in v] if k == "high_correlations" else dict(v))
                                   for k, v in self.stated.items()}),
@@ -335,7 +345,8 @@ class ParameterEstimates:
                    significance=float(doc["significance"]), unidentifiable=dict(doc.get("unidentifiable") or {}),
                    condition_number=_float(doc.get("condition_number")),
                    generated_regressors=doc.get("generated_regressors"), stated=stated,
-                   units=dict(doc.get("units") or {}))
+                   units=dict(doc.get("units") or {}),
+                   n_flights=None if doc.get("n_flights") is None else int(doc["n_flights"]))
 
     def __eq__(self, other) -> bool:
         return isinstance(other, ParameterEstimates) and self.to_dict() == other.to_dict()

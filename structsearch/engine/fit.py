@@ -33,7 +33,7 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
                 seed: int = 0, n_jobs: int = 1, covariance: str = SEPARABLE_DEFAULTS.covariance, max_lag=None,
                 tol: float = STALL_DEFAULTS.tol, max_nfev: int | None = None, also=(), model: str = "model",
                 coefficient: str | None = None, source: str = "<memory>",
-                solution: Outcome | None = None) -> FitResult:
+                solution: Outcome | None = None, flights=None) -> FitResult:
     """Estimate all parameters and their statistics.
 
     ``solution``, an optimum already found on this problem and these observations (a joint fit's last weight
@@ -41,7 +41,8 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
 
     ``boundaries`` are the maneuver boundaries ``[0, ..., m]``; they delimit the
     residual autocorrelation and the per-maneuver R^2. ``lower``/``upper`` are the box of the nonlinear
-    parameters. The models pass their own defaults (:mod:`.defaults`).
+    parameters. The models pass their own defaults (:mod:`.defaults`). ``flights``: each maneuver's flight
+    (None: not recorded), which the covariance kinds that group by flight read.
     """
     if covariance not in COVARIANCE_KINDS:
         raise FitError(f"covariance must be one of {COVARIANCE_KINDS}, not {covariance!r}")
@@ -92,7 +93,7 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
     basis = covariance_basis(jac, names, reasons, k)
     everything = bool(np.all(basis)) and bool(np.all(np.isfinite(jac)))
     estimate = Covariances.on(jac, basis, residual, boundaries, covariance, max_lag,
-                              factor=factor if everything else None).without(
+                              factor=factor if everything else None, flights=flights).without(
         [i for i, n in enumerate(names) if n in reasons])
     segments = ManeuverScores.of(y, residual, slices_of(boundaries))
     estimates = ParameterEstimates(
@@ -102,7 +103,7 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
         n_maneuvers=len(segment_names), white_covariance=estimate.white, max_lag=estimate.max_lag,
         bandwidth=estimate.bandwidth, effective_maneuvers=estimate.effective_maneuvers,
         condition_number=scaled_condition_number(jac, factor[0]), unidentifiable=reasons,
-        units=dict(getattr(problem, "units", None) or {}))
+        units=dict(getattr(problem, "units", None) or {}), n_flights=estimate.flights)
     return FitResult(
         model=model, coefficient=coefficient, estimates=estimates,
         residuals=residual, segment_names=tuple(segment_names),

@@ -270,12 +270,15 @@ def cluster_covariance(jac: np.ndarray, residual: np.ndarray, boundaries: np.nda
 
 
 def maneuver_shares(u: np.ndarray, boundaries: np.ndarray, kind: str, bandwidth: float | None = None,
-                    diagonal: bool = True) -> np.ndarray:
+                    diagonal: bool = True, flights=None) -> np.ndarray:
     """Each maneuver's share of a per-maneuver sandwich's meat, for the influences ``u`` (one row per sample):
     (G, k) diagonals, or (G, k, k) matrices without ``diagonal`` (the share of any combination g^T p is then
     g^T S_g g). ``cluster``: the maneuver sums' outer products; else a Bartlett kernel inside each maneuver
-    (``hac-maneuver``: the whole maneuver as bandwidth), positive semi-definite, so every share is >= 0."""
+    (``hac-maneuver``: the whole maneuver as bandwidth), positive semi-definite, so every share is >= 0.
+    ``hac-flight``: each flight's share (:func:`flight_shares`; ``flights``: each maneuver's flight)."""
     boundaries = np.asarray(boundaries)
+    if kind == "hac-flight":
+        return flight_shares(u, boundaries, flights, bandwidth, diagonal)
     starts = np.asarray(boundaries[:-1], int)
     if kind == "cluster":
         sums = np.add.reduceat(u, starts, axis=0)
@@ -292,14 +295,15 @@ def maneuver_shares(u: np.ndarray, boundaries: np.ndarray, kind: str, bandwidth:
 
 
 def effective_maneuvers(jac: np.ndarray, scores: np.ndarray, boundaries: np.ndarray, kind: str,
-                        bandwidth: float | None = None, r_inv: np.ndarray | None = None) -> np.ndarray:
+                        bandwidth: float | None = None, r_inv: np.ndarray | None = None, flights=None) -> np.ndarray:
     """Effective number of maneuvers behind each parameter's variance (Satterthwaite 1946; the
     "effective number of clusters" of Carter, Schnepel & Steigerwald 2017): (sum_g c_g)^2 / sum_g c_g^2,
     with c_g >= 0 maneuver g's share of the sandwich's diagonal. G when every maneuver informs a
-    parameter equally, about 1 when one maneuver does (a deep-stall term seen in one maneuver)."""
+    parameter equally, about 1 when one maneuver does (a deep-stall term seen in one maneuver).
+    ``hac-flight``: the effective number of flights (``flights``: each maneuver's flight)."""
     r_inv = inverse_factor(jac) if r_inv is None else r_inv
     u = scores @ (r_inv @ r_inv.T)                  # (A^-1 g_t)^T per sample
-    return satterthwaite(maneuver_shares(u, boundaries, kind, bandwidth))
+    return satterthwaite(maneuver_shares(u, boundaries, kind, bandwidth, flights=flights))
 
 
 def satterthwaite(share: np.ndarray) -> np.ndarray:
@@ -307,3 +311,99 @@ def satterthwaite(share: np.ndarray) -> np.ndarray:
     total, square = share.sum(axis=0), (share ** 2).sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         return np.where(square > 0, total ** 2 / square, np.nan)
+
+
+# ----- flights: errors the maneuvers of one flight share ------------------------------------------------------
+def flight_index(flights, n_maneuvers: int) -> np.ndarray:
+    """Each maneuver's flight as 0..F-1, in the order the flights first appear; a maneuver whose flight is not
+    recorded (None, or ``flights`` None: no flight recorded at all) is a flight of its own."""
+    if flights is None:
+        return np.arange(n_maneuvers)
+    if len(flights) != n_maneuvers:
+        raise ValueError(f"{len(flights)} flights for {n_maneuvers} maneuvers")
+    seen: dict = {}
+    return np.array([seen.setdefault(("flight", f) if f is not None else ("maneuver", i), len(seen))
+                     for i, f in enumerate(flights)], int)
+
+
+def flight_factor(n_flights: int) -> float:
+    """The small-sample factor F/(F-1) of a flight-clustered sandwich (CR1) that the between-maneuver part of the
+    ``hac-flight`` meat carries: the fit absorbs about 1/F of a flight-constant error (NaN for one flight: no
+    estimate of a shared error's variance from a single flight)."""
+    return n_flights / (n_flights - 1.0) if n_flights > 1 else float("nan")
+
+
+def flight_shares(u: np.ndarray, boundaries: np.ndarray, flights, bandwidth: float | None = None,
+                  diagonal: bool = True) -> np.ndarray:
+    """Each flight's share of the ``hac-flight`` meat for the influences ``u``, whose Satterthwaite count is the
+    effective number of flights: the ``hac-maneuver`` shares of its maneuvers plus F/(F-1) times the products of the
+    sums of every two of its maneuvers (both orders): (F, k) diagonals clipped at 0 (the own shares alone for a
+    parameter whose every share would be 0), or (F, k, k) matrices (not always positive semi-definite: a caller
+    clips the quadratic forms). With one maneuver per flight: the ``hac-maneuver`` shares, to the bit."""
+    boundaries = np.asarray(boundaries)
+    b = float(np.max(np.diff(boundaries))) if bandwidth is None else float(bandwidth)
+    own = bartlett_maneuver_sums(u, boundaries, b, diagonal=diagonal)
+    index = flight_index(flights, len(boundaries) - 1)
+    n_flights = int(index.max()) + 1
+    if n_flights == len(index):
+        return own
+    sums = np.add.reduceat(u, np.asarray(boundaries[:-1], int), axis=0)
+    flight_sums = np.zeros((n_flights, u.shape[1]))
+    np.add.at(flight_sums, index, sums)
+    out = np.zeros((n_flights,) + own.shape[1:])
+    np.add.at(out, index, own)
+    factor = flight_factor(n_flights)
+    if diagonal:
+        square = np.zeros_like(flight_sums)
+        np.add.at(square, index, sums * sums)
+        shares = np.clip(out + factor * (flight_sums * flight_sums - square), 0.0, None)
+        # a parameter whose every flight share is negative (the between-maneuver products outweigh the own shares
+        # everywhere; its variance comes from the clipped meat): the flights' own shares count instead
+        none = ~np.any(shares > 0, axis=0)
+        shares[:, none] = out[:, none]
+        return shares
+    square = np.zeros_like(out)
+    np.add.at(square, index, sums[:, :, None] * sums[:, None, :])
+    return out + factor * (flight_sums[:, :, None] * flight_sums[:, None, :] - square)
+
+
+def flight_meat(scores: np.ndarray, boundaries: np.ndarray, flights,
+                bandwidth: float | None = None) -> tuple[np.ndarray, float]:
+    """The ``hac-flight`` meat: the ``hac-maneuver`` meat (a Bartlett sum inside each maneuver, bandwidth the longest
+    maneuver) plus F/(F-1) times, for every two maneuvers i != j of one flight, S_i S_j^T (S: a maneuver's score
+    sum; F the flights): the covariance that errors shared by a flight's maneuvers give, estimated as a
+    flight-clustered sandwich (CR1) estimates it. The sum is symmetric but not positive semi-definite by
+    construction; its negative eigenvalues are set to 0 (as two-way clustered sandwiches do, Cameron, Gelbach &
+    Miller 2011). Returns (meat, bandwidth)."""
+    boundaries = np.asarray(boundaries)
+    b = float(np.max(np.diff(boundaries))) if bandwidth is None else float(bandwidth)
+    own = bartlett_maneuver_sums(scores, boundaries, b)
+    meat = own.sum(axis=0)
+    index = flight_index(flights, len(boundaries) - 1)
+    n_flights = int(index.max()) + 1
+    if n_flights == len(index):   # a flight per maneuver: hac-maneuver's meat, to the bit
+        return meat, b
+    sums = np.add.reduceat(scores, np.asarray(boundaries[:-1], int), axis=0)
+    flight_sums = np.zeros((n_flights, scores.shape[1]))
+    np.add.at(flight_sums, index, sums)
+    meat = meat + flight_factor(n_flights) * (flight_sums.T @ flight_sums - sums.T @ sums)
+    if not np.all(np.isfinite(meat)):
+        return meat, b
+    meat = 0.5 * (meat + meat.T)
+    w, v = np.linalg.eigh(meat)
+    if w.min() < 0:
+        meat = (v * np.clip(w, 0.0, None)) @ v.T
+    return meat, b
+
+
+def flight_covariance(jac: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, flights,
+                      r_inv: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """The ``hac-flight`` sandwich A^-1 (:func:`flight_meat`) A^-1 * m/(m-p); returns (covariance, bandwidth)."""
+    m, p = jac.shape
+    meat, b = flight_meat(jac * residual[:, None], boundaries, flights)
+    return _sandwich(jac, meat, r_inv) * (m / max(m - p, 1)), b
+
+
+def flight_count(flights, n_maneuvers: int) -> int:
+    """The number of flights the maneuvers were flown on (a maneuver without a recorded flight counts as one)."""
+    return int(flight_index(flights, n_maneuvers).max()) + 1 if n_maneuvers else 0

@@ -136,7 +136,8 @@ class SeparableModel:
             bounds: Mapping[str, tuple[float, float]] | None = None, *,
             covariance: str = SEPARABLE_DEFAULTS.covariance, n_starts: int = 1, seed: int = 0, n_jobs: int = 1,
             max_lag=None, tol: float = SEPARABLE_DEFAULTS.tol,
-            max_nfev: int | None = None, segments: Sequence[int] | None = None) -> FitResult:
+            max_nfev: int | None = None, segments: Sequence[int] | None = None,
+            flights: Sequence[str | None] | None = None) -> FitResult:
         """Fit by variable projection.
 
         The defaults (:data:`~.defaults.SEPARABLE_DEFAULTS`: covariance ``colored``, tolerance 1e-15) suit
@@ -145,7 +146,8 @@ class SeparableModel:
         parameters; a parameter's box given here wins over the one given at declaration.
 
         ``segments`` optionally gives the first sample index of every independent
-        record after the first (residual autocorrelations never cross them).
+        record after the first (residual autocorrelations never cross them); ``flights`` optionally names each
+        record's flight (``covariance="hac-flight"`` groups the records of one flight).
         """
         start = dict(start or {})
         bounds = {**self.bounds, **self._checked_bounds(bounds)}
@@ -168,7 +170,17 @@ class SeparableModel:
                            start=np.array([start[p] for p in self.nonlinear_names], float),
                            lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
                            covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev,
-                           model=self.name, coefficient="y")
+                           model=self.name, coefficient="y", flights=_checked_flights(flights, len(names)))
+
+
+def _checked_flights(flights, n_records: int):
+    """``flights`` as one entry per record (None where not recorded), or None."""
+    if flights is None:
+        return None
+    flights = tuple(flights)
+    if len(flights) != n_records:
+        raise DataError(f"{len(flights)} flights for {n_records} records (segments)", column="flights")
+    return flights
 
 
 def _natural_key(name: str):

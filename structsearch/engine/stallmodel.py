@@ -189,12 +189,18 @@ class StallModel:
         return fit_problem(problem, y, boundaries=data.bounds, segment_names=data.names, start=theta0,
                            lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
                            covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev, also=also,
-                           model=self.name, coefficient=self.coefficient, source=data.source)
+                           model=self.name, coefficient=self.coefficient, source=data.source,
+                           flights=data.flights)
 
     def estimate(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
-                 seed: int = 0, tol: float = STALL_DEFAULTS.tol, declared_too: bool = False) -> dict[str, float]:
-        """The parameter estimates alone, without statistics (what a cross-validation fold needs)."""
+                 seed: int = 0, tol: float = STALL_DEFAULTS.tol, declared_too: bool = False,
+                 rows: np.ndarray | None = None) -> dict[str, float]:
+        """The parameter estimates alone, without statistics (what a cross-validation fold needs). ``rows``: only
+        these samples enter the least squares, while the states still run over every sample of ``data`` (a
+        blocked fold holds out a block's outputs, not its inputs: no state restarts after the block)."""
         problem, y, theta0, lower, upper, also = self._prepared(data, start, declared_too)
+        if rows is not None:
+            problem, y = RowsOf(problem, np.asarray(rows)), y[rows]
         if self.nonlinear_names:
             outcome = multistart(problem, y, theta0, lower, upper, n_starts=n_starts, seed=seed, tol=tol,
                                  also=also).best
@@ -217,6 +223,22 @@ class StallModel:
             raise DeclarationError(f"model {self.name!r}: no value for parameter {missing[0]!r}")
         phi = self.bind(data).regression_matrix(np.array([params[p] for p in self.nonlinear_names], float))
         return phi @ np.array([params[p] for p in self.linear_names], float)
+
+
+@dataclass(frozen=True, eq=False)
+class RowsOf(BoundProblem):
+    """A bound problem whose least squares see only ``rows`` of its samples (its states run over all of them)."""
+
+    inner: BoundProblem
+    rows: np.ndarray
+
+    @property
+    def model(self):
+        return self.inner.model
+
+    def evaluate(self, theta: np.ndarray) -> Evaluation:
+        ev = self.inner.evaluate(theta)
+        return Evaluation(ev.phi[self.rows], ev.dphi[self.rows], ev.rows, ev.params)
 
 
 # Separation states for fixed parameters kept per data set (each one array of the samples): the lift

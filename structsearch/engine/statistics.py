@@ -45,6 +45,16 @@ freedom, as for clustered sandwiches (Cameron & Miller 2015), with G the effecti
 maneuvers behind each parameter (:func:`effective_maneuvers`: a deep-stall term that only two
 maneuvers inform gets 1 dof, not G - 1); the other kinds use m - p. See :func:`reference_dof`.
 
+``hac-flight`` is ``hac-maneuver`` for a campaign whose maneuvers were flown on recorded flights
+(campaign.toml ``flight``): it adds to hac-maneuver's meat, for every two maneuvers i != j of one flight,
+S_i S_j^T (S: a maneuver's score sum), the covariance that errors shared by a flight's maneuvers give (its
+mass, engine-model and vane-calibration errors), estimated as a flight-clustered sandwich estimates it, and
+keeps hac-maneuver's Bartlett sum inside each maneuver. It assumes flights independent of each other; the
+sum is not positive semi-definite by construction, so its negative eigenvalues are set to 0 (as two-way
+clustered sandwiches do, Cameron, Gelbach & Miller 2011). Its t references use the effective number of
+flights minus one. Without recorded flights every maneuver is a flight of its own and it is hac-maneuver,
+to the bit (:func:`~.sandwich.flight_meat`).
+
 ``cluster`` sums the scores of each maneuver and allows any dependence inside it
 (a per-maneuver sensor bias, for one); it needs more maneuvers than parameters.
 Which estimate is the default is decided by ``structsearch bench --calibration``: ``colored``
@@ -60,7 +70,8 @@ import numpy as np
 
 from .sandwich import (HAC_KERNELS, _sandwich, andrews_bandwidth, autocovariance,  # noqa: F401  (re-exported)
                        bartlett_maneuver_sums, choose_max_lag, cluster_covariance, cluster_estimable, cluster_meat,
-                       colored_covariance, cross_covariance, effective_maneuvers, hac_covariance, hac_meat,
+                       colored_covariance, cross_covariance, effective_maneuvers, flight_count, flight_covariance,
+                       flight_meat, hac_covariance, hac_meat,
                        inverse_factor, kernel_weights, lag_weights, scaled_condition_number, scaled_factor,
                        scaled_factor_from_qr, shifted_product, toeplitz_product, white_covariance)
 
@@ -82,6 +93,9 @@ class CovarianceKind:
     per_maneuver: bool = False
     # the sandwich's meat has rank <= G - 1 (maneuver sums): not estimable with fewer than p + 1 maneuvers
     needs_maneuvers: bool = False
+    # the groups are the campaign's flights (maneuvers of one flight share errors): ``estimate`` takes each
+    # maneuver's flight as a further argument, and the effective groups are flights
+    by_flight: bool = False
 
     def reference_dof(self, n_samples: int, n_params: int, n_maneuvers: float) -> float:
         """Degrees of freedom of the Student-t reference of a t-test or interval with this covariance."""
@@ -117,6 +131,11 @@ def _cluster(jac, residual, boundaries, max_lag, r_inv) -> Estimate:
     return cluster_covariance(jac, residual, boundaries, r_inv), None, None
 
 
+def _hac_flight(jac, residual, boundaries, max_lag, r_inv, flights=None) -> Estimate:
+    cov, bandwidth = flight_covariance(jac, residual, boundaries, flights, r_inv)
+    return cov, None, bandwidth
+
+
 # The registry, in the order the command line offers the kinds and the calibration runs them.
 KINDS: dict[str, CovarianceKind] = {k.name: k for k in (
     CovarianceKind("colored", "Toeplitz-autocorrelation sandwich of stationary residuals (the thesis' Eqs. 19, 22)",
@@ -128,6 +147,8 @@ KINDS: dict[str, CovarianceKind] = {k.name: k for k in (
                    _hac("hac-maneuver"), per_maneuver=True),
     CovarianceKind("cluster", "maneuver-clustered sandwich (Liang-Zeger, CR1)", _cluster, per_maneuver=True,
                    needs_maneuvers=True),
+    CovarianceKind("hac-flight", "hac-maneuver plus the covariance of the maneuvers of one flight (campaign.toml "
+                   "flight; hac-maneuver when none is recorded)", _hac_flight, per_maneuver=True, by_flight=True),
 )}
 COVARIANCE_KINDS = tuple(KINDS)
 # kinds whose estimate has the precision of a few numbers per maneuver: t references with few dof
@@ -164,13 +185,16 @@ class Covariances:
     # inverse_factor of the Jacobian's kept columns (None when none could be formed): an estimator that
     # refines this covariance later (the two-step one) reuses it instead of factorising the m x p Jacobian
     inverse_factor: np.ndarray | None = None
+    # a by-flight kind's number of flights (None: another kind, or no flight recorded)
+    flights: int | None = None
 
     @classmethod
     def on(cls, jac: np.ndarray, keep: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, kind: str,
-           max_lag=None, factor: tuple[np.ndarray, np.ndarray] | None = None) -> "Covariances":
+           max_lag=None, factor: tuple[np.ndarray, np.ndarray] | None = None, flights=None) -> "Covariances":
         """Covariances of the parameters selected by ``keep`` (the others held at their estimates);
         ``boundaries``: the maneuvers' ``[0, ..., m]``; ``factor``: :func:`scaled_factor` of ``jac[:, keep]``
-        when the caller has it."""
+        when the caller has it; ``flights``: each maneuver's flight (None: not recorded), read by the kinds
+        that group by flight."""
         estimator = covariance_kind(kind)
         p = jac.shape[1]
         full, white = np.full((p, p), np.nan), np.full((p, p), np.nan)
@@ -185,15 +209,19 @@ class Covariances:
                 if kind == "white":  # the same numbers: computed once
                     full[block] = white[block]
                 else:
-                    full[block], lags, bandwidth = estimator.estimate(sub, residual, boundaries, max_lag, r_inv)
+                    full[block], lags, bandwidth = estimator.estimate(
+                        sub, residual, boundaries, max_lag, r_inv, **({"flights": flights} if estimator.by_flight
+                                                                       else {}))
                 if estimator.per_maneuver:
                     effective[keep] = effective_maneuvers(sub, sub * residual[:, None], boundaries, kind,
-                                                          bandwidth, r_inv)
+                                                          bandwidth, r_inv, flights if estimator.by_flight else None)
             except np.linalg.LinAlgError:
                 # an exactly singular factor despite the basis choice: report "not estimable" (NaN)
                 full[block] = white[block] = np.nan
                 r_inv = None
-        return cls(full, white, lags, bandwidth, effective, r_inv)
+        recorded = estimator.by_flight and flights is not None
+        return cls(full, white, lags, bandwidth, effective, r_inv,
+                   flight_count(flights, len(boundaries) - 1) if recorded else None)
 
     def without(self, indices) -> "Covariances":
         """The same estimate with the rows and columns of ``indices`` set to NaN (not estimable)."""
@@ -204,4 +232,4 @@ class Covariances:
         effective = None if self.effective_maneuvers is None else self.effective_maneuvers.copy()
         if effective is not None:
             effective[indices] = np.nan
-        return Covariances(cov, white, self.max_lag, self.bandwidth, effective, self.inverse_factor)
+        return Covariances(cov, white, self.max_lag, self.bandwidth, effective, self.inverse_factor, self.flights)

@@ -19,7 +19,8 @@ estimates its one-step meat:
   cross-covariances of (e1, e2) (the lift and drag residuals of one maneuver are
   correlated: buffet moves both);
 - ``white``: the same with only lag 0 (homoscedastic, serially independent);
-- ``cluster``: the sums of u_t per maneuver.
+- ``cluster``: the sums of u_t per maneuver;
+- ``hac-flight``: hac-maneuver's estimate plus the products of the maneuvers' sums of u_t within a flight.
 
 Everything is conditional on the measured inputs (alpha, q, V, de, ...) being
 exact; the lift model's own covariance is unaffected.
@@ -29,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from .statistics import (HAC_KERNELS, PER_MANEUVER_KINDS, inverse_factor, _sandwich, autocovariance, choose_max_lag,
-                         cluster_estimable, cluster_meat, cross_covariance, effective_maneuvers, hac_meat,
+                         cluster_estimable, cluster_meat, cross_covariance, effective_maneuvers, flight_meat, hac_meat,
                          lag_weights,
                          shifted_product, toeplitz_product)
 
@@ -37,7 +38,7 @@ from .statistics import (HAC_KERNELS, PER_MANEUVER_KINDS, inverse_factor, _sandw
 def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1: np.ndarray,
                                    residual1: np.ndarray, sensitivity: np.ndarray, boundaries: np.ndarray,
                                    kind: str, max_lag=None, a1_inv: np.ndarray | None = None,
-                                   r2_inv: np.ndarray | None = None):
+                                   r2_inv: np.ndarray | None = None, flights=None):
     """Covariance of the second-step parameters including the first step's estimation error.
 
     ``jac1`` (m x p1) and ``jac2`` (m x p2) are the model Jacobians on the identifiable parameters of
@@ -45,7 +46,8 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
     (covariance, lags, bandwidth, effective maneuvers per parameter) like the one-step estimators; the
     effective maneuvers (of the corrected scores) are NaN except for the per-maneuver kinds. ``a1_inv``:
     the first step's inverse factor (``statistics.inverse_factor(jac1)``) when the caller has it; ``r2_inv``
-    the second step's (:attr:`FitResult.jacobian_inverse_factor` of its fit).
+    the second step's (:attr:`FitResult.jacobian_inverse_factor` of its fit); ``flights``: each maneuver's
+    flight, for ``hac-flight``.
     """
     m, p2 = jac2.shape
     a1_inv = inverse_factor(jac1) if a1_inv is None else a1_inv
@@ -55,7 +57,7 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
     lags = bandwidth = None
     scores = jac2 * residual2[:, None] + carry * residual1[:, None]   # u_t
     if kind in SCORE_KINDS:
-        return _from_scores(jac2, scores, boundaries, kind, r2_inv)
+        return _from_scores(jac2, scores, boundaries, kind, r2_inv, flights)
     if kind == "white":
         s22 = float(residual2 @ residual2) / max(m - p2, 1)
         s11 = float(residual1 @ residual1) / max(m - jac1.shape[1], 1)
@@ -80,26 +82,30 @@ def generated_regressor_covariance(jac2: np.ndarray, residual2: np.ndarray, jac1
 
 
 # the kinds that estimate the variance of sum_t u_t from the corrected scores alone (not from residual series)
-SCORE_KINDS = (*HAC_KERNELS, "cluster")
+SCORE_KINDS = (*HAC_KERNELS, "cluster", "hac-flight")
 
 
-def _from_scores(jac2: np.ndarray, scores: np.ndarray, boundaries: np.ndarray, kind: str, r2_inv: np.ndarray):
+def _from_scores(jac2: np.ndarray, scores: np.ndarray, boundaries: np.ndarray, kind: str, r2_inv: np.ndarray,
+                 flights=None):
     m, p2 = jac2.shape
     bandwidth = None
-    if kind in HAC_KERNELS:
+    if kind == "hac-flight":
+        meat, bandwidth = flight_meat(scores, boundaries, flights)
+        meat *= m / max(m - p2, 1)
+    elif kind in HAC_KERNELS:
         meat, bandwidth = hac_meat(scores, boundaries, kind)
         meat *= m / max(m - p2, 1)
     else:
         if not cluster_estimable(boundaries, p2):
             return np.full((p2, p2), np.nan), None, bandwidth, np.full(p2, np.nan)
         meat = cluster_meat(scores, boundaries) * ((m - 1) / max(m - p2, 1))
-    effective = (effective_maneuvers(jac2, scores, boundaries, kind, bandwidth, r2_inv) if kind in PER_MANEUVER_KINDS
-                 else np.full(p2, np.nan))
+    effective = (effective_maneuvers(jac2, scores, boundaries, kind, bandwidth, r2_inv, flights)
+                 if kind in PER_MANEUVER_KINDS else np.full(p2, np.nan))
     return _sandwich(jac2, meat, r2_inv), None, bandwidth, effective
 
 
 def influence_covariance(jac2: np.ndarray, residual2: np.ndarray, influence1: np.ndarray, sensitivity: np.ndarray,
-                         boundaries: np.ndarray, kind: str, r2_inv: np.ndarray | None = None):
+                         boundaries: np.ndarray, kind: str, r2_inv: np.ndarray | None = None, flights=None):
     """The same covariance when the first step is given by its influence series: ``influence1`` (m x p1) holds,
     per sample t, that sample's share of beta1_hat - beta1 (H1^-1 times the first step's scores, summed over
     every row of sample t). A first step that is not one least-squares problem on the same samples (a joint
@@ -111,7 +117,7 @@ def influence_covariance(jac2: np.ndarray, residual2: np.ndarray, influence1: np
                          f"given by its influence use one of {', '.join(SCORE_KINDS)}")
     r2_inv = inverse_factor(jac2) if r2_inv is None else r2_inv
     scores = jac2 * residual2[:, None] - influence1 @ (jac2.T @ sensitivity).T
-    return _from_scores(jac2, scores, boundaries, kind, r2_inv)
+    return _from_scores(jac2, scores, boundaries, kind, r2_inv, flights)
 
 
 def influence_series(jac1: np.ndarray, residual1: np.ndarray, a1_inv: np.ndarray | None = None,

@@ -21,6 +21,9 @@ default start (declared and quasi-random starts, staged), with the default
 covariance: that calibration is unconditional on the basin, and it is reported
 apart (``default_start``).
 
+The first ``profile_campaigns`` campaigns also calibrate the profile intervals of the nonlinear parameters
+beside the Wald ones (:mod:`.calibration_profile`; ``bench --calibration --profile-campaigns N``).
+
 Seeds: the default covariance and the small-dof rule were chosen on the campaigns
 of :data:`TUNING_SEEDS`; by default the calibration runs on seeds disjoint from
 them (:data:`HELD_OUT_FIRST` on), so its coverage is out of sample.
@@ -35,8 +38,8 @@ from scipy import stats
 
 from ..discovery import effects as fx
 from ..diagnosis.diagnose import saturated, wald_p_value
-from ..engine.statistics import COVARIANCE_KINDS, DEFAULT_COVARIANCE
-from ..flight.flighttest import build_campaign
+from ..engine.statistics import COVARIANCE_KINDS, DEFAULT_COVARIANCE, KINDS
+from ..flight.flighttest import build_campaign, flights_for, scaled_plan, thesis_plan
 from ..flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_MODEL_NAMES, FINAL_PITCH
 from ..fitting.options import FitOptions
 from ..fitting.candidate_fit import fit_candidate
@@ -86,15 +89,28 @@ class CampaignDraw:
     default_stderr: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     default_dof: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     other_basin: tuple[str, ...] = ()
+    # profile intervals of the truth-start fits' nonlinear parameters with the default covariance (empty: not
+    # profiled): model -> parameter -> record (calibration_profile.profile_draw), and the seconds they took
+    profiles: Mapping[str, Mapping[str, Mapping]] = field(default_factory=dict)
+    profile_seconds: float = float("nan")
 
 
-def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
-    """Simulate one campaign and fit the final models with every covariance kind."""
-    campaign = build_campaign(seed=seed, scale=scale)
+def campaign_flights(scale: float) -> int:
+    """The flights a campaign of ``scale`` is flown on with flight-level errors (``bench --calibration
+    --flight-errors``): about four maneuvers each, at least one per loading (:func:`.flighttest.flights_for`)."""
+    return flights_for(scaled_plan(thesis_plan(), scale))
+
+
+def draw(seed: int, scale: float, kinds: Sequence[str], profile: bool = False,
+         flight_errors: bool = False) -> CampaignDraw:
+    """Simulate one campaign and fit the final models with every covariance kind; with ``profile``, also the
+    profile intervals of the default covariance's fits (:mod:`.calibration_profile`)."""
+    campaign = build_campaign(seed=seed, scale=scale, flights=campaign_flights(scale) if flight_errors else 0)
     train, val = campaign.split("train"), campaign.split("validation")
     estimates, stderr, gap, dof, hits, widths = {}, {}, {}, {}, {}, {}
     joint = ({}, {}, {})   # the joint fit's, with the default covariance only
     default = ({}, {}, {}, ())   # the default-start fits', with the default covariance only
+    profiles, profile_seconds = {}, float("nan")
     starts = {coef: dict(TRUTH[coef]) for coef in TRUTH}
     for kind in kinds:
         options = FitOptions(n_starts=1, covariance=kind, cv_folds=0)
@@ -116,7 +132,11 @@ def draw(seed: int, scale: float, kinds: Sequence[str]) -> CampaignDraw:
             hits, widths = band_coverage(finals, train)
             joint = joint_draw(train, val, options)
             default = default_start_draw(train, val, {fit.name: fit.mse_train for _, fit in finals.values()})
-    return CampaignDraw(seed, train.n_samples, estimates, stderr, gap, dof, hits, widths, *joint, *default)
+            if profile:
+                from .calibration_profile import profile_draw
+                profiles, profile_seconds = profile_draw(finals, train)
+    return CampaignDraw(seed, train.n_samples, estimates, stderr, gap, dof, hits, widths, *joint, *default,
+                        profiles, profile_seconds)
 
 
 def default_start_draw(train, val, truth_mse: Mapping[str, float]) -> tuple[dict, dict, dict, tuple[str, ...]]:
@@ -271,6 +291,7 @@ class Calibration:
     kinds: tuple[KindCalibration, ...]
     seconds: float = 0.0
     draws: tuple[CampaignDraw, ...] = field(default=(), repr=False)
+    flights: int = 0            # flights per campaign, each with its shared errors (0: no flight-level errors)
 
     @property
     def band_coverage(self) -> dict[str, float]:
@@ -369,9 +390,14 @@ def held_out(seeds: Sequence[int]) -> bool:
 
 def run(n_campaigns: int = 50, scale: float = 0.1, kinds: Sequence[str] = COVARIANCE_KINDS,
         first_seed: int = HELD_OUT_FIRST, n_jobs: int = 2, progress: Callable[[str], None] | None = None,
-        seeds: Sequence[int] | None = None) -> Calibration:
+        seeds: Sequence[int] | None = None, profile_campaigns: int = 0, flight_errors: bool = False) -> Calibration:
     """Simulate seeded campaigns (``seeds``, else ``n_campaigns`` from ``first_seed``: held out by default) and
-    calibrate every covariance kind on them."""
+    calibrate every covariance kind on them; the first ``profile_campaigns`` also calibrate the profile
+    intervals of the nonlinear parameters (:mod:`.calibration_profile`). ``flight_errors``: the campaigns are flown
+    on flights that share errors (:func:`campaign_flights`); without them the kinds that group by flight are left
+    out (no flight recorded: they would repeat hac-maneuver).
+    """
+    import dataclasses
     import time
 
     from joblib import Parallel, delayed
@@ -379,9 +405,11 @@ def run(n_campaigns: int = 50, scale: float = 0.1, kinds: Sequence[str] = COVARI
     t0 = time.perf_counter()
     seeds = list(seeds) if seeds is not None else list(range(first_seed, first_seed + n_campaigns))
     n_campaigns = len(seeds)
+    kinds = tuple(k for k in kinds if flight_errors or not KINDS[k].by_flight)
     draws = []
     for i, d in enumerate(Parallel(n_jobs=n_jobs, return_as="generator")(
-            delayed(draw)(s, scale, tuple(kinds)) for s in seeds)):
+            delayed(draw)(s, scale, tuple(kinds), i < profile_campaigns, flight_errors) for i, s in enumerate(seeds))):
         draws.append(d)
         say(f"calibration: campaign {i + 1}/{n_campaigns} ({time.perf_counter() - t0:.0f} s)")
-    return summarise(draws, scale, time.perf_counter() - t0)
+    return dataclasses.replace(summarise(draws, scale, time.perf_counter() - t0),
+                               flights=campaign_flights(scale) if flight_errors else 0)

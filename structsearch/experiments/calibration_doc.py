@@ -3,8 +3,11 @@ from __future__ import annotations
 
 from tabulate import tabulate
 
+from ..engine.statistics import KINDS
+from ..flight.reference import FINAL_MODEL_NAMES
 from .calibration import (BAND_COVERAGE_RANGE, COVERAGE_FLOOR, COVERAGE_RANGE, GAP_LEVEL, REJECTION_CEILING,
-                           TUNING_SEEDS, Calibration, KindCalibration, default_start_rows, held_out, joint_rows)
+                           TRUTH, TUNING_SEEDS, Calibration, KindCalibration, default_start_rows, held_out, joint_rows)
+from .calibration_profile import profile_dict, profile_lines
 
 # issue 30's targets for the standard deviations themselves and the two interval levels
 SD_RATIO_RANGE = (0.8, 1.25)
@@ -48,8 +51,12 @@ def calibration_dict(cal: Calibration) -> dict:
     return {
         "seeds": seeds_dict(cal), "scale": cal.scale, "training_samples": cal.samples, "seconds": cal.seconds,
         "best": cal.best.kind,
+        # flight-level errors (bench --calibration --flight-errors): each campaign flown on `flights` flights whose
+        # maneuvers share a mass, cg, engine-model and vane-calibration error; keys absent without them
+        **({"flight_errors": True, "flights": cal.flights} if cal.flights else {}),
         "default_start": default_start_dict(cal),
         "joint": [parameter_dict(p) for p in joint_rows(cal.draws)],
+        "profile": profile_dict(cal, TRUTH, FINAL_MODEL_NAMES),
         "bands": {coef: {"coverage95": cov, "campaign_min": cal.band_campaign_coverage[coef][0],
                          "campaign_max": cal.band_campaign_coverage[coef][1],
                          "mean_half_width": (float(sum(d.band_widths[coef] for d in cal.draws) / len(cal.draws))
@@ -94,10 +101,14 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
         + (f"held out: disjoint from the seeds {TUNING_SEEDS[0]}-{TUNING_SEEDS[-1]} the default covariance and the "
            "few-maneuvers flag were chosen on; " if held_out(cal.seeds) else
            f"NOT held out: they overlap the seeds {TUNING_SEEDS[0]}-{TUNING_SEEDS[-1]} the defaults were chosen on; ")
-        + f"scale {cal.scale}: {cal.samples} training samples each, full measurement chain), "
+        + f"scale {cal.scale}: {cal.samples} training samples each, full measurement chain"
+        + (f", flown on {cal.flights} flights whose maneuvers share a mass, cg, engine-model and vane-calibration "
+           "error (`--flight-errors`)" if cal.flights else "") + "), "
         "the three final models fitted on each; intervals are estimate +- t quantile * reported standard "
         "deviation around the simulator's truth, with each fit's reference degrees of freedom (G - 1 for "
-        "hac-maneuver and cluster, G the training maneuvers; m - p, i.e. the normal, for the others). Drag and pitch standard deviations include the lift model's "
+        "hac-maneuver and cluster, G the training maneuvers"
+        + ("; F - 1 for hac-flight, F the effective training flights" if cal.flights else "")
+        + "; m - p, i.e. the normal, for the others). Drag and pitch standard deviations include the lift model's "
         "estimation error (two-step correction).", "",
         f"Goals (issue 11): pooled 95 % coverage in [{lo:.2f}, {hi:.2f}], no parameter below "
         f"{COVERAGE_FLOOR:.2f}; gap test (Wald, {GAP_LEVEL:.0%} level) rejecting at most "
@@ -116,6 +127,7 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
         f"{(0.95 * 0.05 / n) ** 0.5:.3f} at 95 %.", ""]
     lines += target_lines(cal)
     lines += default_start_lines(cal)
+    lines += profile_lines(cal, TRUTH, FINAL_MODEL_NAMES)
     lines += band_lines(cal)
     lines += joint_lines(cal)
     for k in cal.kinds:
@@ -158,6 +170,9 @@ def target_lines(cal: Calibration) -> list[str]:
     start = default_start_rows(cal.draws)
     if start:
         rows.append([f"{cal.default_kind}, from the default start"] + _target_counts(start))
+    # with flight-level errors, the kinds that group by flight beside it (same truth-start fits)
+    rows += [[f"{k.kind}, from the truth"] + _target_counts(k.parameters) for k in cal.kinds
+             if cal.flights and k.kind != cal.default_kind and KINDS[k.kind].by_flight]
     if not rows:
         return []
     lo, hi = SD_RATIO_RANGE

@@ -234,7 +234,7 @@ def _band(c, est, train, lift, model, names, out, jac, alpha, level):
         # each point's own effective maneuvers, on the parameters the covariance could estimate
         ok = np.isfinite(np.diag(cov))
         effective = point_effective_maneuvers(jac_train[:, ok], residual, seen.bounds, est.covariance_kind,
-                                              jac[:, ok], est.bandwidth)
+                                              jac[:, ok], est.bandwidth, seen.flights)
         dof = np.array([kind.reference_dof(est.n_samples, est.n_params, g) for g in effective])
     else:
         dof = np.full(len(out), kind.reference_dof(est.n_samples, est.n_params, float(est.n_maneuvers)))

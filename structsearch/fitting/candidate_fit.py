@@ -14,7 +14,8 @@ from ..engine.scores import ManeuverScores
 from .candidate_result import CandidateResult, SplitScores
 from .candidates import Candidate
 from .centred_correlation import centred_correlation
-from .cross_validation import cross_validate, maneuver_folds
+from .cross_validation import cross_validate
+from .folds import plan_folds
 from .lift_context import lift_context
 from .lift_fit import LiftFit
 from .lift_uncertainty import with_lift_uncertainty
@@ -27,7 +28,11 @@ from .staging import nested_start, STAGE_STARTS, WARM_STARTS, stages
 def body_axis_errors(coef: str, predicted: np.ndarray, data: FlightData,
                      other: np.ndarray | None) -> tuple[float, float] | None:
     """MSE of the body-axis C_X and C_Z derived from a lift or drag prediction and the other coefficient
-    (predicted, or measured when ``other`` is None); None for a pitch prediction."""
+    (predicted, or measured when ``other`` is None); None for a pitch prediction, and where the data lack the
+    measured coefficients they need (a wind-tunnel record of C_L alone: a fit needs only what it models)."""
+    needed = ("CD",) if coef == "CL" else ("CL", "CD")
+    if any(c not in data for c in needed):
+        return None
     alpha = data["alpha"]
     if coef == "CL":
         cl, cd = predicted, (other if other is not None else data["CD"])
@@ -75,12 +80,12 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         if context is not None and not options.scores_only:
             result = with_lift_uncertainty(result, model, measured, lift, context, options.covariance)
         scores = {}
-        folds = maneuver_folds(len(train.starts), options.cv_folds)
-        if folds:
+        plan = plan_folds(train, options.cv_folds, options.cv_fold_size)
+        if plan.folds:   # scored per unit held out: per maneuver, or per block of a record
             y = train[c.coefficient]
-            scores["cv"] = SplitScores.of(ManeuverScores.of(y, cross_validate(model, train, result, folds,
+            scores["cv"] = SplitScores.of(ManeuverScores.of(y, cross_validate(model, train, result, plan,
                                                                               options.cv_method),
-                                                            train.segment_slices()), None)
+                                                            plan.slices()), None)
         for split, data in (("train", train), ("validation", validation)):
             y = data[c.coefficient]
             pred = model.predict(data, result.params)
@@ -89,9 +94,10 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
                                            body_axis_errors(c.coefficient, pred, data, other))
         return CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                         result=result, train=scores["train"], validation=scores["validation"],
-                                        cv=scores.get("cv"), cv_folds=len(folds),
+                                        cv=scores.get("cv"), cv_folds=plan.n_folds,
                                         # a linear candidate's folds are exact fits whichever method is asked
-                                        cv_method=options.cv_method if model.nonlinear_names and folds else "refit",
+                                        cv_method=options.cv_method if model.nonlinear_names and plan.folds
+                                        else "refit", cv_scheme=plan.scheme, cv_note=plan.note,
                                         seconds=time.perf_counter() - t0,
                                         centred_correlation=None if options.scores_only else
                                         centred_correlation(c, model, train, result))

@@ -117,6 +117,8 @@ class CandidateResult:
     cv: SplitScores | None = None       # held-out scores of the training maneuvers (cross-validation)
     cv_folds: int = 0
     cv_method: str = "refit"            # how the folds were fitted (runner.CV_METHODS)
+    cv_scheme: str = ""                 # how they were formed: .folds.SCHEMES ("": a result that does not say)
+    cv_note: str = ""                   # in words, or why there is no cross-validation (cv None)
     # --- set by the ranking ---
     admissible: bool | None = None
     reasons: tuple[str, ...] = ()       # why it is not admissible
@@ -131,6 +133,7 @@ class CandidateResult:
                  bic: float | None = None, converged: bool | None = None, message: str = "", nfev: int = 0,
                  train: SplitScores | None = None, validation: SplitScores | None = None,
                  cv: SplitScores | None = None, cv_folds: int = 0, cv_method: str = "refit",
+                 cv_scheme: str = "", cv_note: str = "",
                  admissible: bool | None = None, reasons: tuple[str, ...] = (), rank: int | None = None,
                  within_noise: bool | None = None, gap: float | None = None, gap_se: float | None = None,
                  **stated: Any):
@@ -153,13 +156,15 @@ class CandidateResult:
     def from_fit(cls, *, name: str, grid: str, coefficient: str, lift: str | None, result: FitResult,
                  train: SplitScores, validation: SplitScores, seconds: float,
                  centred_correlation: np.ndarray | None = None, cv: SplitScores | None = None,
-                 cv_folds: int = 0, cv_method: str = "refit") -> "CandidateResult":
+                 cv_folds: int = 0, cv_method: str = "refit", cv_scheme: str = "",
+                 cv_note: str = "") -> "CandidateResult":
         return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds,
                    estimates=result.estimates,
                    centred_correlation=() if centred_correlation is None else centred_correlation,
                    n_starts=result.n_starts, n_reached_best=result.n_reached_best, aic=result.aic, bic=result.bic,
                    converged=bool(result.converged), message=result.message, nfev=int(result.nfev),
-                   train=train, validation=validation, cv=cv, cv_folds=cv_folds, cv_method=cv_method)
+                   train=train, validation=validation, cv=cv, cv_folds=cv_folds, cv_method=cv_method,
+                   cv_scheme=cv_scheme, cv_note=cv_note)
 
     @classmethod
     def failure(cls, *, name: str, grid: str, coefficient: str, lift: str | None, error: str,
@@ -235,6 +240,8 @@ class CandidateResult:
         for label, split in (("train", self.train), ("cross-validation", self.cv), ("validation", self.validation)):
             if split is not None:
                 head.append((f"MSE {label}", f"{split.mse:.6g}"))
+        if self.cv_note:
+            head.append(("cross-validation folds", self.cv_note))
         if self.validation is not None:
             r2 = self.validation.r2
             head.append(("R^2 validation per maneuver mean / min / max",
@@ -343,4 +350,5 @@ def _restated(base: ParameterEstimates | None, stated: dict, train: SplitScores 
         condition_number=_nan_if_none(stated.get("condition_number",
                                                  base.condition_number if base is not None else None)),
         generated_regressors=base.generated_regressors if base is not None else None, stated=carried,
-        units=dict(base.units) if base is not None else {})
+        units=dict(base.units) if base is not None else {},
+        n_flights=base.n_flights if base is not None else None)

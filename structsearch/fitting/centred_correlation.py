@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import qr, solve_triangular
 
-from ..data.flightdata import FlightData
 from ..engine.regressors import symbol_names
 from .candidates import Candidate
 
@@ -23,7 +22,7 @@ def _centred(data, names):
     columns = dict(data.columns)
     for n in names:
         columns[n] = columns[n] - float(np.mean(columns[n]))
-    return FlightData(columns, data.starts, data.names, data.source, data.constants)
+    return data.with_columns(columns)
 
 
 def _basis_change(phi: np.ndarray, q: np.ndarray, r: np.ndarray, phi_c: np.ndarray) -> np.ndarray | None:

@@ -245,7 +245,8 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
     # it would give next differ by less than ``tol``
     result = fit_problem(problem, y, boundaries=problem.boundaries(train.bounds), segment_names=train.names,
                          lower=lower, upper=upper, covariance=options.covariance, solution=outcome,
-                         model=" + ".join(c.name for c in order), coefficient="joint", source=train.source)
+                         model=" + ".join(c.name for c in order), coefficient="joint", source=train.source,
+                         flights=train.flights)
     params = dict(result.params)
     coefficients = []
     for c, m, w in zip(order, models, problem.weights):

@@ -22,7 +22,7 @@ from ..engine.identifiability import covariance_basis
 from ..engine.results import FitResult
 from ..engine.snls import model_jacobian
 from ..engine.stallmodel import StallModel
-from ..engine.statistics import Covariances
+from ..engine.statistics import Covariances, covariance_kind, flight_count
 from ..engine.twostep import generated_regressor_covariance, influence_covariance
 
 if TYPE_CHECKING:
@@ -84,11 +84,12 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
     if context.influence is None:
         block, lags, bandwidth, effective_block = generated_regressor_covariance(
             jac2[:, basis2], result.residuals, jac1[:, basis1], residual1, sensitivity, train.bounds,
-            kind, a1_inv=context.jacobian_inverse_factor, r2_inv=r2_inv)
+            kind, a1_inv=context.jacobian_inverse_factor, r2_inv=r2_inv, flights=train.flights)
         first = "two-step, Murphy-Topel"
     else:  # a joint lift: the joint fit is the first step, given by its influence series
         block, lags, bandwidth, effective_block = influence_covariance(
-            jac2[:, basis2], result.residuals, context.influence, sensitivity, train.bounds, kind, r2_inv=r2_inv)
+            jac2[:, basis2], result.residuals, context.influence, sensitivity, train.bounds, kind, r2_inv=r2_inv,
+            flights=train.flights)
         first = "the joint fit's influence, Murphy-Topel"
     cov[np.ix_(basis2, basis2)] = block
     effective = np.full(result.n_params, np.nan)
@@ -99,4 +100,6 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
         result, covariance=estimate.covariance, covariance_kind=kind, max_lag=estimate.max_lag,
         bandwidth=estimate.bandwidth,
         effective_maneuvers=estimate.effective_maneuvers,
+        n_flights=(flight_count(train.flights, train.n_segments)
+                   if covariance_kind(kind).by_flight and train.flights is not None else None),
         generated_regressors=f"includes the estimation error of the lift model {lift.name} ({first})")

@@ -54,7 +54,7 @@ def with_lift_prediction(data: FlightData, lift_params: Mapping[str, float], lif
     cols = dict(data.columns)
     cols["CL_measured"] = data["CL_measured"] if "CL_measured" in data else data["CL"]
     cols["CL"] = model_with_lift(lift_candidate, None).predict(data, lift_params)
-    return FlightData(cols, data.starts, data.names, data.source, dict(data.constants))
+    return data.with_columns(cols)
 
 
 def predict_candidate(c: Candidate, params: Mapping[str, float], data: FlightData,

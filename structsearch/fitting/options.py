@@ -12,7 +12,7 @@ from ..data.errors import StructSearchError
 from ..engine.statistics import DEFAULT_COVARIANCE
 
 # Cross-validation folds over the training maneuvers (fewer when a fold would hold fewer than
-# CV_MIN_MANEUVERS maneuvers; none below two folds).
+# CV_MIN_MANEUVERS maneuvers; none below two folds; blocked folds of one or two records: .folds).
 CV_FOLDS = 5
 CV_MIN_MANEUVERS = 3
 # How a fold is fitted: "refit" solves it again from the full fit's estimates (exact); "one-step" takes
@@ -34,6 +34,9 @@ class FitOptions:
     # --bound NAME=LO:HI: search boxes of separation parameters, over the declared ones
     parameter_boxes: tuple[tuple[str, tuple[float, float]], ...] = ()
     cv_method: str = "refit"          # CV_METHODS
+    # least maneuvers a maneuver-grouped fold holds: CV_MIN_MANEUVERS (every fold keeps every kind); 1 when the
+    # training maneuvers are cycles of periodic records (.folds.fold_size_for: leave one cycle out)
+    cv_fold_size: int = CV_MIN_MANEUVERS
     # A screening fit (a structure search's first look at a move): estimates and scores only. Its covariance is
     # the white one, conditional on the lift model, and it has no centred correlations: no statistic of it is
     # reported or judged; the structures a search keeps are fitted again in full.
@@ -51,6 +54,8 @@ class FitOptions:
                "cv_folds": self.cv_folds, "bounds": [[k, list(v)] for k, v in self.parameter_boxes]}
         if nonlinear and self.cv_folds:
             key["cv_method"] = self.cv_method
+        if self.cv_fold_size != CV_MIN_MANEUVERS:
+            key["cv_fold_size"] = self.cv_fold_size
         if self.scores_only:
             key["scores_only"] = True
         return key

@@ -40,6 +40,10 @@ SLOW_ERROR_STALL_GAIN = 1.0              # per unit of separation (1 - X summed 
 # correlate at -1.00); it sets how well C_m,cg can be told from C_m,K0.
 FLOWN_CG_RANGE = (280.5 * ac.INCH, 282.0 * ac.INCH)
 GAINS = (2.0, 1.5, 0.8)  # pilot PID on alpha: kp [-], ki [1/s], kd [s]
+# Flights of a campaign with flight-level errors (``build_campaign(flights=N)``): consecutive maneuvers of one
+# loading, about this many per flight when the number of flights is chosen for a plan (:func:`flights_for`); each
+# flight shares a mass, cg, engine-model and vane-calibration error (:data:`.measurement.FLIGHT_ERROR_SD`).
+MANEUVERS_PER_FLIGHT = 4
 
 
 @dataclass(frozen=True)
@@ -126,6 +130,51 @@ def scaled_plan(plan: list[PlannedManeuver], scale: float) -> list[PlannedManeuv
                 idx = np.unique(np.linspace(0, len(group) - 1, count).round().astype(int))
                 keep += [group[i] for i in idx]
     return sorted(keep, key=lambda p: p.number)
+
+
+def loading_of(p: PlannedManeuver) -> int:
+    """The loading (centre of gravity) a maneuver is flown at: thesis maneuvers 1-17, 18-34 and 35-46 and the extras
+    were flown at one loading each."""
+    return 0 if p.number <= 17 else 1 if p.number <= 34 else 2 if p.number <= 46 else 3
+
+
+def flights_for(plan: list[PlannedManeuver]) -> int:
+    """A realistic number of flights for ``plan``: about :data:`MANEUVERS_PER_FLIGHT` maneuvers each, at least one
+    per loading."""
+    return max(len({loading_of(p) for p in plan}), int(round(len(plan) / MANEUVERS_PER_FLIGHT)))
+
+
+def assign_flights(plan: list[PlannedManeuver], n_flights: int) -> list[str]:
+    """Each planned maneuver's flight, ``F1`` to ``FN`` in the order flown: consecutive maneuvers (training and
+    validation mixed, as the plan numbers them), never across a change of loading; the flights are shared out
+    over the loadings in proportion to their maneuvers (at least one each, D'Hondt)."""
+    loadings = sorted({loading_of(p) for p in plan})
+    if not len(loadings) <= n_flights <= len(plan):
+        raise DeclarationError(f"flights: {n_flights} flights for {len(plan)} maneuvers flown at {len(loadings)} "
+                               f"loadings; choose between {len(loadings)} (one flight per loading) and {len(plan)} "
+                               "(one maneuver per flight)")
+    members = {g: [i for i, p in enumerate(plan) if loading_of(p) == g] for g in loadings}
+    share = {g: 1 for g in loadings}
+    for _ in range(n_flights - len(loadings)):
+        open_ = [g for g in loadings if share[g] < len(members[g])]
+        g = max(open_, key=lambda g: (len(members[g]) / (share[g] + 1), -g))
+        share[g] += 1
+    labels = [""] * len(plan)
+    number = 0
+    for g in loadings:
+        for chunk in np.array_split(np.array(members[g]), share[g]):
+            number += 1
+            for i in chunk:
+                labels[int(i)] = f"F{number}"
+    return labels
+
+
+def flight_errors(seed: int, flights: list[str]) -> dict:
+    """The shared errors of each flight (:class:`.measurement.FlightErrors`), drawn from a stream of their own in the
+    order the flights are first flown: the same seed, the same errors."""
+    from .measurement import FlightErrors
+    rng = np.random.default_rng([seed, 3])
+    return {f: FlightErrors.draw(rng) for f in dict.fromkeys(flights)}
 
 
 def _smoothstep(x):
@@ -252,7 +301,7 @@ def fly_batch(model: AeroModel, flown: list[Flown], aircraft: Aircraft = CITATIO
 
 
 def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int = 0, slow_errors: float = 1.0,
-                      proc: Procedures = Procedures(), anomaly=None, sensor_errors=None):
+                      proc: Procedures = Procedures(), anomaly=None, sensor_errors=None, flights=None):
     """Fly every planned maneuver and measure it; returns (plan, list of column dicts) in plan order.
 
     ``slow_errors`` scales the slow reconstruction errors (1: realistic, 0: a laboratory-clean
@@ -260,7 +309,9 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
     (:mod:`.anomalies`; ``model`` already flies it when it acts on the aerodynamics) adds the truth
     alpha as the column ``alpha_true`` and, when it lags the alpha vane, lags it in the measurement.
     With ``sensor_errors`` (:class:`.raw.SensorErrors`) the maneuvers are recorded as raw channels
-    (:func:`.raw.raw_channels`) instead of measured coefficients.
+    (:func:`.raw.raw_channels`) instead of measured coefficients. ``flights`` (each maneuver's flight, as
+    :func:`assign_flights` gives) adds the errors each flight's maneuvers share (:func:`flight_errors`); the
+    flown profiles and every other error stay those of the same seed without them.
     """
     from .measurement import measure
     rng = np.random.default_rng(seed)
@@ -270,9 +321,9 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
     cg_by_flight = {k: (rng.uniform(*proc.flown_cg_range) if proc.flown_cg_range else np.nan) for k in range(4)}
     flown = []
     for i, p in enumerate(plan):
-        flight = 0 if p.number <= 17 else 1 if p.number <= 34 else 2 if p.number <= 46 else 3
         mass = craft.empty_mass + craft.crew_mass + fuel[i]
-        flown.append(fly(model, p, rng, mass, cg_by_flight[flight], proc))
+        flown.append(fly(model, p, rng, mass, cg_by_flight[loading_of(p)], proc))
+    shared = flight_errors(seed, list(flights)) if flights is not None else None
     # a stream of its own, so that the flown profiles and sensor errors do not depend on it
     error_rng = np.random.default_rng([seed, 1])
     errors = [reconstruction_error(error_rng, len(f.alpha_ref), slow_errors) for f in flown]
@@ -293,7 +344,8 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
             columns = raw_channels(rng, t, truth, sensor_errors, craft)
         else:
             columns = measure(rng, t, truth, errors[i], SLOW_ERROR_STALL_GAIN, craft,
-                              vane_lag_s=getattr(anomaly, "vane_lag_s", 0.0), record_alpha=anomaly is not None)
+                              vane_lag_s=getattr(anomaly, "vane_lag_s", 0.0), record_alpha=anomaly is not None,
+                              flight=None if shared is None else shared[flights[i]])
         results[i] = _cut(plan[i], columns)
     return results
 
@@ -310,7 +362,7 @@ def _cut(p: PlannedManeuver, columns: dict) -> dict:
 
 def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False,
                    slow_errors: float = 1.0, aircraft: str = "citation", anomaly: str | None = None,
-                   raw: bool = False):
+                   raw: bool = False, flights: int = 0):
     """The simulated flight-test campaign (thesis Table 4) of ``aircraft`` (``citation`` or ``transport``),
     ready for :func:`write_campaign`.
 
@@ -320,7 +372,13 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     errors as without it. Such a campaign also carries the truth alpha (``alpha_true``) and its manifest
     the key ``anomaly``. ``raw`` records the raw channels of docs/interfaces.md 5.2 instead (``format = "raw"``,
     the injected sensor errors as ``injected_*`` keys; no slow reconstruction errors: there is no
-    reconstruction yet)."""
+    reconstruction yet).
+
+    ``flights`` = N > 0 groups the maneuvers into N flights (:func:`assign_flights`; each maneuver's ``flight`` is
+    recorded) whose maneuvers share a mass, cg, engine-model and vane-calibration error on top of the per-maneuver
+    ones (:data:`.measurement.FLIGHT_ERROR_SD`; the truth columns ``alpha_true``, ``mass_true``, ``x_cg_true`` and
+    ``CT_true`` are added, the manifest gets ``flights = N``). 0 (the default): no flights, and the campaign is the
+    one simulated before flights existed, bit for bit."""
     from .aero import truth_model
     from .anomalies import anomaly_named
     from ..data.campaign import Maneuver, make_campaign
@@ -337,18 +395,25 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     model = truth_model(withhold, aircraft, chosen if chosen is not None and chosen.flies else None)
     proc = PROCEDURES[aircraft]
     plan = scaled_plan(thesis_plan(extras), scale)
+    if flights and raw:
+        raise DeclarationError("flights: flight-level errors are errors of the reduced coefficients; a raw campaign "
+                               "records the channels before any reduction (its sensor errors are per installation)")
+    labels = assign_flights(plan, int(flights)) if flights else None
     sensor_errors = None
     if raw:
         from .raw import SensorErrors
         sensor_errors = SensorErrors.draw(np.random.default_rng([seed, 2]))
-    segments = simulate_campaign(plan, model, seed, slow_errors, proc, chosen, sensor_errors)
-    maneuvers = [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split) for p in plan]
+    segments = simulate_campaign(plan, model, seed, slow_errors, proc, chosen, sensor_errors, labels)
+    maneuvers = [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split, None if labels is None else labels[i])
+                 for i, p in enumerate(plan)]
     extra = {"seed": int(seed), "scale": float(scale), "extras": bool(extras), "truth": model.name,
              "withheld": ",".join(withhold) or "none", "slow_errors": float(slow_errors)}
     if aircraft != "citation":  # campaigns written before the second aircraft carry no such key
         extra["simulated_aircraft"] = aircraft
     if chosen is not None:  # nor do campaigns without an anomaly
         extra["anomaly"] = chosen.name
+    if labels is not None:  # nor do campaigns without flights
+        extra["flights"] = int(flights)
     if sensor_errors is not None:
         extra.pop("slow_errors")
         extra.update(sensor_errors.manifest(), format="raw")

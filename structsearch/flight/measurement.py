@@ -6,6 +6,8 @@ the interface columns plus theta, h, CX, CZ, and the truth coefficients for refe
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .aircraft import CITATION, Aircraft
@@ -27,6 +29,36 @@ BUFFET_HALF_WIDTH_HZ = 0.8
 BUFFET_AZ = 0.5          # m/s^2 per unit of separation (residual MSEs near thesis Table 7)
 BOOM_VIBRATION = 0.0015  # rad, 8-12 Hz
 ENGINE_MODEL_ERROR = 0.03  # relative, per maneuver
+# Errors shared by every maneuver of one flight (``build_campaign(flights=N)``; standard deviations, drawn once per
+# flight): what the data reduction takes as known for the whole flight and gets wrong by that flight's amount.
+# - mass 0.6 % (about 35 kg of 5.9 t): the ramp weight from the last weighing and the loading sheet, plus the fuel on
+#   board at take-off read from the gauges (about 2 % of a 1.5 t load); fuel used after take-off comes from the
+#   flow totalisers, whose error is relative and folds into the same constant. It scales the reconstructed C_L and
+#   C_D (force over dynamic pressure: m a / (qbar S)) and the pitch inertia, hence C_m's dynamic part.
+# - cg 0.25 in (6 mm, 0.3 % of the chord): the loading sheet's crew, ballast and fuel positions; it shifts the
+#   recorded x_cg column.
+# - engine model 2 % of the thrust: the thrust deck against that day's engines (bleed, deterioration, temperature),
+#   on top of the 3 % per maneuver above; it enters C_D through the thrust subtracted from the axial force.
+# - vane calibration: 0.001 rad (0.06 deg) bias and 1 % scale factor left after that flight's flight-path
+#   reconstruction (its upwash and alignment calibration; the per-maneuver residual bias is BIAS["alpha"]).
+FLIGHT_ERROR_SD = {"mass": 0.006, "x_cg": 0.25 * 0.0254, "thrust": 0.02, "alpha_bias": 0.001, "alpha_scale": 0.01}
+
+
+@dataclass(frozen=True)
+class FlightErrors:
+    """One flight's shared errors (:data:`FLIGHT_ERROR_SD`): relative mass and thrust-model errors, a cg error [m]
+    and the alpha vane's bias [rad] and scale-factor error (0: none)."""
+
+    mass: float = 0.0
+    x_cg: float = 0.0
+    thrust: float = 0.0
+    alpha_bias: float = 0.0
+    alpha_scale: float = 0.0
+
+    @classmethod
+    def draw(cls, rng: np.random.Generator) -> "FlightErrors":
+        sd = FLIGHT_ERROR_SD
+        return cls(*(float(rng.normal(0.0, sd[k])) for k in ("mass", "x_cg", "thrust", "alpha_bias", "alpha_scale")))
 
 
 def _resample(t_out, t_in, values):
@@ -74,7 +106,7 @@ def vibration(rng: np.random.Generator, n: int, fs: float) -> np.ndarray:
 
 def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np.ndarray | None = None,
             slow_error_stall_gain: float = 1.0, aircraft: Aircraft = CITATION, vane_lag_s: float = 0.0,
-            record_alpha: bool = False) -> dict:
+            record_alpha: bool = False, flight: FlightErrors | None = None) -> dict:
     """One maneuver's measured, pre-filtered, reconstructed columns from its truth histories.
 
     ``truth`` holds 1-D arrays: V, alpha, q, theta, h, de, thrust, qbar, mass, x_cg,
@@ -87,6 +119,11 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     (the ``vane_lag`` anomaly) and adds the column ``alpha_unlagged_true``: the alpha this chain gives without
     the lag (same noise, bias and pre-filter). ``record_alpha`` adds the truth alpha as ``alpha_true``.
     Neither draws random numbers: with the same ``rng`` every other column is unchanged.
+
+    ``flight`` (:class:`FlightErrors`, drawn per flight) adds the errors the maneuver shares with the others of
+    its flight: the vane reads (1 + alpha_scale) (alpha + boom) + alpha_bias, the thrust model and the mass the
+    reduction uses are off by their relative errors, the recorded x_cg by its error. It draws no random
+    numbers either, and adds the truth columns ``alpha_true``, ``mass_true``, ``x_cg_true`` and ``CT_true``.
     """
     fs = 1.0 / (t[1] - t[0])
     n = len(t)
@@ -104,6 +141,8 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     boom = BOOM_VIBRATION * band_noise(rng, n, fs, 8.0, 12.0)
 
     vane = alpha + boom
+    if flight is not None:
+        vane = (1.0 + flight.alpha_scale) * vane + flight.alpha_bias
     unlagged = None
     if vane_lag_s > 0:
         vane, unlagged = vane_lag(t, vane, vane_lag_s), vane
@@ -128,6 +167,9 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     alpha_dot = derivative(f["alpha"], t)
     thrust_model = truth["thrust"] * (1 + rng.normal(0, ENGINE_MODEL_ERROR))
     mass = truth["mass"]
+    if flight is not None:
+        thrust_model = thrust_model * (1.0 + flight.thrust)
+        mass = mass * (1.0 + flight.mass)
     qs_m = f["qbar"] * aircraft.S
     cx_m, cz_m = body_force_coefficients(f["ax"], f["az"], mass, thrust_model, qs_m)
     a = f["alpha"]
@@ -145,10 +187,14 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
         "mass": mass, "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
         **{f"{symbol}_true": x for symbol, x in truth["states"].items()},
     }
-    if record_alpha:
+    if record_alpha or flight is not None:
         columns["alpha_true"] = alpha
+    if flight is not None:
+        columns.update(x_cg=truth["x_cg"] + flight.x_cg, x_cg_true=truth["x_cg"], mass_true=truth["mass"],
+                       CT_true=truth["thrust"] / qs_m)
     if unlagged is not None:
         columns["alpha_unlagged_true"] = prefilter("alpha", unlagged, fs)
     if not aircraft.records_cg:  # flown at a fixed cg nobody recorded
         del columns["x_cg"]
+        columns.pop("x_cg_true", None)
     return columns

@@ -90,4 +90,24 @@ def with_coefficient(data: FlightData, model, params: Mapping[str, float], *, no
                                 for sl in data.segment_slices()])
     cols = dict(data.columns)
     cols[model.coefficient] = y
-    return FlightData(cols, data.starts, data.names, data.source, dict(data.constants))
+    return data.with_columns(cols)
+
+
+def pitching_airfoil(*, cycles: float = 4.0, period: float = 0.83, dt: float = 1e-3, mean: float = 0.26,
+                     amplitude: float = 0.17, airspeed: float = 38.5, phase: float = 0.0, alpha_noise: float = 0.0,
+                     seed: int = 0) -> dict[str, np.ndarray]:
+    """A wind-tunnel run of a pitching airfoil: alpha = ``mean`` + ``amplitude`` sin(2 pi t / ``period`` + ``phase``)
+    over ``cycles`` periods sampled every ``dt`` (plus white noise of ``alpha_noise`` rad), q = d alpha/dt (the
+    model pitches about a fixed axis: no flight path), constant airspeed, de = 0. The defaults are a deep dynamic
+    stall at 1 kHz (15 +- 10 deg, 0.83 s cycles; with cbar = 0.5 m, cbar/V = 0.013 s: reduced frequency 0.049).
+    No coefficient: give one with a model's ``predict`` (:func:`with_coefficient` on FlightData)."""
+    rng = np.random.default_rng(seed)
+    n = int(round(cycles * period / dt))
+    t = np.arange(n) * dt
+    omega = 2.0 * np.pi / period
+    alpha = mean + amplitude * np.sin(omega * t + phase)
+    q = amplitude * omega * np.cos(omega * t + phase)
+    if alpha_noise:
+        alpha = alpha + alpha_noise * rng.standard_normal(n)
+    return {"t": t, "alpha": alpha, "alpha_dot": q.copy(), "q": q, "V": np.full(n, float(airspeed)),
+            "de": np.zeros(n)}

@@ -25,7 +25,9 @@ def fit_document(fit: CandidateResult, lift: LiftFit | None, bands=None) -> dict
         "identifiable": fit.identifiable, "not_identifiable": fit.not_identifiable,
         "condition_number": fit.condition_number,
         "lift": lift and {"model": lift.name, "params": lift.params},
-        "covariance": fit.estimates.covariance_record(),
+        "covariance": covariance_document(fit.estimates.covariance_record()),
+        "cross_validation": {"scheme": fit.cv_scheme or None, "folds": fit.cv_folds,
+                             "mse": fit.cv.mse if fit.cv is not None else None, "note": fit.cv_note},
     }
     if bands is not None:
         doc["bands"] = bands.to_dict()
@@ -54,12 +56,73 @@ def bands_table(bands, every: int = 6) -> str:
             f"maneuvers minus one).\n\n{table}{reasons}\n" + sampled_sentence(bands))
 
 
+def few_maneuvers(record: dict) -> list[str]:
+    """The parameters whose t reference (a ``covariance`` record's ``reference_dof``) has fewer than FEW_DOF
+    degrees of freedom: those every parameter table flags "few maneuvers"."""
+    from ..engine.summary import FEW_DOF
+    return [n for n, d in (record.get("reference_dof") or {}).items() if d is not None and d < FEW_DOF]
+
+
+def few_maneuvers_note(record: dict) -> str:
+    """What few degrees of freedom mean and how to get more ("" when no parameter has few)."""
+    from ..engine.summary import FEW_DOF
+    few = few_maneuvers(record)
+    if not few:
+        return ""
+    dof = [record["reference_dof"][n] for n in few]
+    groups = record.get("groups")
+    more = ("cut periodic records into their cycles (`--segment cycles`: each cycle a maneuver and a group)"
+            if groups is not None and groups < 2 * FEW_DOF else "")
+    return (f"{len(few)} of {len(record['reference_dof'])} t references have fewer than {FEW_DOF:g} degrees of "
+            f"freedom ({_span(dof)}"
+            + (f"; the covariance groups the residuals by {groups} {record.get('grouped_by', 'maneuvers')}"
+               if groups is not None else "")
+            + "): their intervals are wide by the t quantile (t_0.975(1) = 12.7, t_0.975(3) = 3.18) and their "
+            "standard deviations themselves rest on few numbers. "
+            + (f"For more: {more}; " if more else "")
+            + "`--covariance hac` uses a bandwidth within each maneuver instead (reference dof m - p), which assumes "
+            "the residuals decorrelate well within a maneuver and cuts slow errors off (README, calibration).")
+
+
+def held_out_phrase(fit) -> str:
+    """The console's words on a fit's cross-validation (its MSE and folds, or why there is none) and, when some
+    parameters rest on few maneuvers, on their t references."""
+    import math
+    if fit.cv is not None:
+        words = f", {fit.cv_folds}-fold {'blocked ' if fit.cv_scheme == 'blocks' else ''}CV {fit.cv.mse:.4g}"
+    else:
+        words = f", {fit.cv_note}" if fit.cv_note else ""
+    few = few_maneuvers(fit.estimates.covariance_record())
+    if few:
+        dof = [fit.reference_dof[n] for n in few if math.isfinite(fit.reference_dof[n])]
+        words += f"; {len(few)} t reference(s) on few maneuvers (dof {_span(dof)}: fit.md says what that means)"
+    return words
+
+
+def _span(values) -> str:
+    lo, hi = min(values), max(values)
+    return f"{lo:.1f}" if f"{lo:.1f}" == f"{hi:.1f}" else f"{lo:.1f}-{hi:.1f}"
+
+
+def covariance_document(record: dict) -> dict:
+    """fit.json's ``covariance`` (docs/interfaces.md 6.4) with ``few_maneuvers``, the parameters whose t reference
+    has fewer than FEW_DOF degrees of freedom (flagged in every parameter table), and, when there are any, a
+    ``note`` on what that means and how to get more."""
+    out = dict(record, few_maneuvers=few_maneuvers(record))
+    note = few_maneuvers_note(record)
+    if note:
+        out["note"] = note
+    return out
+
+
 def covariance_sentence(record: dict) -> str:
     """What produced a fit's standard deviations and p-values (its ``covariance`` record), in one line of
     ``fit.md``."""
     from ..engine.summary import FEW_DOF
     how = []
-    if record.get("groups") is not None:
+    if record.get("groups") is not None and record.get("grouped_by") == "flights":
+        how.append(f"per maneuver and across the maneuvers of each flight, {record['groups']} flights")
+    elif record.get("groups") is not None:
         how.append(f"per maneuver, {record['groups']} maneuvers")
     if record.get("bandwidth") is not None:
         how.append(f"Bartlett bandwidth {record['bandwidth']:.1f} samples")
@@ -70,7 +133,8 @@ def covariance_sentence(record: dict) -> str:
             + f"; each parameter's t reference has the degrees of freedom in the column `ref. dof` (its effective "
             f"maneuvers minus one with a per-maneuver covariance), flagged \"few maneuvers\" below {FEW_DOF:g}. "
             "Units: the column `unit` (a linear coefficient's is the inverse of its regressor's, since the "
-            "coefficient it builds is dimensionless; \"-\": dimensionless).\n")
+            "coefficient it builds is dimensionless; \"-\": dimensionless)."
+            + (f" **Few maneuvers**: {few_maneuvers_note(record)}" if few_maneuvers(record) else "") + "\n")
 
 
 def sampled_sentence(bands) -> str:

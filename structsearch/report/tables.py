@@ -52,7 +52,7 @@ RANKING_FIELDS = ["grid", "model", "rank", "mse_train", "mse_validation", "n_par
                   "mse_cz_validation", "r2_validation_mean", "r2_validation_min", "r2_validation_max", "aic",
                   "n_insignificant", "n_high_corr", "within_noise", "converged", "nfev", "message", "identifiable",
                   "condition_number", "not_identifiable", "error", "admissible", "reasons", "mse_cv", "cv_folds",
-                  "gap", "gap_se", "r2_validation_pooled"]
+                  "gap", "gap_se", "r2_validation_pooled", "cv_scheme", "cv_note"]
 
 
 def table_row(s: CandidateResult) -> dict:
@@ -68,6 +68,8 @@ def table_row(s: CandidateResult) -> dict:
                     "aic": s.aic, "n_insignificant": len(s.insignificant), "n_high_corr": len(s.high_correlations),
                     "within_noise": s.within_noise, "converged": s.converged, "nfev": s.nfev,
                     "mse_cv": s.cv.mse if s.cv is not None else None, "cv_folds": s.cv_folds,
+                    # how the folds were formed, or why there is no mse_cv (structsearch.fitting.folds)
+                    "cv_scheme": s.cv_scheme or None, "cv_note": s.cv_note or None,
                     "gap": s.gap, "gap_se": s.gap_se if s.gap_se is not None and math.isfinite(s.gap_se) else "n/a",
                     "message": s.message, "identifiable": s.identifiable, "condition_number": s.condition_number,
                     "not_identifiable": "; ".join(f"{k}: {v}" for k, v in s.not_identifiable.items())})

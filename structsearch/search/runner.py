@@ -34,13 +34,15 @@ from .shared_data import LOCAL_PROCESS_BACKENDS, resolve_splits, shared_splits
 
 
 def fingerprint(data: FlightData) -> str:
-    """Hash of everything a fit reads from the data: columns, maneuver boundaries and names, constants."""
+    """Hash of everything a fit reads from the data: columns, maneuver boundaries and names, constants, flights."""
     h = hashlib.sha256()
     for name in sorted(data.columns):
         h.update(name.encode())
         h.update(np.ascontiguousarray(data.columns[name]).tobytes())
     h.update(np.asarray(data.starts, np.int64).tobytes())
     h.update(json.dumps([list(data.names), sorted((k, float(v)) for k, v in data.constants.items())]).encode())
+    if data.flights is not None:  # a by-flight covariance reads them; data without flights keep their keys
+        h.update(json.dumps(list(data.flights)).encode())
     return h.hexdigest()[:16]
 
 
