@@ -128,8 +128,10 @@ class ParameterEstimates:
         minus 1 for the per-maneuver covariances (``hac-maneuver``, ``cluster``), m - p otherwise."""
         def derive():
             kind = covariance_kind(self.covariance_kind)
+            # restated without effective counts: the groups the kind counts (flights for hac-flight)
+            groups = self.n_flights if kind.by_flight and self.n_flights is not None else self.n_maneuvers
             effective = (self.effective_maneuvers if self.effective_maneuvers is not None
-                         else np.full(self.n_params, float(self.n_maneuvers)))
+                         else np.full(self.n_params, float(groups)))
             return {n: kind.reference_dof(self.n_samples, self.n_params, float(g))
                     for n, g in zip(self.names, effective)}
         return self._stated("reference_dof", derive)
@@ -140,7 +142,7 @@ class ParameterEstimates:
         def derive():
             out = dict(self.unidentifiable)
             kind = covariance_kind(self.covariance_kind)
-            too_few = kind.not_estimable(self.n_maneuvers, self.n_params)
+            too_few = kind.not_estimable(self.n_maneuvers, self.n_params, self.n_flights)
             for name, v in zip(self.names, np.diag(self.covariance)):
                 if name in out:
                     continue

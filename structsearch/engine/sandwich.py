@@ -372,9 +372,9 @@ def flight_meat(scores: np.ndarray, boundaries: np.ndarray, flights,
     """The ``hac-flight`` meat: the ``hac-maneuver`` meat (a Bartlett sum inside each maneuver, bandwidth the longest
     maneuver) plus F/(F-1) times, for every two maneuvers i != j of one flight, S_i S_j^T (S: a maneuver's score
     sum; F the flights): the covariance that errors shared by a flight's maneuvers give, estimated as a
-    flight-clustered sandwich (CR1) estimates it. The sum is symmetric but not positive semi-definite by
-    construction; its negative eigenvalues are set to 0 (as two-way clustered sandwiches do, Cameron, Gelbach &
-    Miller 2011). Returns (meat, bandwidth)."""
+    flight-clustered sandwich (CR1) estimates it. That between-maneuver sum is symmetric but not positive
+    semi-definite by construction; its positive part alone is added (its negative eigenvalues set to 0), so the
+    meat is never below hac-maneuver's. Returns (meat, bandwidth)."""
     boundaries = np.asarray(boundaries)
     b = float(np.max(np.diff(boundaries))) if bandwidth is None else float(bandwidth)
     own = bartlett_maneuver_sums(scores, boundaries, b)
@@ -386,14 +386,15 @@ def flight_meat(scores: np.ndarray, boundaries: np.ndarray, flights,
     sums = np.add.reduceat(scores, np.asarray(boundaries[:-1], int), axis=0)
     flight_sums = np.zeros((n_flights, scores.shape[1]))
     np.add.at(flight_sums, index, sums)
-    meat = meat + flight_factor(n_flights) * (flight_sums.T @ flight_sums - sums.T @ sums)
-    if not np.all(np.isfinite(meat)):
-        return meat, b
-    meat = 0.5 * (meat + meat.T)
-    w, v = np.linalg.eigh(meat)
-    if w.min() < 0:
-        meat = (v * np.clip(w, 0.0, None)) @ v.T
-    return meat, b
+    between = flight_factor(n_flights) * (flight_sums.T @ flight_sums - sums.T @ sums)
+    if not np.all(np.isfinite(between)):
+        return meat + between, b
+    # only the between-maneuver term's positive part is added: hac-flight is never below hac-maneuver. Clipping
+    # the sum's negative eigenvalues instead (two-way clustering's fix) let a flight's negative products cancel
+    # hac-maneuver's own variance: with 2 flights of 6 maneuvers and no shared error, 95 % intervals covered 0.59
+    between = 0.5 * (between + between.T)
+    w, v = np.linalg.eigh(between)
+    return meat + (v * np.clip(w, 0.0, None)) @ v.T, b
 
 
 def flight_covariance(jac: np.ndarray, residual: np.ndarray, boundaries: np.ndarray, flights,
