@@ -277,7 +277,7 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
         columns = _read_table(path)
         validate_maneuver(columns, path, required, angles, cbar=aircraft["cbar"], rule=rules.for_kind(m.kind))
         for piece, cut in _pieces(m, columns, path, doc["maneuver"][i], segment, rules, aircraft["cbar"],
-                                  f"{toml} [[maneuver]] #{i + 1}"):
+                                  f"{toml} [[maneuver]] #{i + 1}", derive_alpha_dot=fmt != "raw"):
             pieces.append(piece)
             segments.append(cut)
     ids = [m.id for m in pieces]
@@ -303,8 +303,11 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
 
 
 def _pieces(m: Maneuver, columns: dict, path: Path, entry: dict, segment: str | None, rules: records.LengthRules,
-            cbar: float, where: str) -> list[tuple[Maneuver, dict]]:
-    """A validated record as the maneuvers it gives: itself, or its cycles (:mod:`structsearch.data.records`)."""
+            cbar: float, where: str, derive_alpha_dot: bool = True) -> list[tuple[Maneuver, dict]]:
+    """A validated record as the maneuvers it gives: itself, or its cycles (:mod:`structsearch.data.records`).
+    A record cut into cycles gets its alpha_dot (when derived) from the whole record first, as a campaign in
+    memory cut by :func:`~.cycles.segmented` has it: derived per cycle, it would be one-sided and noisy exactly
+    where the states restart, and the two ways of cutting would fit different data."""
     lines = columns.pop(LINE_KEY, None)
     if "record" in entry:   # a cycle written by write_campaign names the record it was cut from
         if not isinstance(entry["record"], str) or not entry["record"]:
@@ -315,6 +318,9 @@ def _pieces(m: Maneuver, columns: dict, path: Path, entry: dict, segment: str | 
     if m.record or not records.wants_cycles(segment, asked, records.CYCLE_COLUMN in columns):
         columns.pop(records.CYCLE_COLUMN, None)
         return [(m, columns)]
+    if derive_alpha_dot and "alpha_dot" not in columns and "alpha" in columns:
+        columns["alpha_dot"] = np.gradient(np.asarray(columns["alpha"], float), np.asarray(columns["t"], float),
+                                           edge_order=2)
     line_of = None if lines is None else (lambda row: f", line {int(lines[row])}")
     return [(replace(m, id=piece_id, record=m.id), piece) for piece_id, piece in
             records.cut_record(columns, m.id, str(path), rules.for_kind(m.kind), cbar, line_of)]

@@ -5,7 +5,7 @@ Numerics only: the command line writes the campaign and :mod:`structsearch.repor
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Mapping
 
 import numpy as np
@@ -258,7 +258,9 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
         record[f"estimated_{e.name}_sd"] = e.sd
     extra = {k: v for k, v in raw.extra.items() if k != "format"}
     extra.update(record)
-    standard = make_campaign(raw.name, raw.aircraft, raw.maneuvers, segments, extra)
+    # the raw campaign's length rules go with its coefficients (a lowered minimum must read back)
+    standard = replace(make_campaign(raw.name, raw.aircraft, raw.maneuvers, segments, extra),
+                       length_rules=raw.length_rules)
     say("coefficients", 1.0)
     return Preprocessed(standard, raw, tuple(spectra.values()), cutoffs, rec, stall_alpha, stall_source)
 
