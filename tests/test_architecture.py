@@ -315,3 +315,15 @@ def test_a_wald_test_of_a_parameter_that_is_not_identifiable_is_nan_with_the_rea
     assert np.isnan(test.p_value) and test.reason == "b2 is not identifiable: for the test"
     assert not np.isnan(broken.wald_test(["b0"]).p_value)
     assert broken.conf_int().loc["b2"].isna().all() and not broken.conf_int().loc["b0"].isna().any()
+
+
+def test_ci_runs_exactly_the_readme_test_command():
+    """CI (``.ci/run``) must call the test command the README gives, character for character."""
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    readme = (root / "README.md").read_text()
+    tests = readme.split("\nTests:\n", 1)[1].lstrip("\n").splitlines()[0].strip()
+    assert "pytest" in tests and "lint-imports" in tests
+    ci = [line.strip() for line in (root / ".ci" / "run").read_text().splitlines()
+          if line.strip() and not line.lstrip().startswith(("#", "set ", "cd "))]
+    assert ci == [tests]

@@ -293,7 +293,7 @@ def test_a_story_from_an_inadmissible_baseline_says_so_first():
     doc = _story_diagnosis(baseline_reasons=why)
     line, = story_lines({"CL": doc})
     assert line.startswith("CL: the Van Ingen model CL-I (as fitted here NOT admissible: tau1 at its lower bound; "
-                           "a_star at its lower bound; 1 more in story.md) misses")
+                           "a_star at its lower bound; 1 more, all listed at the top of story.md) misses")
     text = story_markdown(Story({"CL": doc}, (line,)), "test")
     head = text.split("\n- CL:")[0]
     assert "not admissible as fitted here" in head and why[2] in head

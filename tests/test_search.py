@@ -269,7 +269,7 @@ def test_cli_demo_small(tmp_path):
     assert "the Van Ingen model CL-I" in proc.stdout and "misses the flight data" in proc.stdout
     assert "the Van Ingen model Cm-I" in (tmp_path / "story.md").read_text()
     page = (tmp_path / "report.html").read_text()
-    assert page.index("From the Van Ingen simulator model to the final model") < page.index("<h2>Figures</h2>")
+    assert page.index("From Van Ingen's models to structures at the floor") < page.index("<h2>Figures</h2>")
 
 
 def test_unknown_model_name_is_one_line_error(tiny):

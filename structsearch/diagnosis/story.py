@@ -96,7 +96,8 @@ def baseline_words(doc: Diagnosis) -> str:
     why = doc.baseline_reasons
     if not why:
         return ""
-    more = f"; {len(why) - REASONS_IN_LINE} more in story.md" if len(why) > REASONS_IN_LINE else ""
+    more = (f"; {len(why) - REASONS_IN_LINE} more, all listed at the top of story.md" if len(why) > REASONS_IN_LINE
+            else "")
     return f" (as fitted here NOT admissible: {'; '.join(why[:REASONS_IN_LINE])}{more})"
 
 

@@ -162,7 +162,10 @@ def write(doc: Diagnosis, out: Path) -> tuple[Path, Path]:
 
 def story_markdown(story: Story, command: str) -> str:
     """The Van Ingen -> final story: the lines, then each coefficient's rounds."""
-    lines = ["# From the Van Ingen simulator model to the final model", "", f"Made by `{command}`.", ""]
+    lines = ["# From Van Ingen's models to structures at the floor", "", f"Made by `{command}`.", "",
+             "Each coefficient's Van Ingen model (the simulator's) is diagnosed against the flight data and moves "
+             "are adopted until none passes its test; the path need not end at the thesis' final model (`structsearch "
+             "discover` searches for that).", "", f"\"Closes\": {CLOSES_DEFINITION}", ""]
     degenerate = [d for d in story.diagnoses.values() if d.baseline_reasons]
     if degenerate:
         lines += ["**The story starts from a baseline that is not admissible as fitted here** ("
@@ -170,7 +173,6 @@ def story_markdown(story: Story, command: str) -> str:
                   "the first moves partly repair the fit rather than add an effect. Why (the ranking's rules):", ""]
         lines += [f"- {d.baseline}: " + "; ".join(d.baseline_reasons) for d in degenerate] + [""]
     lines += [f"- {line}" for line in story.lines] + [""]
-    lines += [f"\"Closes\": {CLOSES_DEFINITION}", ""]
     for coef, doc in story.diagnoses.items():
         lines += [f"## {coef}: {doc.baseline} -> {doc.final_model}", ""]
         body = []
@@ -186,6 +188,14 @@ def story_markdown(story: Story, command: str) -> str:
                            tablefmt="github"), "",
                   f"Noise floor {doc.noise_floor:.4g}; explained: {'yes' if doc.explained else 'no'}. "
                   + unexplained_sentence(doc), ""]
+        ahead = [i + 1 for i, r in enumerate(doc.rounds) if r.adopted and r.effect(r.adopted) is not None
+                 and r.effect(r.adopted).verdict == "look-ahead"]
+        if ahead:
+            lines += [f"Round{'s' if len(ahead) > 1 else ''} {', '.join(map(str, ahead))}: a look-ahead, kept though "
+                      "its own test does not pass, because the next move passes against the structure before it "
+                      "(two moves that pay only together).", ""]
+        lines += ["The floor is the lowest validation MSE this diagnosis found (its structures and a library-free "
+                  "model of the residual); another structure can lie below it.", ""]
     return "\n".join(lines)
 
 

@@ -338,7 +338,7 @@ def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, di
              f"<p>{len(campaign.maneuvers)} maneuvers ({n_val} validation), {d.n_samples} samples. Models: "
              + ", ".join(f"{c} {html.escape(n)}" for c, n in names.items()) + ".</p>"]
     if story:
-        parts.append("<h2>From the Van Ingen simulator model to the final model</h2><ul>"
+        parts.append("<h2>From Van Ingen's models to structures at the floor</h2><ul>"
                      + "".join(f"<li>{html.escape(line)}</li>" for line in story) + "</ul>"
                      "<p>Details: story.md (made by <code>structsearch demo</code>).</p>")
     parts += [f"<p class='note'>{html.escape(n)}</p>" for n in notes]
