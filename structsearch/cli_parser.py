@@ -41,8 +41,8 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
                    help="search box of a nonlinear parameter, over the declared one (repeatable), "
                         "e.g. --bound tau2_ss=0:5")
     p.add_argument("--covariance", choices=COVARIANCE_KINDS, default=DEFAULT_COVARIANCE,
-                   help=f"covariance estimate of every fit (default {DEFAULT_COVARIANCE}, the best calibrated "
-                        "by `bench --calibration`)")
+                   help=f"covariance estimate of every fit (default {DEFAULT_COVARIANCE}: chosen on the calibration's "
+                        "tuning seeds, it meets every goal of `bench --calibration` on held-out ones)")
     p.add_argument("--segment", choices=SEGMENT_CHOICES, default=None,
                    help="cycles: cut every record into its cycles (a `cycle` column, else alpha's minima), each a "
                         "maneuver (ids m07.c1, m07.c2, ...; same kind and split); none: keep every record whole "

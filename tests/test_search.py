@@ -219,6 +219,33 @@ def test_refinement_drops_what_the_t_test_rejects(tiny, tmp_path):
     assert "junk" not in refined.params
 
 
+
+def test_a_declared_candidate_whose_truth_has_one_zero_term_is_refined_and_the_refinement_ranked_first(tiny,
+                                                                                                   tmp_path):
+    """Issue 30: the truth is a declared candidate with one term at zero (here de, of a one-state lift model); the
+    candidate fits, its t-test accepts that term at zero, refinement fits the candidate without it, and that
+    refined structure is admissible and ranked first."""
+    import dataclasses
+    from structsearch.fitting.models import build_model
+    from structsearch.fitting.specs import resolve_candidate
+    from structsearch.flight.synthetic import with_coefficient
+    spec = tmp_path / "grid.toml"
+    spec.write_text('name = "z"\ncoefficient = "CL"\nprefix = "Z-"\n'
+                    '[[entry]]\nregressors = { c0 = "1", k = "K_L(X)", q = "qstar", d = "de" }\n'
+                    'states = { "" = "Q" }\n')
+    declared = load_grid(str(spec)).candidates[0]
+    truth = {"a1": 25.0, "a_star": 0.28, "tau2": 0.15, "c0": 0.2, "k": 2.2, "q": 8.0, "d": 0.0}
+    data = with_coefficient(tiny.data, build_model(declared), truth, noise_sigma=0.02, noise_phi=0.9, seed=3)
+    campaign = dataclasses.replace(tiny, data=data)
+    result = search(campaign, str(spec), tmp_path / "out")
+    ranked = result.grids["z"]
+    full = next(r for r in ranked if r.name == declared.name)
+    assert not full.significant["d"], "the zero term is accepted at zero by its t-test"
+    first = ranked[0]
+    assert first.name == "Z-Ir-auto" and "d" not in first.params and first.admissible, [
+        (r.name, r.admissible, r.reasons) for r in ranked]
+    assert set(first.params) == set(full.params) - {"d"}
+
 @pytest.mark.slow
 def test_cli_fit_search_and_dask(tiny, tmp_path):
     data = str(tiny.directory)
