@@ -242,6 +242,63 @@ def test_statistics_at_a_given_solution_equal_those_of_a_solve_that_ends_there()
         assert given.stderr[n] == pytest.approx(solved.stderr[n], rel=1e-6), n
 
 
+def test_the_factor_of_a_joint_jacobian_block_by_block_is_that_of_the_whole_matrix():
+    """The joint problem's Jacobian is factorised block by block on each block's columns (its Phi is
+    block-diagonal): R^T R must be the whole column-scaled J^T J, and every statistic must be unchanged."""
+    from structsearch.engine.sandwich import scaled_factor
+    from structsearch.engine.snls import solve
+    a, b = _blocks()
+    problem = JointProblem((a, b), np.array([2.0, 0.5]), len(X))
+    theta, coef = np.array([0.7]), np.array([0.3, 1.1, -0.4, 2.0])
+    jac = model_jacobian(problem.evaluate(theta), coef, 1)
+    whole, scale = scaled_factor(jac)
+    blocked, scale_b = scaled_factor(jac, problem.jacobian_blocks())
+    np.testing.assert_allclose(scale_b, scale)
+    np.testing.assert_allclose(blocked.T @ blocked, whole.T @ whole, atol=1e-12)
+    np.testing.assert_allclose(blocked.T @ blocked, (jac / scale).T @ (jac / scale), atol=1e-12)
+    # a pattern that misses a non-zero column would be wrong: the pattern names every non-zero of the Jacobian
+    for rows, columns in problem.jacobian_blocks():
+        outside = np.delete(jac[rows], columns, axis=1)
+        assert not np.any(outside)
+    # the statistics with the blocked factor equal those of the same problem without its pattern
+    rng = np.random.default_rng(3)
+    y = problem.interleave([0.3 + 1.1 * np.exp(-0.7 * X) + 0.01 * rng.standard_normal(len(X)),
+                            -0.4 + 2.0 * X * np.exp(-0.7 * X) + 0.01 * rng.standard_normal(len(X))])
+    outcome = solve(problem, y, [1.0], [0.01], [5.0])
+
+    class Plain:   # the same problem without its Jacobian's pattern
+        nonlinear_names, linear_names = problem.nonlinear_names, problem.linear_names
+        evaluate = staticmethod(problem.evaluate)
+    kw = dict(boundaries=np.array([0, 2 * len(X)]), segment_names=("m",), lower=[0.01], upper=[5.0],
+              covariance="hac-maneuver", solution=outcome)
+    with_pattern, without = fit_problem(problem, y, **kw), fit_problem(Plain(), y, **kw)
+    for n in problem.nonlinear_names + problem.linear_names:
+        assert with_pattern.stderr[n] == pytest.approx(without.stderr[n], rel=1e-9), n
+    assert with_pattern.condition_number == pytest.approx(without.condition_number, rel=1e-9)
+
+
+def test_the_gauss_newton_relaxation_settles_where_the_solves_do(joint_and_sequential, simulated_campaign,
+                                                                 monkeypatch):
+    """The weight iteration takes one Gauss-Newton step per iteration; when the steps stop contracting it
+    solves each iteration's problem instead. Forced onto the solves after its first step (no step can
+    contract by a factor 0), the fit must settle where the steps settled: the same fixed point."""
+    import structsearch.fitting.joint as joint_module
+    from structsearch.fitting.options import FitOptions
+    from structsearch.fitting.specs import find_candidate
+    joint, _ = joint_and_sequential
+    assert joint.weights_settled and "Gauss-Newton" in joint.result.message
+    campaign = simulated_campaign(seed=4, scale=0.1)
+    monkeypatch.setattr(joint_module, "CONTRACTION", 0.0)
+    solved = joint_module.fit_joint([find_candidate(n) for n in ("CL-VI", "CD-IXr", "Cm-XXXIIIr")],
+                                    campaign.split("train"), campaign.split("validation"), FitOptions(n_starts=1))
+    assert solved.weights_settled and solved.result.converged and "Gauss-Newton" not in solved.result.message
+    r, s = joint.result, solved.result
+    for n in r.names:
+        # both stop within 1e-3 of the box of the fixed point: far inside the standard deviation
+        assert abs(r.params[n] - s.params[n]) < 0.25 * s.stderr[n], (n, r.params[n], s.params[n], s.stderr[n])
+        assert r.stderr[n] == pytest.approx(s.stderr[n], rel=0.05), n
+
+
 def test_drag_and_pitch_under_the_joint_lift_model(joint_and_sequential, simulated_campaign):
     """A drag or pitch candidate fitted on the joint lift (search --joint-lift) reproduces the joint fit's own
     block (given the lift estimate, both are the same least-squares problem), and its two-step covariance has

@@ -88,7 +88,7 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
     # one QR of the m x p Jacobian serves the rank test, condition and covariance; an OLS Jacobian is Phi,
     # whose projection factorised it already
     factor = scaled_factor_from_qr(jac, proj.r, proj.columns) if k == 0 and proj.rank == jac.shape[1] \
-        else scaled_factor(jac)
+        else scaled_factor(jac, problem.jacobian_blocks() if hasattr(problem, "jacobian_blocks") else None)
     reasons.update(rank_reasons(jac, names, skip=tuple(reasons), factor=factor[0]))
     basis = covariance_basis(jac, names, reasons, k)
     everything = bool(np.all(basis)) and bool(np.all(np.isfinite(jac)))

@@ -47,8 +47,9 @@ def rank_reasons(jac: np.ndarray, names: Sequence[str], skip: Sequence[str] = ()
     keep = [i for i, n in enumerate(names) if n not in set(skip)]
     if not keep:
         return {}
-    sub = jac[:, keep]
-    norms = np.sqrt(np.sum(sub * sub, axis=0))
+    # no copy of the m x p Jacobian (and no m x p temporary for the norms) when every column is kept
+    sub = jac if len(keep) == jac.shape[1] else jac[:, keep]
+    norms = np.sqrt(np.einsum("ij,ij->j", sub, sub))
     out = {}
     zero = norms == 0
     for i in np.flatnonzero(zero | ~np.isfinite(norms)):

@@ -96,6 +96,19 @@ class JointProblem:
         return Evaluation(phi, dphi, np.concatenate(rows) if rows else np.zeros(0, int),
                           np.concatenate(params) if params else np.zeros(0, int))
 
+    def jacobian_blocks(self) -> list[tuple[slice, list[int]]]:
+        """The non-zero pattern of the model Jacobian [DPhi c, Phi] of :meth:`evaluate`: block b's rows are non-zero
+        only in the columns of its nonlinear parameters and of its own linear coefficients (for
+        :func:`structsearch.engine.sandwich.scaled_factor`)."""
+        names, k = self.nonlinear_names, len(self.nonlinear_names)
+        out, offset = [], k
+        for b, block in enumerate(self.blocks):
+            n_lin = len(block.linear_names)
+            out.append((self.block_rows(b), [names.index(n) for n in block.nonlinear_names]
+                        + list(range(offset, offset + n_lin))))
+            offset += n_lin
+        return out
+
     def reduce(self, theta: np.ndarray, y: np.ndarray) -> Reduced | None:
         """The reduced problem block by block: Phi is block-diagonal, so its projection is each block's own
         (a QR of m_b x n_b per block instead of one of (B m_b) x (sum n_b)), and each block's Golub-Pereyra
