@@ -253,6 +253,20 @@ def test_fold_plans_for_few_records(tmp_path):
     assert plan_folds(whole, 0).note == "no cross-validation asked (0 folds)"
 
 
+def test_blocked_folds_last_the_campaigns_own_shortest_maneuver(tmp_path):
+    """campaign.toml's min_convective_times sets the shortest block of a blocked fold, as it sets the shortest
+    maneuver: the four-cycle run (about 256 cbar/V) holds five blocks of the default 30 cbar/V, two of 100."""
+    import structsearch
+    short = from_segments([_steady(500, 1e-3, V)], names=["a"], constants={"cbar": CBAR})   # 38 cbar/V
+    assert plan_folds(short, 5, 3, block_convective_times=15.0).n_folds == 2
+    assert plan_folds(short, 5, 3, block_convective_times=0.0).n_folds == 5   # the sample rule alone
+    default = structsearch.fit(_wind_tunnel(tmp_path / "default"), "CL-II", starts=1).to_dict()
+    own = structsearch.fit(_wind_tunnel(tmp_path / "own", extra="min_convective_times = 100\n"), "CL-II",
+                           starts=1).to_dict()
+    assert default["cross_validation"]["folds"] == 5
+    assert own["cross_validation"]["scheme"] == "blocks" and own["cross_validation"]["folds"] == 2
+
+
 def test_a_blocked_fold_flies_the_states_over_the_whole_record():
     """Noise-free C_L of CL-II: every blocked fold recovers the truth from the other blocks, so the held-out
     residuals vanish. A fold fitted on the kept pieces as maneuvers of their own would restart its states at the

@@ -48,10 +48,15 @@ def parameter_boxes(bounds: Bounds) -> tuple:
 def fit_options(starts: int, seed: int, covariance: str, bounds: Bounds, campaign: Campaign | None = None,
                 **more: Any) -> FitOptions:
     """The commands' FitOptions; with the ``campaign``, its cross-validation folds leave one cycle out when its
-    training maneuvers are cycles of periodic records (:func:`structsearch.fitting.folds.fold_size_for`)."""
+    training maneuvers are cycles of periodic records (:func:`structsearch.fitting.folds.fold_size_for`), and
+    blocked folds last at least the campaign's shortest maneuver worth fitting
+    (:func:`structsearch.fitting.folds.block_convective_times`)."""
     if campaign is not None and "cv_fold_size" not in more:
         from ..fitting.folds import fold_size_for
         more["cv_fold_size"] = fold_size_for(campaign.maneuvers)
+    if campaign is not None and "cv_block_convective_times" not in more:
+        from ..fitting.folds import block_convective_times
+        more["cv_block_convective_times"] = block_convective_times(campaign)
     return FitOptions(n_starts=starts, seed=seed, covariance=covariance, parameter_boxes=parameter_boxes(bounds),
                       **more)
 

@@ -80,7 +80,7 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
         if context is not None and not options.scores_only:
             result = with_lift_uncertainty(result, model, measured, lift, context, options.covariance)
         scores = {}
-        plan = plan_folds(train, options.cv_folds, options.cv_fold_size)
+        plan = plan_folds(train, options.cv_folds, options.cv_fold_size, options.cv_block_convective_times)
         if plan.folds:   # scored per unit held out: per maneuver, or per block of a record
             y = train[c.coefficient]
             scores["cv"] = SplitScores.of(ManeuverScores.of(y, cross_validate(model, train, result, plan,

@@ -12,7 +12,8 @@ kind. Four cycles give four folds (leave one cycle out).
 ``blocks`` (blocked folds of contiguous time): with one or two training maneuvers (one or two long records,
 not cut into cycles) there is no maneuver to leave out. Each record is cut into K contiguous blocks of equal
 length, K = min(:data:`~.options.CV_FOLDS`, the most blocks that each last the shortest maneuver worth fitting:
-:data:`structsearch.data.records.MIN_CONVECTIVE_TIMES` convective times cbar/V and
+the campaign's ``min_convective_times`` convective times cbar/V (:data:`structsearch.data.records.MIN_CONVECTIVE_TIMES`
+unless campaign.toml sets it; the least over the training maneuvers' kinds, :func:`block_convective_times`) and
 :data:`~structsearch.data.records.MIN_SAMPLES` samples); fold j holds out the j-th block of every record. Five,
 as for maneuvers: each fold's fit keeps 80 % of the record; blocks of at least a maneuver's length hold whole
 separation transients, and the residual correlation that leaks across a block's two edges (a few time constants)
@@ -81,9 +82,11 @@ def maneuver_plan(train: FlightData, folds: Iterable[Iterable[int]]) -> FoldPlan
                     f"{len(folds)} folds of the training maneuvers" if folds else "no folds given")
 
 
-def plan_folds(train: FlightData, folds: int = CV_FOLDS, fold_size: int = CV_MIN_MANEUVERS) -> FoldPlan:
+def plan_folds(train: FlightData, folds: int = CV_FOLDS, fold_size: int = CV_MIN_MANEUVERS,
+               block_convective_times: float = MIN_CONVECTIVE_TIMES) -> FoldPlan:
     """The folds of ``train`` (module docstring): ``folds`` at most (0: none), ``fold_size`` maneuvers at least
-    per fold in the maneuver-grouped scheme."""
+    per fold in the maneuver-grouped scheme, blocks of ``block_convective_times`` cbar/V at least in the blocked
+    one."""
     n = train.n_segments
     units = _units_of(train)
     if folds <= 0:
@@ -99,11 +102,11 @@ def plan_folds(train: FlightData, folds: int = CV_FOLDS, fold_size: int = CV_MIN
         return FoldPlan("none", (), units,
                         f"no cross-validation: {n} training maneuvers make fewer than two folds of {fold_size} "
                         "(a fold keeps maneuvers of every kind); compared on the validation maneuvers")
-    k = min(folds, min(_most_blocks(train, s) for s in train.segment_slices()))
+    k = min(folds, min(_most_blocks(train, s, block_convective_times) for s in train.segment_slices()))
     if k < 2:
         return FoldPlan("none", (), units,
                         f"no cross-validation: {n} training record{'s' if n > 1 else ''} too short for two blocks "
-                        f"of {MIN_CONVECTIVE_TIMES:g} convective times cbar/V and {MIN_SAMPLES} samples; compared "
+                        f"of {block_convective_times:g} convective times cbar/V and {MIN_SAMPLES} samples; compared "
                         "on the validation maneuvers")
     blocks = []
     for s in train.segment_slices():
@@ -121,14 +124,23 @@ def _duration(data: FlightData, rows: slice) -> float:
     return float(t[-1] - t[0])
 
 
-def _most_blocks(data: FlightData, rows: slice) -> int:
-    """How many blocks of the shortest maneuver worth fitting one record holds (the sample rule alone when the
-    data carry no cbar or airspeed)."""
+def _most_blocks(data: FlightData, rows: slice, convective_times: float = MIN_CONVECTIVE_TIMES) -> int:
+    """How many blocks of the shortest maneuver worth fitting (``convective_times`` cbar/V and MIN_SAMPLES
+    samples) one record holds (the sample rule alone when the data carry no cbar or airspeed, or the rule asks
+    for no convective time)."""
     count = (rows.stop - rows.start) // MIN_SAMPLES
-    if "cbar" in data.constants and "V" in data:
+    if "cbar" in data.constants and "V" in data and convective_times > 0:
         unit = float(data.constants["cbar"]) / float(np.mean(data["V"][rows]))
-        count = min(count, math.floor(_duration(data, rows) / (MIN_CONVECTIVE_TIMES * unit)))
+        count = min(count, math.floor(_duration(data, rows) / (convective_times * unit)))
     return int(count)
+
+
+def block_convective_times(campaign) -> float:
+    """The shortest block of a blocked fold in convective times: the campaign's rule for the shortest maneuver
+    worth fitting (campaign.toml ``min_convective_times``), the least over its training maneuvers' kinds."""
+    kinds = {m.kind for m in campaign.maneuvers if m.split == "train"}
+    rules = campaign.length_rules
+    return min((rules.for_kind(k).min_convective_times for k in kinds), default=rules.default)
 
 
 def fold_size_for(maneuvers: Sequence) -> int:

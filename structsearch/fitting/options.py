@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Iterable
 
 from ..data.errors import StructSearchError
+from ..data.records import MIN_CONVECTIVE_TIMES
 from ..engine.statistics import DEFAULT_COVARIANCE
 
 # Cross-validation folds over the training maneuvers (fewer when a fold would hold fewer than
@@ -37,6 +38,9 @@ class FitOptions:
     # least maneuvers a maneuver-grouped fold holds: CV_MIN_MANEUVERS (every fold keeps every kind); 1 when the
     # training maneuvers are cycles of periodic records (.folds.fold_size_for: leave one cycle out)
     cv_fold_size: int = CV_MIN_MANEUVERS
+    # the shortest block of a blocked fold, in convective times cbar/V: the campaign's own rule for the shortest
+    # maneuver worth fitting (campaign.toml min_convective_times, the least over its training maneuvers' kinds)
+    cv_block_convective_times: float = MIN_CONVECTIVE_TIMES
     # A screening fit (a structure search's first look at a move): estimates and scores only. Its covariance is
     # the white one, conditional on the lift model, and it has no centred correlations: no statistic of it is
     # reported or judged; the structures a search keeps are fitted again in full.
@@ -56,6 +60,8 @@ class FitOptions:
             key["cv_method"] = self.cv_method
         if self.cv_fold_size != CV_MIN_MANEUVERS:
             key["cv_fold_size"] = self.cv_fold_size
+        if self.cv_block_convective_times != MIN_CONVECTIVE_TIMES:
+            key["cv_block_convective_times"] = self.cv_block_convective_times
         if self.scores_only:
             key["scores_only"] = True
         return key
