@@ -163,6 +163,19 @@ def test_fit_profile_writes_the_fields(campaign_on_disk, run_cli, tmp_path):
             assert (p[f"reason_{side}"] is not None) >= p[f"open_{side}"]
     text = (out / "fit.md").read_text()
     assert "## Profile intervals of the nonlinear parameters" in text and "95% Wald" in text
+    # the numbers are the fit's own: the Wald interval is estimate +- t(dof) * stderr of the same fit.json, and the
+    # profile bounds are those the Python API computes on the same campaign
+    from scipy import stats
+    import structsearch
+    api = structsearch.fit(campaign.directory, "X S", starts=1, profile=True).profile
+    for name, p in prof["parameters"].items():
+        assert p["estimate"] == pytest.approx(doc["params"][name], rel=1e-12)
+        assert p["dof"] == pytest.approx(doc["reference_dof"][name])
+        q = stats.t.ppf(0.975, doc["reference_dof"][name])
+        assert p["wald_low"] == pytest.approx(doc["params"][name] - q * doc["stderr"][name], rel=1e-9)
+        assert p["wald_high"] == pytest.approx(doc["params"][name] + q * doc["stderr"][name], rel=1e-9)
+        mine = api[name].interval(0.95)
+        assert (p["low"], p["high"]) == pytest.approx((mine.low, mine.high), rel=1e-9)
 
 
 def test_fit_profile_is_refused_with_a_joint_fit(tmp_path, capsys):
