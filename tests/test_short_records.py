@@ -200,6 +200,37 @@ def test_cutting_as_read_and_cutting_in_memory_give_the_same_data(tmp_path):
         np.testing.assert_array_equal(as_read.data[column], in_memory.data[column])
 
 
+def test_segment_none_joins_written_cycles_back_into_their_records(tmp_path):
+    """A campaign written as cycles (each names its record) stays cut when read again; --segment none joins each
+    record's cycles back into one maneuver, equal to the record over the rows the cycles cover. Cycles that do not
+    follow one another are one error naming the record."""
+    import shutil
+    path = _wind_tunnel(tmp_path / "wt")
+    cut = read_campaign(path, segment="cycles")
+    written = write_campaign(cut, tmp_path / "written")
+    again = read_campaign(written)
+    assert again.data.names == cut.data.names and all(m.record for m in again.maneuvers)
+    joined = read_campaign(written, segment="none")
+    assert joined.data.names == ("run1", "run2") and not any(m.record for m in joined.maneuvers)
+    assert [m.split for m in joined.maneuvers] == ["train", "validation"]
+    assert joined.data.n_samples == cut.data.n_samples
+    for column in ("t", "alpha", "alpha_dot", "CL"):
+        np.testing.assert_allclose(joined.data[column], cut.data[column], rtol=1e-9, atol=1e-12)
+    whole = read_campaign(path)
+    first = whole.data.segment_slices()[0]
+    t_whole, t_joined = whole.data["t"][first], joined.data["t"][joined.data.segment_slices()[0]]
+    a = int(np.searchsorted(t_whole, t_joined[0] - 1e-9))
+    np.testing.assert_allclose(t_joined, t_whole[a:a + len(t_joined)], rtol=1e-9)
+    # a cycle removed from the written campaign: its neighbours no longer follow one another
+    broken = tmp_path / "broken"
+    shutil.copytree(written, broken)
+    toml = (broken / "campaign.toml").read_text()
+    entries = toml.split("[[maneuver]]")
+    (broken / "campaign.toml").write_text("[[maneuver]]".join(entries[:2] + entries[3:]))
+    with pytest.raises(DataError, match=r"--segment none: the cycles of record 'run1' do not follow one another"):
+        read_campaign(broken, segment="none")
+
+
 def test_a_cycle_too_short_is_an_error_naming_the_record_and_the_cycle(tmp_path):
     """Never dropped: a named cycle of 0.2 s (15 convective times), and a record whose cycles from alpha last 0.3 s
     each (23 convective times), are errors naming the file, the record, the cycle and its first row."""

@@ -250,7 +250,8 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
 def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | None = None) -> Campaign:
     """Read and validate a campaign directory: a standard one (docs/interfaces.md section 1), or with ``fmt="raw"``
     a raw flight-test campaign (section 5.2). Top-level keys other than the name and format are kept in
-    ``Campaign.extra``. ``segment``: "cycles" cuts every record into its cycles, "none" none; None (default) as
+    ``Campaign.extra``. ``segment``: "cycles" cuts every record into its cycles, "none" none (and joins cycles a
+    campaign was written as back into their records); None (default) as
     each [[maneuver]]'s ``segment`` key says, else the records whose file has a ``cycle`` column
     (:mod:`structsearch.data.records`)."""
     directory = Path(directory)
@@ -286,6 +287,8 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
         raise DataError(f"maneuver id {twice!r} appears twice once the records are cut into cycles", source=toml,
                         column="id")
     maneuvers = pieces
+    if segment == "none":
+        maneuvers, segments = _join_written_cycles(maneuvers, segments, toml)
     # keep only the columns every maneuver has: optional columns must be all-or-nothing
     common = set.intersection(*(set(s) for s in segments))
     for m, s in zip(maneuvers, segments):
@@ -300,6 +303,38 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     if fmt == "raw":
         extra["format"] = "raw"
     return Campaign(name, aircraft, tuple(maneuvers), data, directory, extra, cutoffs, rules)
+
+
+def _join_written_cycles(maneuvers: list, segments: list, toml: str) -> tuple[list, list]:
+    """``segment="none"`` on a campaign written as cycles (each carries ``record``): the consecutive cycles of one
+    record joined back into one maneuver named after the record, as if it had never been cut. The cycles cover the
+    record from its first cut to its last, contiguously; cycles that do not follow one another in time (one was
+    removed, or two records share a name) are one error naming the record."""
+    out_m, out_s = [], []
+    i = 0
+    while i < len(maneuvers):
+        m = maneuvers[i]
+        j = i + 1
+        while m.record and j < len(maneuvers) and maneuvers[j].record == m.record:
+            j += 1
+        if j - i == 1 or not m.record:
+            out_m.append(maneuvers[i])
+            out_s.append(segments[i])
+            i = j
+            continue
+        parts = segments[i:j]
+        for a, b, name in zip(parts, parts[1:], [x.id for x in maneuvers[i + 1:j]]):
+            dt = float(np.median(np.diff(a["t"]))) if len(a["t"]) > 1 else float("nan")
+            gap = float(b["t"][0] - a["t"][-1])
+            if not (np.isfinite(dt) and 0.5 * dt < gap < 1.5 * dt):
+                raise DataError(f"--segment none: the cycles of record {m.record!r} do not follow one another in "
+                                f"time ({name} starts {gap:.4g} s after the cycle before it, the sample time is "
+                                f"{dt:.4g} s): they cannot be joined into one record", source=toml, column="record")
+        keys = set.intersection(*(set(p) for p in parts))
+        out_m.append(replace(m, id=m.record, record=""))
+        out_s.append({k: np.concatenate([np.asarray(p[k]) for p in parts]) for k in keys})
+        i = j
+    return out_m, out_s
 
 
 def _pieces(m: Maneuver, columns: dict, path: Path, entry: dict, segment: str | None, rules: records.LengthRules,
