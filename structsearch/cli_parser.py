@@ -46,7 +46,8 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
     p.add_argument("--segment", choices=SEGMENT_CHOICES, default=None,
                    help="cycles: cut every record into its cycles (a `cycle` column, else alpha's minima), each a "
                         "maneuver (ids m07.c1, m07.c2, ...; same kind and split); none: keep every record whole, "
-                        "and join a campaign written as cycles back into its records (default: as campaign.toml's segment keys say, and records with a `cycle` column cut)")
+                        "and join a campaign written as cycles back into its records (default: as campaign.toml's "
+                        "segment keys say, and records with a `cycle` column cut)")
 
 
 def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
