@@ -299,6 +299,50 @@ def test_the_gauss_newton_relaxation_settles_where_the_solves_do(joint_and_seque
         assert r.stderr[n] == pytest.approx(s.stderr[n], rel=0.05), n
 
 
+@pytest.mark.parametrize("lift_parameter", ["CL_KL_ss", "tau1_ss", "a_star_w"])
+def test_the_path_through_the_lift_output_is_its_finite_difference(joint_and_sequential, simulated_campaign,
+                                                                     lift_parameter):
+    """J + K, the joint model's derivative with the C_L that drag and pitch read moving with the lift parameters,
+    against a central difference of the drag and pitch predictions with C_L recomputed from the moved lift model."""
+    from structsearch.fitting.joint import lift_output_jacobian
+    from structsearch.fitting.models import build_model, model_with_lift, with_lift_prediction
+    joint, _ = joint_and_sequential
+    train = simulated_campaign(seed=4, scale=0.1).split("train")
+    problem, order, params = joint.problem, joint.candidates, dict(joint.result.params)
+    models = [build_model(c) if c.coefficient == "CL" else model_with_lift(c, {}) for c in order]
+    names = tuple(problem.nonlinear_names) + tuple(problem.linear_names)
+    k = len(problem.nonlinear_names)
+    theta = np.array([params[n] for n in problem.nonlinear_names])
+    coef = np.array([params[n] for n in problem.linear_names])
+    jac = model_jacobian(problem.evaluate(theta), coef, k)
+    total = jac + lift_output_jacobian(problem, order, models, train, joint.lift, params, jac)
+    lift_names = build_model(joint.lift).nonlinear_names + build_model(joint.lift).linear_names
+    column = names.index(lift_parameter)
+    h = 1e-5 * max(abs(params[lift_parameter]), 1e-2)
+
+    def drag_and_pitch(shift):
+        moved = {**params, lift_parameter: params[lift_parameter] + shift}
+        seen = with_lift_prediction(train, {n: moved[n] for n in lift_names}, joint.lift)
+        return [np.sqrt(problem.weights[b]) * m.predict(seen, {n: moved[n] for n in m.nonlinear_names + m.linear_names})
+                for b, m in enumerate(models) if order[b].coefficient != "CL"]
+
+    up, down = drag_and_pitch(h), drag_and_pitch(-h)
+    blocks = [b for b, c in enumerate(order) if c.coefficient != "CL"]
+    for b, u, d in zip(blocks, up, down):
+        numeric = (u - d) / (2 * h)
+        analytic = total[b::problem.n_blocks, column]
+        assert np.max(np.abs(numeric)) > 0
+        np.testing.assert_allclose(analytic, numeric, rtol=1e-4, atol=1e-6 * np.max(np.abs(numeric)))
+    # without the C_L path (J alone) the drag and pitch rows would miss it
+    assert not np.allclose(jac[blocks[0]::problem.n_blocks, column], (up[0] - down[0]) / (2 * h), rtol=1e-3)
+
+
+def test_the_joint_covariance_counts_the_lift_output(joint_and_sequential):
+    """The joint fit's covariance has the bread J^T (J + K): it says so, and it is not the conditional one."""
+    joint, _ = joint_and_sequential
+    assert "C_L drag and pitch read" in (joint.result.estimates.generated_regressors or "")
+
+
 def test_drag_and_pitch_under_the_joint_lift_model(joint_and_sequential, simulated_campaign):
     """A drag or pitch candidate fitted on the joint lift (search --joint-lift) reproduces the joint fit's own
     block (given the lift estimate, both are the same least-squares problem), and its two-step covariance has
