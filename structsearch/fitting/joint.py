@@ -18,10 +18,10 @@ linear solves (a GLS across coefficients) and lose the block-separable projectio
 C_L in drag and pitch. As in the sequential fit, drag and pitch read the lift model's output, not the measured
 C_L (buffet noise would bias them as errors in variables). In the joint fit it is the lift block's output at
 the current iterate: the weight iteration updates it with the weights, so at the fixed point drag and pitch
-see the C_L of the jointly estimated lift model. Its dependence on the lift parameters is not differentiated
-through: the drag and pitch blocks treat it as data within one solve, so the joint covariance (and the influence
-series :func:`joint_lift` hands a search) is conditional on that C_L. The sequential two-step covariance carries
-it; here it is a known omission, which matters where drag or pitch lean on C_L (C_L^2 in drag).
+see the C_L of the jointly estimated lift model. The drag and pitch blocks treat it as data within one step, so
+the estimating equations are J^T r = 0 with J at a fixed C_L; the joint covariance counts the C_L path in the
+estimator's bread (:func:`_through_the_lift_output`). The influence series :func:`joint_lift` hands a search
+are still conditional on that C_L (a known omission, which matters where drag or pitch lean on C_L).
 
 Statistics are the stacked problem's, with the options' covariance (``hac-maneuver`` by default: a maneuver's
 rows of every coefficient are one record), identifiability, convergence and bound flags as in every fit.
