@@ -89,3 +89,16 @@ def test_a_start_of_another_coefficient_is_refused(data_dir, run_cli, tmp_path):
     assert "CL-VI" in line and "CD" in line
     line = _refused(run_cli, ["--data", data_dir, "--coefficient", "CD", "--from", "CD-nonesuch"], tmp_path / "o")
     assert "CD-nonesuch" in line
+
+
+@pytest.mark.parametrize("excess, se, within, verdict", [
+    (0.001, 0.002, True, "yes"),      # inside the bar
+    (0.05, 0.01, False, "no"),        # worse by more than the bar
+    (-0.086, 0.011, True, "better"),  # below the reference by more than the bar: not "within noise"
+    (-0.005, 0.002, True, "yes"),     # below, but inside the 1 % floor of the bar
+    (float("nan"), None, None, "-"),
+])
+def test_the_comparison_says_better_where_the_discovered_structure_is_below_the_bar(excess, se, within, verdict):
+    from types import SimpleNamespace
+    from structsearch.report.discovery_doc import noise_verdict
+    assert noise_verdict(SimpleNamespace(excess=excess, excess_se=se, within_noise=within)) == verdict

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import math
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,17 @@ from .diagnosis_doc import public
 
 PATH_COLUMNS = ("step", "move", "kind", "effect", "structure", "mse_validation", "mse_cv", "p_value", "threshold",
                 "shrink", "phase", "alpha_band", "verdict")
+
+
+def noise_verdict(c, missing: str = "-") -> str:
+    """The comparison's verdict by the one-standard-error rule: "yes" within noise, "no" worse, and "better" where
+    the discovered structure's excess is below minus the bar (the rule's "within noise" would hide it)."""
+    if c.within_noise is None:
+        return missing
+    bar = max(c.excess_se, 0.01) if c.excess_se is not None and math.isfinite(c.excess_se) else 0.01
+    if c.excess is not None and math.isfinite(c.excess) and c.excess < -bar:
+        return "better"
+    return "yes" if c.within_noise else "no"
 
 
 def _g(x, fmt=".4g") -> str:
@@ -102,11 +114,12 @@ def markdown(found: Discovery, command: str = "") -> str:
     lines += ["## Against the grid and the thesis", ""]
     body = [[c.role, c.name, c.n_params, _g(c.mse_validation), _g(c.mse_cv), "yes" if c.admissible else "no",
              _g(c.excess, "+.1%"), _g(c.excess_se, ".1%"),
-             "-" if c.within_noise is None else ("yes" if c.within_noise else "no")] for c in found.comparison]
+             noise_verdict(c)] for c in found.comparison]
     lines += [tabulate(body, headers=["role", "structure", "parameters", "validation MSE", "CV MSE", "admissible",
                                       "discovered's excess", "se", "within noise"], tablefmt="github"), "",
               "The discovered structure's per-maneuver relative excess of out-of-sample MSE over each reference; "
-              "within noise by the ranking's one-standard-error rule.", ""]
+              "within noise by the ranking's one-standard-error rule (within one standard error or 1 %); \"better\" "
+              "where the discovered structure is below the reference by more than that.", ""]
     said = set()
     for c in found.comparison[1:]:
         mine = set(found.comparison[0].terms)
@@ -144,6 +157,6 @@ def discovery_console_lines(found: Discovery, out: Path) -> list[str]:
                      f"p {_g(p.p_value, '.2g')}, closes {_g(c, '.0%')} of the start's gap)")
     for c in found.comparison[1:]:
         lines.append(f"  against {c.role} {c.name}: excess {_g(c.excess, '+.1%')} +- {_g(c.excess_se, '.1%')}, "
-                     f"within noise: {'n/a' if c.within_noise is None else 'yes' if c.within_noise else 'no'}")
+                     f"within noise: {noise_verdict(c, 'n/a')}")
     lines.append(f"wrote {out / 'discover.json'}, discover.md, path.csv and {f.spec}")
     return lines
