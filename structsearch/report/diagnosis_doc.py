@@ -165,7 +165,13 @@ def story_markdown(story: Story, command: str) -> str:
     lines = ["# From Van Ingen's models to structures at the floor", "", f"Made by `{command}`.", "",
              "Each coefficient's Van Ingen model (the simulator's) is diagnosed against the flight data and moves "
              "are adopted until none passes its test; the path need not end at the thesis' final model (`structsearch "
-             "discover` searches for that).", "", f"\"Closes\": {CLOSES_DEFINITION}", ""]
+             "discover` searches for that).", "", f"\"Closes\": {CLOSES_DEFINITION}", "",
+             "Adopted: a move whose test (column \"p (test)\": the Wald test of a nested move's new parameters, else "
+             "a paired out-of-sample test) rejects at 0.10 divided by the number of moves tried at that round "
+             "(Bonferroni), and none once the structure is at the floor; a small p in a round that adopts nothing "
+             "did not reach that bar. \"CL-story\" is the lift structure the C_L story reached, offered to drag and "
+             "pitch beside the thesis' CL-VI. A replay figure is as measured: a first move that repairs a fit or "
+             "swaps the lift model may replay worse before the next moves build on it.", ""]
     degenerate = [d for d in story.diagnoses.values() if d.baseline_reasons]
     if degenerate:
         lines += ["**The story starts from a baseline that is not admissible as fitted here** ("
