@@ -333,7 +333,9 @@ def _through_the_lift_output(result: FitResult, problem: JointProblem, order, mo
     try:
         t = np.linalg.solve(a + j.T @ e, a)
     except np.linalg.LinAlgError:
-        return r
+        # said, not hidden: the covariance stays the one conditional on the C_L drag and pitch read
+        return replace(r, generated_regressors="NOT the C_L drag and pitch read: the bread J^T (J + K) is singular; "
+                                               "conditional on that C_L")
     keep = np.ix_(basis, basis)
 
     def moved(cov):
