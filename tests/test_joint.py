@@ -337,10 +337,37 @@ def test_the_path_through_the_lift_output_is_its_finite_difference(joint_and_seq
     assert not np.allclose(jac[blocks[0]::problem.n_blocks, column], (up[0] - down[0]) / (2 * h), rtol=1e-3)
 
 
-def test_the_joint_covariance_counts_the_lift_output(joint_and_sequential):
-    """The joint fit's covariance has the bread J^T (J + K): it says so, and it is not the conditional one."""
+def test_the_joint_covariance_counts_the_lift_output(joint_and_sequential, simulated_campaign):
+    """The reported joint covariance is T C T^T, C the one conditional on the C_L drag and pitch read (the stacked
+    problem's own statistics at the same solution) and T = (J^T (J + K))^-1 J^T J; it says so, and it is wider
+    than the conditional one on the shared states."""
+    from structsearch.engine.snls import Outcome
+    from structsearch.fitting.joint import lift_output_jacobian
+    from structsearch.fitting.models import build_model, model_with_lift, with_lift_prediction
     joint, _ = joint_and_sequential
-    assert "C_L drag and pitch read" in (joint.result.estimates.generated_regressors or "")
+    train = simulated_campaign(seed=4, scale=0.1).split("train")
+    problem, order, r = joint.problem, joint.candidates, joint.result
+    params = dict(r.params)
+    models = [build_model(c) if c.coefficient == "CL" else model_with_lift(c, {}) for c in order]
+    lift_names = build_model(joint.lift).nonlinear_names + build_model(joint.lift).linear_names
+    seen = with_lift_prediction(train, {n: params[n] for n in lift_names}, joint.lift)
+    y = problem.interleave([(train if c.coefficient == "CL" else seen)[c.coefficient] for c in order])
+    k = len(problem.nonlinear_names)
+    theta = np.array([params[n] for n in problem.nonlinear_names])
+    coef = np.array([params[n] for n in problem.linear_names])
+    solution = Outcome(theta, theta, coef, 0.0, 1, 1, 1, "given", True)
+    conditional = fit_problem(problem, y, boundaries=problem.boundaries(train.bounds), segment_names=train.names,
+                              lower=np.full(k, -1e9), upper=np.full(k, 1e9), covariance="hac-maneuver",
+                              solution=solution)
+    jac = model_jacobian(problem.evaluate(theta), coef, k)
+    extra = lift_output_jacobian(problem, order, models, train, joint.lift, params, jac)
+    a = jac.T @ jac
+    t = np.linalg.solve(a + jac.T @ extra, a)
+    expected = t @ conditional.covariance @ t.T
+    np.testing.assert_allclose(r.covariance, expected, rtol=1e-6, atol=1e-14)
+    assert "C_L drag and pitch read" in r.estimates.generated_regressors
+    wider = [n for n in joint.shared if r.stderr[n] > conditional.stderr[n]]
+    assert len(wider) >= len(joint.shared) // 2, {n: (r.stderr[n], conditional.stderr[n]) for n in joint.shared}
 
 
 def test_drag_and_pitch_under_the_joint_lift_model(joint_and_sequential, simulated_campaign):
