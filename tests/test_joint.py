@@ -162,6 +162,7 @@ def test_the_joint_fit_document(joint_and_sequential):
         assert {"model", "parameters", "stderr", "mse", "r2"} <= set(entry)
         assert set(entry["mse"]) == {"train", "validation"}
     assert doc["covariance"]["kind"] == "hac-maneuver" and doc["weights_settled"] is True
+    assert "C_L drag and pitch read" in doc["covariance"]["accounts_for"]
     # bands for every coefficient on one alpha grid, with the joint covariance
     static = doc["bands"]["static"]
     for coef in ("CL", "CD", "Cm"):

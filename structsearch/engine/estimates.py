@@ -284,7 +284,8 @@ class ParameterEstimates:
         the kind, its bandwidth (HAC kinds) or groups (the maneuvers of the per-maneuver kinds), the lags of a
         Toeplitz estimate, and each parameter's reference degrees of freedom. A kind that groups by flight also
         says what it grouped (``grouped_by``: "flights", with ``groups`` the number of flights, or "maneuvers" when
-        the campaign records none)."""
+        the campaign records none). ``accounts_for``, when present, says what the covariance counts beyond the
+        fit's own residuals (a drag or pitch fit: the lift model's estimation error; a joint fit: the C_L path)."""
         kind = covariance_kind(self.covariance_kind)
         record = {"kind": self.covariance_kind, "bandwidth": self.bandwidth,
                   "groups": self.n_maneuvers if kind.per_maneuver else None, "max_lag": self.max_lag,
@@ -293,6 +294,8 @@ class ParameterEstimates:
             by_flight = self.n_flights is not None
             record.update(groups=self.n_flights if by_flight else self.n_maneuvers,
                           grouped_by="flights" if by_flight else "maneuvers")
+        if self.generated_regressors:   # what the covariance counts beyond this fit's own residuals
+            record["accounts_for"] = self.generated_regressors
         return json_ready(record)
 
     # ----- serialisation -----------------------------------------------------

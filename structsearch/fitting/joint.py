@@ -289,7 +289,8 @@ def lift_output_jacobian(problem: JointProblem, order, models, train: FlightData
     block's own rows of ``jac`` (its model Jacobian, unweighted by 1 / sqrt(w_lift)), the first a central
     difference in the C_L column (exact for C_L and C_L^2 terms, which is what drag and pitch hold)."""
     names = tuple(problem.nonlinear_names) + tuple(problem.linear_names)
-    lift_names = [n for n in build_model(lift_candidate).nonlinear_names + build_model(lift_candidate).linear_names]
+    lift_model = build_model(lift_candidate)
+    lift_names = lift_model.nonlinear_names + lift_model.linear_names
     columns = [names.index(n) for n in lift_names if n in names]
     lift_b = next(b for b, c in enumerate(order) if c.coefficient == "CL")
     n_blocks = problem.n_blocks

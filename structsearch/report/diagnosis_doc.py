@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from tabulate import tabulate
 
+from ..discovery.adoption import DEFAULT_ALPHA
 from ..data.atomic import json_ready, write_json, write_text
 from ..diagnosis.results import Diagnosis
 from ..diagnosis.story import Story, unexplained_sentence
@@ -167,7 +168,7 @@ def story_markdown(story: Story, command: str) -> str:
              "are adopted until none passes its test; the path need not end at the thesis' final model (`structsearch "
              "discover` searches for that).", "", f"\"Closes\": {CLOSES_DEFINITION}", "",
              "Adopted: a move whose test (column \"p (test)\": the Wald test of a nested move's new parameters, else "
-             "a paired out-of-sample test) rejects at 0.10 divided by the number of moves tried at that round "
+             f"a paired out-of-sample test) rejects at {DEFAULT_ALPHA:.2f} divided by the number of moves tried at that round "
              "(Bonferroni), and none once the structure is at the floor; a small p in a round that adopts nothing "
              "did not reach that bar. \"CL-story\" is the lift structure the C_L story reached, offered to drag and "
              "pitch beside the thesis' CL-VI. A replay figure is as measured: a first move that repairs a fit or "
