@@ -8,7 +8,7 @@ from scipy import stats
 from structsearch.engine.bands import band, output_variance, point_effective_maneuvers, quantile
 from structsearch.engine.sandwich import effective_maneuvers
 
-from conftest import central_difference
+from conftest import assert_matches_finite_difference
 
 
 def test_output_variance_is_the_diagonal_of_j_c_jt_and_nan_where_an_unknown_parameter_acts():
@@ -101,10 +101,9 @@ def test_the_static_curves_jacobian_is_its_finite_difference(fitted_finals, coef
     def curve(values):
         return static_evaluation(cand, dict(zip(names, values)), train, lift, jacobian=False)[1]
     x = np.array([fit.params[n] for n in names])
-    fd = central_difference(curve, x, rel=1e-5)
-    # against each column's scale: the sigmoid's tail makes pointwise relative errors meaningless
-    scale = np.abs(fd).max(axis=0)
-    assert np.all(np.abs(jac - fd) <= 1e-5 * scale + 1e-12), names
+    # the tolerance from the differences' own truncation and rounding errors: a fixed fraction of each column's
+    # scale missed by 2e-9 on another BLAS kernel, where the steep sigmoid's curvature dominates the error
+    assert_matches_finite_difference(jac, curve, x, rel=1e-5)
     # a static curve does not move with the lags, the pitch rate or the elevator: those columns are zero
     for n in names:
         if n.startswith(("tau1", "tau2")) or n.endswith(("_qstar", "_de")):

@@ -72,3 +72,22 @@ def test_separable_model_jacobian():
     assert np.allclose(analytic, numeric, rtol=1e-6, atol=1e-9)
     # bookkeeping: only (basis, parameter) pairs that really depend on each other
     assert sorted(zip(ev.rows.tolist(), ev.params.tolist())) == [(0, 0), (1, 0), (1, 1)]
+
+
+def test_the_finite_difference_check_fails_a_wrong_derivative():
+    """The tolerance of :func:`assert_matches_finite_difference` comes from the differences themselves: it
+    passes the exact derivative of a steep sigmoid and fails one off by 1e-5 of its size."""
+    from conftest import assert_matches_finite_difference
+    x_grid = np.linspace(0.0, 0.4, 200)
+
+    def curve(p):
+        return 0.5 * (1 - np.tanh(p[0] * (x_grid - p[1])))
+
+    p = np.array([35.0, 0.25])
+    sech2 = 1 - np.tanh(p[0] * (x_grid - p[1])) ** 2
+    exact = np.column_stack([-0.5 * sech2 * (x_grid - p[1]), 0.5 * sech2 * p[0]])
+    assert_matches_finite_difference(exact, curve, p)
+    wrong = exact.copy()
+    wrong[:, 0] *= 1 + 1e-5
+    with pytest.raises(AssertionError, match="elements off"):
+        assert_matches_finite_difference(wrong, curve, p)
