@@ -249,8 +249,22 @@ def _discover(args) -> int:
     return 0
 
 
+def _compare(args) -> int:
+    from .api import Tolerances, compare_outputs
+    from .data.atomic import write_json
+    for d in (args.first, args.second):
+        if not Path(d).is_dir():
+            raise_error(f"{d}: not a directory")
+    found = compare_outputs(args.first, args.second, Tolerances(rtol=args.rtol))
+    if args.json:
+        write_json(Path(args.json), found.to_dict())
+    print(found.summary())
+    return 0 if found.same else 1
+
+
 HANDLERS = {"bench": _bench, "simulate": _simulate, "preprocess": _preprocess, "study": _study, "fit": _fit,
-            "search": _search, "diagnose": _diagnose, "discover": _discover, "report": _report, "demo": _demo}
+            "search": _search, "diagnose": _diagnose, "discover": _discover, "report": _report, "demo": _demo,
+            "compare": _compare}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -233,6 +233,19 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     d.add_argument("--quiet", action="store_true", help="no progress lines (the story's lines are still printed)")
     _admissibility_options(d)
     d.set_defaults(func=handlers["demo"])
+
+    c = sub.add_parser("compare", help="compare two output directories as answers: decisions equal, numbers within "
+                                       "tolerances (the same command on two machines)",
+                       description="Compares every CSV and JSON file of FIRST with the same file of SECOND: rankings, "
+                                   "admissible sets, structures, moves and verdicts must be equal, numbers within "
+                                   "--rtol. Exit 0: the same answers; 1: they differ (listed). Example: structsearch "
+                                   "compare results/ other-machine/results/")
+    c.add_argument("first", help="an output directory (e.g. of `demo --out A`)")
+    c.add_argument("second", help="the output directory of the same command elsewhere")
+    c.add_argument("--rtol", type=_non_negative_float, default=1e-6,
+                   help="relative tolerance of numbers (default 1e-6: see docs, reproducibility)")
+    c.add_argument("--json", metavar="FILE", help="also write the comparison as JSON")
+    c.set_defaults(func=handlers["compare"])
     return parser
 
 

@@ -11,12 +11,14 @@
 ``structsearch study``                 :func:`study` -> :class:`StudyOutcome`
 ``structsearch report``                :func:`report` -> :class:`ReportOutcome`
 ``structsearch demo``                  :func:`structsearch.workflows.demo`
+``structsearch compare A B``           :func:`compare_outputs` -> OutputComparison
 =====================================  ==============================================
 """
+from ..experiments.reproducibility import OutputComparison, Tolerances, compare_outputs
 from .commands import diagnose, fit, fit_joint, preprocess, search, simulate, study
 from .discovering import discover
 from .report import report
 from .results import FitOutcome, PreprocessOutcome, Ranking, ReportOutcome, StudyOutcome
 
-__all__ = ["FitOutcome", "PreprocessOutcome", "Ranking", "ReportOutcome", "StudyOutcome", "diagnose", "discover", "fit",
+__all__ = ["FitOutcome", "OutputComparison", "Tolerances", "compare_outputs", "PreprocessOutcome", "Ranking", "ReportOutcome", "StudyOutcome", "diagnose", "discover", "fit",
            "fit_joint", "preprocess", "report", "search", "simulate", "study"]

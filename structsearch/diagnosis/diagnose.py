@@ -51,6 +51,7 @@ from ..fitting.lift_fit import LiftFit
 from ..fitting.models import predict_candidate
 from ..flight.reference import FINAL_MODEL_NAMES
 from ..engine.scores import maneuver_mse, sizes_of, weighted_mean_se
+from ..engine.ties import first_of_lowest
 from .fitted import Fitted, fit as _fit, state_for_phases
 from .results import Diagnosis, EffectRow, Round, StateLevel, TrainValidation
 from .state_level import state_level
@@ -375,7 +376,9 @@ def _residuals(ctx: _Context, c: Candidate, r) -> tuple[np.ndarray, np.ndarray]:
 
 def _lowest(floors: list[_Floor], ctx: _Context) -> _Floor:
     """The lowest floor estimate, with its validation residual (that of a structure of the search computed now)."""
-    floor = min(floors, key=lambda f: f.mse)
+    # a flexible correction that changes nothing (no boosting iteration generalises) equals its structure's MSE
+    # up to rounding: the structure, a named model, is the floor on every machine
+    floor = first_of_lowest(sorted(floors, key=lambda f: f.library_free), lambda f: f.mse)
     if floor.residual is None:
         floor = dataclasses.replace(floor, residual=_residuals(ctx, floor.node.candidate, floor.node.result)[0])
     return floor

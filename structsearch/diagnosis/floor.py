@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data.flightdata import FlightData
+from ..engine.ties import first_of_lowest
 
 # Columns that are not signals: the modelled coefficients and what the simulator keeps for checking.
 OUTPUT_COLUMNS = frozenset({"t", "CL", "CD", "Cm", "CX", "CZ", "CY", "Cl", "Cn"})
@@ -105,7 +106,8 @@ def flexible_fit(r_train: np.ndarray, train: FlightData, train_signals: dict, r_
             curve[0] += np.sum(target ** 2)
             for i, pred in enumerate(fit.staged_predict(held), start=1):
                 curve[i] += np.sum((target - pred) ** 2)
-        n_iter = int(np.argmin(curve))
+        # the fewest iterations among those equal up to rounding
+        n_iter = first_of_lowest(range(len(curve)), curve.__getitem__)
     else:
         n_iter = 0
     if n_iter == 0:  # nothing the signals explain generalises across maneuvers

@@ -37,6 +37,7 @@ from typing import Callable, Mapping, Sequence
 
 
 from ..data.campaign import Campaign
+from ..engine.ties import first_of_lowest
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
@@ -337,8 +338,9 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
         steps.append(Step(index, tuple(n.candidate.name for n in current), tuple(tried), tuple(nxt),
                           time.perf_counter() - t_step))
         confirmed += [n for n in nxt if n.status in CONFIRMED]
-        best = min((n for n in nxt if n.status in CONFIRMED), key=lambda n: n.mse, default=None)
-        top = min(confirmed, key=lambda n: n.mse)
+        adopted_now = [n for n in nxt if n.status in CONFIRMED]
+        best = _lowest_mse(adopted_now) if adopted_now else None
+        top = _lowest_mse(confirmed)
         say(f"step {index}: {len(pending)} structures tried ({n_fitted} in all), "
             f"{'kept ' + nxt[0].status + ' ' + nxt[0].move.name if nxt else 'no move passes'}; best so far "
             f"{top.candidate.name} (held-out MSE {top.mse:.4g}), {time.perf_counter() - t0:.0f} s")
@@ -401,6 +403,11 @@ def _repair_step(current: Node, index: int, campaign, library, lift_candidates, 
     return Step(index, (current.candidate.name,), tuple(tried), beam, 0.0), len(pending)
 
 
+def _lowest_mse(nodes: Sequence[Node]) -> Node:
+    """The node of lowest held-out MSE; MSEs equal up to rounding: the first by structure name."""
+    return first_of_lowest(sorted(nodes, key=lambda n: n.candidate.name), lambda n: n.mse)
+
+
 def choose(confirmed: Sequence[Node], alpha: float = DEFAULT_ALPHA, admissible_first: bool = False) -> Node:
     """The structure the search ends with: of every adopted one (each branch of the beam), the fewest parameters
     within one standard error of the lowest held-out MSE (the ranking's one-standard-error rule), then the move that
@@ -411,7 +418,7 @@ def choose(confirmed: Sequence[Node], alpha: float = DEFAULT_ALPHA, admissible_f
     if admissible_first:   # adopted structures never failed: the reasons alone decide
         fewest = min(len(n.reasons) for n in pool)
         pool = [n for n in pool if len(n.reasons) == fewest]
-    best = min(pool, key=lambda n: n.mse)
+    best = _lowest_mse(pool)
     near = [n for n in pool if n is best or move_test(best.result, n.result, alpha, 1).within_one_se]
     return min(near, key=lambda n: (n.n_params, _preference(n), n.mse))
 

@@ -25,6 +25,7 @@ from scipy.linalg import qr, solve_triangular
 from scipy.optimize import least_squares
 
 from ..data.errors import FitError
+from .ties import first_of_lowest
 
 
 @dataclass(frozen=True)
@@ -327,5 +328,6 @@ def multistart(problem: SeparableProblem, y: np.ndarray, start, lower, upper, *,
     finite = [o for o in outcomes if np.isfinite(o.cost)]
     if not finite:
         raise FitError("no start produced a fit: " + outcomes[0].message)
-    best = min(finite, key=lambda o: o.cost)
+    # starts that reach the same optimum differ in cost by rounding: the first of them (start order) wins
+    best = first_of_lowest(finite, lambda o: o.cost)
     return MultistartOutcome(best, tuple(outcomes), reached(finite, best.cost, float(y @ y)))

@@ -23,6 +23,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..engine.separation import SeparationState
+from ..engine.ties import first_of_lowest
 from .candidate_result import CandidateResult
 from .candidates import Candidate
 
@@ -82,7 +83,10 @@ def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResult]]
     donors = [(d, r) for d, r in fitted if may_donate(d, c) and not r.failed and np.isfinite(r.mse_train)]
     if not donors:
         return None
-    donor, result = min(donors, key=lambda dr: (-len(dr[0].state_parameters), dr[1].mse_train))
+    most = max(len(d.state_parameters) for d, _ in donors)
+    # equal fits (a structure and one it contains) tie up to rounding: the name decides, not the processor
+    donor, result = first_of_lowest(sorted(((d, r) for d, r in donors if len(d.state_parameters) == most),
+                                           key=lambda dr: dr[0].name), lambda dr: dr[1].mse_train)
     return {k: result.params[k] for k in c.state_parameters if k in result.params}
 
 
@@ -127,7 +131,7 @@ def best_contained(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResu
     inner = [(d, r) for d, r in fitted if contains(c, d) and not r.failed and np.isfinite(r.mse_train)]
     if not inner:
         return None
-    d, r = min(inner, key=lambda dr: dr[1].mse_train)
+    d, r = first_of_lowest(sorted(inner, key=lambda dr: dr[0].name), lambda dr: dr[1].mse_train)
     return nested_start(c, r.params)
 
 

@@ -24,6 +24,7 @@ from typing import Callable
 import numpy as np
 
 from ..engine.scores import weighted_mean_se
+from ..engine.ties import first_of_lowest, sort_with_ties
 from ..fitting.candidate_result import CandidateResult
 
 # A relative excess below this is never a reason to prefer a larger model.
@@ -65,7 +66,7 @@ def _placed(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult]
 
 
 def _best_fitting(group: list[CandidateResult], use_cv: bool) -> CandidateResult:
-    return min(group, key=lambda s: _scores(s, use_cv).mse)
+    return first_of_lowest(sorted(group, key=lambda s: s.name), lambda s: _scores(s, use_cv).mse)
 
 
 def _measured(s: CandidateResult, best: CandidateResult, use_cv: bool) -> CandidateResult:
@@ -81,8 +82,11 @@ def _ordered(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult
     if not group:
         return []
     placed = _placed(group, use_cv)
-    top = sorted((s for s in placed if s.within_noise), key=lambda s: (s.n_params, _scores(s, use_cv).mse))
-    rest = sorted((s for s in placed if not s.within_noise), key=lambda s: _scores(s, use_cv).mse)
+    # MSEs equal up to rounding (nested structures at the same optimum) are ordered by name on every machine
+    def by_mse(items):
+        return sort_with_ties(list(items), lambda s: _scores(s, use_cv).mse, lambda s: s.name)
+    top = sorted(by_mse(s for s in placed if s.within_noise), key=lambda s: s.n_params)
+    rest = by_mse(s for s in placed if not s.within_noise)
     return [s for s in top + rest if s.identifiable] + [s for s in top + rest if not s.identifiable]
 
 

@@ -1,0 +1,53 @@
+"""Choices among values that rounding can reorder: the lowest value, ties resolved by a fixed order.
+
+Two fits of the same optimum (two starts, a structure and one it contains at its nesting point, a model and a
+flexible correction that changes nothing) have costs equal up to rounding; which of them is lower then depends
+on the processor, the BLAS kernel and the thread count. A choice that follows such a difference gives another
+answer on another machine. Values within :data:`TIE_RTOL` of the lowest are therefore ties, and the first of
+them in a stated order wins (start order, a structure's name, a declared preference). Values further apart
+than that are real differences: a fit's cost is converged to 1e-10 relative, and a kernel moves it by 1e-13.
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable, Iterable, Sequence, TypeVar
+
+T = TypeVar("T")
+
+TIE_RTOL = 1e-9
+
+
+def is_tie(a: float, b: float, rtol: float = TIE_RTOL) -> bool:
+    """Whether ``a`` and ``b`` are equal up to rounding (within ``rtol`` of the larger magnitude)."""
+    return a == b or abs(a - b) <= rtol * max(abs(a), abs(b))
+
+
+def first_of_lowest(items: Iterable[T], value: Callable[[T], float], rtol: float = TIE_RTOL) -> T:
+    """The first item (in the given order) whose value is within ``rtol`` of the lowest finite value; NaN
+    values never win. Raises ValueError when no value is finite."""
+    items = list(items)
+    values = [float(value(x)) for x in items]
+    finite = [v for v in values if not math.isnan(v)]
+    if not finite:
+        raise ValueError("no finite value to choose from")
+    low = min(finite)
+    for x, v in zip(items, values):
+        if not math.isnan(v) and (v == low or is_tie(v, low, rtol)):
+            return x
+    raise AssertionError("unreachable")
+
+
+def sort_with_ties(items: Sequence[T], value: Callable[[T], float], order: Callable[[T], object],
+                   rtol: float = TIE_RTOL) -> list[T]:
+    """``items`` by ``value``, values within ``rtol`` of the group's lowest ordered by ``order`` instead:
+    sorted by value, then each run of ties (chained from its first member) re-sorted by ``order``."""
+    ranked = sorted(items, key=lambda x: (math.isnan(float(value(x))), float(value(x))))
+    out: list[T] = []
+    i = 0
+    while i < len(ranked):
+        j = i + 1
+        while j < len(ranked) and is_tie(float(value(ranked[j])), float(value(ranked[i])), rtol):
+            j += 1
+        out.extend(sorted(ranked[i:j], key=order))
+        i = j
+    return out

@@ -1,0 +1,234 @@
+"""Two output directories of the same command compared as answers, not as bytes.
+
+The same command on another machine (another processor, BLAS kernel or thread count) must give the same
+decisions: the rankings (order, admissible set, within-noise flags), the chosen, refined and discovered
+structures, the story's moves and verdicts. Its numbers agree within tolerances, not to the bit: a fit stops
+when its cost changes by less than the solver's tolerance, and another kernel's rounding moves the point
+where it stops within that.
+
+Every CSV and JSON file of the first directory is read with its twin in the second. Text, booleans and
+integers must be equal; a text's numbers (a reason "|rho| = 0.952 > 0.95") are compared as numbers, the
+rest of it as text. Floating-point numbers must agree within ``rtol`` of the larger magnitude, or within
+``atol_fraction`` of the largest magnitude of their column (CSV) or list (JSON), or within ``atol``, so that
+a number that is zero up to rounding (a gap of 1e-17) does not count as a relative difference. Fields that describe the
+run rather than the answer (wall times, evaluation counts, the optimizer's stopping message) are skipped.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+# Fields that describe how a run went, not what it found: they differ between machines by design.
+RUN_FIELDS = frozenset({"seconds", "wall_seconds", "elapsed", "nfev", "njev", "message", "n_reached_best",
+                        "timings", "time", "duration", "version", "command", "cached"})
+# Files that are measurements of the machine (benchmarks), not answers.
+MACHINE_FILES = ("bench.json", "bench.csv")
+_INTEGER = re.compile(r"^[-+]?\d+$")
+_NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """How close two numbers of an answer must be.
+
+    ``rtol`` 1e-6: fits stop at a relative change of cost of 1e-10; a parameter moves with the square root of
+    that in its poorly determined directions (1e-5 of its standard error), and an MSE or R^2 moves with the
+    cost itself. Measured between OpenBLAS's Haswell and Prescott kernels on the demo: 3e-8 at most; 1e-6
+    leaves a margin while any change of the data, a start or a structure moves these numbers by 1e-4 or more.
+    """
+
+    rtol: float = 1e-6
+    atol_fraction: float = 1e-9
+    # the answers' numbers are coefficients and parameters (order 1), MSEs (1e-6 and up) and their gaps: a
+    # difference below 1e-12 is rounding of a number that is zero (a gap of the best to itself, 1e-17)
+    atol: float = 1e-12
+
+
+@dataclass(frozen=True)
+class Difference:
+    """One disagreement: the file, where in it, both values and whether it is a decision or a number."""
+
+    file: str
+    where: str
+    first: str
+    second: str
+    kind: str          # "decision" (text, flag, count, a missing file or field) or "number"
+
+    def line(self) -> str:
+        return f"{self.file}: {self.where}: {self.first} vs {self.second} ({self.kind})"
+
+
+@dataclass(frozen=True)
+class OutputComparison:
+    """What :func:`compare_outputs` found."""
+
+    first: str
+    second: str
+    files: tuple[str, ...]
+    differences: tuple[Difference, ...]
+    tolerances: Tolerances
+
+    @property
+    def same(self) -> bool:
+        return not self.differences
+
+    @property
+    def decisions(self) -> tuple[Difference, ...]:
+        return tuple(d for d in self.differences if d.kind == "decision")
+
+    def to_dict(self) -> dict:
+        return {"first": self.first, "second": self.second, "files": list(self.files), "same": self.same,
+                "rtol": self.tolerances.rtol, "atol_fraction": self.tolerances.atol_fraction,
+                "atol": self.tolerances.atol,
+                "differences": [d.__dict__ for d in self.differences]}
+
+    def summary(self) -> str:
+        head = (f"{len(self.files)} files compared: "
+                + ("the same answers" if self.same else
+                   f"{len(self.decisions)} decisions and {len(self.differences) - len(self.decisions)} numbers differ"))
+        return "\n".join([head] + [d.line() for d in self.differences[:50]]
+                         + ([f"... and {len(self.differences) - 50} more"] if len(self.differences) > 50 else []))
+
+
+def answer_files(directory: Path) -> list[str]:
+    """The CSV and JSON files under ``directory`` that hold answers (relative paths, sorted)."""
+    found = []
+    for p in sorted(directory.rglob("*")):
+        if p.suffix in (".csv", ".json") and p.is_file() and p.name not in MACHINE_FILES:
+            found.append(p.relative_to(directory).as_posix())
+    return found
+
+
+def compare_outputs(first: str | Path, second: str | Path, tolerances: Tolerances = Tolerances()) -> OutputComparison:
+    """Compare every answer file of ``first`` with the same file of ``second`` (module docstring)."""
+    a, b = Path(first), Path(second)
+    files = answer_files(a)
+    differences: list[Difference] = []
+    for name in files:
+        if not (b / name).is_file():
+            differences.append(Difference(name, "file", "present", "missing", "decision"))
+            continue
+        compare = _compare_csv if name.endswith(".csv") else _compare_json
+        differences.extend(compare(name, a / name, b / name, tolerances))
+    for name in answer_files(b):
+        if name not in files:
+            differences.append(Difference(name, "file", "missing", "present", "decision"))
+    return OutputComparison(str(a), str(b), tuple(files), tuple(differences), tolerances)
+
+
+def _compare_csv(name: str, a: Path, b: Path, tol: Tolerances) -> list[Difference]:
+    rows_a, rows_b = _read_csv(a), _read_csv(b)
+    if len(rows_a) != len(rows_b):
+        return [Difference(name, "rows", str(len(rows_a)), str(len(rows_b)), "decision")]
+    if rows_a and list(rows_a[0]) != list(rows_b[0]):
+        return [Difference(name, "columns", ",".join(rows_a[0]), ",".join(rows_b[0]), "decision")]
+    scales = {k: max((abs(v) for r in rows_a for v in [_as_float(r[k])] if v is not None and math.isfinite(v)),
+                     default=0.0) for k in (rows_a[0] if rows_a else {})}
+    out = []
+    for i, (ra, rb) in enumerate(zip(rows_a, rows_b)):
+        label = ra.get("model") or ra.get("name") or ra.get("parameter") or str(i + 1)
+        for k in ra:
+            if k not in RUN_FIELDS:
+                out.extend(_compare_values(name, f"row {i + 1} ({label}), {k}", ra[k], rb[k], scales[k], tol))
+    return out
+
+
+def _read_csv(path: Path) -> list[dict]:
+    with path.open(newline="", encoding="utf-8") as f:
+        return list(csv.DictReader(f))
+
+
+def _as_float(text: str) -> float | None:
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return None
+
+
+def _compare_json(name: str, a: Path, b: Path, tol: Tolerances) -> list[Difference]:
+    out: list[Difference] = []
+    _walk(name, "", json.loads(a.read_text(encoding="utf-8")), json.loads(b.read_text(encoding="utf-8")),
+          0.0, tol, out)
+    return out
+
+
+def _walk(name: str, where: str, x, y, scale: float, tol: Tolerances, out: list[Difference]) -> None:
+    if isinstance(x, dict) and isinstance(y, dict):
+        for k in sorted(set(x) | set(y)):
+            if k in RUN_FIELDS:
+                continue
+            if k not in x or k not in y:
+                out.append(Difference(name, f"{where}/{k}", "absent" if k not in x else "present",
+                                      "absent" if k not in y else "present", "decision"))
+            else:
+                _walk(name, f"{where}/{k}", x[k], y[k], _scale_of(x[k]), tol, out)
+    elif isinstance(x, list) and isinstance(y, list):
+        if len(x) != len(y):
+            out.append(Difference(name, f"{where} (length)", str(len(x)), str(len(y)), "decision"))
+            return
+        inner = _scale_of(x)
+        for i, (u, v) in enumerate(zip(x, y)):
+            _walk(name, f"{where}[{i}]", u, v, inner, tol, out)
+    else:
+        out.extend(_compare_values(name, where or "/", x, y, scale, tol))
+
+
+def _scale_of(value) -> float:
+    """The largest finite magnitude among a list's numbers (0 for anything else)."""
+    if isinstance(value, list):
+        return max((abs(v) for v in value if _is_float(v) and math.isfinite(v)), default=0.0)
+    return abs(value) if _is_float(value) and math.isfinite(value) else 0.0
+
+
+def _is_float(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _compare_values(name: str, where: str, x, y, scale: float, tol: Tolerances) -> list[Difference]:
+    if isinstance(x, float) or isinstance(y, float) or (isinstance(x, str) and isinstance(y, str)):
+        return _compare_text_or_number(name, where, x, y, scale, tol)
+    if x != y:
+        return [Difference(name, where, repr(x), repr(y), "decision")]
+    return []
+
+
+def _compare_text_or_number(name: str, where: str, x, y, scale: float, tol: Tolerances) -> list[Difference]:
+    """Numbers within tolerance; in text, the numbers within tolerance and the words equal."""
+    if _is_float(x) and _is_float(y):
+        return [] if _close(float(x), float(y), scale, tol) else [Difference(name, where, repr(x), repr(y), "number")]
+    sx, sy = str(x), str(y)
+    if _INTEGER.match(sx) and _INTEGER.match(sy):   # a rank, a count: a decision
+        return [] if sx == sy else [Difference(name, where, sx, sy, "decision")]
+    fx, fy = _as_float(sx), _as_float(sy)
+    if fx is not None and fy is not None:
+        return [] if _close(fx, fy, max(scale, 0.0), tol) else [Difference(name, where, sx, sy, "number")]
+    if _NUMBER.sub("#", sx) != _NUMBER.sub("#", sy):
+        return [Difference(name, where, sx, sy, "decision")]
+    for u, v in zip(_NUMBER.findall(sx), _NUMBER.findall(sy)):
+        if not _close_printed(u, v, tol):
+            return [Difference(name, where, sx, sy, "number")]
+    return []
+
+
+def _close(x: float, y: float, scale: float, tol: Tolerances) -> bool:
+    if math.isnan(x) or math.isnan(y):
+        return math.isnan(x) and math.isnan(y)
+    if math.isinf(x) or math.isinf(y):
+        return x == y
+    return abs(x - y) <= max(tol.rtol * max(abs(x), abs(y)), tol.atol_fraction * scale, tol.atol)
+
+
+def _close_printed(u: str, v: str, tol: Tolerances) -> bool:
+    """Two numbers as printed in a sentence: equal within ``rtol`` or within one unit of their last digit
+    (a value on a rounding boundary prints as 0.952 on one machine and 0.953 on another)."""
+    x, y = float(u), float(v)
+    if not (math.isfinite(x) and math.isfinite(y)):
+        return u == v
+    digits = len(u.split(".")[1].lower().split("e")[0]) if "." in u else 0
+    exponent = int(u.lower().split("e")[1]) if "e" in u.lower() else 0
+    unit = 10.0 ** max(min(exponent - digits, 300), -300)
+    return abs(x - y) <= max(tol.rtol * max(abs(x), abs(y)), 1.0001 * unit)

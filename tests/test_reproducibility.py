@@ -1,0 +1,90 @@
+"""`structsearch compare`: two output directories compared as answers (decisions equal, numbers within tolerance)."""
+import json
+import shutil
+
+import pytest
+
+from structsearch.experiments.reproducibility import Tolerances, compare_outputs
+
+RANKING = """grid,model,rank,mse_validation,gap,admissible,reasons,nfev,message
+lift,CL-VI,1,0.00321476353,0,True,,10,`ftol` termination condition is satisfied.
+lift,CL-V,2,0.003214834374,1.3e-17,False,|rho(CL0; CL_a)| = 0.952 > 0.95,12,`xtol` termination condition is satisfied.
+"""
+STORY = {"diagnoses": {"CL": {"explained": True, "floor_source": "CL-I + elevator", "noise_floor": 0.0032194573,
+                              "rounds": [{"adopted": "elevator", "mse": 0.004}, {"adopted": None, "mse": 0.0032}],
+                              "seconds": 12.5}}}
+
+
+@pytest.fixture
+def two_runs(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    (a / "ranking.csv").write_text(RANKING)
+    (a / "story.json").write_text(json.dumps(STORY))
+    shutil.copytree(a, b)
+    return a, b
+
+
+def _edit(path, old, new):
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+
+
+def test_identical_runs_are_the_same(two_runs):
+    found = compare_outputs(*two_runs)
+    assert found.same and found.files == ("ranking.csv", "story.json")
+
+
+def test_rounding_and_run_fields_are_not_differences(two_runs):
+    a, b = two_runs
+    _edit(b / "ranking.csv", "0.00321476353", "0.00321476354")          # 3e-9 relative
+    _edit(b / "ranking.csv", "1.3e-17", "-2.1e-17")                      # zero up to rounding
+    _edit(b / "ranking.csv", "= 0.952 >", "= 0.953 >")                   # printed on a rounding boundary
+    _edit(b / "ranking.csv", ",10,`ftol`", ",2,`gtol`")                   # how the optimizer got there
+    _edit(b / "story.json", "12.5", "99.0")                                # wall time
+    assert compare_outputs(a, b).same
+
+
+@pytest.mark.parametrize("old,new,kind", [
+    (",1,0.00321476353", ",2,0.00321476353", "decision"),    # rank
+    ("0,True,", "0,False,", "decision"),                      # admissible
+    ("0.00321476353", "0.00321576353", "number"),             # 3e-4 relative
+    ("CL0; CL_a", "CL0; CL_de", "decision"),                  # another reason
+])
+def test_a_changed_decision_or_number_is_named(two_runs, old, new, kind):
+    a, b = two_runs
+    _edit(b / "ranking.csv", old, new)
+    found = compare_outputs(a, b)
+    assert not found.same and {d.kind for d in found.differences} == {kind}
+    assert all(d.file == "ranking.csv" for d in found.differences)
+
+
+def test_a_changed_story_is_named(two_runs):
+    a, b = two_runs
+    _edit(b / "story.json", '"elevator"', '"pitch_rate"')
+    _edit(b / "story.json", '"explained": true', '"explained": false')
+    found = compare_outputs(a, b)
+    assert {d.where for d in found.decisions} == {"/diagnoses/CL/explained", "/diagnoses/CL/rounds[0]/adopted"}
+
+
+def test_a_missing_file_is_a_difference_and_the_tolerance_is_an_option(two_runs):
+    a, b = two_runs
+    (b / "story.json").unlink()
+    assert [d.where for d in compare_outputs(a, b).differences] == ["file"]
+    _edit(a / "ranking.csv", "0.00321476353", "0.00321576353")
+    shutil.copy(a / "story.json", b / "story.json")
+    assert not compare_outputs(a, b).same
+    assert compare_outputs(a, b, Tolerances(rtol=1e-3)).same
+
+
+def test_the_command_exits_1_on_a_difference_and_writes_json(two_runs, run_cli, tmp_path):
+    a, b = two_runs
+    same = run_cli("compare", a, b)
+    assert same.returncode == 0 and "the same answers" in same.stdout
+    _edit(b / "ranking.csv", "0,True,", "0,False,")
+    differ = run_cli("compare", a, b, "--json", tmp_path / "cmp.json")
+    assert differ.returncode == 1 and "admissible" in differ.stdout
+    assert json.loads((tmp_path / "cmp.json").read_text())["same"] is False
+    missing = run_cli("compare", a, tmp_path / "nowhere")
+    assert missing.returncode == 2 and "not a directory" in missing.stderr
