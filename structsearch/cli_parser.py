@@ -242,8 +242,8 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                                    "compare results/ other-machine/results/")
     c.add_argument("first", help="an output directory (e.g. of `demo --out A`)")
     c.add_argument("second", help="the output directory of the same command elsewhere")
-    c.add_argument("--rtol", type=_non_negative_float, default=1e-6,
-                   help="relative tolerance of numbers (default 1e-6: see docs, reproducibility)")
+    c.add_argument("--rtol", type=_non_negative_float, default=1e-3,
+                   help="relative tolerance of numbers (default 1e-3: see docs/reproducibility.md)")
     c.add_argument("--json", metavar="FILE", help="also write the comparison as JSON")
     c.set_defaults(func=handlers["compare"])
     return parser

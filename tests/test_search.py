@@ -151,8 +151,17 @@ def test_jobs_do_not_change_results(tiny, tmp_path):
     lift = load_grid("lift")
     one = run(lift.candidates, tiny, tmp_path / "a", n_jobs=1)
     two = run(lift.candidates, tiny, tmp_path / "b", n_jobs=2)
+    # two processes may round differently (a BLAS kernel's SIMD path follows the data's memory alignment): the
+    # fits stop where the cost changes by 1e-10 of itself, which lets a parameter move by about
+    # sqrt(1e-10 * samples) ~ 2e-3 of its standard error in its flattest direction; 0.02 of it is the bound,
+    # and the validation MSE agrees to 1e-8 (it moves with the cost)
+    assert [a.name for a in one] == [b.name for b in two]
     for a, b in zip(one, two):
-        assert a.params == b.params and a.mse_validation == b.mse_validation
+        assert a.mse_validation == pytest.approx(b.mse_validation, rel=1e-8), a.name
+        for k, v in a.params.items():
+            se = a.stderr.get(k, np.nan)
+            bound = 0.02 * se if np.isfinite(se) and se > 0 else 1e-8 * max(abs(v), 1.0)
+            assert abs(v - b.params[k]) <= bound + 1e-12, (a.name, k)
 
 
 def test_interrupted_search_resumes(tiny, tmp_path):
@@ -394,12 +403,45 @@ def test_cache_never_serves_a_changed_input_and_survives_a_truncated_file(tiny, 
     assert len({key, campaign_fingerprint(wider), campaign_fingerprint(swapped)}) == 3
     kwargs = dict(lifts={"CL-VI": LiftFit(load_grid("lift")["CL-VI"], lift)}, options=options)
     first = run(cand, tiny, tmp_path, **kwargs)[0]
-    path = cache_path(tmp_path, cand[0], key, lift.params, options)
+    path = cache_path(tmp_path, cand[0], key, lift.params, options)[0]
     assert path.exists()
     path.write_text(path.read_text()[:100])          # a crash in the middle of a write elsewhere
     said = []
     again = run(cand, tiny, tmp_path, progress=said.append, **kwargs)[0]
     assert any("unreadable" in m for m in said) and again.params == first.params
+
+
+@pytest.mark.parametrize("tamper", ["altered numbers", "null", "list", "number", "another key", "old layout"])
+def test_a_cache_entry_that_does_not_prove_itself_is_a_miss_never_served(tiny, tmp_path, tamper):
+    """A cache file that is valid JSON but altered (the fit's numbers changed, another question's key, not an
+    entry at all) is refitted with one warning line, never served and never a traceback."""
+    from structsearch.fitting.options import FitOptions
+    from structsearch.search.runner import cache_path, campaign_fingerprint
+    cand = load_grid("lift")["CL-II"]
+    options = FitOptions(n_starts=1, cv_folds=0)
+    first = run([cand], tiny, tmp_path, options=options)[0]
+    path = cache_path(tmp_path, cand, campaign_fingerprint(tiny), None, options)[0]
+    doc = json.loads(path.read_text())
+    content = doc["content"]
+    if tamper == "altered numbers":
+        content["validation"]["mse"] = 0.5 * content["validation"]["mse"]
+        text = json.dumps(doc)
+    elif tamper == "another key":
+        text = json.dumps({**doc, "key": "0" * 64})
+    elif tamper == "old layout":
+        text = json.dumps(content)
+    else:
+        text = {"null": "null", "list": "[]", "number": "42"}[tamper]
+    path.write_text(text)
+    said = []
+    again = run([cand], tiny, tmp_path, options=options, progress=said.append)[0]
+    warnings = [m for m in said if m.startswith("warning: cache file")]
+    assert len(warnings) == 1 and "refitting" in warnings[0]
+    assert again.mse_validation == first.mse_validation and again.params == first.params
+    # the refit replaced the bad entry: served from the cache next time, silently
+    said.clear()
+    run([cand], tiny, tmp_path, options=options, progress=said.append)
+    assert said == ["1 of 1 candidates from the cache"]
 
 
 @pytest.mark.parametrize("bounds,message", [
@@ -430,7 +472,7 @@ def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
     from structsearch.search.runner import cache_path, campaign_fingerprint
     cand = load_grid("lift")["CL-I"]
     options = FitOptions(n_starts=1, cv_folds=0)
-    path = cache_path(tmp_path, cand, campaign_fingerprint(tiny), None, options)
+    path = cache_path(tmp_path, cand, campaign_fingerprint(tiny), None, options)[0]
     for error, cached in (("ValueError: boom", False), ("DataError: m01.csv, column 'V': bad", True)):
         def failing(c, *args, error=error, **kwargs):
             return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,

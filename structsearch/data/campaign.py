@@ -7,6 +7,7 @@ file, the column and the row (0-based data row; for CSV also the line).
 """
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import shutil
@@ -118,9 +119,16 @@ def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
     entries = doc.get("maneuver")
     if not isinstance(entries, list) or not entries:
         raise DataError("no [[maneuver]] entries", source=toml)
+    _check_top_level(doc, toml)
     maneuvers, seen = [], set()
     for i, e in enumerate(entries):
         where = f"{toml} [[maneuver]] #{i + 1}"
+        if not isinstance(e, dict):
+            raise DataError("a [[maneuver]] entry must be a table", source=where)
+        unknown = [k for k in e if k not in MANEUVER_KEYS]
+        if unknown:
+            raise DataError(f"unknown key {unknown[0]!r}{_close_match(unknown[0], MANEUVER_KEYS)}", source=where,
+                            column=unknown[0])
         for key in ("id", "file", "kind", "split"):
             if not isinstance(e.get(key), str) or not e[key]:
                 raise DataError(f"missing or empty {key!r}", source=where, column=key)
@@ -135,6 +143,28 @@ def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
                             source=where, column="split")
         maneuvers.append(Maneuver(e["id"], e["file"], e["kind"], e["split"], _flight(e, where)))
     return str(doc.get("name", "")), parsed, maneuvers
+
+
+# The keys a [[maneuver]] entry may hold (docs/interfaces.md 1, 6.4, 6.9): any other is a typo, refused.
+MANEUVER_KEYS = ("id", "file", "kind", "split", "flight", "record", "segment")
+
+
+def _close_match(key: str, known) -> str:
+    close = difflib.get_close_matches(key, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else f" (known: {', '.join(known)})"
+
+
+def _check_top_level(doc: dict, toml: str) -> None:
+    """Top-level scalars are free metadata (the simulator's seed and truth, a preprocessing record), kept in
+    ``Campaign.extra``; a table or list that is not one of campaign.toml's, or a scalar whose name is one
+    letter or two from a reserved key (``fromat``), is a typo: refused with the close match."""
+    for key, value in doc.items():
+        if key in RESERVED_KEYS:
+            continue
+        close = difflib.get_close_matches(key, RESERVED_KEYS, n=1, cutoff=0.75)
+        if isinstance(value, (dict, list)) or close:
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (tables: {', '.join(RESERVED_KEYS[2:])})"
+            raise DataError(f"unknown key {key!r}{hint}", source=toml, column=key)
 
 
 def _flight(entry: dict, where: str) -> str | None:
@@ -245,6 +275,39 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
                 raise DataError(f"value {columns[col][big[0]]:g} looks like degrees; angles must be in "
                                 f"radians" + _row_message(columns, int(big[0])), source=source, column=col,
                                 row=int(big[0]))
+    _check_rates(columns, source)
+
+
+# Body rates beyond a full turn per second are not flown by a fixed-wing aircraft: degrees per second.
+MAX_RATE_RAD_S = 2 * math.pi
+RATES = ("q", "p", "r")
+
+
+def _check_rates(columns: Mapping[str, np.ndarray], source: str) -> None:
+    """Rates in rad/s. A rate above a turn per second is refused; so is a pitch rate that follows the pitch
+    attitude's (else the angle of attack's) derivative 57 times over, which is q in degrees per second even
+    when its values are small (a gentle stall at 5 deg/s)."""
+    for col in RATES:
+        if col in columns:
+            big = np.flatnonzero(np.abs(columns[col]) > MAX_RATE_RAD_S)
+            if big.size:
+                raise DataError(f"value {columns[col][big[0]]:g} looks like degrees per second; rates must be in "
+                                "rad/s" + _row_message(columns, int(big[0])), source=source, column=col,
+                                row=int(big[0]))
+    reference = next((c for c in ("theta", "alpha") if c in columns), None)
+    if "q" not in columns or reference is None or len(columns["t"]) < 3:
+        return
+    rate = np.gradient(columns[reference], columns["t"])
+    q = columns["q"]
+    if not (np.all(np.isfinite(rate)) and np.any(rate) and np.any(q)):
+        return
+    slope = float(q @ rate / (rate @ rate))
+    correlation = float(np.corrcoef(q, rate)[0, 1])
+    # rad/s: slope about 1 (q = theta_dot in wings-level flight); deg/s: 57.3. Between 20 and 150 with a clear
+    # correlation is a unit, not aerodynamics.
+    if correlation > 0.5 and 20.0 < slope < 150.0:
+        raise DataError(f"q is {slope:.0f} times d({reference})/dt: it looks like degrees per second; rates must be "
+                        "in rad/s", source=source, column="q")
 
 
 def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | None = None) -> Campaign:
@@ -291,11 +354,7 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
         maneuvers, segments = _join_written_cycles(maneuvers, segments, toml)
     # keep only the columns every maneuver has: optional columns must be all-or-nothing
     common = set.intersection(*(set(s) for s in segments))
-    for m, s in zip(maneuvers, segments):
-        missing = [c for c in set.union(*(set(s) for s in segments)) - common if c not in s]
-        if missing:
-            raise DataError("column present in other maneuvers but missing here", source=str(directory / m.file),
-                            column=sorted(missing)[0])
+    _same_columns_everywhere(maneuvers, segments, common, directory)
     data = from_segments([{k: s[k] for k in sorted(common)} for s in segments],
                          names=[m.id for m in maneuvers], source=str(directory),
                          constants=scalar_constants(aircraft), derive_alpha_dot=fmt != "raw",
@@ -303,6 +362,21 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     if fmt == "raw":
         extra["format"] = "raw"
     return Campaign(name, aircraft, tuple(maneuvers), data, directory, extra, cutoffs, rules)
+
+
+def _same_columns_everywhere(maneuvers, segments, common: set, directory: Path) -> None:
+    """An optional column is in every maneuver file or in none. The error names the file that differs: the
+    one that has a column most files lack, or the one that lacks a column most files have."""
+    for column in sorted(set.union(*(set(s) for s in segments)) - common):
+        holders = [m for m, s in zip(maneuvers, segments) if column in s]
+        if 2 * len(holders) <= len(maneuvers):
+            raise DataError(f"column appears in {len(holders)} of {len(maneuvers)} maneuver files only (this one "
+                            "first): an optional column must be in every maneuver file or in none",
+                            source=str(directory / holders[0].file), column=column)
+        lacking = next(m for m, s in zip(maneuvers, segments) if column not in s)
+        raise DataError(f"column missing here but present in {len(holders)} of {len(maneuvers)} maneuver files: "
+                        "an optional column must be in every maneuver file or in none",
+                        source=str(directory / lacking.file), column=column)
 
 
 def _join_written_cycles(maneuvers: list, segments: list, toml: str) -> tuple[list, list]:

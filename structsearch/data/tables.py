@@ -19,18 +19,21 @@ def read_table(path: Path) -> dict[str, np.ndarray]:
         raise DataError("maneuver file not found", source=str(path))
     import pandas as pd
     if suffix == ".csv":
+        header = csv_header(path)
         try:
             frame = pd.read_csv(path)
-        except (ValueError, pd.errors.ParserError) as exc:
-            raise DataError(f"cannot read CSV: {exc}", source=str(path)) from None
+        except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as exc:
+            raise DataError(f"cannot read CSV: {' '.join(str(exc).split())}", source=str(path)) from None
+        frame.columns = header if len(header) == len(frame.columns) else frame.columns
     elif suffix == ".parquet":
         try:
             frame = pd.read_parquet(path)
         except (ValueError, OSError) as exc:  # pyarrow's ArrowInvalid is a ValueError
-            raise DataError(f"cannot read Parquet: {exc}", source=str(path)) from None
+            raise DataError(f"cannot read Parquet: {' '.join(str(exc).split())}", source=str(path)) from None
         except ImportError:
             raise DataError("reading Parquet needs the optional dependency pyarrow "
                             "(pip install 'structsearch[parquet]')", source=str(path)) from None
+        _unique_names([str(c) for c in frame.columns], path)
     elif suffix == ".mat":
         return read_mat(path)
     else:
@@ -39,6 +42,8 @@ def read_table(path: Path) -> dict[str, np.ndarray]:
     lines = CsvLines(path, len(frame)) if suffix == ".csv" else None
     for col in frame.columns:
         values = frame[col]
+        if pd.api.types.is_bool_dtype(values):
+            raise DataError("holds booleans (true/false), not numbers", source=str(path), column=str(col))
         if not pd.api.types.is_numeric_dtype(values):
             numeric = pd.to_numeric(values.astype(object), errors="coerce")
             bad = np.flatnonzero(numeric.isna() & values.notna())
@@ -51,6 +56,54 @@ def read_table(path: Path) -> dict[str, np.ndarray]:
     if lines is not None:
         out[LINE_KEY] = lines
     return out
+
+
+# How much of a CSV file is read before it is known to be text with a header line.
+SNIFF_BYTES = 64 * 1024
+
+
+def csv_header(path: Path) -> list[str]:
+    """The column names of a CSV file's first line, after checking from its first kilobytes that it is text
+    (no NUL byte, UTF-8) whose first line is a header of distinct names, not numbers: a binary or huge file is
+    refused before it is read whole."""
+    with path.open("rb") as f:
+        head = f.read(SNIFF_BYTES)
+    if b"\0" in head:
+        raise DataError("not a text file (it holds NUL bytes): a maneuver file is CSV text", source=str(path))
+    first, newline, _ = head.partition(b"\n")
+    if not newline and len(head) == SNIFF_BYTES:
+        raise DataError(f"the first line is longer than {SNIFF_BYTES // 1024} KiB: not a CSV header",
+                        source=str(path))
+    try:
+        text = first.decode("utf-8-sig").strip("\r")
+    except UnicodeDecodeError:
+        raise DataError("the first line is not UTF-8 text", source=str(path)) from None
+    import csv
+    names = next(csv.reader([text]), [])
+    if not names or not any(n.strip() for n in names):
+        raise DataError("the first line is empty: it must name the columns (t,alpha,q,V,de,...)", source=str(path))
+    numeric = [n for n in names if _is_number(n)]
+    if len(numeric) == len(names):
+        raise DataError(f"the first line {text[:60]!r} holds numbers, not column names (t,alpha,q,V,de,...)",
+                        source=str(path))
+    _unique_names(names, path)
+    return names
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+def _unique_names(names: list[str], path: Path) -> None:
+    seen = set()
+    for n in names:
+        if n in seen:
+            raise DataError("column appears twice", source=str(path), column=n)
+        seen.add(n)
 
 
 # Not a column: the CSV line of each row (pandas skips blank lines, so row + 2 is not always the line).

@@ -51,7 +51,7 @@ from ..fitting.lift_fit import LiftFit
 from ..fitting.models import predict_candidate
 from ..flight.reference import FINAL_MODEL_NAMES
 from ..engine.scores import maneuver_mse, sizes_of, weighted_mean_se
-from ..engine.ties import first_of_lowest
+from ..engine.ties import first_of_lowest, sort_by
 from .fitted import Fitted, fit as _fit, state_for_phases
 from .results import Diagnosis, EffectRow, Round, StateLevel, TrainValidation
 from .state_level import state_level
@@ -338,7 +338,8 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
         where_rows = where_bins(fit_i.residual, floor.residual, val, x_i, seed=seed)
         # the adopted move first (the one the round's verdict is about), then the others by verdict and MSE
         adopted_node = path[i + 1] if i + 1 < len(path) else None
-        children = sorted(ex.tried_from(node), key=lambda c: (c is not adopted_node, *_row_key(c)))
+        children = sort_by(ex.tried_from(node), lambda c: c.mse, lambda c: c.candidate.name,
+                           lambda c: (c is not adopted_node, *_row_key(c)[:1]))
         rows = tuple(_row(c, fit_i, floor, explained_now, where_rows, ctx, x_i) for c in children)
         mse_i, se_i = _mse_se(fit_i.residual, val)
         adopted = path[i + 1].move.name if i + 1 < len(path) else None

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.special import stdtr
 
 from ..engine.scores import weighted_mean_se
+from ..engine.ties import TIE_RTOL
 from ..fitting.candidate_result import CandidateResult
 
 # The family-wise rate of one step's improvement test (Bonferroni over its moves).
@@ -113,6 +114,11 @@ def move_test(parent: CandidateResult, child: CandidateResult, alpha: float, n_m
     return test
 
 
+# Relative changes of an MSE below this are rounding (fits converge to 1e-10 of their cost; two kernels'
+# rounding differs by 1e-13): ties, resolved the same way on every machine (structsearch.engine.ties).
+ROUNDING_GAIN = TIE_RTOL
+
+
 def _paired(parent: CandidateResult, child: CandidateResult, alpha: float, n_moves: int) -> MoveTest:
     threshold = alpha / max(n_moves, 1)
     if parent.failed or child.failed:
@@ -123,8 +129,12 @@ def _paired(parent: CandidateResult, child: CandidateResult, alpha: float, n_mov
         basis, before, after, samples = "validation", np.array(parent.validation.mse_maneuvers), \
             np.array(child.validation.mse_maneuvers), np.array(child.validation.n_maneuvers, float)
     gain_each = 1.0 - after / before
+    # a move that leaves the structure's fit as it was (a term it already has) changes each MSE by rounding
+    # only: those gains are zero, so that no test or sign follows the processor's rounding
+    gain_each = np.where(np.abs(gain_each) <= ROUNDING_GAIN, 0.0, gain_each)
     gain, se = weighted_mean_se(gain_each, samples)
     pooled = float(1.0 - np.dot(after, samples) / np.dot(before, samples))
+    pooled = 0.0 if abs(pooled) <= ROUNDING_GAIN else pooled
     n = len(gain_each)
     if n < MIN_MANEUVERS or not np.isfinite(se) or se <= 0:
         return MoveTest(basis, float(gain), float("nan"), n, float("nan"), threshold,

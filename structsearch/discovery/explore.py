@@ -37,7 +37,7 @@ from typing import Callable, Mapping, Sequence
 
 
 from ..data.campaign import Campaign
-from ..engine.ties import first_of_lowest
+from ..engine.ties import first_of_lowest, is_tie, sort_by
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
@@ -166,13 +166,13 @@ def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool
     strictly_fewer = not judged or len(child.reasons) < len(anchor.reasons)
     # screened (no statistics yet): a nested move that gains out of sample goes on to its full fit
     passes = test.improves or (not judged and nested and test.pooled_gain > 0)
-    if passes and child.result.validation.mse < anchor.result.validation.mse:
+    if passes and _lower(child.result.validation.mse, anchor.result.validation.mse):
         status = "improves"
     elif child.parent is anchor and test.within_one_se and (
             (child.n_params < anchor.n_params and fewer_reasons) or
             (child.n_params <= anchor.n_params and strictly_fewer)):
         status = "simplifies"   # fewer parameters, or as many and fewer reasons against it: not worse
-    elif child.parent is anchor and (child.mse < anchor.mse or test.within_one_se or child.move.kind == "lift"):
+    elif child.parent is anchor and (_lower(child.mse, anchor.mse) or test.within_one_se or child.move.kind == "lift"):
         status = "look-ahead"   # a possible first of two moves (a lift model: the terms may need to follow)
     else:
         status = "rejected"
@@ -216,13 +216,13 @@ def _nested_first(improved: list[Node], tried: list[Node], alpha: float) -> list
 
     peers = [n for n in tried if n.parent is best.parent and n.anchor is best.anchor and n.status != "improves"
              and n.move.effect and not n.screened and n.status != "failed" and n.test is not None
-             and n.test.pooled_gain > 0 and n.result.validation.mse < n.anchor.result.validation.mse
+             and n.test.pooled_gain > 0 and _lower(n.result.validation.mse, n.anchor.result.validation.mse)
              and not (_hard(n) - _hard(n.anchor))]
     near = [n for n in improved if n.parent is best.parent and near_best(n)] + [n for n in peers if near_best(n)]
     # of the moves of one preference, the fewest parameters (the one-standard-error rule, as :func:`choose`):
     # a move that adds more than the data can tell apart from a smaller one is paid for in later steps
     # (CL from the intercept adopted X*de at two states in place of de alone, then needed three moves to undo it)
-    preferred = min(near, key=lambda n: (_preference(n), n.n_params, n is not best, n.mse))
+    preferred = _by_mse(near, lambda n: (_preference(n), n.n_params, n is not best))[0]
     if preferred.status != "improves":
         preferred = dataclasses.replace(preferred, status="improves",
                                         test=dataclasses.replace(preferred.test, stands_for=best.move.name))
@@ -232,11 +232,11 @@ def _nested_first(improved: list[Node], tried: list[Node], alpha: float) -> list
 def _shortlist(prelim: list[Node], beam: int) -> list[Node]:
     """The screened children worth a full fit: the best that improve (twice the beam), the simplest that may
     simplify, and the look-aheads the beam could keep (lift models first)."""
-    def pick(status, key, n):
-        return sorted((c for c in prelim if c.status == status), key=key)[:n]
-    chosen = pick("improves", lambda c: c.mse, 2 * beam) + \
-        pick("simplifies", lambda c: (c.n_params, c.mse), SIMPLIFY_SHORTLIST) + \
-        pick("look-ahead", lambda c: (c.move.kind != "lift", c.mse), beam)
+    def pick(status, prefix, n):
+        return _by_mse((c for c in prelim if c.status == status), prefix)[:n]
+    chosen = pick("improves", lambda c: (), 2 * beam) + \
+        pick("simplifies", lambda c: (c.n_params,), SIMPLIFY_SHORTLIST) + \
+        pick("look-ahead", lambda c: (c.move.kind != "lift",), beam)
     seen, out = set(), []
     for c in chosen:
         if id(c) not in seen:
@@ -313,13 +313,11 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
                   for n, r in zip(shortlist, fulls)}
         tried = [judged.get(id(n), dataclasses.replace(n, status="rejected" if n.status != "failed" else "failed"))
                  for n in prelim]
-        improved = _nested_first(sorted((n for n in tried if n.status == "improves"), key=lambda n: n.mse), tried,
-                                 alpha)
+        improved = _nested_first(_by_mse(n for n in tried if n.status == "improves"), tried, alpha)
         if improved:   # the preferred move may stand for the best (its status changed): the record shows it
             tried = [improved[0] if t.candidate is improved[0].candidate else t for t in tried]
-        simpler = sorted((n for n in tried if n.status == "simplifies"),
-                         key=lambda n: (len(n.reasons), n.n_params, n.mse))
-        ahead = sorted((n for n in tried if n.status == "look-ahead"), key=lambda n: n.mse)
+        simpler = _by_mse((n for n in tried if n.status == "simplifies"), lambda n: (len(n.reasons), n.n_params))
+        ahead = _by_mse(n for n in tried if n.status == "look-ahead")
         if improved:
             nxt = improved[:beam]
         elif simpler and simplify:
@@ -327,7 +325,7 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
         elif ahead and any(n.status in CONFIRMED for n in current) and not (
                 at_floor is not None and all(at_floor(n) for n in current if n.status in CONFIRMED)):
             # a change of lift model first: it is what the other terms of a drag or pitch model build on
-            nxt = sorted(ahead, key=lambda n: (n.move.kind != "lift", n.mse))[:beam]
+            nxt = _by_mse(ahead, lambda n: (n.move.kind != "lift",))[:beam]
         else:
             nxt = []
         # only the chosen look-aheads and simplifications keep that status: the others are rejected for the record
@@ -393,7 +391,7 @@ def _repair_step(current: Node, index: int, campaign, library, lift_candidates, 
                                          test=move_test(current.result, result, alpha, max(len(pending), 1))))
     fewer = [n for n in tried if n.status != "failed" and not (_hard(n) - _hard(current))
              and len(n.reasons) < len(current.reasons)]
-    best = min(fewer, key=lambda n: (len(n.reasons), n.n_params, n.mse), default=None)
+    best = _by_mse(fewer, lambda n: (len(n.reasons), n.n_params))[0] if fewer else None
     if best is not None:
         kept = dataclasses.replace(best, status="repairs")
         tried = [kept if n is best else n for n in tried]
@@ -401,6 +399,17 @@ def _repair_step(current: Node, index: int, campaign, library, lift_candidates, 
     else:
         beam = ()
     return Step(index, (current.candidate.name,), tuple(tried), beam, 0.0), len(pending)
+
+
+def _by_mse(nodes, prefix=lambda n: ()) -> list[Node]:
+    """Nodes by ``prefix``, then held-out MSE; MSEs equal up to rounding (two moves that reach one structure:
+    drop a term, or replace it by one the structure has) ordered by structure name on every machine."""
+    return sort_by(nodes, lambda n: n.mse, lambda n: n.candidate.name, prefix)
+
+
+def _lower(a: float, b: float) -> bool:
+    """``a`` below ``b`` by more than rounding (equal fits are equal on every machine)."""
+    return a < b and not is_tie(a, b)
 
 
 def _lowest_mse(nodes: Sequence[Node]) -> Node:
@@ -420,5 +429,5 @@ def choose(confirmed: Sequence[Node], alpha: float = DEFAULT_ALPHA, admissible_f
         pool = [n for n in pool if len(n.reasons) == fewest]
     best = _lowest_mse(pool)
     near = [n for n in pool if n is best or move_test(best.result, n.result, alpha, 1).within_one_se]
-    return min(near, key=lambda n: (n.n_params, _preference(n), n.mse))
+    return _by_mse(near, lambda n: (n.n_params, _preference(n)))[0]
 

@@ -16,6 +16,7 @@ set aside, with the reason, for a shipped one (a pitch term on x_cg on a campaig
 """
 from __future__ import annotations
 
+import difflib
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -134,6 +135,11 @@ def read_terms(path: str | Path, coefficient: str) -> list[Term]:
     """A user's term file (TOML, module docstring); every error names the file and the term."""
     path = Path(path)
     doc = read_toml(path)
+    unknown = [k for k in doc if k not in ("coefficient", "terms")]
+    if unknown:
+        close = difflib.get_close_matches(unknown[0], ("coefficient", "terms"), n=1, cutoff=0.6)
+        hint = f" (did you mean {close[0]!r}?)" if close else " (a term file holds `coefficient` and [terms])"
+        raise DeclarationError(f"{path}: unknown key {unknown[0]!r}{hint}")
     declared = doc.get("coefficient", coefficient)
     if declared != coefficient:
         raise DeclarationError(f"{path}: the terms are for {declared}, not {coefficient}")

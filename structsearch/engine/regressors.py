@@ -16,6 +16,7 @@ import numpy as np
 import sympy as sp
 
 from ..data.errors import DataError, DeclarationError
+from .expressions import parse_expression
 
 # Columns of the campaign format (docs/interfaces.md section 1) plus usual extras.
 DATA_COLUMNS = ("t", "alpha", "q", "V", "de", "CL", "CD", "Cm", "alpha_dot", "CT", "x_cg",
@@ -134,17 +135,14 @@ def parse(text: str, *, known: Iterable[str], context: str = "") -> sp.Expr:
 def _parse(text: str, known: tuple[str, ...]) -> sp.Expr:
     """Cached: a search declares the same expressions thousands of times (sympy expressions are immutable);
     the context of an error message is not part of the key (it names the candidate)."""
-    local: dict = {name: _real(name) for name in known}
-    local.update(HELPERS)
-    local.update({name: make() for name, make in NAMED_EXPRESSIONS.items()})
-    try:
-        expr = sp.sympify(text, locals=local)
-    except (sp.SympifyError, SyntaxError, TypeError, AttributeError) as exc:
-        raise DeclarationError(f"cannot parse expression {text!r}: {' '.join(str(exc).split())}") from None
+    named = {name: make() for name, make in NAMED_EXPRESSIONS.items()}
+
+    def symbol(name: str) -> sp.Expr:
+        return named[name] if name in named else _real(name)
+
+    expr = parse_expression(text, symbol, HELPERS)
     if not isinstance(expr, sp.Expr):
         raise DeclarationError(f"expression {text!r} is not a scalar expression")
-    # names the user did not declare came back as plain (non-real) symbols: make them real
-    expr = expr.xreplace({s: _real(s.name) for s in expr.free_symbols if not s.is_real})
     return expr
 
 

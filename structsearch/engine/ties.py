@@ -51,3 +51,19 @@ def sort_with_ties(items: Sequence[T], value: Callable[[T], float], order: Calla
         out.extend(sorted(ranked[i:j], key=order))
         i = j
     return out
+
+
+def sort_by(items: Iterable[T], value: Callable[[T], float], order: Callable[[T], object],
+            prefix: Callable[[T], tuple] = lambda _: ()) -> list[T]:
+    """``items`` sorted by ``prefix`` (exact keys: a status, a parameter count), then within each prefix by
+    ``value`` with ties resolved by ``order`` (:func:`sort_with_ties`)."""
+    ranked = sorted(items, key=prefix)
+    out: list[T] = []
+    i = 0
+    while i < len(ranked):
+        j = i + 1
+        while j < len(ranked) and prefix(ranked[j]) == prefix(ranked[i]):
+            j += 1
+        out.extend(sort_with_ties(ranked[i:j], value, order))
+        i = j
+    return out

@@ -25,8 +25,10 @@ from pathlib import Path
 # Fields that describe how a run went, not what it found: they differ between machines by design.
 RUN_FIELDS = frozenset({"seconds", "wall_seconds", "elapsed", "nfev", "njev", "message", "n_reached_best",
                         "timings", "time", "duration", "version", "command", "cached"})
-# Files that are measurements of the machine (benchmarks), not answers.
+# Files that are measurements of the machine (benchmarks), not answers; directories that hold inputs and
+# internal state (the simulated campaign, the fit cache, whose file names carry digests of the data's bits).
 MACHINE_FILES = ("bench.json", "bench.csv")
+SKIPPED_DIRECTORIES = ("cache", "campaign")
 _INTEGER = re.compile(r"^[-+]?\d+$")
 _NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 
@@ -35,13 +37,15 @@ _NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 class Tolerances:
     """How close two numbers of an answer must be.
 
-    ``rtol`` 1e-6: fits stop at a relative change of cost of 1e-10; a parameter moves with the square root of
-    that in its poorly determined directions (1e-5 of its standard error), and an MSE or R^2 moves with the
-    cost itself. Measured between OpenBLAS's Haswell and Prescott kernels on the demo: 3e-8 at most; 1e-6
-    leaves a margin while any change of the data, a start or a structure moves these numbers by 1e-4 or more.
+    ``rtol`` 1e-3. A fit stops where its cost changes by less than 1e-10 of itself; a parameter can still move
+    along a poorly determined direction by up to about sqrt(1e-10 * samples) of its standard error, and a
+    fold's refit of a poorly fitting candidate, warm started, can stop elsewhere in a flat valley. Measured
+    between OpenBLAS's Haswell and SandyBridge kernels on the demo at scale 0.2: the rankings' MSEs,
+    parameters and R^2 within 3e-6, one cross-validation MSE 1.4e-4 apart (X_ss/X_w Q/U, 44 % above the best
+    candidate). The decisions (ranks, admissible sets, structures, moves, verdicts) are compared exactly.
     """
 
-    rtol: float = 1e-6
+    rtol: float = 1e-3
     atol_fraction: float = 1e-9
     # the answers' numbers are coefficients and parameters (order 1), MSEs (1e-6 and up) and their gaps: a
     # difference below 1e-12 is rounding of a number that is zero (a gap of the best to itself, 1e-17)
@@ -98,8 +102,10 @@ def answer_files(directory: Path) -> list[str]:
     """The CSV and JSON files under ``directory`` that hold answers (relative paths, sorted)."""
     found = []
     for p in sorted(directory.rglob("*")):
-        if p.suffix in (".csv", ".json") and p.is_file() and p.name not in MACHINE_FILES:
-            found.append(p.relative_to(directory).as_posix())
+        relative = p.relative_to(directory)
+        if (p.suffix in (".csv", ".json") and p.is_file() and p.name not in MACHINE_FILES
+                and not set(relative.parts[:-1]) & set(SKIPPED_DIRECTORIES)):
+            found.append(relative.as_posix())
     return found
 
 
@@ -124,22 +130,34 @@ def _compare_csv(name: str, a: Path, b: Path, tol: Tolerances) -> list[Differenc
     rows_a, rows_b = _read_csv(a), _read_csv(b)
     if len(rows_a) != len(rows_b):
         return [Difference(name, "rows", str(len(rows_a)), str(len(rows_b)), "decision")]
-    if rows_a and list(rows_a[0]) != list(rows_b[0]):
-        return [Difference(name, "columns", ",".join(rows_a[0]), ",".join(rows_b[0]), "decision")]
-    scales = {k: max((abs(v) for r in rows_a for v in [_as_float(r[k])] if v is not None and math.isfinite(v)),
-                     default=0.0) for k in (rows_a[0] if rows_a else {})}
+    if not rows_a:
+        return []
+    header, header_b = rows_a[0], rows_b[0]
+    if header != header_b:
+        return [Difference(name, "columns", ",".join(header), ",".join(header_b), "decision")]
+    width = len(header)
+    body = [r + [""] * (width - len(r)) for r in rows_a[1:]]
+    scales = [max((abs(v) for r in body for v in [_as_float(r[k])] if v is not None and math.isfinite(v)),
+                  default=0.0) for k in range(width)]
+    label_column = next((header.index(k) for k in ("model", "name", "parameter") if k in header), None)
     out = []
-    for i, (ra, rb) in enumerate(zip(rows_a, rows_b)):
-        label = ra.get("model") or ra.get("name") or ra.get("parameter") or str(i + 1)
-        for k in ra:
-            if k not in RUN_FIELDS:
-                out.extend(_compare_values(name, f"row {i + 1} ({label}), {k}", ra[k], rb[k], scales[k], tol))
+    for i, (ra, rb) in enumerate(zip(rows_a[1:], rows_b[1:])):
+        label = ra[label_column] if label_column is not None and label_column < len(ra) else str(i + 1)
+        if len(ra) != len(rb):
+            out.append(Difference(name, f"row {i + 1} ({label}) length", str(len(ra)), str(len(rb)), "decision"))
+            continue
+        for k, (u, v) in enumerate(zip(ra, rb)):
+            column = header[k] if k < width else f"column {k + 1}"
+            if column not in RUN_FIELDS:
+                out.extend(_compare_values(name, f"row {i + 1} ({label}), {column}", u, v,
+                                           scales[k] if k < width else 0.0, tol))
     return out
 
 
-def _read_csv(path: Path) -> list[dict]:
+def _read_csv(path: Path) -> list[list[str]]:
     with path.open(newline="", encoding="utf-8") as f:
-        return list(csv.DictReader(f))
+        # a leading "# command: ..." line records how the file was made (its paths differ between runs)
+        return [row for row in csv.reader(f) if row and not row[0].startswith("#")]
 
 
 def _as_float(text: str) -> float | None:

@@ -1,6 +1,7 @@
 """Grid expansion: the candidates a grid document declares by blocks and rules, in order."""
 from __future__ import annotations
 
+import difflib
 from itertools import product
 from typing import Sequence
 
@@ -24,11 +25,29 @@ def _blocks(doc: dict, names: Sequence[str], where: str) -> list[tuple[str, str]
     return out
 
 
+# Every key a grid file and each of its entries may hold: any other is a typo, refused with the close match.
+GRID_KEYS = ("name", "coefficient", "prefix", "lift", "sets", "blocks", "bounds", "entry")
+ENTRY_KEYS = ("name", "lift", "states", "note", "bounds", "from", "drop", "kinds", "prefix", "blocks", "always",
+              "combinations", "regressors")
+
+
+def check_keys(table: dict, known: Sequence[str], where: str) -> None:
+    """Refuse a key of ``table`` not in ``known``, naming it, where it is and the close match."""
+    unknown = [k for k in table if k not in known]
+    if unknown:
+        close = difflib.get_close_matches(unknown[0], known, n=1, cutoff=0.6)
+        hint = f" (did you mean {close[0]!r}?)" if close else f" (known: {', '.join(known)})"
+        raise DeclarationError(f"{where}: unknown key {unknown[0]!r}{hint}")
+
+
 def expand(doc: dict, source: str) -> Grid:
     """Expand a grid document (see :mod:`structsearch.fitting.specs`) into its candidates, in order."""
+    check_keys(doc, GRID_KEYS, source)
     for key in ("name", "coefficient", "entry"):
         if key not in doc:
             raise DeclarationError(f"{source}: missing {key!r}")
+    if not isinstance(doc["entry"], list) or not all(isinstance(e, dict) for e in doc["entry"]):
+        raise DeclarationError(f"{source}: 'entry' must be a list of [[entry]] tables")
     name, coefficient = doc["name"], doc["coefficient"]
     prefix = doc.get("prefix", f"{name}-")
     default_lift = doc.get("lift")
@@ -57,6 +76,7 @@ def expand(doc: dict, source: str) -> Grid:
 
     for i, entry in enumerate(doc["entry"]):
         where = f"{source} [[entry]] #{i + 1}"
+        check_keys(entry, ENTRY_KEYS, where)
         lift = entry.get("lift", default_lift)
         states = tuple((k, v) for k, v in entry.get("states", {}).items())
         note = entry.get("note", "")

@@ -94,8 +94,9 @@ def may_be_nonlinear(c: Candidate, lift_params: dict | None) -> bool:
     return bool(set(c.state_parameters) - set(lift_params or {}))
 
 
-def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None, options: FitOptions) -> Path:
-    """Where the fit of ``c`` on this data, lift model (``lift_params``: its ``cache_key``, the parameters, and a
+def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None,
+               options: FitOptions) -> tuple[Path, str]:
+    """Where (and under which full key, the sha256 of the question) the fit of ``c`` on this data, lift model (``lift_params``: its ``cache_key``, the parameters, and a
     joint lift's partners) and options is cached. A warm start is not part of
     the key: it chooses where the solver begins, not the question (the study and the report are served
     the search's fits, however they were started). The cross-validation method is, for a candidate that
@@ -106,9 +107,9 @@ def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None,
                        "options": options.key(may_be_nonlinear(c, lift_params)),
                        "version": [__version__, code_fingerprint(), JSON_LAYOUT]},
                       sort_keys=True, default=float)
-    key = hashlib.sha256(blob.encode()).hexdigest()[:16]
+    key = hashlib.sha256(blob.encode()).hexdigest()
     safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in c.name)
-    return out / "cache" / c.grid / f"{safe}-{key}.json"
+    return out / "cache" / c.grid / f"{safe}-{key[:16]}.json", key
 
 
 def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts: dict[str, LiftFit] | None = None,
@@ -137,7 +138,7 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     for i, c in enumerate(candidates):
         lift = lifts.get(c.lift) if c.lift else None
         paths[i] = cache_path(out, c, data_key, lift.cache_key if lift else None, options)
-        results[i] = _read_cached(paths[i], say)
+        results[i] = read_cached(*paths[i], say)
     cached = sum(r is not None for r in results)
     if cached:
         say(f"{cached} of {len(candidates)} candidates from the cache")
@@ -147,11 +148,11 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
         # the lift grid's CL-VI is the separation grid's X_ss/X_w U/S: served the twin's fit as cached
         # under this run's key (the same data, options, lift model and code), never an object from elsewhere
         twin_lift = lifts.get(twin.lift) if twin.lift else None
-        fitted = _read_cached(cache_path(out, twin, data_key, twin_lift.cache_key if twin_lift else None, options),
-                              say)
+        fitted = read_cached(*cache_path(out, twin, data_key, twin_lift.cache_key if twin_lift else None, options),
+                             say)
         if fitted is not None and not fitted.failed:
             results[i] = dataclasses.replace(fitted, name=candidates[i].name, grid=candidates[i].grid)
-            write_json(paths[i], results[i].to_json(), indent=1)
+            write_cached(*paths[i], results[i])
             say(f"{candidates[i].grid} {candidates[i].name}: the same model as {twin.grid} {twin.name}, "
                 "fitted already")
     todo = [i for i in range(len(candidates)) if results[i] is None]
@@ -165,7 +166,7 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     def done(i, summary, finished, t0, starts):
         warm = starts[0] is not None
         if not summary.failed or summary.error.startswith(CACHED_FAILURES):
-            write_json(paths[i], summary.to_json(), indent=1)
+            write_cached(*paths[i], summary)
         results[i] = summary
         status = "failed: " + summary.error if summary.failed else f"{summary.seconds:.1f} s"
         say(f"[{finished}/{len(todo)}] {candidates[i].grid} {candidates[i].name}{' (warm start)' if warm else ''}: "
@@ -259,12 +260,43 @@ def _fit_as_ready(todo, needs, start_of, task, n_jobs, done) -> None:
         raise
 
 
-def _read_cached(path: Path, say) -> CandidateResult | None:
-    """A cached result, or None when there is none or the file is unreadable (refitted, said)."""
+# A cache entry proves itself: {"key": the full sha256 of its question, "digest": the sha256 of its content,
+# "content": the fit}. A file whose key is another question's, whose content was altered (a digest that does not
+# match), or that is not such an envelope at all (null, a list, an older layout) is a miss: refitted, said once.
+CACHE_ENVELOPE = ("key", "digest", "content")
+
+
+def content_digest(content) -> str:
+    """The sha256 of a JSON value in canonical form (sorted keys, no spaces)."""
+    return hashlib.sha256(json.dumps(content, sort_keys=True, separators=(",", ":"), allow_nan=True)
+                          .encode()).hexdigest()
+
+
+def write_cached(path: Path, key: str, result: CandidateResult) -> None:
+    content = json.loads(json.dumps(result.to_json(), default=float))   # as it will read back
+    write_json(path, {"key": key, "digest": content_digest(content), "content": content}, indent=1)
+
+
+def read_cached(path: Path, key: str, say) -> CandidateResult | None:
+    """A cached result that proves itself (its key and content digest), or None (a miss, said once)."""
     if not path.exists():
         return None
     try:
-        return CandidateResult.from_json(json.loads(path.read_text()))
-    except (ValueError, KeyError, TypeError) as exc:
-        say(f"cache file {path} is unreadable ({type(exc).__name__}); refitting")
-        return None
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        return _miss(path, f"unreadable ({type(exc).__name__})", say)
+    if not isinstance(doc, dict) or set(doc) != set(CACHE_ENVELOPE):
+        return _miss(path, "not a cache entry of this version", say)
+    if doc["key"] != key:
+        return _miss(path, "its key is another question's", say)
+    if doc["digest"] != content_digest(doc["content"]):
+        return _miss(path, "its content does not match its digest (altered)", say)
+    try:
+        return CandidateResult.from_json(doc["content"])
+    except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:
+        return _miss(path, f"content not readable ({type(exc).__name__})", say)
+
+
+def _miss(path: Path, why: str, say) -> None:
+    say(f"warning: cache file {path} not used: {why}; refitting")
+    return None
