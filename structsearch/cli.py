@@ -273,11 +273,29 @@ def build_parser() -> argparse.ArgumentParser:
     return build(HANDLERS)
 
 
+def _terminate(signum, frame):
+    # SIGTERM (a scheduler, a dead terminal) ends the run as Ctrl-C does: cached fits kept, workers and
+    # temporary files removed by the same clean-up
+    raise KeyboardInterrupt
+
+
+RESUMABLE = ("search", "fit", "diagnose", "discover", "report", "demo", "study")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from .data.errors import StructSearchError
+    import signal
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.func(args)
+    except KeyboardInterrupt:
+        again = (" the fits finished so far are cached: run the same command again to resume"
+                 if args.command in RESUMABLE else "")
+        print(f"structsearch {args.command}: interrupted;{again}" if again else
+              f"structsearch {args.command}: interrupted", file=sys.stderr)
+        return 130
     except StructSearchError as exc:
         print(f"structsearch {args.command}: error: {exc}", file=sys.stderr)
         return 2

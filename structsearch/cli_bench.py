@@ -40,7 +40,23 @@ def _calibration(args) -> int:
     return 0
 
 
+def _reading_bench(args) -> int:
+    from .data.atomic import write_json, write_text
+    from .experiments.bench_reading import reading_markdown, run_reading
+    scale = 1.0 if args.scale == 0.1 else args.scale   # --scale's default is the calibration's
+    doc = run_reading(scale=scale, progress=lambda m: print(f"bench: {m}", file=sys.stderr, flush=True))
+    out = Path(args.out)
+    write_text(out / "reading_bench.md", reading_markdown(doc, f"structsearch bench --reading --scale {scale}"))
+    write_json(out / "reading_bench.json", doc, indent=1)
+    for fmt, f in doc["formats"].items():
+        print(f"{fmt}: reading added {f['peak_added_bytes'] / 1e6:.1f} MB for {f['data_bytes'] / 1e6:.1f} MB of data "
+              f"({f['ratio']:.2f}x)")
+    return 0
+
+
 def _bench(args) -> int:
+    if args.reading:
+        return _reading_bench(args)
     if args.calibration:
         return _calibration(args)
     if args.discovery:

@@ -74,6 +74,9 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     b.add_argument("--discovery", action="store_true",
                    help="instead: the story with the structure search against the effect library alone, and "
                         "discover --from minimal for each coefficient (writes discovery_bench.md and .json)")
+    b.add_argument("--reading", action="store_true",
+                   help="instead: the peak memory of reading the default campaign (CSV and Parquet) against the "
+                        "size of its data, each in a fresh process (writes reading_bench.md and .json; --scale)")
     b.add_argument("--campaigns", type=_count, default=50,
                    help="--calibration: number of seeded campaigns (seeds 2000 on: held out from the seeds the "
                         "defaults were chosen on)")

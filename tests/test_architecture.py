@@ -318,7 +318,8 @@ def test_a_wald_test_of_a_parameter_that_is_not_identifiable_is_nan_with_the_rea
 
 
 def test_ci_runs_exactly_the_readme_test_command():
-    """CI (``.ci/run``) must call the test command the README gives, character for character."""
+    """CI (``.ci/run``) must call the test command the README gives, character for character, first; what it adds
+    after it is the simulated second machine (``.ci/another_machine``), which the README names."""
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
     readme = (root / "README.md").read_text()
@@ -326,4 +327,5 @@ def test_ci_runs_exactly_the_readme_test_command():
     assert "pytest" in tests and "lint-imports" in tests
     ci = [line.strip() for line in (root / ".ci" / "run").read_text().splitlines()
           if line.strip() and not line.lstrip().startswith(("#", "set ", "cd "))]
-    assert ci == [tests]
+    assert ci == [tests, "bash .ci/another_machine"]
+    assert ".ci/another_machine" in readme

@@ -53,5 +53,6 @@ def test_nan_never_wins_and_real_differences_are_kept():
     assert first_of_lowest(["a", "b", "c"], {"a": math.nan, "b": 2.0, "c": 1.0}.__getitem__) == "c"
     assert first_of_lowest(["a", "b"], {"a": 1.0 + 1e-6, "b": 1.0}.__getitem__) == "b"
     assert first_of_lowest(["a", "b"], {"a": 1.0 + 1e-12, "b": 1.0}.__getitem__) == "a"
+    assert first_of_lowest(["b", "a"], lambda _: math.nan) == "b"
     with pytest.raises(ValueError):
-        first_of_lowest(["a"], lambda _: math.nan)
+        first_of_lowest([], lambda _: 0.0)

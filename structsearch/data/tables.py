@@ -69,22 +69,22 @@ def csv_header(path: Path) -> list[str]:
     with path.open("rb") as f:
         head = f.read(SNIFF_BYTES)
     if b"\0" in head:
-        raise DataError("not a text file (it holds NUL bytes): a maneuver file is CSV text", source=str(path))
+        raise DataError("cannot read CSV: not a text file (it holds NUL bytes): a maneuver file is CSV text", source=str(path))
     first, newline, _ = head.partition(b"\n")
     if not newline and len(head) == SNIFF_BYTES:
-        raise DataError(f"the first line is longer than {SNIFF_BYTES // 1024} KiB: not a CSV header",
+        raise DataError(f"cannot read CSV: the first line is longer than {SNIFF_BYTES // 1024} KiB: not a CSV header",
                         source=str(path))
     try:
         text = first.decode("utf-8-sig").strip("\r")
     except UnicodeDecodeError:
-        raise DataError("the first line is not UTF-8 text", source=str(path)) from None
+        raise DataError("cannot read CSV: the first line is not UTF-8 text", source=str(path)) from None
     import csv
     names = next(csv.reader([text]), [])
     if not names or not any(n.strip() for n in names):
-        raise DataError("the first line is empty: it must name the columns (t,alpha,q,V,de,...)", source=str(path))
+        raise DataError("cannot read CSV: the first line is empty: it must name the columns (t,alpha,q,V,de,...)", source=str(path))
     numeric = [n for n in names if _is_number(n)]
     if len(numeric) == len(names):
-        raise DataError(f"the first line {text[:60]!r} holds numbers, not column names (t,alpha,q,V,de,...)",
+        raise DataError(f"cannot read CSV: the first line {text[:60]!r} holds numbers, not column names (t,alpha,q,V,de,...)",
                         source=str(path))
     _unique_names(names, path)
     return names

@@ -140,7 +140,10 @@ def _parse(text: str, known: tuple[str, ...]) -> sp.Expr:
     def symbol(name: str) -> sp.Expr:
         return named[name] if name in named else _real(name)
 
-    expr = parse_expression(text, symbol, HELPERS)
+    try:
+        expr = parse_expression(text, symbol, HELPERS)
+    except DeclarationError as exc:
+        raise DeclarationError(f"cannot parse expression: {exc}") from None
     if not isinstance(expr, sp.Expr):
         raise DeclarationError(f"expression {text!r} is not a scalar expression")
     return expr

@@ -23,13 +23,15 @@ def is_tie(a: float, b: float, rtol: float = TIE_RTOL) -> bool:
 
 
 def first_of_lowest(items: Iterable[T], value: Callable[[T], float], rtol: float = TIE_RTOL) -> T:
-    """The first item (in the given order) whose value is within ``rtol`` of the lowest finite value; NaN
-    values never win. Raises ValueError when no value is finite."""
+    """The first item (in the given order) whose value is within ``rtol`` of the lowest value; NaN values never
+    win unless every value is NaN (then the first item). Raises ValueError when there is no item."""
     items = list(items)
+    if not items:
+        raise ValueError("no item to choose from")
     values = [float(value(x)) for x in items]
     finite = [v for v in values if not math.isnan(v)]
     if not finite:
-        raise ValueError("no finite value to choose from")
+        return items[0]
     low = min(finite)
     for x, v in zip(items, values):
         if not math.isnan(v) and (v == low or is_tie(v, low, rtol)):

@@ -104,6 +104,7 @@ def answer_files(directory: Path) -> list[str]:
     for p in sorted(directory.rglob("*")):
         relative = p.relative_to(directory)
         if (p.suffix in (".csv", ".json") and p.is_file() and p.name not in MACHINE_FILES
+                and not p.name.endswith("_manifest.json")
                 and not set(relative.parts[:-1]) & set(SKIPPED_DIRECTORIES)):
             found.append(relative.as_posix())
     return found

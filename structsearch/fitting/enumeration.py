@@ -8,6 +8,7 @@ from typing import Sequence
 import numpy as np
 
 from ..data.errors import DeclarationError
+from ..engine.regressors import parse
 from ..engine.separation import SeparationState
 from .candidates import Candidate, Grid, from_roman, roman
 
@@ -69,6 +70,14 @@ def expand(doc: dict, source: str) -> Grid:
             raise DeclarationError(f"{where}: candidate name {cand_name!r} used twice")
         if not regs:
             raise DeclarationError(f"{where}: candidate {cand_name!r} has no regressors")
+        for reg_name, text in regs:   # parsed now (a grammar, never code): an error names the file and entry
+            if not isinstance(text, str):
+                raise DeclarationError(f"{where}: regressor {reg_name!r}: an expression is a quoted string, "
+                                       f"not {text!r}")
+            try:
+                parse(text, known=())
+            except DeclarationError as exc:
+                raise DeclarationError(f"{where}: regressor {reg_name!r}: {exc}") from None
         own = {p for k, kind in states for p in _state_params(k, kind)}
         used_bounds.update(b[0] for b in bounds if b[0] in own)
         candidates.append(Candidate(cand_name, name, coefficient, tuple(regs), tuple(states), lift, note,

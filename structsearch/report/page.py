@@ -21,6 +21,7 @@ import numpy as np
 
 from . import figures as fg
 from . import figure_data as rd
+from ..data.manifest import check_set
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..data.atomic import write_text
@@ -56,6 +57,7 @@ def chosen_models(out: Path, overrides: tuple[str, ...] = ()) -> tuple[dict[str,
     if not path.exists():
         notes.append(f"No {path}: the thesis' final structures are shown (run a search to rank your own).")
         return names, notes
+    check_set(out, "search", "ranking.csv")
     with path.open(newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
         missing = [c for c in ("grid", "model", "rank") if c not in (reader.fieldnames or ())]

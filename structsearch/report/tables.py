@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data.atomic import write_text
+from ..data.manifest import begin_set, finish_set
 from ..engine.estimates import HIGH_CORRELATION
 # one renderer for every table of a fit (engine.summary), re-exported here for the report's callers
 from ..engine.summary import (CSV_DIGITS, FORMATS, PARAMETER_HEADERS, TABLEFMT,  # noqa: F401
@@ -157,6 +158,7 @@ def write_tables(ranked_by_grid: dict[str, list[CandidateResult]], out: Path,
     parameters (Tables 11, 13, 15) and correlation matrix (Tables 12, 14, 16) in md/tex/csv; and, given
     the final models fitted with the thesis' covariance estimator, ``thesis_stderr``."""
     out = Path(out)
+    begin_set(out, "search")   # a run killed among these files leaves them marked incomplete
     written = [write_text(out / "ranking.csv", ranking_csv(ranked_by_grid))]
     for grid, ranked in ranked_by_grid.items():
         safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in grid)
@@ -171,4 +173,5 @@ def write_tables(ranked_by_grid: dict[str, list[CandidateResult]], out: Path,
         for fmt in ("md", "csv"):
             written.append(write_text(out / f"thesis_stderr.{fmt}",
                                       render_table(rows, THESIS_STDERR_HEADERS, fmt, floatfmt=".4g")))
+    finish_set(out, "search", written)
     return written

@@ -213,6 +213,34 @@ class _Task:
                              start=warm, nested=nested)
 
 
+_WATCHED: list[int] = []
+
+
+def watch_parent(poll_seconds: float = 1.0) -> None:
+    """In a worker process: end it when the process that started it is gone (killed with -9, it cannot stop
+    its workers; an orphan would go on fitting for minutes). Started once per process, a daemon thread."""
+    if _WATCHED:
+        return
+    parent = os.getppid()
+    _WATCHED.append(parent)
+
+    def watch():
+        import time
+        while True:
+            time.sleep(poll_seconds)
+            if os.getppid() != parent:
+                os._exit(70)
+
+    import threading
+    threading.Thread(target=watch, name="structsearch-parent-watch", daemon=True).start()
+
+
+def _in_worker(task, i, start):
+    """``task(i, start)`` in a local worker process, which ends itself if the search's process dies."""
+    watch_parent()
+    return task(i, start)
+
+
 def _fit_as_ready(todo, needs, start_of, task, n_jobs, done) -> None:
     """Fit ``todo`` on local worker processes, each candidate as soon as the ones it ``needs`` are fitted
     (joblib's reusable memmapping executor; its workers survive between the grids of a search)."""
@@ -232,7 +260,7 @@ def _fit_as_ready(todo, needs, start_of, task, n_jobs, done) -> None:
             for i in sorted(waiting):
                 if all(j in fitted for j in needs[i]):
                     start = start_of(i)
-                    running[executor.submit(task, i, start)] = (i, start)
+                    running[executor.submit(_in_worker, task, i, start)] = (i, start)
                     waiting.discard(i)
             if not running:  # cannot happen: needs only point to earlier waves
                 raise RuntimeError(f"candidates {sorted(waiting)} wait for candidates that never finish")
@@ -250,10 +278,14 @@ def _fit_as_ready(todo, needs, start_of, task, n_jobs, done) -> None:
                 done(i, summary, finished, start)
             if failure is not None:
                 raise failure
+    except KeyboardInterrupt:
+        # Ctrl-C or SIGTERM: the fits still running are lost anyway (the finished ones are cached); the workers
+        # end now, before the caller removes the shared splits they read
+        executor.shutdown(wait=True, kill_workers=True)
+        raise
     except BaseException:
-        # a failed task or an interrupt: nothing more starts; the caller then removes the shared splits,
-        # so wait for the fits already running (an interrupt waits for them to end) rather than pull
-        # their data from under them
+        # a failed task: nothing more starts; the caller then removes the shared splits, so wait for the fits
+        # already running rather than pull their data from under them
         for future in running:
             future.cancel()
         wait(running)

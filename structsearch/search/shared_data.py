@@ -8,10 +8,12 @@ memory-mapped read-only, so the pages are shared between the processes.
 """
 from __future__ import annotations
 
+import os
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
+from ..data.atomic import remove_orphans
 from ..data.flightdata import FlightData
 from ..fitting.lift_context import forget_lift_contexts
 
@@ -29,7 +31,8 @@ def shared_splits(train: FlightData, validation: FlightData, backend: str, n_job
         yield train, validation
         return
     import joblib
-    with tempfile.TemporaryDirectory(prefix="structsearch-") as folder:
+    remove_orphans(Path(tempfile.gettempdir()), "structsearch-")
+    with tempfile.TemporaryDirectory(prefix=f"structsearch-{os.getpid()}-") as folder:
         path = Path(folder) / "splits.pkl"
         joblib.dump((train, validation), path)
         yield str(path)
