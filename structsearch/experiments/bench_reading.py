@@ -1,8 +1,9 @@
 """Memory of reading a campaign: the peak a reading process adds, against the size of the data it holds.
 
 Each format is read in a fresh interpreter (the reading's peak resident memory is not mixed with the bench's
-own), after importing everything a reading needs: the figure is what ``read_campaign`` itself adds, against
-the bytes of the columns it returns (float64 samples). Reading streams a file into those columns; a reader
+own), after importing everything a reading needs, with the kernel's peak counter reset (Linux
+``/proc/self/clear_refs``): the figure is the peak ``read_campaign`` itself adds to the resident memory,
+against the bytes of the columns it returns (float64 samples). Reading streams a file into those columns; a reader
 that held the text, a parsed copy and the columns at once would show 3x and more.
 """
 from __future__ import annotations
@@ -14,15 +15,25 @@ import tempfile
 from pathlib import Path
 
 _CHILD = """
-import json, resource, sys
+import json, sys
 import numpy, pandas
 from structsearch.data.campaign import read_campaign
-import pyarrow  # noqa: F401  (imported before the baseline whatever the format)
-before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+try:
+    import pyarrow  # noqa: F401  (imported before the baseline whatever the format)
+except ImportError:
+    pass
+
+def status(key):
+    for line in open("/proc/self/status"):
+        if line.startswith(key):
+            return int(line.split()[1]) * 1024
+
+open("/proc/self/clear_refs", "w").write("5")   # the peak resident memory starts again from here
+before = status("VmRSS:")
 campaign = read_campaign(sys.argv[1])
-after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+peak = status("VmHWM:")
 data = sum(numpy.asarray(v).nbytes for v in campaign.data.columns.values())
-print(json.dumps({"peak_added_bytes": (after - before) * 1024, "data_bytes": int(data),
+print(json.dumps({"peak_added_bytes": peak - before, "data_bytes": int(data),
                   "samples": int(campaign.data.n_samples), "columns": len(campaign.data.columns)}))
 """
 
