@@ -43,6 +43,7 @@ from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, explore, fit_st
 from ..discovery.judge import judge_for
 from ..discovery.moves import MOVE_KINDS, generate, structure_key
 from ..discovery.terms import library_for
+from ..fitting.comparison import MIN_MANEUVERS, relative_excess, within_noise as one_se_rule
 from ..fitting.options import FitOptions
 from ..fitting.candidate_fit import fit_lift_model
 from ..fitting.candidates import Candidate
@@ -64,8 +65,6 @@ __all__ = ["diagnose", "saturated", "wald_p_value", "within_noise", "where", "sp
 SPECTRAL_SPLIT_HZ = 3.0
 # A model is at the floor when its per-maneuver relative excess over the floor model is within one standard
 # error or below this (the ranking's practical tolerance); the error needs this many maneuvers.
-PRACTICAL_TOLERANCE = 0.01
-MIN_MANEUVERS = 3
 # A diagnosis fits as a search does, with one-step folds for structures with separation parameters (they rank
 # alike, experiments/bench) and two starts (each child also starts from its parent's estimates).
 DIAGNOSIS_OPTIONS = FitOptions(n_starts=2, cv_method="one-step")
@@ -93,10 +92,10 @@ def _mse_se(residual: np.ndarray, data: FlightData) -> tuple[float, float]:
 
 
 def _relative_excess(residual: np.ndarray, floor_residual: np.ndarray, data: FlightData) -> tuple[float, float]:
-    """Mean and standard error of the per-maneuver relative MSE excess over the floor model (paired)."""
+    """Mean and standard error of the per-maneuver relative MSE excess over the floor model (paired; the
+    ranking's statistic, :func:`structsearch.fitting.comparison.relative_excess`)."""
     slices = data.segment_slices()
-    d = maneuver_mse(residual, slices) / maneuver_mse(floor_residual, slices) - 1.0
-    return weighted_mean_se(d, sizes_of(slices))
+    return relative_excess(maneuver_mse(residual, slices), maneuver_mse(floor_residual, slices), sizes_of(slices))
 
 
 def saturated(current: Candidate, library) -> tuple[Candidate, dict[str, tuple[str, ...]]]:
@@ -122,10 +121,7 @@ def within_noise(residual: np.ndarray, floor_residual: np.ndarray, data: FlightD
     MSE excess over the floor model is on average within one standard error of zero or below 1 %. Returns
     (at floor, mean excess, its standard error); the error is NaN with fewer than three maneuvers."""
     mean, se = _relative_excess(residual, floor_residual, data)
-    if len(data.names) < MIN_MANEUVERS:
-        se = float("nan")
-    bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
-    return bool(mean <= bar), float(mean), float(se)
+    return one_se_rule(mean, se), float(mean), float(se)
 
 
 def _shrink(mse_base: float, mse_after: float, floor: float) -> float | None:

@@ -32,11 +32,10 @@ from scipy.special import stdtr
 from ..engine.scores import weighted_mean_se
 from ..engine.ties import TIE_RTOL
 from ..fitting.candidate_result import CandidateResult
+from ..fitting.comparison import MIN_MANEUVERS, within_noise
 
 # The family-wise rate of one step's improvement test (Bonferroni over its moves).
 DEFAULT_ALPHA = 0.10
-PRACTICAL_TOLERANCE = 0.01
-MIN_MANEUVERS = 3
 TEST_NAME = ("paired one-sided t-test of the out-of-sample per-maneuver relative MSE (held-out training and "
              "validation maneuvers), Bonferroni over the step's moves")
 WALD_TEST_NAME = "Wald test of the parameters the move adds (the fit's covariance), Bonferroni over the step's moves"
@@ -80,9 +79,9 @@ class MoveTest:
 
     @property
     def within_one_se(self) -> bool:
-        """Not worse than the parent beyond one standard error (or 1 %): a simplification may be adopted."""
-        bar = max(self.gain_se, PRACTICAL_TOLERANCE) if np.isfinite(self.gain_se) else PRACTICAL_TOLERANCE
-        return bool(np.isfinite(self.gain) and -self.gain <= bar)
+        """Not worse than the parent beyond one standard error (or 1 %): a simplification may be adopted (the
+        ranking's rule, :func:`structsearch.fitting.comparison.within_noise`, on the child's excess -gain)."""
+        return within_noise(-self.gain, self.gain_se)
 
     def to_dict(self) -> dict:
         def num(x):

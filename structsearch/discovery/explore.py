@@ -403,8 +403,9 @@ def _repair_step(current: Node, index: int, campaign, library, lift_candidates, 
 
 def _by_mse(nodes, prefix=lambda n: ()) -> list[Node]:
     """Nodes by ``prefix``, then held-out MSE; MSEs equal up to rounding (two moves that reach one structure:
-    drop a term, or replace it by one the structure has) ordered by structure name on every machine."""
-    return sort_by(nodes, lambda n: n.mse, lambda n: n.candidate.name, prefix)
+    drop a term, or replace it by one the structure has) ordered by fewer parameters, then structure name, on
+    every machine."""
+    return sort_by(nodes, lambda n: n.mse, lambda n: (n.n_params, n.candidate.name), prefix)
 
 
 def _lower(a: float, b: float) -> bool:

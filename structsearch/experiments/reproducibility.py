@@ -24,7 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 # Fields that describe how a run went, not what it found: they differ between machines by design.
-RUN_FIELDS = frozenset({"seconds", "wall_seconds", "elapsed", "nfev", "njev", "message", "n_reached_best",
+RUN_FIELDS = frozenset({"seconds", "wall_seconds", "elapsed", "nfev", "evaluations", "njev", "message",
+                        "n_reached_best",
                         "timings", "time", "duration", "version", "command", "cached"})
 # Files that are measurements of the machine (benchmarks), not answers; directories that hold inputs and
 # internal state (the simulated campaign, the fit cache, whose file names carry digests of the data's bits).

@@ -21,18 +21,9 @@ from __future__ import annotations
 
 from typing import Callable
 
-import numpy as np
-
-from ..engine.scores import weighted_mean_se
 from ..engine.ties import first_of_lowest, sort_with_ties
 from ..fitting.candidate_result import CandidateResult
-
-# A relative excess below this is never a reason to prefer a larger model.
-PRACTICAL_TOLERANCE = 0.01
-
-
-# Fewer maneuvers than this give no standard error of a gap ("n/a"): only the practical tolerance.
-MIN_MANEUVERS_FOR_SPREAD = 3
+from ..fitting.comparison import relative_excess, within_noise
 
 
 def _scores(s: CandidateResult, use_cv: bool):
@@ -47,9 +38,7 @@ def _paired_gap(a: CandidateResult, best: CandidateResult, use_cv: bool) -> tupl
     stall against a pullup); a missing effect shows as a consistent relative excess.
     """
     sa, sb = _scores(a, use_cv), _scores(best, use_cv)
-    excess = np.array(sa.mse_maneuvers) / np.array(sb.mse_maneuvers) - 1.0
-    mean, se = weighted_mean_se(excess, np.array(sa.n_maneuvers, float))
-    return mean, (se if len(excess) >= MIN_MANEUVERS_FOR_SPREAD else float("nan"))
+    return relative_excess(sa.mse_maneuvers, sb.mse_maneuvers, sa.n_maneuvers)
 
 
 def _use_cv(group: list[CandidateResult]) -> bool:
@@ -72,9 +61,7 @@ def _best_fitting(group: list[CandidateResult], use_cv: bool) -> CandidateResult
 def _measured(s: CandidateResult, best: CandidateResult, use_cv: bool) -> CandidateResult:
     """``s`` with its gap to ``best``, the gap's standard error and whether it is within noise."""
     gap, se = _paired_gap(s, best, use_cv)
-    # fewer than three maneuvers give no standard error: only the practical tolerance applies
-    bar = max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
-    return s.ranked(gap=gap, gap_se=se, within_noise=bool(s is best or gap <= bar))
+    return s.ranked(gap=gap, gap_se=se, within_noise=bool(s is best or within_noise(gap, se)))
 
 
 def _ordered(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult]:
@@ -82,9 +69,10 @@ def _ordered(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult
     if not group:
         return []
     placed = _placed(group, use_cv)
-    # MSEs equal up to rounding (nested structures at the same optimum) are ordered by name on every machine
+    # MSEs equal up to rounding (a structure at the nesting point of one it contains): the fewer parameters
+    # first, then the name, on every machine
     def by_mse(items):
-        return sort_with_ties(list(items), lambda s: _scores(s, use_cv).mse, lambda s: s.name)
+        return sort_with_ties(list(items), lambda s: _scores(s, use_cv).mse, lambda s: (s.n_params, s.name))
     top = sorted(by_mse(s for s in placed if s.within_noise), key=lambda s: s.n_params)
     rest = by_mse(s for s in placed if not s.within_noise)
     return [s for s in top + rest if s.identifiable] + [s for s in top + rest if not s.identifiable]
