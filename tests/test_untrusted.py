@@ -236,37 +236,40 @@ def _wait_for_workers(proc, seconds=60):
     raise AssertionError("the search never got going")
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc and ps --ppid")
-def test_ctrl_c_prints_one_line_and_leaves_no_worker_or_temporary_file(campaign_dir, tmp_path):
+def _running_search(campaign_dir, tmp_path):
+    """A ``--jobs 2`` search with its own temporary directory, once its workers have cached a fit."""
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     proc = _search(campaign_dir, tmp_path / "out", tmp)
-    kids = _wait_for_workers(proc)
+    return proc, _wait_for_workers(proc), tmp
+
+
+def _all_gone(pids, seconds):
+    deadline = time.time() + seconds
+    while time.time() < deadline and any(_alive(p) for p in pids):
+        time.sleep(0.5)
+    return not any(_alive(p) for p in pids)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc and ps --ppid")
+def test_ctrl_c_prints_one_line_and_leaves_no_worker_or_temporary_file(campaign_dir, tmp_path):
+    proc, kids, tmp = _running_search(campaign_dir, tmp_path)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130
     assert err.strip().splitlines()[-1] == ("structsearch search: interrupted; the fits finished so far are cached: "
                                             "run the same command again to resume"), err
     assert "Traceback" not in err
-    deadline = time.time() + 60
-    while time.time() < deadline and any(_alive(k) for k in kids):
-        time.sleep(0.5)
-    assert not any(_alive(k) for k in kids)
+    assert _all_gone(kids, 60)
     assert not list(tmp.glob("structsearch-*"))
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc and ps --ppid")
 def test_kill_9_leaves_no_worker_and_the_next_run_removes_its_temporary_files(campaign_dir, tmp_path):
-    tmp = tmp_path / "tmp"
-    tmp.mkdir()
-    proc = _search(campaign_dir, tmp_path / "out", tmp)
-    kids = _wait_for_workers(proc)
+    proc, kids, tmp = _running_search(campaign_dir, tmp_path)
     proc.kill()
     proc.communicate(timeout=30)
-    deadline = time.time() + 60
-    while time.time() < deadline and any(_alive(k) for k in kids):
-        time.sleep(0.5)
-    assert not any(_alive(k) for k in kids), "a worker outlived the search by 60 s"
+    assert _all_gone(kids, 60), "a worker outlived the search by 60 s"
     from structsearch.data.atomic import remove_orphans
     remove_orphans(tmp, "structsearch-")      # what the next search does first
     assert not list(tmp.glob("structsearch-*"))
