@@ -37,7 +37,7 @@ from typing import Callable, Mapping, Sequence
 
 
 from ..data.campaign import Campaign
-from ..engine.ties import first_of_lowest, is_tie, sort_by
+from ..engine.ties import is_tie, sort_by
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
@@ -414,8 +414,8 @@ def _lower(a: float, b: float) -> bool:
 
 
 def _lowest_mse(nodes: Sequence[Node]) -> Node:
-    """The node of lowest held-out MSE; MSEs equal up to rounding: the first by structure name."""
-    return first_of_lowest(sorted(nodes, key=lambda n: n.candidate.name), lambda n: n.mse)
+    """The node of lowest held-out MSE, ties as :func:`_by_mse` orders them."""
+    return _by_mse(nodes)[0]
 
 
 def choose(confirmed: Sequence[Node], alpha: float = DEFAULT_ALPHA, admissible_first: bool = False) -> Node:

@@ -39,20 +39,24 @@ def first_of_lowest(items: Iterable[T], value: Callable[[T], float], rtol: float
     raise AssertionError("unreachable")
 
 
+def _runs(ranked: list[T], same: Callable[[T, T], bool]):
+    """Consecutive runs of ``ranked`` whose members are ``same`` as the run's first."""
+    i = 0
+    while i < len(ranked):
+        j = i + 1
+        while j < len(ranked) and same(ranked[j], ranked[i]):
+            j += 1
+        yield ranked[i:j]
+        i = j
+
+
 def sort_with_ties(items: Sequence[T], value: Callable[[T], float], order: Callable[[T], object],
                    rtol: float = TIE_RTOL) -> list[T]:
     """``items`` by ``value``, values within ``rtol`` of the group's lowest ordered by ``order`` instead:
     sorted by value, then each run of ties (chained from its first member) re-sorted by ``order``."""
     ranked = sorted(items, key=lambda x: (math.isnan(float(value(x))), float(value(x))))
-    out: list[T] = []
-    i = 0
-    while i < len(ranked):
-        j = i + 1
-        while j < len(ranked) and is_tie(float(value(ranked[j])), float(value(ranked[i])), rtol):
-            j += 1
-        out.extend(sorted(ranked[i:j], key=order))
-        i = j
-    return out
+    same = lambda a, b: is_tie(float(value(a)), float(value(b)), rtol)  # noqa: E731
+    return [x for run in _runs(ranked, same) for x in sorted(run, key=order)]
 
 
 def sort_by(items: Iterable[T], value: Callable[[T], float], order: Callable[[T], object],
@@ -60,12 +64,5 @@ def sort_by(items: Iterable[T], value: Callable[[T], float], order: Callable[[T]
     """``items`` sorted by ``prefix`` (exact keys: a status, a parameter count), then within each prefix by
     ``value`` with ties resolved by ``order`` (:func:`sort_with_ties`)."""
     ranked = sorted(items, key=prefix)
-    out: list[T] = []
-    i = 0
-    while i < len(ranked):
-        j = i + 1
-        while j < len(ranked) and prefix(ranked[j]) == prefix(ranked[i]):
-            j += 1
-        out.extend(sort_with_ties(ranked[i:j], value, order))
-        i = j
-    return out
+    return [x for run in _runs(ranked, lambda a, b: prefix(a) == prefix(b))
+            for x in sort_with_ties(run, value, order)]
