@@ -9,8 +9,6 @@ below show every name to IDEs and type checkers.
 """
 from __future__ import annotations
 
-import sys
-import types
 from importlib import import_module
 from typing import TYPE_CHECKING
 
@@ -29,7 +27,7 @@ _EXPORTS = {
     "CandidateResult": "fitting.candidate_result",
     "FitOptions": "fitting.options",
     "LiftFit": "fitting.lift_fit",
-    "fit_report": "report.fit_report",
+    "fit_report": "reporting.fit_report",
     "FlightData": "data.flightdata",
     "read_campaign": "data.campaign",
     "write_campaign": "data.campaign",
@@ -58,15 +56,13 @@ if TYPE_CHECKING:
     from .fitting.candidate_result import CandidateResult
     from .fitting.lift_fit import LiftFit
     from .fitting.options import FitOptions
-    from .report.fit_report import fit_report
+    from .reporting.fit_report import fit_report
     from .workflows import DemoOutcome, demo
 
 
 def __getattr__(name: str):
     if name in _EXPORTS:
         value = getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
-        if name in _SHADOWED:
-            value = _CommandAndPackage(value, f"{__name__}.{name}")
         globals()[name] = value
         return value
     raise AttributeError(f"module 'structsearch' has no attribute {name!r}")
@@ -74,43 +70,3 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
-
-
-# API functions named like a subpackage: structsearch.search, .report, .study, .preprocess
-_SHADOWED = frozenset({"search", "report", "study", "preprocess"})
-
-
-class _CommandAndPackage:
-    """``structsearch.search`` (also ``.report``, ``.study``, ``.preprocess``): the API function of that name,
-    which is also the name of a subpackage. Calling it calls the function (``inspect.signature`` and ``help``
-    follow ``__wrapped__``); its other attributes are the subpackage's, so that ``structsearch.search.runner``
-    and ``import structsearch.search.runner as runner`` keep working."""
-
-    def __init__(self, function, package: str):
-        self.__wrapped__ = function
-        self.__doc__ = function.__doc__
-        self.__qualname__ = function.__qualname__
-        self.__name__ = package          # how the import system finds the subpackage's submodules
-
-    def __call__(self, *args, **kwargs):
-        return self.__wrapped__(*args, **kwargs)
-
-    def __getattr__(self, name: str):
-        return getattr(import_module(self.__name__), name)
-
-    def __repr__(self) -> str:
-        return f"<function {self.__wrapped__.__module__}.{self.__qualname__} (and the package {self.__name__})>"
-
-
-class _Package(types.ModuleType):
-    """This package: importing ``structsearch.search.pipeline`` binds the subpackage as an attribute of its parent,
-    which would hide the API function ``structsearch.search``; the function (which also reaches the
-    subpackage's attributes) stays. The subpackages themselves stay importable by name (``sys.modules``)."""
-
-    def __setattr__(self, name: str, value) -> None:
-        if name in _SHADOWED and isinstance(value, types.ModuleType):
-            return
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package

@@ -95,7 +95,7 @@ def _study(args) -> int:
 def _fit(args) -> int:
     from .api import fit
     from .data.atomic import write_json, write_text
-    from .report.tables import parameter_table
+    from .reporting.tables import parameter_table
     if args.joint:
         if args.profile:
             raise_error("--profile goes with --model (profile intervals of a joint fit are not built)")
@@ -106,8 +106,8 @@ def _fit(args) -> int:
               bounds=_bounds(args), band_samples=args.band_samples, profile=args.profile, segment=args.segment)
     summary, out = res.result, Path(args.out)
     write_json(out / "fit.json", res.to_dict())
-    from .report.documents import bands_table, covariance_sentence, held_out_phrase
-    from .report.profile_doc import profile_table
+    from .reporting.documents import bands_table, covariance_sentence, held_out_phrase
+    from .reporting.profile_doc import profile_table
     write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + covariance_sentence(summary.estimates.covariance_record())
                + "\n" + parameter_table(summary, "md")
                + ("\n\n" + bands_table(res.bands) if res.bands is not None else "")
@@ -122,7 +122,7 @@ def _fit(args) -> int:
 def _fit_joint(args) -> int:
     from .api import fit_joint
     from .data.atomic import write_json, write_text
-    from .report.documents import joint_markdown
+    from .reporting.documents import joint_markdown
     res = fit_joint(args.data, args.joint, starts=args.starts, seed=args.seed, covariance=args.covariance,
                     bounds=_bounds(args), band_samples=args.band_samples, replay_maneuver=args.replay_maneuver,
                     segment=args.segment,
@@ -164,7 +164,7 @@ def _held_out(s) -> str:
 
 
 def _print_winners(result) -> None:
-    from .search.ranking import passed_over
+    from .grid_search.ranking import passed_over
     for grid, ranked in result.grids.items():
         ok = [s for s in ranked if not s.failed]
         failed = len(ranked) - len(ok)
@@ -223,7 +223,7 @@ def _diagnose(args) -> int:
     if not args.data or not args.model:
         raise_error("diagnose needs --data and --model (or --benchmark)")
     from .api import diagnose
-    from .report.diagnosis_doc import diagnosis_console_lines
+    from .reporting.diagnosis_doc import diagnosis_console_lines
     out = Path(args.out)
     diagnosis = diagnose(args.data, args.model, coefficient=args.coefficient, starts=args.starts, seed=args.seed,
                          covariance=args.covariance, bounds=_bounds(args), jobs=_jobs(args), out=out,
@@ -237,7 +237,7 @@ def _diagnose(args) -> int:
 
 def _discover(args) -> int:
     from .api import discover
-    from .report.discovery_doc import discovery_console_lines
+    from .reporting.discovery_doc import discovery_console_lines
     out = Path(args.out)
     found = discover(args.data, args.coefficient, start=args.start, lifts=args.lift, terms=args.terms,
                      beam=args.beam, max_steps=args.max_steps, starts=args.starts, seed=args.seed,

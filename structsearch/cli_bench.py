@@ -126,7 +126,7 @@ def _diagnose_benchmark(args) -> int:
                        + ([f"--starts {args.starts}"] if args.starts != 2 else [])
                        + ([f"--covariance {args.covariance}"] if args.covariance != DEFAULT_COVARIANCE else [])
                        + [f"--bound {n}={lo:g}:{hi:g}" for n, (lo, hi) in args.bound])
-    from .report.diagnosis_doc import benchmark_console_line, write_benchmark
+    from .reporting.diagnosis_doc import benchmark_console_line, write_benchmark
     _, md = write_benchmark(res, out, command)
     print(benchmark_console_line(res, md))
     return 0

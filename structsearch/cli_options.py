@@ -11,7 +11,7 @@ import argparse
 import math
 
 # Copies of the owners' constants (kept equal by a test): structsearch.engine.statistics.COVARIANCE_KINDS and
-# DEFAULT_COVARIANCE, structsearch.search.admissibility.MAX_CORRELATION, structsearch.fitting.options.CV_METHODS,
+# DEFAULT_COVARIANCE, structsearch.grid_search.admissibility.MAX_CORRELATION, structsearch.fitting.options.CV_METHODS,
 # structsearch.experiments.calibration_profile.PROFILE_CAMPAIGNS.
 COVARIANCE_KINDS = ("colored", "white", "hac", "hac-qs", "hac-maneuver", "cluster", "hac-flight")
 DEFAULT_COVARIANCE = "hac-maneuver"

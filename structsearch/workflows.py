@@ -12,7 +12,7 @@ from .api.commands import process_count, write_search_tables
 from .api.results import Ranking, ReportOutcome
 from .data.campaign import Campaign
 from .diagnosis.story import Story
-from .search.admissibility import MAX_CORRELATION
+from .grid_search.admissibility import MAX_CORRELATION
 
 Lines = Callable[[str], None]
 
@@ -77,11 +77,11 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
     is done (the command prints each grid's winner there)."""
     from .diagnosis.story import van_ingen_story
     from .fitting.options import FitOptions
-    from .report import figures
-    from .report.diagnosis_doc import write_story
-    from .report.study_doc import write as write_study
-    from .search.pipeline import search
-    from .study.study import run_study
+    from .reporting import figures
+    from .reporting.diagnosis_doc import write_story
+    from .reporting.study_doc import write as write_study
+    from .grid_search.pipeline import search
+    from .thesis_study.study import run_study
     say = say or (lambda m: None)
     out = Path(out)
     t0 = time.perf_counter()

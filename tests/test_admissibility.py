@@ -6,11 +6,11 @@ import pytest
 from structsearch.data.flightdata import FlightData
 from structsearch.flight.synthetic import campaign
 from structsearch.engine.stallmodel import StallModel
-from structsearch.search.admissibility import AdmissibilityRules, reasons
+from structsearch.grid_search.admissibility import AdmissibilityRules, reasons
 from structsearch.fitting.centred_correlation import centred_correlation
 from structsearch.fitting.candidate_result import CandidateResult, R2Summary, SplitScores
 from structsearch.fitting.candidates import Candidate
-from structsearch.search.ranking import passed_over, rank
+from structsearch.grid_search.ranking import passed_over, rank
 
 LIFT = Candidate("L", "g", "CL", (("CL0", "1"), ("CL_KL", "K_L(X)"), ("CL_a", "alpha")), states=(("", "U"),))
 PITCH = Candidate("P", "g", "Cm", (("Cm0", "1"), ("Cm_CL", "CL"), ("Cm_xcgCL", "x_cg/cbar*CL")))
@@ -119,7 +119,7 @@ def test_ranking_puts_admissible_candidates_first_and_names_the_passed_over():
 
 
 # ----- refinement (issue 12 item 3) ---------------------------------------------------------------
-from structsearch.search.refinement import refine, structure_key  # noqa: E402
+from structsearch.grid_search.refinement import refine, structure_key  # noqa: E402
 
 
 def _fitted(candidate, p_values, corr=None, mse=(1.0, 2.0, 3.0)):

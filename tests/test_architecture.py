@@ -272,7 +272,7 @@ def test_a_candidate_result_keeps_the_fits_estimates_and_covariance():
     np.testing.assert_array_equal(cand.cov_params().to_numpy(), fit.covariance)
     assert cand.wald_test(["b0", "b1"]) == fit.wald_test(["b0", "b1"])
     assert cand.conf_int().equals(fit.conf_int())
-    from structsearch.report.fit_report import fit_report
+    from structsearch.reporting.fit_report import fit_report
     assert "covariance" in fit_report(cand) and fit_report(cand, "html") == cand.summary().as_html()
     assert fit_report(cand, "csv") == fit_report(fit, "csv")
 

@@ -79,7 +79,7 @@ def test_the_confidence_band_of_a_linear_model_covers_its_truth_at_the_level():
 def fitted_finals(simulated_campaign):
     from structsearch.experiments.calibration import TRUTH
     from structsearch.fitting.options import FitOptions
-    from structsearch.study.thesis_estimator import fit_final_models
+    from structsearch.thesis_study.thesis_estimator import fit_final_models
     campaign = simulated_campaign(seed=3, scale=0.1)
     train, val = campaign.split("train"), campaign.split("validation")
     finals = fit_final_models(train, val, FitOptions(n_starts=1, cv_folds=0), {c: dict(TRUTH[c]) for c in TRUTH})

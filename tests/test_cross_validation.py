@@ -6,7 +6,7 @@ from structsearch.data.flightdata import FlightData
 from structsearch.engine.stallmodel import StallModel
 from structsearch.flight.synthetic import campaign
 from structsearch.fitting.candidate_result import CandidateResult, R2Summary, SplitScores
-from structsearch.search.ranking import rank
+from structsearch.grid_search.ranking import rank
 from structsearch.fitting.cross_validation import cross_validate, maneuver_folds
 from structsearch.flight.reference import FINAL_LIFT
 

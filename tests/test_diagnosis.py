@@ -276,7 +276,7 @@ def test_the_story_says_closes_one_way_in_its_line_and_its_table():
     gap)". Both now give the share of the baseline's gap: in the hand-made diagnosis the second move takes the
     MSE from 1.5 to 1.0 of a baseline gap of 1.0 (2.0 against a floor of 1.0), i.e. 50 %, not its round's 100 %."""
     from structsearch.diagnosis.story import Story, story_lines
-    from structsearch.report.diagnosis_doc import story_markdown
+    from structsearch.reporting.diagnosis_doc import story_markdown
     doc = _story_diagnosis()
     text = story_markdown(Story({"CL": doc}, tuple(story_lines({"CL": doc}))), "test")
     table = [row for row in text.splitlines() if row.startswith("|")]
@@ -288,7 +288,7 @@ def test_a_story_from_an_inadmissible_baseline_says_so_first():
     """Issue 31: CL-I as fitted on the default campaign has tau1 and a_star on their bounds and a_star outside the
     flown range; the story told it as a plain baseline."""
     from structsearch.diagnosis.story import Story, story_lines
-    from structsearch.report.diagnosis_doc import story_markdown
+    from structsearch.reporting.diagnosis_doc import story_markdown
     why = ("tau1 at its lower bound", "a_star at its lower bound", "a_star = 1.1 deg outside the alpha range flown")
     doc = _story_diagnosis(baseline_reasons=why)
     line, = story_lines({"CL": doc})
@@ -313,7 +313,7 @@ MOVE_KEYS = {"kind", "effect", "verdict", "test"}
 
 def test_diagnosis_to_dict_is_the_interface_document(withheld_elevator):
     from structsearch.diagnosis.results import Diagnosis
-    from structsearch.report.diagnosis_doc import public
+    from structsearch.reporting.diagnosis_doc import public
     d = withheld_elevator
     doc = d.to_dict()
     assert list(doc) == INTERFACE_KEYS
@@ -369,7 +369,7 @@ def test_a_replay_that_diverges_is_named_not_averaged():
 
 def test_failures_stay_recorded_in_the_document():
     from structsearch.diagnosis.results import EffectRow, StateLevel
-    from structsearch.report.diagnosis_doc import diagnosis_console_lines, markdown
+    from structsearch.reporting.diagnosis_doc import diagnosis_console_lines, markdown
     d = _story_diagnosis(state_level=StateLevel(error="state-level comparison: no Cm column"))
     doc = json.loads(json.dumps(d.to_dict()))
     assert doc["state_level"] == {"error": "state-level comparison: no Cm column"}
@@ -391,7 +391,7 @@ def test_failures_stay_recorded_in_the_document():
 
 def test_story_to_dict_round_trips_through_json():
     from structsearch.diagnosis.story import Story, story_lines
-    from structsearch.report.diagnosis_doc import story_console_lines
+    from structsearch.reporting.diagnosis_doc import story_console_lines
     diagnoses = {"CL": _story_diagnosis()}
     story = Story(diagnoses, tuple(story_lines(diagnoses)))
     doc = json.loads(json.dumps(story.to_dict()))

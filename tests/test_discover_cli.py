@@ -100,5 +100,5 @@ def test_a_start_of_another_coefficient_is_refused(data_dir, run_cli, tmp_path):
 ])
 def test_the_comparison_says_better_where_the_discovered_structure_is_below_the_bar(excess, se, within, verdict):
     from types import SimpleNamespace
-    from structsearch.report.discovery_doc import noise_verdict
+    from structsearch.reporting.discovery_doc import noise_verdict
     assert noise_verdict(SimpleNamespace(excess=excess, excess_se=se, within_noise=within)) == verdict

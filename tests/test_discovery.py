@@ -542,7 +542,7 @@ def drag_search(tmp_path_factory):
     from structsearch.fitting.lift_fit import LiftFit
     from structsearch.fitting.options import FitOptions
     from structsearch.flight.flighttest import build_campaign
-    from structsearch.search import runner
+    from structsearch.grid_search import runner
     campaign = build_campaign(seed=5, scale=0.1, slow_errors=0.0)
     options = FitOptions(n_starts=1, cv_method="one-step")
     train, val = campaign.split("train"), campaign.split("validation")

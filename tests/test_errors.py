@@ -107,6 +107,6 @@ def test_demo_knows_how_its_campaign_was_simulated(tmp_path):
 
 def test_csv_numbers_carry_ten_significant_digits():
     """Issue 13 (churn): 0.1 + 0.2 and its neighbour in the 16th digit are written alike."""
-    from structsearch.report.tables import csv_value, render_table
+    from structsearch.reporting.tables import csv_value, render_table
     assert csv_value(0.1 + 0.2) == csv_value(0.3) == "0.3" and csv_value(float("nan")) == ""
     assert render_table([[1 / 3, "x", 2]], ["a", "b", "c"], "csv") == "a,b,c\n0.3333333333,x,2\n"

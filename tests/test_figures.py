@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from structsearch.report import figure_data as rd
+from structsearch.reporting import figure_data as rd
 from structsearch.data.campaign import read_campaign, write_campaign
 from structsearch.flight.flighttest import build_campaign
 from structsearch.fitting.options import FitOptions
@@ -40,7 +40,7 @@ def report_run(small, tmp_path_factory):
 @pytest.fixture(scope="module")
 def model_set(small, report_run):
     # the report's cache serves these fits
-    from structsearch.study.model_set import fit_model_set
+    from structsearch.thesis_study.model_set import fit_model_set
     return fit_model_set("identified", FINAL_MODEL_NAMES, small, report_run[1], FitOptions(n_starts=2))
 
 
@@ -136,7 +136,7 @@ def test_gap_cells_are_per_maneuver_band_mse(small):
 
 def test_core_imports_without_matplotlib():
     code = ("import sys; sys.modules['matplotlib'] = None\n"
-            "import structsearch, structsearch.cli, structsearch.report.page as cr, structsearch.report.figures as f\n"
+            "import structsearch, structsearch.cli, structsearch.reporting.page as cr, structsearch.reporting.figures as f\n"
             "assert f.plt is None\n"
             "from structsearch.data.errors import StructSearchError\n"
             "try:\n    f.require()\nexcept StructSearchError as e:\n    print(e)\n")
@@ -146,7 +146,7 @@ def test_core_imports_without_matplotlib():
 
 
 def test_report_models_come_from_the_ranking_or_the_command_line(tmp_path):
-    from structsearch.report.page import chosen_models
+    from structsearch.reporting.page import chosen_models
     names, notes = chosen_models(tmp_path)
     assert names == FINAL_MODEL_NAMES and "final structures" in notes[0]
     (tmp_path / "ranking.csv").write_text("grid,model,rank\nlift,CL-VI,1\ndrag,CD-IX,1\npitch,Cm-XXXIr-auto,1\n"
@@ -168,7 +168,7 @@ def test_a_ranking_without_its_columns_is_one_clear_error(small, tmp_path):
 def test_a_move_that_changes_little_is_said_to_in_the_gap_figure():
     """Issue 31: gap_breakdown.png drew two identical panels when the effect changed little; its third panel
     is the change, whose title says when the maps look alike."""
-    from structsearch.report.figures import LITTLE_CHANGE, gap_change_words
+    from structsearch.reporting.figures import LITTLE_CHANGE, gap_change_words
     before = np.array([[1.0, 2.0], [np.nan, 4.0]])
     assert "look alike" in gap_change_words(before, before * (1 - LITTLE_CHANGE / 10))
     words = gap_change_words(before, before * 0.5)
@@ -178,7 +178,7 @@ def test_a_move_that_changes_little_is_said_to_in_the_gap_figure():
 def test_a_comparison_curve_away_from_every_point_is_explained_in_the_figure():
     """Issue 31: in pitch_static.png the refitted Cm-I lay above every measured point with the reason only in the
     caption; the figure now says why."""
-    from structsearch.report.page import offset_note
+    from structsearch.reporting.page import offset_note
     alpha = np.linspace(0.0, 0.4, 50)
     points = {"alpha": np.linspace(0.05, 0.35, 200)}
     points["Cm"] = -0.5 * points["alpha"]

@@ -270,7 +270,7 @@ def test_final_models_fitted_with_hac_flight_record_their_flights(simulated_camp
     three flights: every covariance record says flights, and the t references rest on at most 3 flights."""
     from structsearch.experiments.calibration import TRUTH
     from structsearch.fitting.options import FitOptions
-    from structsearch.study.thesis_estimator import fit_final_models
+    from structsearch.thesis_study.thesis_estimator import fit_final_models
     campaign = simulated_campaign(0, 0.1, flights=3)
     train, val = campaign.split("train"), campaign.split("validation")
     finals = fit_final_models(train, val, FitOptions(n_starts=1, covariance="hac-flight", cv_folds=0),

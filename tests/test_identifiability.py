@@ -46,7 +46,7 @@ def test_the_study_table_reports_the_decorrelation(campaign):
     on the same maneuvers, shows the dynamic stalls cutting |rho(tau1_ss, tau2_ss)| by at least 0.3; the
     thesis' 0.06 is not what this simulated plan gives (README)."""
     from structsearch.fitting.options import FitOptions
-    from structsearch.study.dynamic_stalls import dynamic_stall_study
+    from structsearch.thesis_study.dynamic_stalls import dynamic_stall_study
     study = dynamic_stall_study(campaign, options=FitOptions(n_starts=2))
     (a, b, quasi, full), _ = study.called_out()
     assert (a, b) == ("tau1_ss", "tau2_ss")

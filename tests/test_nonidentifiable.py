@@ -8,7 +8,7 @@ from structsearch.data.flightdata import FlightData
 from structsearch.engine.identifiability import RANK_RTOL, rank_reasons
 from structsearch import SeparableModel
 from structsearch.engine.stallmodel import StallModel
-from structsearch.report.fit_report import fit_report
+from structsearch.reporting.fit_report import fit_report
 
 
 def _noisy(data, sigma=0.01, seed=3):

@@ -13,12 +13,12 @@ from structsearch.cli import main
 from structsearch.data.campaign import _parse_cutoffs, read_campaign, write_campaign
 from structsearch.data.errors import DataError, DeclarationError, FitError
 from structsearch.data.reduction import G
-from structsearch.preprocess.spectra import rigid_body_bandwidth
+from structsearch.preprocessing.spectra import rigid_body_bandwidth
 from structsearch.flight.flighttest import build_campaign
-from structsearch.preprocess.kalman import filter_smooth
-from structsearch.preprocess.kinematics import SENSOR_ERRORS
-from structsearch.preprocess.pipeline import preprocess, truth_agreement
-from structsearch.preprocess.reconstruction import reconstruct
+from structsearch.preprocessing.kalman import filter_smooth
+from structsearch.preprocessing.kinematics import SENSOR_ERRORS
+from structsearch.preprocessing.pipeline import preprocess, truth_agreement
+from structsearch.preprocessing.reconstruction import reconstruct
 
 
 @dataclass(frozen=True)
@@ -197,7 +197,7 @@ def test_preprocess_without_matplotlib_writes_everything_but_the_figures(small_r
     warning line (before: one error, and the coefficients asked for were not written). Two of the small raw
     campaign's maneuvers are enough (the path under test is the figures', not the estimation's)."""
     import shutil
-    from structsearch.report import figures
+    from structsearch.reporting import figures
     monkeypatch.setattr(figures, "plt", None)
     raw = tmp_path / "raw"
     shutil.copytree(small_raw, raw)

@@ -186,7 +186,7 @@ def test_fit_profile_is_refused_with_a_joint_fit(tmp_path, capsys):
 
 
 def test_a_model_without_nonlinear_parameters_has_an_empty_profile_section():
-    from structsearch.report.profile_doc import profile_table
+    from structsearch.reporting.profile_doc import profile_table
     text = profile_table(Profiles((), (0.95,), 1.0, 0.1, "hac-maneuver"))
     assert "no nonlinear parameter of its own" in text
 

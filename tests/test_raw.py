@@ -70,7 +70,7 @@ def test_buffet_peaks_are_found_where_the_simulator_puts_them():
     """Issue 15 item 2: Welch spectra of stalled against attached samples find the injected buffet peaks
     (6, 10, 12, 15 Hz) within 1 Hz, and nothing else, in the longitudinal accelerometer and the rate gyro;
     the suggested cut-off lies below them."""
-    from structsearch.preprocess.spectra import channel_spectrum
+    from structsearch.preprocessing.spectra import channel_spectrum
     from structsearch.flight.measurement import BUFFET_HZ
     c = build_campaign(seed=4, scale=0.1, raw=True)
     d = c.data

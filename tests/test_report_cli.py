@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from structsearch import fit_report
-from structsearch.report.fit_report import FORMATS
+from structsearch.reporting.fit_report import FORMATS
 from structsearch.engine.stallmodel import StallModel
 
 

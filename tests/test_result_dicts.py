@@ -7,13 +7,13 @@ import pytest
 
 from structsearch.diagnosis.withheld import (NOT_EXPRESSIBLE, AnomalyRow, BenchmarkResult, NullRow, WithheldRow,
                                              markdown)
-from structsearch.report.diagnosis_doc import benchmark_console_line
-from structsearch.study.comparison import CoefficientScores
-from structsearch.study.derived import Collinearity, DerivedQuantity
-from structsearch.study.dynamic_stalls import DynamicStallStudy, Identification
-from structsearch.study.legacy import EstimatorComparison, LegacyFit
-from structsearch.study.search_tables import ThesisTable
-from structsearch.study.study import Study
+from structsearch.reporting.diagnosis_doc import benchmark_console_line
+from structsearch.thesis_study.comparison import CoefficientScores
+from structsearch.thesis_study.derived import Collinearity, DerivedQuantity
+from structsearch.thesis_study.dynamic_stalls import DynamicStallStudy, Identification
+from structsearch.thesis_study.legacy import EstimatorComparison, LegacyFit
+from structsearch.thesis_study.search_tables import ThesisTable
+from structsearch.thesis_study.study import Study
 
 # withheld_benchmark.json's keys as the benchmark wrote them before the rows were typed
 WITHHELD_KEYS = ["effect", "coefficient", "baseline", "ranked_first", "first", "shrink", "closes_half", "truth_share",

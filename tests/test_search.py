@@ -8,13 +8,13 @@ import pytest
 from structsearch.data.flightdata import FlightData
 from structsearch.engine.scores import R2Summary
 from structsearch.engine.ties import TIE_RTOL
-from structsearch.report.tables import write_tables
+from structsearch.reporting.tables import write_tables
 from structsearch.fitting.candidate_result import CandidateResult, SplitScores
 from structsearch.fitting.candidates import Candidate
-from structsearch.search.ranking import rank
-from structsearch.search.runner import run
+from structsearch.grid_search.ranking import rank
+from structsearch.grid_search.runner import run
 from structsearch.fitting.lift_fit import LiftFit
-from structsearch.search.pipeline import search
+from structsearch.grid_search.pipeline import search
 from structsearch.fitting.specs import load_grid
 from structsearch.fitting.candidates import roman
 
@@ -110,7 +110,7 @@ def test_ranking_rule_prefers_the_smaller_model_within_noise():
 def test_a_rejected_candidate_is_measured_against_the_winner_not_the_best_rejected():
     """Issue 31: CL-I (inadmissible, 25 % worse than CL-VI) read "within noise of best: yes, gap 0" because its gap
     was measured within the rejected group, where it was the best."""
-    from structsearch.report.tables import grid_table
+    from structsearch.reporting.tables import grid_table
 
     def summary(name, per):
         scores = SplitScores(float(np.mean(per)), tuple(per), (100,) * len(per), R2Summary(0.9, 0.8, 1.0))
@@ -390,7 +390,7 @@ def test_cache_never_serves_a_changed_input_and_survives_a_truncated_file(tiny, 
     refitted with a message, not a traceback."""
     import dataclasses
     from structsearch.data.campaign import Campaign
-    from structsearch.search.runner import cache_path, campaign_fingerprint
+    from structsearch.grid_search.runner import cache_path, campaign_fingerprint
     from structsearch.fitting.options import FitOptions
     grid = load_grid("drag")
     cand = [grid["CD-IXr"]]
@@ -417,7 +417,7 @@ def test_a_cache_entry_that_does_not_prove_itself_is_a_miss_never_served(tiny, t
     """A cache file that is valid JSON but altered (the fit's numbers changed, another question's key, not an
     entry at all) is refitted with one warning line, never served and never a traceback."""
     from structsearch.fitting.options import FitOptions
-    from structsearch.search.runner import cache_path, campaign_fingerprint
+    from structsearch.grid_search.runner import cache_path, campaign_fingerprint
     cand = load_grid("lift")["CL-II"]
     options = FitOptions(n_starts=1, cv_folds=0)
     first = run([cand], tiny, tmp_path, options=options)[0]
@@ -470,7 +470,7 @@ def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
     failure that is a property of the data (not applicable, DataError, ...) is cached."""
     import structsearch.fitting.candidate_fit as candidate_fit
     from structsearch.fitting.options import FitOptions
-    from structsearch.search.runner import cache_path, campaign_fingerprint
+    from structsearch.grid_search.runner import cache_path, campaign_fingerprint
     cand = load_grid("lift")["CL-I"]
     options = FitOptions(n_starts=1, cv_folds=0)
     path = cache_path(tmp_path, cand, campaign_fingerprint(tiny), None, options)[0]
@@ -511,7 +511,7 @@ def test_refinement_tries_every_insignificant_term_before_a_correlated_pair_read
     """Issue 30's case: an insignificant term that has a correlated partner is tried first (before: skipped for
     the pair, whose dropping cost 4857 % and ended the refinement); a pair the centred correlation forgives (C_L
     with x_cg C_L) is not chased."""
-    from structsearch.search.refinement import _options, refine
+    from structsearch.grid_search.refinement import _options, refine
     c = Candidate("P", "pitch", "Cm", (("c0", "1"), ("cl", "CL"), ("xcl", "x_cg/cbar*CL"), ("xde", "X_w*de"),
                                        ("de", "de")), (), "CL-VI")
     names = ["c0", "cl", "xcl", "xde", "de"]
@@ -537,7 +537,7 @@ def test_refinement_tries_every_insignificant_term_before_a_correlated_pair_read
 
 
 def test_refinement_tries_the_next_term_when_one_costs_and_says_why_it_stopped():
-    from structsearch.search.refinement import refine
+    from structsearch.grid_search.refinement import refine
     c = Candidate("Q", "lift", "CL", (("c0", "1"), ("a", "alpha"), ("b", "de"), ("k", "K_L(X)")), (("", "U"),),
                   None, "", (("a_star", (0.1, 0.3)),))
     summary = _stub(["tau1", "tau2", "a1", "a_star", "c0", "a", "b", "k"], [0.0] * 4 + [1e-9, 0.5, 0.3, 1e-9])
@@ -552,7 +552,7 @@ def test_refinement_tries_the_next_term_when_one_costs_and_says_why_it_stopped()
 
 
 def test_refinement_drops_a_state_with_its_last_regressor():
-    from structsearch.search.refinement import _refined
+    from structsearch.grid_search.refinement import _refined
     c = Candidate("S", "lift", "CL", (("c0", "1"), ("k", "K_L(X_ss)"), ("w", "K_L(X_w)")),
                   (("ss", "U"), ("w", "S")), None, "", (("a_star_ss", (0.05, 0.27)), ("a_star_w", (0.22, 0.45))))
     refined = _refined(c, ["w"], "r-auto")
@@ -602,7 +602,7 @@ def test_a_fit_starts_from_the_contained_structures_optimum_with_the_added_time_
 
 
 def test_a_pair_tries_its_other_member_when_the_less_significant_was_tried_as_insignificant():
-    from structsearch.search.refinement import _options
+    from structsearch.grid_search.refinement import _options
     c = Candidate("P", "pitch", "Cm", (("c0", "1"), ("a", "alpha"), ("b", "de")), (), "CL-VI")
     corr = np.eye(3)
     corr[1, 2] = corr[2, 1] = 0.95

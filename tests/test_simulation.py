@@ -171,9 +171,9 @@ def test_default_campaign_standard_deviations_match_the_thesis():
     default campaign those of thesis Tables 11, 13 and 15 within a factor of 2 (the thesis' real
     flight data), with the thesis' own covariance estimator, and the laboratory-clean campaign does not
     (so the test can fail)."""
-    from structsearch.study.thesis_estimator import THESIS_COVARIANCE, fit_final_models
+    from structsearch.thesis_study.thesis_estimator import THESIS_COVARIANCE, fit_final_models
     from structsearch.flight.reference import THESIS_STDERR
-    from structsearch.report.tables import thesis_stderr_rows
+    from structsearch.reporting.tables import thesis_stderr_rows
     from structsearch.fitting.options import FitOptions
     truth = {"CL": FINAL_LIFT, "CD": FINAL_DRAG, "Cm": FINAL_PITCH}
 

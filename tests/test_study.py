@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from structsearch.cli import main
-from structsearch.study.comparison import per_maneuver_r2, percent_difference
+from structsearch.thesis_study.comparison import per_maneuver_r2, percent_difference
 from structsearch.data.flightdata import from_segments
 
 STEMS = ("legacy_vs_snls", "legacy_vs_snls_parameters", "final_vs_van_ingen", "final_vs_van_ingen_published", "dynamic_stalls", "correlation_quasi_steady",

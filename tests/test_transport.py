@@ -142,7 +142,7 @@ def test_transport_searches_rank_an_admissible_one_state_structure_first(transpo
     README, results/transport): the one-state separation and lift structures (after refinement where a term
     is not significant) rank first and are admissible; the two-state ones are listed with their reasons; no
     standard deviation is 0."""
-    from structsearch.search.pipeline import search
+    from structsearch.grid_search.pipeline import search
     from structsearch.fitting.options import FitOptions
     for grid, text in GRIDS.items():
         spec = tmp_path / f"{grid}.toml"

@@ -16,7 +16,7 @@ from ..data.atomic import write_json
 from ..data.errors import DeclarationError
 from ..engine.statistics import DEFAULT_COVARIANCE
 from ..fitting.options import FitOptions, check_box_names
-from ..search.admissibility import MAX_CORRELATION
+from ..grid_search.admissibility import MAX_CORRELATION
 from .results import FitOutcome, PreprocessOutcome, Ranking, StudyOutcome
 
 Progress = Callable[[str], None] | None
@@ -144,7 +144,7 @@ def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence
 
 def search_candidates(grid: str) -> list:
     """Every candidate of ``grid`` (separation, lift, drag, pitch, all or a grid spec file)."""
-    from ..search.pipeline import grids_for
+    from ..grid_search.pipeline import grids_for
     return [c for g in grids_for(grid) for c in g.candidates]
 
 
@@ -159,7 +159,7 @@ def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, out: st
     ``ranking.csv`` and the tables there (and ``joint_lift.json``, the joint fit, with ``joint_lift``).
     ``joint_lift``: structures fitted jointly first ("CL-VI,CD-IXr,Cm-XXXIIIr", a list or a joint spec
     file); drag and pitch candidates read its lift block (``search --joint-lift``)."""
-    from ..search.pipeline import search as run_search
+    from ..grid_search.pipeline import search as run_search
     candidates = search_candidates(grid)   # a misspelled grid is answered before the campaign is read
     campaign = as_campaign(campaign, segment)
     options = fit_options(starts, seed, covariance, bounds, campaign, cv_method=cv_method)
@@ -198,8 +198,8 @@ def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, out: st
 
 def write_search_tables(ranking: Ranking, campaign: Campaign, out: Path) -> list[Path]:
     """``ranking.csv`` and each grid's tables (with the thesis-estimator refits of the final models)."""
-    from ..report.tables import write_tables
-    from ..study.thesis_estimator import thesis_estimator_fits
+    from ..reporting.tables import write_tables
+    from ..thesis_study.thesis_estimator import thesis_estimator_fits
     return write_tables(ranking.grids, out, thesis_estimator_fits(ranking.grids, campaign))
 
 
@@ -238,7 +238,7 @@ def diagnose(campaign: Campaign | str | os.PathLike, model: str, *, coefficient:
                            beam=beam or DEFAULT_BEAM, max_rounds=max_steps or DEFAULT_MAX_STEPS,
                            cache_dir=out, backend=backend)
     if out is not None:
-        from ..report.diagnosis_doc import write
+        from ..reporting.diagnosis_doc import write
         write(result, Path(out))
     return result
 
@@ -267,7 +267,7 @@ def preprocess(raw: Campaign | str | os.PathLike, out: str | os.PathLike | None 
     import numpy as np
 
     from ..data.campaign import write_campaign
-    from ..preprocess.pipeline import preprocess as run_preprocess, truth_agreement
+    from ..preprocessing.pipeline import preprocess as run_preprocess, truth_agreement
     started = time.perf_counter()
     if out is not None and not isinstance(raw, Campaign) and Path(raw).resolve() == Path(out).resolve():
         raise DeclarationError(f"--out {out} is the raw campaign itself: it would be replaced; give another directory")
@@ -278,7 +278,7 @@ def preprocess(raw: Campaign | str | os.PathLike, out: str | os.PathLike | None 
     directory = markdown = None
     warnings: tuple[str, ...] = ()
     if out is not None:
-        from ..report.preprocess_doc import NO_FIGURES, figures_available, write
+        from ..reporting.preprocess_doc import NO_FIGURES, figures_available, write
         if figures and not figures_available():
             warnings = (f"figures skipped: {NO_FIGURES}; the campaign and preprocess.md are written",)
         directory = write_campaign(result.campaign, Path(out))
@@ -295,15 +295,15 @@ def study(campaign: Campaign | str | os.PathLike, *, out: str | os.PathLike | No
           progress: Progress = None) -> StudyOutcome:
     """The thesis' comparison tables as ``structsearch study`` computes them; fits are cached under ``cache``
     (default ``out``, else a temporary directory); with ``out``, the tables and box plots are written there."""
-    from ..study.study import run_study
+    from ..thesis_study.study import run_study
     campaign = as_campaign(campaign)
     with cache_directory(cache if cache is not None else out) as where:
         result = run_study(campaign, where, FitOptions(n_starts=starts), n_jobs=process_count(jobs),
                            progress=progress)
     written: list[Path] = []
     if out is not None:
-        from ..report import figures
-        from ..report.study_doc import write
+        from ..reporting import figures
+        from ..reporting.study_doc import write
         written = write(result, Path(out), command or f"structsearch study --out {out}",
                         figures=figures.plt is not None)
     return StudyOutcome(result, written)

@@ -1,4 +1,4 @@
-"""``structsearch discover`` as a Python function (the run itself is :mod:`structsearch.study.structure_discovery`)."""
+"""``structsearch discover`` as a Python function (the run itself is :mod:`structsearch.thesis_study.structure_discovery`)."""
 from __future__ import annotations
 
 import dataclasses
@@ -21,7 +21,7 @@ def discover(campaign: Campaign | str | os.PathLike, coefficient: str, *, start:
     structure's spec file there (fits cached in ``out/cache``). Returns the typed :class:`Discovery`."""
     import tempfile
     from ..engine.statistics import DEFAULT_COVARIANCE
-    from ..study.structure_discovery import discover_structures
+    from ..thesis_study.structure_discovery import discover_structures
     from .commands import as_campaign, fit_options, process_count
     campaign = as_campaign(campaign, segment)
     # structures with separation parameters are cross-validated by one-step folds in a structure search
@@ -33,5 +33,5 @@ def discover(campaign: Campaign | str | os.PathLike, coefficient: str, *, start:
         with tempfile.TemporaryDirectory(prefix="structsearch-discover-") as tmp:
             return discover_structures(campaign, coefficient, cache_dir=Path(tmp), **kw)
     found = discover_structures(campaign, coefficient, cache_dir=Path(out), **kw)
-    from ..report.discovery_doc import write_discovery
+    from ..reporting.discovery_doc import write_discovery
     return write_discovery(found, Path(out), command or "")

@@ -1,5 +1,5 @@
 """``report``: the fits a campaign report shows (the identified and the Van Ingen model sets, a diagnosis and its
-best effect), then the page (:func:`structsearch.report.page.build`, which fits nothing)."""
+best effect), then the page (:func:`structsearch.reporting.page.build`, which fits nothing)."""
 from __future__ import annotations
 
 import os
@@ -16,12 +16,12 @@ from .results import ReportOutcome
 
 def fit_report_models(campaign: Campaign, out: Path, options: FitOptions, *, jobs: int = 1,
                       diagnose: str | None = "Cm", models: tuple[str, ...] = (), progress: Progress = None):
-    """The :class:`~structsearch.report.page.ReportFits` of a report in ``out`` (the search's winners in
+    """The :class:`~structsearch.reporting.page.ReportFits` of a report in ``out`` (the search's winners in
     ``out/ranking.csv`` or ``models``; fits cached under ``out/cache``)."""
     from ..diagnosis.diagnose import diagnose as run_diagnosis
     from ..flight.reference import VAN_INGEN_MODEL_NAMES
-    from ..report.page import ReportFits, applicable_models, best_effect, chosen_models
-    from ..study.model_set import fit_model_set, fit_with_effect
+    from ..reporting.page import ReportFits, applicable_models, best_effect, chosen_models
+    from ..thesis_study.model_set import fit_model_set, fit_with_effect
     say = progress or (lambda m: None)
     names, notes = chosen_models(out, models)
     names, more = applicable_models(names, campaign)
@@ -50,7 +50,7 @@ def report(campaign: Campaign | str | os.PathLike, out: str | os.PathLike = "res
            progress: Progress = None, segment: str | None = None) -> ReportOutcome:
     """Figures and one self-contained HTML page for a campaign, as ``structsearch report`` writes them in
     ``out`` (``diagnose=None``: no gap breakdown). Needs matplotlib."""
-    from ..report.page import build, require_figures
+    from ..reporting.page import build, require_figures
     started = time.perf_counter()
     campaign = as_campaign(campaign, segment)
     options = fit_options(starts, seed, covariance, bounds, campaign)

@@ -25,7 +25,7 @@ class FitOutcome:
 
     def to_dict(self) -> dict:
         """``fit.json`` (docs/interfaces.md sections 2, 5.4 and 6.3; ``profile`` with ``fit(profile=True)``)."""
-        from ..report.documents import fit_document
+        from ..reporting.documents import fit_document
         doc = fit_document(self.result, self.lift, self.bands)
         if self.profile is not None:
             doc["profile"] = self.profile.to_dict()
@@ -36,7 +36,7 @@ class FitOutcome:
         parameter table where the result has none."""
         if hasattr(self.result, "summary"):
             return self.result.summary()
-        from ..report.tables import parameter_table
+        from ..reporting.tables import parameter_table
         return f"{self.result.name}\n" + parameter_table(self.result, "text")
 
     def __getattr__(self, name: str):
@@ -66,12 +66,12 @@ class Ranking:
 
         import pandas as pd
 
-        from ..report.tables import ranking_csv
+        from ..reporting.tables import ranking_csv
         return pd.read_csv(io.StringIO(ranking_csv(self.grids)))
 
     def to_dict(self) -> dict:
         """Per grid the rows of ``ranking.csv`` (None where a cell is empty), and the seconds per grid."""
-        from ..report.tables import table_row
+        from ..reporting.tables import table_row
         return {"grids": {g: [table_row(r) for r in ranked] for g, ranked in self.grids.items()},
                 "seconds": dict(self.seconds),
                 **({"joint_lift": self.joint.to_dict()} if self.joint is not None else {})}
@@ -82,7 +82,7 @@ class PreprocessOutcome:
     """A raw campaign preprocessed: the chain's result (``.campaign`` is the standard campaign), where it was
     written (None if nowhere), the worst R^2 per coefficient against the simulator's truth, and the seconds."""
 
-    preprocessed: Any            # structsearch.preprocess.pipeline.Preprocessed
+    preprocessed: Any            # structsearch.preprocessing.pipeline.Preprocessed
     directory: Path | None
     markdown: Path | None
     worst_r2: dict[str, float]
@@ -105,7 +105,7 @@ class PreprocessOutcome:
 class StudyOutcome:
     """The thesis' comparison tables on a campaign and the files written (none when no ``out`` was given)."""
 
-    study: Any                   # structsearch.study.study.Study
+    study: Any                   # structsearch.thesis_study.study.Study
     written: list[Path]
 
     def to_dict(self) -> dict:

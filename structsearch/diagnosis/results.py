@@ -2,7 +2,7 @@
 docs/interfaces.md sections 3 and 5.4 (``diagnosis.json``), key for key and in the same order.
 
 A number that cannot be estimated is None (a p-value, a shrink when there is no gap) or NaN (a bootstrap
-spread that was not drawn); ``public`` in :mod:`structsearch.report.diagnosis_doc` writes both as null.
+spread that was not drawn); ``public`` in :mod:`structsearch.reporting.diagnosis_doc` writes both as null.
 ``from_dict`` reads such a document back (the fields the document derives from the first round are not read).
 """
 from __future__ import annotations

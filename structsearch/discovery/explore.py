@@ -42,7 +42,7 @@ from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
 from ..fitting.options import FitOptions
-from ..search import runner
+from ..grid_search import runner
 from .adoption import DEFAULT_ALPHA, MoveTest, move_test
 from .moves import MOVE_KINDS, Move, generate, structure_key
 from .terms import TermLibrary

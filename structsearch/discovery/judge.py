@@ -6,8 +6,8 @@ from typing import Callable, Sequence
 from ..data.campaign import Campaign
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
-from ..search.admissibility import MAX_CORRELATION, reasons
-from ..search.pipeline import rules_for
+from ..grid_search.admissibility import MAX_CORRELATION, reasons
+from ..grid_search.pipeline import rules_for
 
 
 def judge_for(campaign: Campaign, max_correlation: float = MAX_CORRELATION

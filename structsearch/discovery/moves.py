@@ -30,7 +30,7 @@ from ..data.errors import DeclarationError
 from ..engine.regressors import parse, symbol_names
 from ..engine.separation import SeparationState
 from ..fitting.candidates import Candidate
-from ..search.refinement import structure_key  # noqa: F401  (what makes two structures the same model)
+from ..grid_search.refinement import structure_key  # noqa: F401  (what makes two structures the same model)
 from . import effects as fx
 from .terms import STATE_SYMBOL, TermLibrary, normalise, template_of, uses_state
 

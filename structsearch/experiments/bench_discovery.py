@@ -17,7 +17,7 @@ from typing import Callable
 
 def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
                         progress: Callable[[str], None] | None = None, coefficients=("CL", "CD", "Cm")) -> dict:
-    from ..study.structure_discovery import discover_structures
+    from ..thesis_study.structure_discovery import discover_structures
     from ..diagnosis.story import van_ingen_story
     from ..flight.flighttest import build_campaign
     say = progress or (lambda m: None)

@@ -44,7 +44,7 @@ from ..flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_MODEL_NAMES, FINAL_
 from ..fitting.options import FitOptions
 from ..fitting.candidate_fit import fit_candidate
 from ..fitting.lift_fit import LiftFit
-from ..study.thesis_estimator import fit_final_models
+from ..thesis_study.thesis_estimator import fit_final_models
 
 TRUTH = {"CL": FINAL_LIFT, "CD": FINAL_DRAG, "Cm": FINAL_PITCH}
 LARGE_DOF = 10 ** 9  # a draw without dof: the normal quantiles

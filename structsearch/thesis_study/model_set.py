@@ -19,7 +19,7 @@ from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
 from ..fitting.models import build_model, predict_candidate
 from ..fitting.options import FitOptions
-from ..search.runner import run
+from ..grid_search.runner import run
 from ..fitting.specs import find_candidate
 
 COEFFICIENTS = ("CL", "CD", "Cm")

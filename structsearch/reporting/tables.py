@@ -23,7 +23,7 @@ from ..engine.summary import (CSV_DIGITS, FORMATS, PARAMETER_HEADERS, TABLEFMT, 
                               csv_value, parameter_flags, parameter_rows, parameter_table, render_table)
 from ..engine.summary import with_newline as _with_newline
 from ..fitting.candidate_result import CandidateResult
-from ..search.ranking import gap_reference
+from ..grid_search.ranking import gap_reference
 
 
 def correlation_table(fit, fmt: str = "text") -> str:

@@ -1,7 +1,7 @@
 """Joint against sequential (issue 29): the final lift, drag and pitch structures fitted jointly, sharing their
 separation states, against the same structures fitted one after the other (drag and pitch on the lift-only
 model's states): parameters and standard deviations, validation MSE per coefficient, and the correlation of the
-two stall-strip time constants. Numerics only; :mod:`structsearch.report.study_doc` renders it."""
+two stall-strip time constants. Numerics only; :mod:`structsearch.reporting.study_doc` renders it."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,5 +1,5 @@
 """The study's tables in Markdown, LaTeX and CSV (each opening with the command that made it) and its box plots
-(issue 16). Numbers come from :class:`structsearch.study.study.Study`."""
+(issue 16). Numbers come from :class:`structsearch.thesis_study.study.Study`."""
 from __future__ import annotations
 
 import csv
@@ -10,10 +10,10 @@ import numpy as np
 from tabulate import tabulate
 
 from ..data.atomic import write_text
-from ..study.comparison import COEFFICIENTS, comparison_rows
-from ..study.dynamic_stalls import THESIS_TAU_CORRELATION
-from ..study.legacy import LEGACY, SNLS
-from ..study.study import FINAL, VAN_INGEN_PUBLISHED, VAN_INGEN_REFITTED, Study
+from ..thesis_study.comparison import COEFFICIENTS, comparison_rows
+from ..thesis_study.dynamic_stalls import THESIS_TAU_CORRELATION
+from ..thesis_study.legacy import LEGACY, SNLS
+from ..thesis_study.study import FINAL, VAN_INGEN_PUBLISHED, VAN_INGEN_REFITTED, Study
 
 FORMATS = ("md", "tex", "csv")
 

@@ -1,7 +1,7 @@
 """What the campaign report plots, as plain arrays (no matplotlib, no files).
 
 A :class:`ModelSet` is one simulator: a lift, a drag and a pitch structure fitted
-on the training maneuvers (fitted by the study layer, :mod:`structsearch.study.model_set`;
+on the training maneuvers (fitted by the study layer, :mod:`structsearch.thesis_study.model_set`;
 this module fits nothing). From it come the static
 curves of the thesis' figures 6-11 (separation states at equilibrium, q = 0,
 delta_e = 0, C_T = 0, mean centre of gravity and airspeed), the measured points
@@ -23,7 +23,7 @@ from ..fitting.candidates import Candidate
 from ..engine.scores import ManeuverScores
 from ..engine.separation import static_separation
 
-from ..study.model_set import COEFFICIENTS, ModelSet
+from ..thesis_study.model_set import COEFFICIENTS, ModelSet
 
 # Stall stages on the static separation curve (thesis Fig. 6)
 STAGES = (("flow starts to separate", 0.9), ("half separated (alpha*)", 0.5), ("fully stalled", 0.1))
@@ -193,7 +193,7 @@ def alpha_bands(alpha: np.ndarray) -> np.ndarray:
 
 def with_effect(ms: ModelSet, coef: str, changed: Candidate, fitted: CandidateResult, campaign: Campaign) -> dict:
     """Validation residuals of the set's ``coef`` model before and after adding a library effect: ``changed``
-    is the model with the effect, ``fitted`` its fit (:func:`structsearch.study.model_set.fit_with_effect`)."""
+    is the model with the effect, ``fitted`` its fit (:func:`structsearch.thesis_study.model_set.fit_with_effect`)."""
     baseline = ms.candidates[coef]
     val = campaign.split("validation")
     after = ms.predict(coef, val, changed, fitted.params)

@@ -36,7 +36,7 @@ def build_discovery(campaign, diagnosis, exploration, lifts, options, n_jobs, ba
     from ..discovery.judge import judge_for
     from ..fitting.specs import find_candidate
     from ..flight.reference import FINAL_MODEL_NAMES
-    from ..search.pipeline import search
+    from ..grid_search.pipeline import search
     judge = judge_for(campaign)
     nodes = exploration.final.path()
     path = []

@@ -1,6 +1,6 @@
-"""Ranking of a grid's candidates (the tables are rendered by :mod:`structsearch.report.tables`).
+"""Ranking of a grid's candidates (the tables are rendered by :mod:`structsearch.reporting.tables`).
 
-Admissible candidates (:mod:`structsearch.search.admissibility`) come first, ranked among
+Admissible candidates (:mod:`structsearch.grid_search.admissibility`) come first, ranked among
 themselves; the others follow, ranked the same way among themselves, each with its reasons; failed
 candidates come last. Within each group the ranking rule is:
 

@@ -1,6 +1,6 @@
 """The record of a preprocessing run (issue 15): ``preprocess.md`` and its spectra figures.
 
-Everything here renders a :class:`structsearch.preprocess.pipeline.Preprocessed`; the numbers come from there.
+Everything here renders a :class:`structsearch.preprocessing.pipeline.Preprocessed`; the numbers come from there.
 """
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import numpy as np
 from tabulate import tabulate
 
 from ..data.atomic import write_text
-from ..preprocess.pipeline import CHANNEL_GROUPS, COEFFICIENTS, Preprocessed, truth_agreement
-from ..preprocess.reconstruction import Reconstruction
+from ..preprocessing.pipeline import CHANNEL_GROUPS, COEFFICIENTS, Preprocessed, truth_agreement
+from ..preprocessing.reconstruction import Reconstruction
 
 
 def _hz(x) -> str:

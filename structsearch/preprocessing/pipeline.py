@@ -1,7 +1,7 @@
 """From raw flight-test channels to a standard campaign (issue 15): spectra and cut-offs, the zero-phase
 pre-filter per maneuver, the flight-path reconstruction, and the coefficients of thesis Eqs. 1-4.
 
-Numerics only: the command line writes the campaign and :mod:`structsearch.report.preprocess_doc` the record.
+Numerics only: the command line writes the campaign and :mod:`structsearch.reporting.preprocess_doc` the record.
 """
 from __future__ import annotations
 

@@ -33,7 +33,7 @@ from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.bands import static_bands
 from ..fitting.options import FitOptions
-from ..study.model_set import ModelSet
+from ..thesis_study.model_set import ModelSet
 from ..fitting.specs import find_candidate
 
 GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}

@@ -2,7 +2,7 @@
 Ingen's structures (Table 7), final models against Van Ingen's (as published and refitted), the dynamic-stall identifiability study, the separation grid as a 3 x 3 matrix, the
 final lift model's derived quantities and the collinearity of its regressors, and the final structures fitted
 jointly against sequentially (issue 29). Numerics only; the tables are
-rendered by :mod:`structsearch.report.study_doc`.
+rendered by :mod:`structsearch.reporting.study_doc`.
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from ..data.campaign import Campaign
 from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_LIFT, VAN_INGEN_MODEL_NAMES, van_ingen_lift_model
 from ..fitting.models import build_model
 from ..fitting.options import FitOptions
-from ..search.runner import run
+from ..grid_search.runner import run
 from ..fitting.specs import load_grid
 from .comparison import CoefficientScores, score_set
 from .derived import Collinearity, DerivedQuantity, collinearity, physical_quantities, separation_matrix
