@@ -30,6 +30,18 @@ def _progress(args, prefix: str = ""):
     return (lambda m: print(f"{prefix}{m}", file=sys.stderr, flush=True)) if prefix else stderr_progress
 
 
+def _settings(args, prefix: str = "", progress: bool = True):
+    """The fitting settings the command line gives (structsearch.api.Settings), options a command lacks at
+    their defaults."""
+    from .api.settings import Settings
+    from .cli_options import DEFAULT_COVARIANCE
+    return Settings(starts=getattr(args, "starts", None), seed=getattr(args, "seed", 0),
+                    covariance=getattr(args, "covariance", DEFAULT_COVARIANCE), bounds=_bounds(args),
+                    jobs=getattr(args, "jobs", 0) or 0, backend=getattr(args, "backend", "loky") or "loky",
+                    segment=getattr(args, "segment", None), cache=getattr(args, "cache", None) or None,
+                    progress=_progress(args, prefix) if progress else None)
+
+
 def raise_error(message: str):
     from .data.errors import DeclarationError
     raise DeclarationError(message)
@@ -43,9 +55,10 @@ def _bench(args) -> int:
 def _simulate(args) -> int:
     from .api import simulate
     from .data.campaign import write_campaign
-    campaign = simulate(seed=args.seed, withhold=args.withhold or (), scale=args.scale, extras=args.extras,
-                        aircraft=args.aircraft, anomaly=args.anomaly, raw=args.raw, slow_errors=args.slow_errors,
-                        flights=args.flights)
+    from .api.settings import FlightTestPlan
+    plan = FlightTestPlan(aircraft=args.aircraft, withhold=tuple(args.withhold or ()), anomaly=args.anomaly,
+                          extras=args.extras, raw=args.raw, slow_errors=args.slow_errors, flights=args.flights)
+    campaign = simulate(plan, seed=args.seed, scale=args.scale)
     out = write_campaign(campaign, Path(args.out), fmt=args.format)
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
@@ -85,8 +98,7 @@ def _study(args) -> int:
     command = (f"structsearch study --data {args.data} --out {args.out}" + (f" --cache {args.cache}" if args.cache
                                                                             else "")
                + (f" --starts {args.starts}" if args.starts != 4 else ""))
-    res = study(args.data, out=args.out, cache=args.cache or None, starts=args.starts, jobs=_jobs(args),
-                command=command, progress=_progress(args))
+    res = study(args.data, settings=_settings(args), out=args.out, command=command)
     print(f"wrote {len(res.written)} files in {Path(args.out)} (final_vs_van_ingen, dynamic_stalls, separation_matrix, "
           "derived, collinearity, r2_boxes.png)")
     return 0
@@ -102,8 +114,8 @@ def _fit(args) -> int:
         return _fit_joint(args)
     if args.replay_maneuver is not None:
         raise_error("--replay-maneuver goes with --joint (a replay flies C_L, C_D and C_m)")
-    res = fit(args.data, args.model, starts=args.starts, seed=args.seed, covariance=args.covariance,
-              bounds=_bounds(args), band_samples=args.band_samples, profile=args.profile, segment=args.segment)
+    res = fit(args.data, args.model, settings=_settings(args, progress=False), band_samples=args.band_samples,
+              profile=args.profile)
     summary, out = res.result, Path(args.out)
     write_json(out / "fit.json", res.to_dict())
     from .reporting.documents import bands_table, covariance_sentence, held_out_phrase
@@ -123,10 +135,8 @@ def _fit_joint(args) -> int:
     from .api import fit_joint
     from .data.atomic import write_json, write_text
     from .reporting.documents import joint_markdown
-    res = fit_joint(args.data, args.joint, starts=args.starts, seed=args.seed, covariance=args.covariance,
-                    bounds=_bounds(args), band_samples=args.band_samples, replay_maneuver=args.replay_maneuver,
-                    segment=args.segment,
-                    progress=_progress(args))
+    res = fit_joint(args.data, args.joint, settings=_settings(args), band_samples=args.band_samples,
+                    replay_maneuver=args.replay_maneuver)
     out = Path(args.out)
     write_json(out / "fit.json", res.to_dict())
     write_text(out / "fit.md", joint_markdown(res))
@@ -141,10 +151,8 @@ def _fit_joint(args) -> int:
 
 def _search(args) -> int:
     from .api import search
-    ranking = search(args.data, args.grid, out=args.out, jobs=_jobs(args), starts=args.starts, seed=args.seed,
-                     covariance=args.covariance, bounds=_bounds(args), cv_method=args.cv_method, segment=args.segment,
-                     backend=args.backend, scheduler=args.scheduler, max_correlation=args.max_correlation,
-                     progress=_progress(args), joint_lift=args.joint_lift)
+    ranking = search(args.data, args.grid, settings=_settings(args), out=args.out, cv_method=args.cv_method,
+                     scheduler=args.scheduler, max_correlation=args.max_correlation, joint_lift=args.joint_lift)
     if ranking.joint is not None:
         j = ranking.joint
         print(f"joint lift model: {j.name}, {j.iterations} weight iterations"
@@ -201,10 +209,8 @@ def _demo(args) -> int:
 
 def _report(args) -> int:
     from .api import report
-    res = report(args.data, args.out, starts=args.starts, seed=args.seed, covariance=args.covariance,
-                 bounds=_bounds(args), jobs=_jobs(args), diagnose=None if args.diagnose == "none" else args.diagnose,
-                 segment=args.segment,
-                 models=tuple(args.model or ()), progress=_progress(args))
+    res = report(args.data, args.out, settings=_settings(args),
+                 diagnose=None if args.diagnose == "none" else args.diagnose, models=tuple(args.model or ()))
     _print_report(res)
     return 0
 
@@ -225,10 +231,8 @@ def _diagnose(args) -> int:
     from .api import diagnose
     from .reporting.diagnosis_doc import diagnosis_console_lines
     out = Path(args.out)
-    diagnosis = diagnose(args.data, args.model, coefficient=args.coefficient, starts=args.starts, seed=args.seed,
-                         covariance=args.covariance, bounds=_bounds(args), jobs=_jobs(args), out=out,
-                         segment=args.segment,
-                         progress=_progress(args, "diagnose: "), terms=args.terms, beam=args.beam,
+    diagnosis = diagnose(args.data, args.model, settings=_settings(args, "diagnose: "),
+                         coefficient=args.coefficient, out=out, terms=args.terms, beam=args.beam,
                          max_steps=args.max_steps)
     for line in diagnosis_console_lines(diagnosis, (out / "diagnosis.json", out / "diagnosis.md")):
         print(line)
@@ -239,11 +243,9 @@ def _discover(args) -> int:
     from .api import discover
     from .reporting.discovery_doc import discovery_console_lines
     out = Path(args.out)
-    found = discover(args.data, args.coefficient, start=args.start, lifts=args.lift, terms=args.terms,
-                     beam=args.beam, max_steps=args.max_steps, starts=args.starts, seed=args.seed,
-                     covariance=args.covariance, bounds=_bounds(args), jobs=_jobs(args), backend=args.backend,
-                     segment=args.segment,
-                     out=out, progress=_progress(args, "discover: "), command="structsearch " + " ".join(sys.argv[1:]))
+    found = discover(args.data, args.coefficient, settings=_settings(args, "discover: "), start=args.start,
+                     lifts=args.lift, terms=args.terms, beam=args.beam, max_steps=args.max_steps, out=out,
+                     command="structsearch " + " ".join(sys.argv[1:]))
     for line in discovery_console_lines(found, out):
         print(line)
     return 0

@@ -55,6 +55,22 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     parser = _Parser(prog="structsearch", description=DESCRIPTION)
     parser.add_argument("--version", action="version", version=f"structsearch {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
+    _add_bench(sub, handlers["bench"])
+    _add_simulate(sub, handlers["simulate"])
+    _add_preprocess(sub, handlers["preprocess"])
+    _add_study(sub, handlers["study"])
+    _add_fit(sub, handlers["fit"])
+    _add_search(sub, handlers["search"])
+    _add_diagnose(sub, handlers["diagnose"])
+    _add_discover(sub, handlers["discover"])
+    _add_report(sub, handlers["report"])
+    _add_demo(sub, handlers["demo"])
+    _add_compare(sub, handlers["compare"])
+    return parser
+
+
+def _add_bench(sub, handler: Callable) -> None:
+    """The ``bench`` command."""
     b = sub.add_parser("bench", help="measure speed, robustness and memory of the SNLS engine")
     b.add_argument("--out", default="results", help="output directory (default: results)")
     b.add_argument("--samples", type=_count, default=250_000, help="samples in the benchmark campaign")
@@ -91,8 +107,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                    help="--calibration: fly each campaign on flights of about four maneuvers that share a mass, cg, "
                         "engine-model and vane-calibration error (simulate --flights), and calibrate the "
                         "flight-grouped covariance hac-flight beside the others")
-    b.set_defaults(func=handlers["bench"])
+    b.set_defaults(func=handler)
 
+
+def _add_simulate(sub, handler: Callable) -> None:
+    """The ``simulate`` command."""
     s = sub.add_parser("simulate", help="simulate a flight-test campaign (thesis Table 4) of the Citation II or the "
                                         "twin-jet transport")
     s.add_argument("--aircraft", choices=AIRCRAFT_NAMES, default="citation",
@@ -119,8 +138,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                         "recorded in campaign.toml) that share a mass, cg, engine-model and vane-calibration error on "
                         "top of the per-maneuver ones; 0, the default: no flights (the campaign of before, bit for "
                         "bit). Not with --raw")
-    s.set_defaults(func=handlers["simulate"])
+    s.set_defaults(func=handler)
 
+
+def _add_preprocess(sub, handler: Callable) -> None:
+    """The ``preprocess`` command."""
     pp = sub.add_parser("preprocess", help="turn a raw flight-test campaign (docs/interfaces.md 5.2) into a standard one: "
                                            "spectra, pre-filter, flight-path reconstruction, coefficients")
     pp.add_argument("--raw", required=True, help="raw campaign directory (format = \"raw\")")
@@ -137,8 +159,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                          "separated) is below 0.5, instead of an alpha threshold")
     pp.add_argument("--no-figures", action="store_true", help="skip the spectra figures (no matplotlib needed)")
     pp.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    pp.set_defaults(func=handlers["preprocess"])
+    pp.set_defaults(func=handler)
 
+
+def _add_study(sub, handler: Callable) -> None:
+    """The ``study`` command."""
     st = sub.add_parser("study", help="the thesis' comparison tables on a campaign: final models against Van Ingen's, "
                                       "the dynamic-stall study, the separation matrix, derived quantities")
     st.add_argument("--data", required=True, help="campaign directory")
@@ -147,8 +172,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     st.add_argument("--starts", type=_count, default=4, help="starts per nonlinear fit (as search: its cache serves)")
     st.add_argument("--jobs", type=_non_negative, default=0, help="processes (0: all cores)")
     st.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    st.set_defaults(func=handlers["study"])
+    st.set_defaults(func=handler)
 
+
+def _add_fit(sub, handler: Callable) -> None:
+    """The ``fit`` command."""
     f = sub.add_parser("fit", help="fit one model structure to a campaign")
     _campaign_options(f)
     which = f.add_mutually_exclusive_group(required=True)
@@ -166,8 +194,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                         "variance) beside the Wald ones, in fit.json (profile) and fit.md; not with --joint")
     f.add_argument("--replay-maneuver", metavar="NAME", default=None,
                    help="the validation maneuver the joint fit's sampled replay flies (default: the deepest)")
-    f.set_defaults(func=handlers["fit"])
+    f.set_defaults(func=handler)
 
+
+def _add_search(sub, handler: Callable) -> None:
+    """The ``search`` command."""
     r = sub.add_parser("search", help="fit and rank every candidate of a grid")
     _campaign_options(r)
     r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all, or a grid spec file")
@@ -186,8 +217,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                         "two-step covariance has the joint fit as first step (writes joint_lift.json)")
     r.add_argument("--quiet", action="store_true", help="no progress lines")
     _admissibility_options(r)
-    r.set_defaults(func=handlers["search"])
+    r.set_defaults(func=handler)
 
+
+def _add_diagnose(sub, handler: Callable) -> None:
+    """The ``diagnose`` command."""
     g = sub.add_parser("diagnose", help="where the model misses the data, which effect causes it, how far it shrinks")
     _campaign_options(g, starts=2, data_required=False)
     g.add_argument("--model", help="baseline candidate name or spec file")
@@ -201,8 +235,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     g.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
     _structure_search_options(g)
     g.add_argument("--quiet", action="store_true", help="no progress lines")
-    g.set_defaults(func=handlers["diagnose"])
+    g.set_defaults(func=handler)
 
+
+def _add_discover(sub, handler: Callable) -> None:
+    """The ``discover`` command."""
     d = sub.add_parser("discover", help="search model structures over moves from a minimal or named structure")
     _campaign_options(d, starts=2)
     d.add_argument("--coefficient", choices=("CL", "CD", "Cm"), required=True, help="the coefficient to model")
@@ -216,8 +253,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
                    help="loky: local processes; dask: a dask.distributed cluster")
     _structure_search_options(d)
     d.add_argument("--quiet", action="store_true", help="no progress lines")
-    d.set_defaults(func=handlers["discover"])
+    d.set_defaults(func=handler)
 
+
+def _add_report(sub, handler: Callable) -> None:
+    """The ``report`` command."""
     p = sub.add_parser("report", help="figures and one self-contained HTML page for a campaign")
     _campaign_options(p)  # the search's defaults, so that its cached fits are reused
     p.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes for the fits (default 0: all cores)")
@@ -226,8 +266,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     p.add_argument("--model", action="append", metavar="NAME",
                    help="use this lift, drag or pitch structure instead of the search's winner (repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
-    p.set_defaults(func=handlers["report"])
+    p.set_defaults(func=handler)
 
+
+def _add_demo(sub, handler: Callable) -> None:
+    """The ``demo`` command."""
     d = sub.add_parser("demo", help="simulate the default campaign, search every grid, write all tables and the report")
     d.add_argument("--out", default="results", help="output directory (default: results)")
     d.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default: all cores)")
@@ -235,8 +278,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     d.add_argument("--scale", type=_fraction, default=1.0, help="fraction of the campaign to fly (quick looks)")
     d.add_argument("--quiet", action="store_true", help="no progress lines (the story's lines are still printed)")
     _admissibility_options(d)
-    d.set_defaults(func=handlers["demo"])
+    d.set_defaults(func=handler)
 
+
+def _add_compare(sub, handler: Callable) -> None:
+    """The ``compare`` command."""
     c = sub.add_parser("compare", help="compare two output directories as answers: decisions equal, numbers within "
                                        "tolerances (the same command on two machines)",
                        description="Compares every CSV and JSON file of FIRST with the same file of SECOND: rankings, "
@@ -248,8 +294,7 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     c.add_argument("--rtol", type=_non_negative_float, default=1e-3,
                    help="relative tolerance of numbers (default 1e-3: see docs/reproducibility.md)")
     c.add_argument("--json", metavar="FILE", help="also write the comparison as JSON")
-    c.set_defaults(func=handlers["compare"])
-    return parser
+    c.set_defaults(func=handler)
 
 
 def _structure_search_options(p) -> None:

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from .api.commands import process_count, write_search_tables
+from .api.commands import write_search_tables
 from .api.results import Ranking, ReportOutcome
 from .data.campaign import Campaign
 from .diagnosis.story import Story
@@ -75,8 +75,8 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
          winners: Callable[[Ranking], None] | None = None, progress: Lines | None = None) -> DemoOutcome:
     """``structsearch demo``: every artefact in ``out``. ``winners`` is called with the search's ranking when it
     is done (the command prints each grid's winner there)."""
+    from .api.settings import Settings, command_fitter
     from .diagnosis.story import van_ingen_story
-    from .fitting.options import FitOptions
     from .reporting import figures
     from .reporting.diagnosis_doc import write_story
     from .reporting.study_doc import write as write_study
@@ -87,9 +87,10 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
     t0 = time.perf_counter()
     campaign = demo_campaign(out, scale, say)
     t_sim = time.perf_counter() - t0
-    n_jobs = process_count(jobs)
-    result = search(campaign, "all", out, n_jobs=n_jobs, options=FitOptions(n_starts=starts),
-                    max_correlation=max_correlation, progress=progress)
+    settings = Settings(starts=starts, jobs=jobs, progress=progress)
+    n_jobs = settings.processes
+    with command_fitter("demo", campaign, settings, out) as fitter:
+        result = search(fitter, "all", max_correlation=max_correlation)
     ranking = Ranking(result.grids, result.seconds, result.refinements)
     write_search_tables(ranking, campaign, out)
     total = time.perf_counter() - t0
@@ -101,7 +102,8 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
     say(f"tables and ranking.csv in {out}")
     t1 = time.perf_counter()
     # the story's diagnoses use the diagnose command's defaults (2 starts), not the search's --starts
-    story = van_ingen_story(campaign, progress=progress, n_jobs=n_jobs, cache_dir=out)
+    with command_fitter("diagnose", campaign, Settings(jobs=jobs, progress=progress), out) as fitter:
+        story = van_ingen_story(fitter)
     _, story_md = write_story(story, out, f"structsearch demo --out {out}"
                               + (f" --scale {scale:g}" if scale != 1.0 else ""))
     t_story = time.perf_counter() - t1
@@ -109,7 +111,8 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
     for line in story.lines:
         say(f"  {line}")
     t2 = time.perf_counter()
-    study = run_study(campaign, out, FitOptions(n_starts=starts), n_jobs=n_jobs, progress=progress)
+    with command_fitter("study", campaign, settings, out) as fitter:
+        study = run_study(fitter)
     written = write_study(study, out / "study", f"structsearch study --data {out / 'campaign'} --out "
                           f"{out / 'study'} --cache {out}" + (f" --starts {starts}" if starts != 4 else ""),
                           figures=figures.plt is not None)
@@ -120,6 +123,6 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
         say("no figures: the report needs matplotlib (pip install 'structsearch[figures]')")
         return DemoOutcome(out, campaign, ranking, story, story_md, written, None, seconds)
     from .api.report import report
-    page = report(campaign, out, starts=starts, jobs=n_jobs, story=list(story.lines), progress=progress)
+    page = report(campaign, out, settings=settings, story=list(story.lines))
     seconds["report"] = page.seconds
     return DemoOutcome(out, campaign, ranking, story, story_md, written, page, seconds)

@@ -114,3 +114,12 @@ def assert_matches_finite_difference(jacobian, fun, x, rel=1e-5, safety=10.0):
         i, j = np.argwhere(bad)[0]
         raise AssertionError(f"{bad.sum()} elements off; first at row {i}, column {j}: analytic {jacobian[i, j]!r}"
                              f", finite difference {extrapolated[i, j]!r}, bound {bound[i, j]!r}")
+
+
+def fitter_for(campaign, cache_dir, options=None, n_jobs: int = 1, lifts=None, progress=None):
+    """A :class:`~structsearch.fitting.fitter.Fitter` on ``campaign`` caching in ``cache_dir`` (what a command's
+    API function makes from its settings)."""
+    from structsearch.fitting.fitter import Fitter, RunConfig
+    from structsearch.fitting.options import FitOptions
+    config = RunConfig(campaign, cache_dir, options or FitOptions(), n_jobs, "loky", progress)
+    return Fitter(config, dict(lifts or {}))

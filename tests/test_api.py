@@ -90,12 +90,12 @@ def test_fit_is_the_fit_command(tmp_path):
     assert main(["fit", "--data", str(tmp_path / "c"), "--model", "CL-VI", "--starts", "1",
                  "--out", str(tmp_path / "o")]) == 0
     written = json.loads((tmp_path / "o" / "fit.json").read_text())
-    outcome = structsearch.fit(tmp_path / "c", "CL-VI", starts=1)
+    outcome = structsearch.fit(tmp_path / "c", "CL-VI", settings=structsearch.Settings(starts=1))
     from structsearch.data.atomic import json_ready
     assert json.loads(json.dumps(json_ready(outcome.to_dict()))) == written
     assert outcome.lift is None and outcome.result.params == written["params"]
     with pytest.raises(structsearch.StructSearchError, match="no_such_parameter"):
-        structsearch.fit(campaign, "CL-VI", bounds={"no_such_parameter": (0.0, 1.0)})
+        structsearch.fit(campaign, "CL-VI", settings=structsearch.Settings(bounds={"no_such_parameter": (0.0, 1.0)}))
 
 
 @pytest.mark.slow

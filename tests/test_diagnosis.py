@@ -20,6 +20,13 @@ from test_report_cli import run_cli
 OPTIONS = FitOptions(n_starts=1)
 
 
+def _diagnose(campaign, baseline, n_jobs: int = 1, **settings):
+    """The diagnosis of ``baseline`` on ``campaign`` with OPTIONS, its fits cached in a temporary directory."""
+    from structsearch.fitting.fitter import temporary_fitter
+    with temporary_fitter(campaign, OPTIONS, n_jobs=n_jobs) as fitter:
+        return diagnose(fitter, baseline, **settings)
+
+
 @pytest.fixture(scope="module")
 def campaign():
     # the mechanisms on a laboratory-clean campaign (sensor noise, buffet and biases, no slow
@@ -80,7 +87,7 @@ def test_refit_with_the_effect_recovers_its_parameter(campaign, effect, paramete
 
 @pytest.fixture(scope="module")
 def withheld_elevator(campaign):
-    return diagnose(campaign, baseline_without("elevator"), options=OPTIONS, max_rounds=2)
+    return _diagnose(campaign, baseline_without("elevator"), max_rounds=2)
 
 
 def test_withheld_effect_ranked_first_and_gap_closed(withheld_elevator):
@@ -129,7 +136,7 @@ def test_final_model_is_the_model_after_the_adopted_effects_and_shrinks_stay_in_
 def test_state_level_error_shrinks_with_the_effect(withheld_elevator, campaign):
     sl = withheld_elevator.state_level
     assert set(sl.before.to_dict()) == {"alpha", "q", "V", "theta"} and not sl.failed
-    d = diagnose(campaign, baseline_without("cp_shift"), options=OPTIONS, max_rounds=1)
+    d = _diagnose(campaign, baseline_without("cp_shift"), max_rounds=1)
     assert d.state_level.reduction.alpha > 0.5  # the replayed pitch dynamics follow the data
 
 
@@ -156,7 +163,7 @@ def test_where_bins_partition_the_validation_samples(withheld_elevator, campaign
 
 
 def test_final_model_is_explained(campaign):
-    d = diagnose(campaign, find_candidate("Cm-XXXIIIr"), options=OPTIONS, max_rounds=1)
+    d = _diagnose(campaign, find_candidate("Cm-XXXIIIr"), max_rounds=1)
     assert d.gap_explained_by_baseline and d.explained
     # checked outside the diagnosis: the saturated model, fitted here, predicts the validation maneuvers
     # no better than 1 % below the final model
@@ -171,9 +178,9 @@ def test_final_model_is_explained(campaign):
 
 @pytest.mark.slow
 def test_deterministic(campaign):
-    a = diagnose(campaign, baseline_without("induced_drag"), options=OPTIONS, max_rounds=1)
+    a = _diagnose(campaign, baseline_without("induced_drag"), max_rounds=1)
     # the effects fitted on two processes give the same document as on one
-    b = diagnose(campaign, baseline_without("induced_drag"), options=OPTIONS, max_rounds=1, n_jobs=2)
+    b = _diagnose(campaign, baseline_without("induced_drag"), max_rounds=1, n_jobs=2)
     da, db = a.to_dict(), b.to_dict()
     da.pop("seconds"), db.pop("seconds")
     assert json.dumps(da, default=float, sort_keys=True) == json.dumps(db, default=float, sort_keys=True)
@@ -186,7 +193,7 @@ def test_campaign_without_validation_maneuvers(campaign):
                                [{k: v[sl] for k, v in campaign.data.columns.items()}
                                 for sl in campaign.data.segment_slices()])
     with pytest.raises(DataError, match="no validation maneuvers"):
-        diagnose(train_only, find_candidate("CL-V"), options=OPTIONS)
+        _diagnose(train_only, find_candidate("CL-V"))
 
 
 def test_baselines_of_the_benchmark_are_final_minus_one():
@@ -221,7 +228,7 @@ def test_a_gap_outside_the_library_is_not_explained_and_follows_its_signal():
     """Issue 14: lift slopes that grow with airspeed (no library term uses V). The truth structure CL-VI is
     not at the library-free floor even after what the library adds, and the remainder follows V."""
     camp = build_campaign(seed=5, scale=0.1, slow_errors=0.0, anomaly="compressibility")
-    d = diagnose(camp, find_candidate("CL-VI"), options=OPTIONS, max_rounds=2, states=False, beam=1)
+    d = _diagnose(camp, find_candidate("CL-VI"), max_rounds=2, states=False, beam=1)
     assert not d.gap_explained_by_baseline and not d.explained
     u = d.unexplained
     assert u.gap_signals[0].name == "V" and u.gap_signals[0].importance > 0.3
@@ -231,8 +238,8 @@ def test_a_gap_outside_the_library_is_not_explained_and_follows_its_signal():
     # the report draws the residual against the top signals of what remains
     assert [p.name for p in u.partial_dependence] == [s.name for s in u.signals[:3]]
     # the same campaign without the anomaly: the truth structure is at the floor, nothing unexplained
-    clean = diagnose(build_campaign(seed=5, scale=0.1, slow_errors=0.0), find_candidate("CL-VI"),
-                     options=OPTIONS, max_rounds=1, states=False)
+    clean = _diagnose(build_campaign(seed=5, scale=0.1, slow_errors=0.0), find_candidate("CL-VI"),
+                      max_rounds=1, states=False)
     assert clean.explained and clean.unexplained.signals == ()
 
 

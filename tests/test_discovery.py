@@ -3,6 +3,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import fitter_for
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -482,10 +483,13 @@ def test_no_look_ahead_from_a_structure_at_the_floor_of_its_own_residual(monkeyp
         return [_result(c.name, [1.0] * 5, [1.0] * 5, n=len(c.regressors)) if c is start else
                 _result(c.name, [0.99, 1.0, 0.98, 1.01, 0.995], [0.99, 1.0, 0.98, 1.01, 0.995], n=len(c.regressors))
                 for c in candidates]
-    monkeypatch.setattr(ex, "fit_structures", fake_fits)
     from types import SimpleNamespace
+
+    from conftest import fitter_for
+    from structsearch.fitting.fitter import Fitter
+    monkeypatch.setattr(Fitter, "fit", lambda self, candidates, donors=(): fake_fits(candidates))
     lifts = {"CL-VI": SimpleNamespace(candidate=find_candidate("CL-VI"))}
-    run = dict(campaign=None, library=_library("CD"), cache_dir=tmp_path, lifts=lifts, beam=1,
+    run = dict(fitter=fitter_for(None, tmp_path, lifts=lifts), library=_library("CD"), beam=1,
                max_steps=2, kinds=("replace",), simplify=False)
     free = ex.explore(start, **run)
     assert [n.status for n in free.steps[0].beam] == ["look-ahead"] and len(free.steps) == 2
@@ -542,7 +546,7 @@ def drag_search(tmp_path_factory):
     from structsearch.fitting.lift_fit import LiftFit
     from structsearch.fitting.options import FitOptions
     from structsearch.flight.flighttest import build_campaign
-    from structsearch.grid_search import runner
+    from structsearch.fitting import runner
     campaign = build_campaign(seed=5, scale=0.1, slow_errors=0.0)
     options = FitOptions(n_starts=1, cv_method="one-step")
     train, val = campaign.split("train"), campaign.split("validation")
@@ -560,9 +564,9 @@ def drag_search(tmp_path_factory):
     mp = pytest.MonkeyPatch()
     mp.setattr(runner, "run", recording_run)
     try:
-        found = explore(start, campaign, library_for("CD", train), tmp_path_factory.mktemp("search"),
-                        lifts={"CL-VI": LiftFit(find_candidate("CL-VI"), lift)}, options=options, beam=2,
-                        max_steps=2, judge=judge_for(campaign))
+        fitter = fitter_for(campaign, tmp_path_factory.mktemp("search"), options,
+                            lifts={"CL-VI": LiftFit(find_candidate("CL-VI"), lift)})
+        found = explore(start, fitter, library_for("CD", train), beam=2, max_steps=2, judge=judge_for(campaign))
     finally:
         mp.undo()
     return found, calls
@@ -627,8 +631,8 @@ def test_a_structure_the_search_ends_on_that_is_not_admissible_is_repaired(tmp_p
     base = find_candidate("Cm-XXXIIIr")
     start = dataclasses.replace(base, name="Cm-XXXIIIr + alpha + X_ss",
                                 regressors=base.regressors + (("Cm_alpha", "alpha"), ("Cm_X_ss", "X_ss")))
-    found = explore(start, campaign, library_for("Cm", train), tmp_path, lifts={"CL-VI": lift}, options=options,
-                    kinds=("lift",), max_steps=4, judge=judge_for(campaign))
+    fitter = fitter_for(campaign, tmp_path, options, lifts={"CL-VI": lift})
+    found = explore(start, fitter, library_for("Cm", train), kinds=("lift",), max_steps=4, judge=judge_for(campaign))
     assert not found.start.admissible and found.final.admissible
     repairs = found.path
     assert repairs and all(n.status == "repairs" and n.move.kind in REPAIR_KINDS for n in repairs)
@@ -636,6 +640,6 @@ def test_a_structure_the_search_ends_on_that_is_not_admissible_is_repaired(tmp_p
         assert len(node.reasons) < len(node.parent.reasons)
         assert any(node is b for s in found.steps for b in s.beam)
     # without simplify (a diagnosis) nothing is repaired
-    kept = explore(start, campaign, library_for("Cm", train), tmp_path, lifts={"CL-VI": lift}, options=options,
-                   kinds=("lift",), max_steps=4, judge=judge_for(campaign), simplify=False)
+    kept = explore(start, fitter, library_for("Cm", train), kinds=("lift",), max_steps=4, judge=judge_for(campaign),
+                   simplify=False)
     assert kept.final is kept.start and len(kept.steps) == 1

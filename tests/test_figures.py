@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import fitter_for
 
 from structsearch.reporting import figure_data as rd
 from structsearch.data.campaign import read_campaign, write_campaign
@@ -41,7 +42,7 @@ def report_run(small, tmp_path_factory):
 def model_set(small, report_run):
     # the report's cache serves these fits
     from structsearch.thesis_study.model_set import fit_model_set
-    return fit_model_set("identified", FINAL_MODEL_NAMES, small, report_run[1], FitOptions(n_starts=2))
+    return fit_model_set("identified", FINAL_MODEL_NAMES, fitter_for(small, report_run[1], FitOptions(n_starts=2)))
 
 
 @pytest.mark.slow

@@ -167,7 +167,7 @@ def test_fit_profile_writes_the_fields(campaign_on_disk, run_cli, tmp_path):
     # profile bounds are those the Python API computes on the same campaign
     from scipy import stats
     import structsearch
-    api = structsearch.fit(campaign.directory, "X S", starts=1, profile=True).profile
+    api = structsearch.fit(campaign.directory, "X S", settings=structsearch.Settings(starts=1), profile=True).profile
     for name, p in prof["parameters"].items():
         assert p["estimate"] == pytest.approx(doc["params"][name], rel=1e-12)
         assert p["dof"] == pytest.approx(doc["reference_dof"][name])

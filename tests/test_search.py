@@ -12,13 +12,13 @@ from structsearch.reporting.tables import write_tables
 from structsearch.fitting.candidate_result import CandidateResult, SplitScores
 from structsearch.fitting.candidates import Candidate
 from structsearch.grid_search.ranking import rank
-from structsearch.grid_search.runner import run
+from structsearch.fitting.runner import run
 from structsearch.fitting.lift_fit import LiftFit
 from structsearch.grid_search.pipeline import search
 from structsearch.fitting.specs import load_grid
 from structsearch.fitting.candidates import roman
 
-from conftest import run_cli
+from conftest import run_cli, fitter_for
 
 # Catalogue section 5, written out independently of model_specs/pitch.toml.
 BLOCK_REGRESSORS = {
@@ -140,7 +140,7 @@ def test_the_same_seed_gives_byte_identical_artefacts(tiny, tmp_path):
     move between runs is wall-clock time alone (README, section "Reproducibility")."""
     import structsearch as ss
     for name in ("a", "b"):
-        ss.search(tiny, "all", out=tmp_path / name, jobs=2)
+        ss.search(tiny, "all", out=tmp_path / name, settings=ss.Settings(jobs=2))
     written = sorted(p.name for p in (tmp_path / "a").iterdir() if p.is_file())
     assert "ranking.csv" in written and "pitch_best_parameters.md" in written and "thesis_stderr.csv" in written
     assert written == sorted(p.name for p in (tmp_path / "b").iterdir() if p.is_file())
@@ -197,7 +197,7 @@ def test_collinear_candidate_ranked_after_identifiable_and_failure_recorded(tiny
                     '[[entry]]\nregressors = { c0 = "1", a = "alpha", b = "2*alpha" }\n'
                     '[[entry]]\nregressors = { c0 = "1", k = "K_L(X)" }\nstates = { "" = "U" }\n'
                     '[[entry]]\nregressors = { c0 = "1", bad = "log(alpha - 1)" }\n')
-    result = search(tiny, str(spec), tmp_path / "out")
+    result = search(fitter_for(tiny, tmp_path / "out"), str(spec))
     write_tables(result.grids, tmp_path / "out")
     ranked = result.grids["mine"]
     assert [r.name for r in ranked] == ["M-III", "M-I", "M-II", "M-IV"]
@@ -222,7 +222,7 @@ def test_refinement_drops_what_the_t_test_rejects(tiny, tmp_path):
                     '[[entry]]\nregressors = { c0 = "1", k = "K_L(X)", junk = "x_cg*0.001 + t*0.0" }\n'
                     'states = { "" = "U" }\n')
     # junk is constant per maneuver and carries no lift: its t-test should accept zero
-    result = search(tiny, str(spec), tmp_path / "out")
+    result = search(fitter_for(tiny, tmp_path / "out"), str(spec))
     names = [r.name for r in result.grids["r"]]
     assert "R-Ir-auto" in names
     refined = next(r for r in result.grids["r"] if r.name == "R-Ir-auto")
@@ -247,7 +247,7 @@ def test_a_declared_candidate_whose_truth_has_one_zero_term_is_refined_and_the_r
     truth = {"a1": 25.0, "a_star": 0.28, "tau2": 0.15, "c0": 0.2, "k": 2.2, "q": 8.0, "d": 0.0}
     data = with_coefficient(tiny.data, build_model(declared), truth, noise_sigma=0.02, noise_phi=0.9, seed=3)
     campaign = dataclasses.replace(tiny, data=data)
-    result = search(campaign, str(spec), tmp_path / "out")
+    result = search(fitter_for(campaign, tmp_path / "out"), str(spec))
     ranked = result.grids["z"]
     full = next(r for r in ranked if r.name == declared.name)
     assert not full.significant["d"], "the zero term is accepted at zero by its t-test"
@@ -324,7 +324,7 @@ def test_readme_grid_example_runs(tiny, tmp_path):
     spec.write_text(block)
     grid = load_grid(str(spec))
     assert grid.names == ("P-I", "P-II", "P-IIr")
-    result = search(tiny, str(spec), tmp_path / "out", do_refine=False)
+    result = search(fitter_for(tiny, tmp_path / "out"), str(spec), do_refine=False)
     write_tables(result.grids, tmp_path / "out")
     assert all(not r.failed for r in result.grids["my-pitch"])
     assert (tmp_path / "out" / "my-pitch_best_correlation.md").exists()
@@ -390,7 +390,7 @@ def test_cache_never_serves_a_changed_input_and_survives_a_truncated_file(tiny, 
     refitted with a message, not a traceback."""
     import dataclasses
     from structsearch.data.campaign import Campaign
-    from structsearch.grid_search.runner import cache_path, campaign_fingerprint
+    from structsearch.fitting.runner import cache_path, campaign_fingerprint
     from structsearch.fitting.options import FitOptions
     grid = load_grid("drag")
     cand = [grid["CD-IXr"]]
@@ -417,7 +417,7 @@ def test_a_cache_entry_that_does_not_prove_itself_is_a_miss_never_served(tiny, t
     """A cache file that is valid JSON but altered (the fit's numbers changed, another question's key, not an
     entry at all) is refitted with one warning line, never served and never a traceback."""
     from structsearch.fitting.options import FitOptions
-    from structsearch.grid_search.runner import cache_path, campaign_fingerprint
+    from structsearch.fitting.runner import cache_path, campaign_fingerprint
     cand = load_grid("lift")["CL-II"]
     options = FitOptions(n_starts=1, cv_folds=0)
     first = run([cand], tiny, tmp_path, options=options)[0]
@@ -470,7 +470,7 @@ def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
     failure that is a property of the data (not applicable, DataError, ...) is cached."""
     import structsearch.fitting.candidate_fit as candidate_fit
     from structsearch.fitting.options import FitOptions
-    from structsearch.grid_search.runner import cache_path, campaign_fingerprint
+    from structsearch.fitting.runner import cache_path, campaign_fingerprint
     cand = load_grid("lift")["CL-I"]
     options = FitOptions(n_starts=1, cv_folds=0)
     path = cache_path(tmp_path, cand, campaign_fingerprint(tiny), None, options)[0]

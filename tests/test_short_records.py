@@ -291,9 +291,9 @@ def test_blocked_folds_last_the_campaigns_own_shortest_maneuver(tmp_path):
     short = from_segments([_steady(500, 1e-3, V)], names=["a"], constants={"cbar": CBAR})   # 38 cbar/V
     assert plan_folds(short, 5, 3, block_convective_times=15.0).n_folds == 2
     assert plan_folds(short, 5, 3, block_convective_times=0.0).n_folds == 5   # the sample rule alone
-    default = structsearch.fit(_wind_tunnel(tmp_path / "default"), "CL-II", starts=1).to_dict()
+    default = structsearch.fit(_wind_tunnel(tmp_path / "default"), "CL-II", settings=structsearch.Settings(starts=1)).to_dict()
     own = structsearch.fit(_wind_tunnel(tmp_path / "own", extra="min_convective_times = 100\n"), "CL-II",
-                           starts=1).to_dict()
+                           settings=structsearch.Settings(starts=1)).to_dict()
     assert default["cross_validation"]["folds"] == 5
     assert own["cross_validation"]["scheme"] == "blocks" and own["cross_validation"]["folds"] == 2
 
@@ -315,7 +315,7 @@ def test_a_blocked_fold_flies_the_states_over_the_whole_record():
 
 def test_fit_on_one_record_has_blocked_cross_validation_and_states_its_few_dof(tmp_path):
     import structsearch
-    fitted = structsearch.fit(_wind_tunnel(tmp_path / "wt"), "CL-II", starts=1)
+    fitted = structsearch.fit(_wind_tunnel(tmp_path / "wt"), "CL-II", settings=structsearch.Settings(starts=1))
     doc = fitted.to_dict()
     assert doc["cross_validation"]["scheme"] == "blocks" and doc["cross_validation"]["folds"] == 5
     assert math.isfinite(doc["mse"]["cv"]) and doc["mse"]["cv"] < 1.5 * doc["mse"]["train"]
@@ -323,7 +323,7 @@ def test_fit_on_one_record_has_blocked_cross_validation_and_states_its_few_dof(t
     assert cov["groups"] == 1 and set(cov["reference_dof"].values()) == {1.0}
     assert cov["few_maneuvers"] == list(doc["params"]) and "--segment cycles" in cov["note"]
     # the same campaign in memory, cut by the API
-    cut = structsearch.fit(read_campaign(tmp_path / "wt"), "CL-II", starts=1, segment="cycles")
+    cut = structsearch.fit(read_campaign(tmp_path / "wt"), "CL-II", settings=structsearch.Settings(starts=1, segment="cycles"))
     assert cut.cv_scheme == "maneuvers" and cut.cv_folds == 4 and cut.estimates.n_maneuvers == 4
 
 

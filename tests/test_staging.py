@@ -10,7 +10,7 @@ from structsearch.fitting.candidate_result import CandidateResult, R2Summary, Sp
 from structsearch.fitting.candidates import Candidate
 from structsearch.fitting.options import FitOptions
 from structsearch.fitting.candidate_fit import fit_candidate, fit_staged
-from structsearch.grid_search.runner import run
+from structsearch.fitting.runner import run
 from structsearch.fitting.specs import load_grid, resolve_candidate
 from structsearch.fitting.staging import feeds, stages, warm_start, waves
 
@@ -206,7 +206,7 @@ def test_a_candidate_that_is_an_earlier_grids_model_is_served_its_fit(tiny, tmp_
     """The lift grid's CL-VI is the separation grid's X_ss/X_w U/S under another name: --grid all fits it
     once. Another search box is another question: fitted anew."""
     import dataclasses
-    from structsearch.grid_search.runner import same_model_fitted
+    from structsearch.fitting.runner import same_model_fitted
     us = load_grid("separation")["X_ss/X_w U/S"]
     cl_vi = load_grid("lift")["CL-VI"]
     first = run([us], tiny, tmp_path, options=FitOptions(cv_folds=0))[0]
@@ -231,7 +231,7 @@ def test_a_candidate_that_is_an_earlier_grids_model_is_served_its_fit(tiny, tmp_
 def test_the_cross_validation_method_keys_only_candidates_that_may_be_nonlinear(tiny):
     """A linear candidate's folds are exact with either method: one cache entry serves both; a nonlinear
     candidate's are not; without folds the method is moot."""
-    from structsearch.grid_search.runner import cache_path, campaign_fingerprint
+    from structsearch.fitting.runner import cache_path, campaign_fingerprint
     key = campaign_fingerprint(tiny)
     refit, one_step = FitOptions(), FitOptions(cv_method="one-step")
     cl_vi, cd_i = resolve_candidate("CL-VI"), resolve_candidate("CD-I")

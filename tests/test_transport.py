@@ -142,12 +142,13 @@ def test_transport_searches_rank_an_admissible_one_state_structure_first(transpo
     README, results/transport): the one-state separation and lift structures (after refinement where a term
     is not significant) rank first and are admissible; the two-state ones are listed with their reasons; no
     standard deviation is 0."""
+    from conftest import fitter_for
     from structsearch.grid_search.pipeline import search
     from structsearch.fitting.options import FitOptions
     for grid, text in GRIDS.items():
         spec = tmp_path / f"{grid}.toml"
         spec.write_text(text)
-        ranked = search(transport, str(spec), tmp_path / "out", n_jobs=2, options=FitOptions(n_starts=2)
+        ranked = search(fitter_for(transport, tmp_path / "out", FitOptions(n_starts=2), n_jobs=2), str(spec)
                         ).grids[grid]
         first = ranked[0]
         assert first.admissible and not first.reasons, (grid, first.name, first.reasons)

@@ -19,6 +19,7 @@ from .commands import diagnose, fit, fit_joint, preprocess, search, simulate, st
 from .discovering import discover
 from .report import report
 from .results import FitOutcome, PreprocessOutcome, Ranking, ReportOutcome, StudyOutcome
+from .settings import FlightTestPlan, Settings
 
-__all__ = ["FitOutcome", "OutputComparison", "Tolerances", "compare_outputs", "PreprocessOutcome", "Ranking", "ReportOutcome", "StudyOutcome", "diagnose", "discover", "fit",
+__all__ = ["FitOutcome", "FlightTestPlan", "Settings", "OutputComparison", "Tolerances", "compare_outputs", "PreprocessOutcome", "Ranking", "ReportOutcome", "StudyOutcome", "diagnose", "discover", "fit",
            "fit_joint", "preprocess", "report", "search", "simulate", "study"]

@@ -25,32 +25,26 @@ Where the gap lies is :mod:`.where`; the state-level comparison :mod:`.state_lev
 from __future__ import annotations
 
 import dataclasses
-import tempfile
 import time
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Callable, Mapping
+from typing import Callable
 
 import numpy as np
 
 from ..discovery import effects as fx
 from . import floor as fl
-from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
 from ..discovery.adoption import DEFAULT_ALPHA, TEST_NAME
-from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, explore, fit_structures
-from ..discovery.judge import judge_for
-from ..discovery.moves import MOVE_KINDS, generate, structure_key
-from ..discovery.terms import library_for
+from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, explore
+from ..discovery.moves import MOVE_KINDS, structure_key
+from ..discovery.search_start import start_search
 from ..fitting.comparison import MIN_MANEUVERS, relative_excess, within_noise as one_se_rule
-from ..fitting.options import FitOptions
-from ..fitting.candidate_fit import fit_lift_model
+from ..fitting.options import command_options
 from ..fitting.candidates import Candidate
 from ..fitting.candidate_result import CandidateResult
-from ..fitting.lift_fit import LiftFit
+from ..fitting.fitter import Fitter
 from ..fitting.models import predict_candidate
-from ..flight.reference import FINAL_MODEL_NAMES
 from ..engine.scores import maneuver_mse, sizes_of, weighted_mean_se
 from ..engine.ties import first_of_lowest, sort_by
 from .fitted import Fitted, fit as _fit, state_for_phases
@@ -59,15 +53,14 @@ from .state_level import state_level
 from .unexplained import unexplained as _unexplained
 from .where import overlap as _overlap, where, where_bins
 
-__all__ = ["diagnose", "saturated", "wald_p_value", "within_noise", "where", "spectral_floor", "state_level",
+__all__ = ["diagnose", "diagnose_search", "saturated", "wald_p_value", "within_noise", "where", "spectral_floor", "state_level",
            "Diagnosis"]
 
 SPECTRAL_SPLIT_HZ = 3.0
 # A model is at the floor when its per-maneuver relative excess over the floor model is within one standard
 # error or below this (the ranking's practical tolerance); the error needs this many maneuvers.
-# A diagnosis fits as a search does, with one-step folds for structures with separation parameters (they rank
-# alike, experiments/bench) and two starts (each child also starts from its parent's estimates).
-DIAGNOSIS_OPTIONS = FitOptions(n_starts=2, cv_method="one-step")
+# The diagnose command's options (fitting.options.COMMAND_OPTIONS)
+DIAGNOSIS_OPTIONS = command_options("diagnose")
 
 
 def spectral_floor(residual: np.ndarray, data: FlightData) -> float:
@@ -202,136 +195,135 @@ def _row(child, base: Fitted, floor: _Floor, explained_now: bool, where_rows, ct
                      child.candidate.name, **extra)
 
 
-def _lift_models(baseline: Candidate, lift, train, val, options, given) -> dict:
-    """The lift models a drag or pitch structure may be fed: its own, the thesis' final one and ``given``."""
-    if not baseline.lift:
-        return {}
-    out = {baseline.lift: lift}
-    thesis = FINAL_MODEL_NAMES["CL"]
-    if thesis not in out and thesis not in (given or {}):
-        out[thesis] = fit_lift_model(dataclasses.replace(baseline, lift=thesis), train, val, options)
-    out.update(given or {})
-    return out
+def diagnose(fitter: Fitter, baseline: Candidate, **settings) -> Diagnosis:
+    """Diagnose one coefficient (:func:`diagnose_search`, its diagnosis alone)."""
+    return diagnose_search(fitter, baseline, **settings)[0]
 
 
-def diagnose(campaign: Campaign, baseline: Candidate, *, options: FitOptions = DIAGNOSIS_OPTIONS,
-             max_rounds: int = DEFAULT_MAX_STEPS, progress: Callable[[str], None] | None = None, seed: int = 0,
-             states: bool = True, n_jobs: int = 1, lifts: Mapping[str, LiftFit] | None = None,
-             terms: str | None = None, beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA,
-             cache_dir: str | Path | None = None, backend: str = "loky", kinds=MOVE_KINDS,
-             simplify: bool = False) -> Diagnosis:
-    """Diagnose one coefficient (:func:`diagnose_with_search`, its diagnosis alone)."""
-    return diagnose_with_search(campaign, baseline, options=options, max_rounds=max_rounds, progress=progress,
-                                seed=seed, states=states, n_jobs=n_jobs, lifts=lifts, terms=terms, beam=beam,
-                                alpha=alpha, cache_dir=cache_dir, backend=backend, kinds=kinds,
-                                simplify=simplify)[0]
-
-
-def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: FitOptions = DIAGNOSIS_OPTIONS,
-                         max_rounds: int = DEFAULT_MAX_STEPS, progress: Callable[[str], None] | None = None,
-                         seed: int = 0, states: bool = True, n_jobs: int = 1,
-                         lifts: Mapping[str, LiftFit] | None = None, terms: str | None = None,
-                         beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA, cache_dir: str | Path | None = None,
-                         backend: str = "loky", kinds=MOVE_KINDS, simplify: bool = False):
+def diagnose_search(fitter: Fitter, baseline: Candidate, *, max_rounds: int = DEFAULT_MAX_STEPS, seed: int = 0,
+                    states: bool = True, terms: str | None = None, beam: int = DEFAULT_BEAM,
+                    alpha: float = DEFAULT_ALPHA, kinds=MOVE_KINDS, simplify: bool = False):
     """Diagnose one coefficient, and the structure search it ran: a search over moves
     (:mod:`structsearch.discovery`) from ``baseline`` until no move passes the adoption test; each adopted move
     is a round, and the final structure is judged against the floor. A diagnosis adopts moves that close the
     gap; with ``simplify`` (``discover``) also moves that only simplify within one standard error. ``to_dict()``
-    of the result is the JSON document of docs/interfaces.md sections 3 and 5.4. ``lifts`` adds lift models a
-    drag or pitch structure may be fed (the story: the lift structure found for C_L); ``terms`` a user's term
-    file; the fits are cached in ``cache_dir`` (a temporary directory when None) and run on ``n_jobs``."""
-    if cache_dir is None:
-        with tempfile.TemporaryDirectory(prefix="structsearch-diagnose-") as tmp:
-            return diagnose_with_search(campaign, baseline, options=options, max_rounds=max_rounds, progress=progress, seed=seed,
-                            states=states, n_jobs=n_jobs, lifts=lifts, terms=terms, beam=beam, alpha=alpha,
-                            cache_dir=tmp, backend=backend, kinds=kinds, simplify=simplify)
-    say = progress or (lambda m: None)
+    of the result is the JSON document of docs/interfaces.md sections 3 and 5.4. ``fitter``'s lift models are
+    lift models a drag or pitch structure may be fed besides its own (the story: the lift structure found for
+    C_L); ``terms`` a user's term file."""
     t0 = time.perf_counter()
     if max_rounds < 1:
         raise DeclarationError(f"a diagnosis needs at least one round, not {max_rounds}")
-    train, val = campaign.split("train"), campaign.split("validation")
-    if baseline.coefficient not in val:
-        raise DataError("the campaign has no column for the diagnosed coefficient", source=str(campaign.directory),
-                        column=baseline.coefficient)
-    # the term library first: a bad term file is an error before anything is fitted
-    library = library_for(baseline.coefficient, train, terms)
-    lift = (lifts or {}).get(baseline.lift) if baseline.lift else None
-    if baseline.lift and lift is None:
-        say(f"fitting the lift model {baseline.lift}")
-        lift = fit_lift_model(baseline, train, val, options)
-    ctx = _Context(train, val, _lift_models(baseline, lift, train, val, options, lifts), seed)
-    lift_candidates = {n: lf.candidate for n, lf in ctx.lifts.items()}
-    if not generate(baseline, library, lift_candidates, kinds):
-        raise DeclarationError(f"no move of the structure search applies to {baseline.name}")
+    start = start_search(fitter, baseline, terms, kinds)
+    fitter = start.fitter
+    train, val = fitter.splits()
+    ctx = _Context(train, val, dict(fitter.lifts), seed)
     warnings = []
     if len(val.names) < MIN_MANEUVERS:
         warnings.append(f"only {len(val.names)} validation maneuvers: no spread of the per-maneuver excess, so "
                         "'at the floor' uses the 1 % tolerance alone and standard errors are n/a")
-    cache = Path(cache_dir)
-    (base_result,) = fit_structures([baseline], campaign, cache, ctx.lifts, options, n_jobs, backend)
-    if base_result.failed:
-        raise DeclarationError(f"fitting {baseline.name} failed: {base_result.error}")
-    base_fit = Fitted(baseline, base_result, *_residuals(ctx, baseline, base_result))
-    judge = judge_for(campaign)
-    baseline_reasons = tuple(judge(base_result, baseline))
-    if baseline_reasons:
-        warnings.append(f"the baseline {baseline.name} as fitted here is not admissible: "
-                        + "; ".join(baseline_reasons))
-    say(f"library-free floor of {baseline.name}'s residual; the saturated library model")
-    flexible, sig_train, sig_val, x_val = _flexible(base_fit, baseline, lift, train, val, seed)
-    first_floor = (base_fit, flexible, sig_train, sig_val)
-    floors = [_Floor(flexible.mse, flexible.residual, "library-free flexible model of the residual", True),
-              _Floor(float(np.mean(base_fit.residual ** 2)), base_fit.residual, baseline.name)]
-    p_gap_first = None
-    if fx.applicable(baseline):
-        saturated_c, added = saturated(baseline, fx.applicable(baseline))
-        try:
-            sat_fit = _fit(saturated_c, train, val, lift, options, start=base_result.params)
-            floors.append(_Floor(float(np.mean(sat_fit.residual ** 2)), sat_fit.residual, "saturated library model"))
-            p = wald_p_value(sat_fit.summary, [q for ps in added.values() for q in ps])
-            p_gap_first = p if np.isfinite(p) else None
-        except DeclarationError as exc:
-            warnings.append(f"the saturated library model could not be fitted: {exc}")
-
+    if start.reasons:
+        warnings.append(f"the baseline {baseline.name} as fitted here is not admissible: " + "; ".join(start.reasons))
+    base_fit = Fitted(baseline, start.result, *_residuals(ctx, baseline, start.result))
+    first = _first_floors(fitter, base_fit, ctx, warnings)
     # the floor is no stopping rule: an estimate of it from the baseline's residual can lie above what a better
     # structure reaches (pitch on Van Ingen's single state: the flexible model lacks the lift model's two states),
     # and the search would stop early; it stops when no move passes, and the verdict is taken at the end
-    say(f"structure search from {baseline.name}: {len(library.terms)} term templates, beam {beam}")
-    # ... but it gates the look-ahead: from a structure whose own residual a library-free model cannot improve
-    # out of sample, no pair of moves can pay, and the look-ahead (the most expensive step) is not taken
+    fitter.say(f"structure search from {baseline.name}: {len(start.library.terms)} term templates, beam {beam}")
+    ex = explore(baseline, fitter, start.library, beam=beam, alpha=alpha, max_steps=max_rounds, judge=start.judge,
+                 kinds=kinds, simplify=simplify, at_floor=_own_floor_gate(ctx))
+    path = ex.final.path()
+    fits = [base_fit] + [ctx.fitted(n) for n in path[1:]]
+    floors, flexible, x_val_final = _final_floors(first, path, fits[-1], ctx, fitter.say)
+    floor = _lowest(floors, ctx)
+    rounds = _rounds(path, fits, ex, floor, ctx, first.p_gap)
+    final_fit = fits[-1]
+    explained, final_excess, final_excess_se = within_noise(final_fit.residual, floor.residual, val)
+    library_free = min(f.mse for f in floors if f.library_free)
+    block = _unexplained(rounds[0].mse.validation, final_fit, flexible[0], library_free, val, flexible[1],
+                         flexible[2], x_val_final, explained, seed, first.base)
+    sl = _state_level(fitter, fits, ctx) if states and len(fits) > 1 else None
+    search_doc = {"stopped": ex.stopped, "structures_fitted": ex.n_fitted, "steps": len(ex.steps), "beam": beam,
+                  "alpha": alpha, "test": TEST_NAME, "terms": start.library.to_dict(),
+                  "lift_models": sorted(ctx.lifts)}
+    return Diagnosis(baseline.coefficient, baseline.name, floor.mse, floor.source,
+                     min(f.mse for f in floors if not f.library_free), explained, final_excess, final_excess_se,
+                     tuple(rounds), final_fit.candidate.name, float(np.mean(final_fit.residual ** 2)), block,
+                     tuple(warnings), sl, time.perf_counter() - t0, final_fit.candidate.to_dict(), search_doc,
+                     start.reasons), ex
+
+
+@dataclass(frozen=True)
+class _FirstFloors:
+    """The floor estimates before the search: the baseline's library-free floor (with its signals, what the
+    unexplained block compares with), the baseline itself and the saturated library model."""
+
+    floors: tuple[_Floor, ...]
+    base: tuple                 # (baseline fit, flexible fit, training signals, validation signals)
+    x_val: np.ndarray           # the baseline's validation phase state
+    p_gap: float | None         # the Wald test of the saturated model's added parameters
+
+
+def _first_floors(fitter: Fitter, base_fit: Fitted, ctx: _Context, warnings: list[str]) -> _FirstFloors:
+    baseline = base_fit.candidate
+    lift = ctx.lift_of(baseline)
+    fitter.say(f"library-free floor of {baseline.name}'s residual; the saturated library model")
+    flexible, sig_train, sig_val, x_val = _flexible(base_fit, baseline, lift, ctx.train, ctx.val, ctx.seed)
+    floors = [_Floor(flexible.mse, flexible.residual, "library-free flexible model of the residual", True),
+              _Floor(float(np.mean(base_fit.residual ** 2)), base_fit.residual, baseline.name)]
+    p_gap = None
+    if fx.applicable(baseline):
+        saturated_c, added = saturated(baseline, fx.applicable(baseline))
+        try:
+            sat_fit = _fit(saturated_c, ctx.train, ctx.val, lift, fitter.options, start=base_fit.summary.params)
+            floors.append(_Floor(float(np.mean(sat_fit.residual ** 2)), sat_fit.residual, "saturated library model"))
+            p = wald_p_value(sat_fit.summary, [q for ps in added.values() for q in ps])
+            p_gap = p if np.isfinite(p) else None
+        except DeclarationError as exc:
+            warnings.append(f"the saturated library model could not be fitted: {exc}")
+    return _FirstFloors(tuple(floors), (base_fit, flexible, sig_train, sig_val), x_val, p_gap)
+
+
+def _own_floor_gate(ctx: _Context) -> Callable:
+    """Whether a structure's own residual is at its library-free floor. It gates the look-ahead: from a structure
+    whose own residual a library-free model cannot improve out of sample, no pair of moves can pay, and the
+    look-ahead (the most expensive step) is not taken."""
     own_floor: dict[str, bool] = {}
 
     def at_own_floor(node) -> bool:
         key = structure_key(node.candidate)
         if key not in own_floor:
             fit_n = ctx.fitted(node)
-            flex = _flexible(fit_n, node.candidate, ctx.lift_of(node.candidate), train, val, seed)[0]
-            own_floor[key] = within_noise(fit_n.residual, flex.residual, val)[0]
+            flex = _flexible(fit_n, node.candidate, ctx.lift_of(node.candidate), ctx.train, ctx.val, ctx.seed)[0]
+            own_floor[key] = within_noise(fit_n.residual, flex.residual, ctx.val)[0]
         return own_floor[key]
+    return at_own_floor
 
-    ex = explore(baseline, campaign, library, cache, lifts=ctx.lifts, options=options, beam=beam, alpha=alpha,
-                 max_steps=max_rounds, judge=judge, kinds=kinds, simplify=simplify,
-                 n_jobs=n_jobs, backend=backend, progress=say, at_floor=at_own_floor)
-    path = ex.final.path()
-    fits = [base_fit] + [ctx.fitted(n) for n in path[1:]]
-    final_fit = fits[-1]
-    # the structure reached joins the floor estimates; the many a search tries and leaves do not: the lowest
-    # validation MSE of dozens of structures is biased low by the choice itself, and would call a true model
-    # unexplained (a move's shrink is capped at 1 instead)
+
+def _final_floors(first: _FirstFloors, path, final_fit: Fitted, ctx: _Context, say):
+    """Every floor estimate, the structure reached and its library-free floor among them (the many structures a
+    search tries and leaves are not: the lowest validation MSE of dozens of structures is biased low by the choice
+    itself, and would call a true model unexplained; a move's shrink is capped at 1 instead); the last flexible
+    fit with its signals, and the final model's validation phase state."""
+    floors = list(first.floors)
+    _, flexible, sig_train, sig_val = first.base
+    x_val_final = first.x_val
     if len(path) > 1:
         floors.append(_Floor(path[-1].result.validation.mse, None, path[-1].candidate.name, node=path[-1]))
         say("library-free floor of the final model's residual")
         flexible, sig_train, sig_val, x_val_final = _flexible(final_fit, final_fit.candidate, ctx.lift_of(
-            final_fit.candidate), train, val, seed)
+            final_fit.candidate), ctx.train, ctx.val, ctx.seed)
         floors.append(_Floor(flexible.mse, flexible.residual, "library-free flexible model of the residual", True))
-    else:
-        x_val_final = x_val
-    floor = _lowest(floors, ctx)
+    return floors, (flexible, sig_train, sig_val), x_val_final
+
+
+def _rounds(path, fits, ex, floor: _Floor, ctx: _Context, p_gap_first) -> list[Round]:
+    """One round per structure of the path: its gap to the floor, where it lies and every move tried from it."""
     rounds = []
+    val = ctx.val
     for i, (node, fit_i) in enumerate(zip(path, fits)):
         x_i = state_for_phases(node.candidate, node.result, ctx.lift_of(node.candidate), val)
         explained_now, excess, excess_se = within_noise(fit_i.residual, floor.residual, val)
-        where_rows = where_bins(fit_i.residual, floor.residual, val, x_i, seed=seed)
+        where_rows = where_bins(fit_i.residual, floor.residual, val, x_i, seed=ctx.seed)
         # the adopted move first (the one the round's verdict is about), then the others by verdict and MSE
         adopted_node = path[i + 1] if i + 1 < len(path) else None
         children = sort_by(ex.tried_from(node), lambda c: c.mse, lambda c: c.candidate.name,
@@ -343,26 +335,19 @@ def diagnose_with_search(campaign: Campaign, baseline: Candidate, *, options: Fi
                             floor.source, spectral_floor(fit_i.residual, val), se_i, where_rows, rows, explained_now,
                             excess, excess_se, p_gap_first if i == 0 else None, adopted, floor.mse,
                             mse_i - floor.mse))
-    explained, final_excess, final_excess_se = within_noise(final_fit.residual, floor.residual, val)
-    library_free = min(f.mse for f in floors if f.library_free)
-    block = _unexplained(rounds[0].mse.validation, final_fit, flexible, library_free, val, sig_train, sig_val,
-                         x_val_final, explained, seed, first_floor)
-    sl = None
-    if states and len(fits) > 1:
-        say("state level: replaying the validation maneuvers before and after")
-        try:
-            sl = state_level(campaign, base_fit, fits[1], ctx.lift_of(base_fit.candidate) or lift, options,
-                             lift_after=ctx.lift_of(fits[1].candidate) or lift)
-        except (DeclarationError, DataError) as exc:
-            sl = StateLevel(error=str(exc))
-    search_doc = {"stopped": ex.stopped, "structures_fitted": ex.n_fitted, "steps": len(ex.steps), "beam": beam,
-                  "alpha": alpha, "test": TEST_NAME, "terms": library.to_dict(),
-                  "lift_models": sorted(ctx.lifts)}
-    return Diagnosis(baseline.coefficient, baseline.name, floor.mse, floor.source,
-                     min(f.mse for f in floors if not f.library_free), explained, final_excess, final_excess_se,
-                     tuple(rounds), final_fit.candidate.name, float(np.mean(final_fit.residual ** 2)), block,
-                     tuple(warnings), sl, time.perf_counter() - t0, final_fit.candidate.to_dict(), search_doc,
-                     baseline_reasons), ex
+    return rounds
+
+
+def _state_level(fitter: Fitter, fits, ctx: _Context) -> StateLevel:
+    """The validation maneuvers replayed before and after the first adopted move."""
+    fitter.say("state level: replaying the validation maneuvers before and after")
+    base_fit = fits[0]
+    lift = ctx.lift_of(base_fit.candidate)
+    try:
+        return state_level(fitter.campaign, base_fit, fits[1], lift, fitter.options,
+                           lift_after=ctx.lift_of(fits[1].candidate) or lift)
+    except (DeclarationError, DataError) as exc:
+        return StateLevel(error=str(exc))
 
 
 def _residuals(ctx: _Context, c: Candidate, r) -> tuple[np.ndarray, np.ndarray]:

@@ -34,22 +34,6 @@ def fit(c: Candidate, train: FlightData, val: FlightData, lift, options, start=N
     return Fitted(c, summary, val[c.coefficient] - pred, train[c.coefficient] - pred_train)
 
 
-def _fit_or_error(c: Candidate, train, val, lift, options, start) -> Fitted | str:
-    try:
-        return fit(c, train, val, lift, options, start=start)
-    except DeclarationError as exc:
-        return str(exc)
-
-
-def fit_all(models, train, val, lift, options, start, n_jobs: int) -> list[Fitted | str]:
-    """:func:`fit` of every model (the error text where one fails), in order, on ``n_jobs`` processes."""
-    if n_jobs == 1 or len(models) < 2:
-        return [_fit_or_error(c, train, val, lift, options, start) for c in models]
-    from joblib import Parallel, delayed
-    return Parallel(n_jobs=n_jobs)(delayed(_fit_or_error)(c, train, val, lift, options, start)
-                                   for c in models)
-
-
 def state_for_phases(c: Candidate, summary: CandidateResult, lift: LiftFit | None,
                      data: FlightData) -> np.ndarray:
     """The separation state that defines flight phases: the model's first state, or a static stall-strip

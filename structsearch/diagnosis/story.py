@@ -4,24 +4,21 @@ how far each closes it, at coefficient and state level, and where it ends.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
-from typing import Callable, Mapping
+from typing import Mapping
 
 import numpy as np
 
-import dataclasses
-from pathlib import Path
-
-from .diagnose import DIAGNOSIS_OPTIONS, diagnose
+from .diagnose import diagnose
 from ..fitting.candidate_fit import fit_staged
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
 from .results import Diagnosis
-from ..data.campaign import Campaign
 from ..flight.reference import VAN_INGEN_MODEL_NAMES
 from ..discovery.explore import DEFAULT_MAX_STEPS
 from ..discovery.moves import MOVE_KINDS
-from ..fitting.options import FitOptions
+from ..fitting.fitter import Fitter
 from ..fitting.specs import find_candidate
 
 # The name the drag and pitch searches know the lift structure found for C_L by.
@@ -46,20 +43,18 @@ class Story:
         return {"diagnoses": {coef: d.to_dict() for coef, d in self.diagnoses.items()}, "lines": list(self.lines)}
 
 
-def van_ingen_story(campaign: Campaign, options: FitOptions = DIAGNOSIS_OPTIONS,
-                    progress: Callable[[str], None] | None = None, n_jobs: int = 1,
-                    cache_dir: str | Path | None = None, kinds=MOVE_KINDS, beam: int = STORY_BEAM) -> Story:
+def van_ingen_story(fitter: Fitter, kinds=MOVE_KINDS, beam: int = STORY_BEAM) -> Story:
     """Diagnose each Van Ingen structure (a structure search from each until it is at the floor or no move
     passes), lift first: the drag and pitch searches may feed their models the lift structure found for C_L.
     ``kinds`` and ``beam`` restrict the search (``("effect",)`` and 1: the effect library alone, one at a time)."""
-    say = progress or (lambda m: None)
+    say, campaign, options = fitter.say, fitter.campaign, fitter.options
     docs = {}
     lifts: dict[str, LiftFit] = {}
     for coef, name in VAN_INGEN_MODEL_NAMES.items():
         say(f"story: diagnosing the Van Ingen {coef} model {name}")
-        docs[coef] = diagnose(campaign, find_candidate(name), options=options, max_rounds=STORY_ROUNDS,
-                              progress=lambda m, c=coef: say(f"story {c}: {m}"), n_jobs=n_jobs, lifts=lifts,
-                              cache_dir=cache_dir, kinds=kinds, beam=beam)
+        told = fitter.with_progress(lambda m, c=coef: say(f"story {c}: {m}"))
+        docs[coef] = diagnose(dataclasses.replace(told, lifts=dict(lifts)), find_candidate(name),
+                              max_rounds=STORY_ROUNDS, kinds=kinds, beam=beam)
         if coef == "CL" and docs[coef].final_structure is not None and docs[coef].rounds[-1].baseline != name:
             # drag and pitch may be fed the lift structure the story found for C_L
             found = dataclasses.replace(Candidate.from_dict(docs[coef].final_structure), name=FOUND_LIFT,

@@ -35,6 +35,7 @@ from ..flight.anomalies import ANOMALIES, truth_difference
 from ..flight.flighttest import build_campaign
 from ..flight.reference import FINAL_MODEL_NAMES
 from ..fitting.candidates import Candidate
+from ..fitting.fitter import temporary_fitter
 from ..fitting.options import FitOptions
 from .diagnose import DIAGNOSIS_OPTIONS
 from ..fitting.specs import find_candidate
@@ -216,7 +217,8 @@ def _closed_by_library(doc: Diagnosis) -> float:
 
 def withheld_row(campaign, effect: str, options: FitOptions, n_jobs: int) -> WithheldRow:
     base = baseline_without(effect)
-    doc = diagnose(campaign, base, options=options, max_rounds=1, n_jobs=n_jobs)
+    with temporary_fitter(campaign, options, n_jobs=n_jobs) as fitter:
+        doc = diagnose(fitter, base, max_rounds=1)
     first = doc.effects[0]
     # a move carries the effect's name when it equals the effect, or is the effect at one state (row.effect)
     reported = next((e for e in doc.effects if e.name == effect or e.effect == effect), None)
@@ -238,7 +240,8 @@ def anomaly_row(name: str, seed: int, scale: float, options: FitOptions, n_jobs:
     anomaly = ANOMALIES[name]
     campaign = build_campaign(seed=seed, scale=scale, anomaly=name)
     base = find_candidate(FINAL_MODEL_NAMES[anomaly.coefficient])
-    doc = diagnose(campaign, base, options=options, max_rounds=2, states=False, n_jobs=n_jobs)
+    with temporary_fitter(campaign, options, n_jobs=n_jobs) as fitter:
+        doc = diagnose(fitter, base, max_rounds=2, states=False)
     truth = truth_location(campaign, name)
     top_phase, top_band = _top(doc)
     closed = _closed_by_library(doc)
@@ -275,7 +278,8 @@ def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, a
         camp = campaign if s == seed else build_campaign(seed=s, scale=scale)
         for coef, name in FINAL_MODEL_NAMES.items():
             say(f"null case seed {s} {name}")
-            doc = diagnose(camp, find_candidate(name), options=options, max_rounds=1, states=False, n_jobs=n_jobs)
+            with temporary_fitter(camp, options, n_jobs=n_jobs) as fitter:
+                doc = diagnose(fitter, find_candidate(name), max_rounds=1, states=False)
             p = doc.rounds[0].gap_p_value
             null.append(NullRow(s, name, doc.explained, p, None if p is None else bool(p < 0.01), not doc.explained,
                                 doc.seconds, doc.rounds[0].adopted))

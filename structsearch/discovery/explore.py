@@ -1,7 +1,7 @@
 """A structure search over moves: bidirectional stepwise with a beam.
 
 Each step expands the beam (at most ``beam`` structures): every valid move (:mod:`.moves`) of each is fitted
-once (the search's runner: cached, in parallel on joblib or dask, each child warm started from the
+once (the command's fitter: cached, in parallel on joblib or dask, each child warm started from the
 structures it extends), and judged against its parent by :func:`.adoption.move_test`:
 
 1. children that *improve* (the test rejects at alpha / moves tried and the validation MSE falls) form
@@ -25,24 +25,20 @@ The structure the search ends with is chosen as the ranking chooses (:func:`choo
 first, then the fewest parameters within one standard error of the best.
 
 The search stops when no move passes, when ``stop`` says a structure is good enough (the diagnosis: at the
-floor) or after ``max_steps`` steps. It does no I/O but the fit cache in ``cache_dir``.
+floor) or after ``max_steps`` steps. It does no I/O but the fitter's cache.
 """
 from __future__ import annotations
 
 import dataclasses
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Sequence
 
 
-from ..data.campaign import Campaign
 from ..engine.ties import is_tie, sort_by
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
-from ..fitting.lift_fit import LiftFit
-from ..fitting.options import FitOptions
-from ..grid_search import runner
+from ..fitting.fitter import Fitter
 from .adoption import DEFAULT_ALPHA, MoveTest, move_test
 from .moves import MOVE_KINDS, Move, generate, structure_key
 from .terms import TermLibrary
@@ -129,14 +125,9 @@ class Exploration:
         return [n for s in self.steps for n in s.tried if n.parent is node]
 
 
-def fit_structures(candidates: Sequence[Candidate], campaign: Campaign, cache_dir: Path, lifts, options, n_jobs=1,
-                   backend="loky", donors: Sequence[Node] = ()) -> list[CandidateResult]:
-    """Fit structures as the search does (the runner: cached in ``cache_dir``, in parallel, warm started from
-    ``donors``), in order."""
-    if not candidates:
-        return []
-    return runner.run(list(candidates), campaign, cache_dir, lifts=dict(lifts), options=options, n_jobs=n_jobs,
-                      backend=backend, fitted_before=[(d.candidate, d.result) for d in donors])
+def donors(nodes: Sequence[Node]) -> list[tuple[Candidate, CandidateResult]]:
+    """The fitted structures of ``nodes`` as warm-start donors of a fitter."""
+    return [(n.candidate, n.result) for n in nodes]
 
 
 HARD_REASONS = ("not identifiable", "optimizer did not converge", "fit failed")
@@ -245,101 +236,70 @@ def _shortlist(prelim: list[Node], beam: int) -> list[Node]:
     return out
 
 
-def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_dir: Path, *,
-            lifts: Mapping[str, LiftFit] | None = None, options: FitOptions = FitOptions(n_starts=2),
+@dataclass
+class _Search:
+    """What one exploration holds while it runs: the fitter (quiet: the exploration says what it does), the
+    moves it may make, the structures it has visited and how many it fitted."""
+
+    fitter: Fitter
+    library: TermLibrary
+    lift_candidates: dict[str, Candidate]
+    kinds: Sequence[str]
+    judge: Judge
+    alpha: float
+    visited: set = field(default_factory=set)
+    n_fitted: int = 0
+
+    def node(self, c: Candidate, r: CandidateResult, **kw) -> Node:
+        return Node(c, r, reasons=tuple(self.judge(r, c)) if not r.failed else (f"fit failed: {r.error}",), **kw)
+
+    def new_moves(self, parent: Node, kinds: Sequence[str]) -> tuple[list[tuple[Move, Candidate]], int]:
+        """The moves from ``parent`` to structures not visited yet (now visited), and how many moves it has."""
+        moves = generate(parent.candidate, self.library, self.lift_candidates, kinds)
+        fresh = []
+        for move, child in moves:
+            key = structure_key(child)
+            if key not in self.visited:
+                self.visited.add(key)
+                fresh.append((move, child))
+        return fresh, len(moves)
+
+
+def explore(start: Candidate, fitter: Fitter, library: TermLibrary, *,
             beam: int = DEFAULT_BEAM, alpha: float = DEFAULT_ALPHA, max_steps: int = DEFAULT_MAX_STEPS,
             kinds: Sequence[str] = MOVE_KINDS, judge: Judge | None = None,
-            stop: Callable[[Node], bool] | None = None, n_jobs: int = 1, backend: str = "loky",
-            progress: Callable[[str], None] | None = None, simplify: bool = True,
+            stop: Callable[[Node], bool] | None = None, simplify: bool = True,
             at_floor: Callable[[Node], bool] | None = None) -> Exploration:
-    """Search structures from ``start`` (module docstring); ``lifts`` are the lift models a drag or pitch
+    """Search structures from ``start`` (module docstring) with ``fitter``, whose lift models a drag or pitch
     structure may be fed (by name; the start's own among them). Without ``simplify`` no move is adopted for
     simplifying alone (the diagnosis asks what is missing, not what the data cannot support). ``at_floor`` says
     whether a structure's own residual holds nothing a library-free model predicts out of sample: when no move
     passes from such a structure, no look-ahead is taken (no pair of moves can pay where nothing is left), and
     the search stops there."""
-    say = progress or (lambda m: None)
+    say = fitter.say
     t0 = time.perf_counter()
-    lifts = dict(lifts or {})
-    lift_candidates = {name: lf.candidate for name, lf in lifts.items()}
-    judge = judge or (lambda r, c: ())
-
-    def node(c, r, **kw):
-        return Node(c, r, reasons=tuple(judge(r, c)) if not r.failed else (f"fit failed: {r.error}",), **kw)
-
-    screening = dataclasses.replace(options, scores_only=True)
-    (start_result,) = fit_structures([start], campaign, cache_dir, lifts, options, n_jobs, backend, [])
+    run = _Search(fitter.quiet(), library, {name: lf.candidate for name, lf in fitter.lifts.items()}, kinds,
+                  judge or (lambda r, c: ()), alpha)
+    start_result = run.fitter.fit_one(start)
     if start_result.failed:
         from ..data.errors import StructSearchError
         raise StructSearchError(f"fitting the start structure {start.name} failed: {start_result.error}")
-    root = node(start, start_result)
-    visited = {structure_key(start)}
-    current, confirmed, steps, n_fitted = [root], [root], [], 1   # confirmed: every adopted structure
+    root = run.node(start, start_result)
+    run.visited.add(structure_key(start))
+    run.n_fitted = 1
+    current, confirmed, steps = [root], [root], []   # confirmed: every adopted structure
     stopped = "max steps"
     if stop is not None and stop(root):
         return Exploration(root, root, (), "good enough at the start", 1, time.perf_counter() - t0)
     for index in range(1, max_steps + 1):
-        t_step = time.perf_counter()
-        pending: list[tuple[Node, Move, Candidate]] = []
-        n_moves: dict[int, int] = {}
-        for parent in current:
-            anchor = parent if parent.status in CONFIRMED else parent.anchor
-            moves = generate(parent.candidate, library, lift_candidates, kinds)
-            n_moves[id(anchor)] = n_moves.get(id(anchor), 0) + len(moves)
-            for move, child in moves:
-                key = structure_key(child)
-                if key in visited:
-                    continue
-                visited.add(key)
-                pending.append((parent, move, child))
-        # screening: every child's estimates and out-of-sample scores (what the test needs), no statistics
-        screens = fit_structures([c for _, _, c in pending], campaign, cache_dir, lifts, screening, n_jobs, backend, current)
-        prelim = []
-        for (parent, move, child), result in zip(pending, screens):
-            anchor = parent if parent.status in CONFIRMED else parent.anchor
-            raw = Node(child, result, move=move, parent=parent, step=index, screened=True)
-            prelim.append(_verdict(raw, anchor, n_moves[id(anchor)], alpha, judged=False))
-        shortlist = _shortlist(prelim, beam)
-        # the shortlist fitted in full (statistics, admissibility) and judged again
-        # warm started from their own screening (renamed: a structure does not donate to itself by name)
-        screened_donors = [dataclasses.replace(n, candidate=dataclasses.replace(n.candidate,
-                                                                               name=n.candidate.name + " [screened]"))
-                           for n in shortlist if not n.result.failed]
-        fulls = fit_structures([n.candidate for n in shortlist], campaign, cache_dir, lifts, options, n_jobs, backend,
-                               list(current) + screened_donors)
-        n_fitted += len(pending)
-        judged = {id(n): _verdict(node(n.candidate, r, move=n.move, parent=n.parent, step=index), n.anchor,
-                                  n_moves[id(n.anchor)], alpha)
-                  for n, r in zip(shortlist, fulls)}
-        tried = [judged.get(id(n), dataclasses.replace(n, status="rejected" if n.status != "failed" else "failed"))
-                 for n in prelim]
-        improved = _nested_first(_by_mse(n for n in tried if n.status == "improves"), tried, alpha)
-        if improved:   # the preferred move may stand for the best (its status changed): the record shows it
-            tried = [improved[0] if t.candidate is improved[0].candidate else t for t in tried]
-        simpler = _by_mse((n for n in tried if n.status == "simplifies"), lambda n: (len(n.reasons), n.n_params))
-        ahead = _by_mse(n for n in tried if n.status == "look-ahead")
-        if improved:
-            nxt = improved[:beam]
-        elif simpler and simplify:
-            nxt = simpler[:1]
-        elif ahead and any(n.status in CONFIRMED for n in current) and not (
-                at_floor is not None and all(at_floor(n) for n in current if n.status in CONFIRMED)):
-            # a change of lift model first: it is what the other terms of a drag or pitch model build on
-            nxt = _by_mse(ahead, lambda n: (n.move.kind != "lift",))[:beam]
-        else:
-            nxt = []
-        # only the chosen look-aheads and simplifications keep that status: the others are rejected for the record
-        chosen = {id(n) for n in nxt}
-        tried = [n if n.status not in ("look-ahead", "simplifies") or id(n) in chosen
-                 else dataclasses.replace(n, status="rejected") for n in tried]
-        nxt = [next(t for t in tried if t.candidate is n.candidate) for n in nxt]
-        steps.append(Step(index, tuple(n.candidate.name for n in current), tuple(tried), tuple(nxt),
-                          time.perf_counter() - t_step))
+        step, n_tried, ahead = _search_step(run, current, index, beam, simplify, at_floor)
+        steps.append(step)
+        nxt = list(step.beam)
         confirmed += [n for n in nxt if n.status in CONFIRMED]
         adopted_now = [n for n in nxt if n.status in CONFIRMED]
         best = _lowest_mse(adopted_now) if adopted_now else None
         top = _lowest_mse(confirmed)
-        say(f"step {index}: {len(pending)} structures tried ({n_fitted} in all), "
+        say(f"step {index}: {n_tried} structures tried ({run.n_fitted} in all), "
             f"{'kept ' + nxt[0].status + ' ' + nxt[0].move.name if nxt else 'no move passes'}; best so far "
             f"{top.candidate.name} (held-out MSE {top.mse:.4g}), {time.perf_counter() - t0:.0f} s")
         if not nxt:
@@ -352,43 +312,106 @@ def explore(start: Candidate, campaign: Campaign, library: TermLibrary, cache_di
         current = nxt
     final = choose(confirmed, alpha, admissible_first=simplify)
     if simplify and not final.admissible:
-        repairs = []
-        for index in range(len(steps) + 1, max_steps + 1):   # repairs count in the steps' budget
-            t_step = time.perf_counter()
-            step, fitted = _repair_step(final, index, campaign, library, lift_candidates, visited, cache_dir, lifts,
-                                        options, n_jobs, backend, node, alpha)
-            n_fitted += fitted
-            steps.append(dataclasses.replace(step, seconds=time.perf_counter() - t_step))
-            if not step.beam:
-                break
-            final = step.beam[0]
-            repairs.append(final)
-            say(f"repair {index}: {fitted} structures tried, kept {final.move.name} "
-                f"({len(final.reasons)} reasons against it), {time.perf_counter() - t0:.0f} s")
-            if final.admissible:
-                break
-        final = choose(confirmed + repairs, alpha, admissible_first=True)
-    return Exploration(root, final, tuple(steps), stopped, n_fitted, time.perf_counter() - t0)
+        final = _repair(run, final, confirmed, steps, max_steps, say, t0)
+    return Exploration(root, final, tuple(steps), stopped, run.n_fitted, time.perf_counter() - t0)
 
 
-def _repair_step(current: Node, index: int, campaign, library, lift_candidates, visited, cache_dir, lifts, options,
-                 n_jobs, backend, node, alpha) -> tuple[Step, int]:
+def _search_step(run: _Search, current: list[Node], index: int, beam: int, simplify: bool,
+                 at_floor: Callable[[Node], bool] | None) -> tuple[Step, int, list[Node]]:
+    """One step from the beam ``current``: every new child screened, the shortlist fitted in full and judged; the
+    step (its beam: what the next step expands), how many children it tried and the look-aheads it had."""
+    t_step = time.perf_counter()
+    pending: list[tuple[Node, Move, Candidate]] = []
+    n_moves: dict[int, int] = {}
+    for parent in current:
+        anchor = parent if parent.status in CONFIRMED else parent.anchor
+        fresh, n_all = run.new_moves(parent, run.kinds)
+        n_moves[id(anchor)] = n_moves.get(id(anchor), 0) + n_all
+        pending += [(parent, move, child) for move, child in fresh]
+    tried = _judged_children(run, current, pending, n_moves, index, beam)
+    improved = _nested_first(_by_mse(n for n in tried if n.status == "improves"), tried, run.alpha)
+    if improved:   # the preferred move may stand for the best (its status changed): the record shows it
+        tried = [improved[0] if t.candidate is improved[0].candidate else t for t in tried]
+    simpler = _by_mse((n for n in tried if n.status == "simplifies"), lambda n: (len(n.reasons), n.n_params))
+    ahead = _by_mse(n for n in tried if n.status == "look-ahead")
+    if improved:
+        nxt = improved[:beam]
+    elif simpler and simplify:
+        nxt = simpler[:1]
+    elif ahead and any(n.status in CONFIRMED for n in current) and not (
+            at_floor is not None and all(at_floor(n) for n in current if n.status in CONFIRMED)):
+        # a change of lift model first: it is what the other terms of a drag or pitch model build on
+        nxt = _by_mse(ahead, lambda n: (n.move.kind != "lift",))[:beam]
+    else:
+        nxt = []
+    # only the chosen look-aheads and simplifications keep that status: the others are rejected for the record
+    chosen = {id(n) for n in nxt}
+    tried = [n if n.status not in ("look-ahead", "simplifies") or id(n) in chosen
+             else dataclasses.replace(n, status="rejected") for n in tried]
+    nxt = [next(t for t in tried if t.candidate is n.candidate) for n in nxt]
+    step = Step(index, tuple(n.candidate.name for n in current), tuple(tried), tuple(nxt),
+                time.perf_counter() - t_step)
+    return step, len(pending), ahead
+
+
+def _judged_children(run: _Search, current: list[Node], pending, n_moves: dict[int, int], index: int,
+                     beam: int) -> list[Node]:
+    """Every pending child screened (estimates and out-of-sample scores: what the test needs, no statistics)
+    and judged; the shortlist fitted in full (statistics, admissibility) and judged again; the others
+    rejected."""
+    screens = run.fitter.with_options(scores_only=True).fit([c for _, _, c in pending], donors(current))
+    prelim = []
+    for (parent, move, child), result in zip(pending, screens):
+        anchor = parent if parent.status in CONFIRMED else parent.anchor
+        raw = Node(child, result, move=move, parent=parent, step=index, screened=True)
+        prelim.append(_verdict(raw, anchor, n_moves[id(anchor)], run.alpha, judged=False))
+    shortlist = _shortlist(prelim, beam)
+    # warm started from their own screening (renamed: a structure does not donate to itself by name)
+    screened_donors = [dataclasses.replace(n, candidate=dataclasses.replace(n.candidate,
+                                                                           name=n.candidate.name + " [screened]"))
+                       for n in shortlist if not n.result.failed]
+    fulls = run.fitter.fit([n.candidate for n in shortlist], donors(list(current) + screened_donors))
+    run.n_fitted += len(pending)
+    judged = {id(n): _verdict(run.node(n.candidate, r, move=n.move, parent=n.parent, step=index), n.anchor,
+                              n_moves[id(n.anchor)], run.alpha)
+              for n, r in zip(shortlist, fulls)}
+    return [judged.get(id(n), dataclasses.replace(n, status="rejected" if n.status != "failed" else "failed"))
+            for n in prelim]
+
+
+def _repair(run: _Search, final: Node, confirmed: list[Node], steps: list[Step], max_steps: int, say,
+            t0: float) -> Node:
+    """The search's end repaired while it is not admissible (repairs count in the steps' budget): the structure
+    then chosen among every adopted and repaired one."""
+    repairs = []
+    for index in range(len(steps) + 1, max_steps + 1):
+        t_step = time.perf_counter()
+        step, fitted = _repair_step(run, final, index)
+        run.n_fitted += fitted
+        steps.append(dataclasses.replace(step, seconds=time.perf_counter() - t_step))
+        if not step.beam:
+            break
+        final = step.beam[0]
+        repairs.append(final)
+        say(f"repair {index}: {fitted} structures tried, kept {final.move.name} "
+            f"({len(final.reasons)} reasons against it), {time.perf_counter() - t0:.0f} s")
+        if final.admissible:
+            break
+    return choose(confirmed + repairs, run.alpha, admissible_first=True)
+
+
+def _repair_step(run: _Search, current: Node, index: int) -> tuple[Step, int]:
     """One repair of a structure that is not admissible: every removing or simplifying move fitted in full; the
     child with the fewest reasons against it (then the fewest parameters, the lowest held-out MSE) is kept if it
     has fewer than ``current`` and no new hard reason."""
-    pending = []
-    for move, child in generate(current.candidate, library, lift_candidates, REPAIR_KINDS):
-        key = structure_key(child)
-        if key not in visited:
-            visited.add(key)
-            pending.append((move, child))
-    fulls = fit_structures([c for _, c in pending], campaign, cache_dir, lifts, options, n_jobs, backend, [current])
+    pending, _ = run.new_moves(current, REPAIR_KINDS)
+    fulls = run.fitter.fit([c for _, c in pending], donors([current]))
     tried = []
     for (move, child), result in zip(pending, fulls):
-        n = node(child, result, move=move, parent=current, step=index)
+        n = run.node(child, result, move=move, parent=current, step=index)
         status = "failed" if result.failed else "rejected"
         tried.append(dataclasses.replace(n, status=status, anchor=current,
-                                         test=move_test(current.result, result, alpha, max(len(pending), 1))))
+                                         test=move_test(current.result, result, run.alpha, max(len(pending), 1))))
     fewer = [n for n in tried if n.status != "failed" and not (_hard(n) - _hard(current))
              and len(n.reasons) < len(current.reasons)]
     best = _by_mse(fewer, lambda n: (len(n.reasons), n.n_params))[0] if fewer else None

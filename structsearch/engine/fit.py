@@ -28,6 +28,21 @@ def check_observed(y: np.ndarray, boundaries: np.ndarray, names, source: str, co
     return y
 
 
+def _check_regressors(problem: SeparableProblem, phi: np.ndarray, boundaries: np.ndarray, segment_names,
+                      source: str, at_start: bool) -> None:
+    """Raise a DataError naming the first regressor value that is NaN or infinite (``at_start``: evaluated at the
+    start of the nonlinear parameters)."""
+    bad = np.argwhere(~np.isfinite(phi))
+    if bad.size:
+        seg = int(np.searchsorted(boundaries, bad[0][0], side="right") - 1)
+        inputs = (problem.regressor_inputs(int(bad[0][1]), int(bad[0][0]))
+                  if hasattr(problem, "regressor_inputs") else "")
+        raise DataError(f"regressor {problem.linear_names[bad[0][1]]!r} is NaN or infinite"
+                        f"{' at the start' if at_start else ''} (maneuver {segment_names[seg]!r}"
+                        f"{'; inputs ' + inputs if inputs else ''})", source=source,
+                        row=int(bad[0][0] - boundaries[seg]))
+
+
 def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndarray,
                 segment_names, start=None, lower=None, upper=None, n_starts: int = 1,
                 seed: int = 0, n_jobs: int = 1, covariance: str = SEPARABLE_DEFAULTS.covariance, max_lag=None,
@@ -52,15 +67,7 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
         start = solution.theta
     with np.errstate(all="ignore"):
         ev0 = problem.evaluate(np.asarray(start if k else np.zeros(0), float))
-    bad = np.argwhere(~np.isfinite(ev0.phi))
-    if bad.size:
-        seg = int(np.searchsorted(boundaries, bad[0][0], side="right") - 1)
-        inputs = (problem.regressor_inputs(int(bad[0][1]), int(bad[0][0]))
-                  if hasattr(problem, "regressor_inputs") else "")
-        raise DataError(f"regressor {problem.linear_names[bad[0][1]]!r} is NaN or infinite"
-                        f"{' at the start' if k else ''} (maneuver {segment_names[seg]!r}"
-                        f"{'; inputs ' + inputs if inputs else ''})", source=source,
-                        row=int(bad[0][0] - boundaries[seg]))
+    _check_regressors(problem, ev0.phi, boundaries, segment_names, source, at_start=bool(k))
     if k == 0:  # the regressors evaluated and projected once serve the estimate and its statistics
         ev = ev0
         proj = project(ev.phi, y)

@@ -9,16 +9,17 @@ Each part uses its own empty cache, so that no part is served another's fits.
 """
 from __future__ import annotations
 
-import tempfile
 import time
-from pathlib import Path
 from typing import Callable
 
 
 def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
                         progress: Callable[[str], None] | None = None, coefficients=("CL", "CD", "Cm")) -> dict:
-    from ..thesis_study.structure_discovery import discover_structures
+    from ..diagnosis.diagnose import diagnose_search
     from ..diagnosis.story import van_ingen_story
+    from ..discovery.discover import discover_structures
+    from ..fitting.fitter import temporary_fitter
+    from ..fitting.options import command_options
     from ..flight.flighttest import build_campaign
     say = progress or (lambda m: None)
     campaign = build_campaign(seed=seed, scale=scale)
@@ -26,9 +27,9 @@ def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
     timings = {}
     for label, kw in (("library_only", {"kinds": ("effect",), "beam": 1}), ("structure_search", {})):
         say(f"story ({label.replace('_', ' ')})")
-        with tempfile.TemporaryDirectory(prefix="structsearch-bench-story-") as tmp:
+        with temporary_fitter(campaign, command_options("diagnose"), n_jobs=n_jobs) as fitter:
             t0 = time.perf_counter()
-            story = van_ingen_story(campaign, n_jobs=n_jobs, cache_dir=tmp, **kw)
+            story = van_ingen_story(fitter, **kw)
             timings[label] = time.perf_counter() - t0
         out[f"story_{label}"] = {"seconds": timings[label],
                                  "explained": {c: d.explained for c, d in story.diagnoses.items()},
@@ -38,9 +39,9 @@ def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
     out["discover"] = {}
     for coef in coefficients:
         say(f"discover {coef} from the minimal structure")
-        with tempfile.TemporaryDirectory(prefix="structsearch-bench-discover-") as tmp:
+        with temporary_fitter(campaign, command_options("discover"), n_jobs=n_jobs) as fitter:
             t0 = time.perf_counter()
-            found = discover_structures(campaign, coef, n_jobs=n_jobs, cache_dir=Path(tmp))
+            found = discover_structures(fitter, coef, diagnose_search)
             seconds = time.perf_counter() - t0
         thesis = next((r for r in found.comparison if r.role == "thesis final"), None)
         out["discover"][coef] = {"seconds": seconds, "moves": len(found.path),

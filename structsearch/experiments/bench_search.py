@@ -127,7 +127,7 @@ def naive_fan_out(campaign, grids, refined: dict, n_jobs: int) -> dict:
 
 
 class _Fitted:
-    """What :func:`~structsearch.grid_search.runner.same_model_fitted` asks of a result."""
+    """What :func:`~structsearch.fitting.runner.same_model_fitted` asks of a result."""
     failed = False
 
 
@@ -137,11 +137,11 @@ def critical_path(grids) -> dict:
     among what it waits for: the candidates that may donate its warm start (:func:`.staging.may_donate`)
     in earlier waves of its grid (:func:`.staging.waves`) or in earlier grids, and its lift model (the
     lift grid's candidate of that name) for a drag or pitch candidate. A candidate the search serves
-    from an earlier grid's twin (:func:`~structsearch.grid_search.runner.same_model_fitted`) takes that
+    from an earlier grid's twin (:func:`~structsearch.fitting.runner.same_model_fitted`) takes that
     twin's chain. Refinement steps are not on it (they follow a grid's ranking). Returns the longest
     chain's seconds and its candidates, first fitted first."""
     from ..fitting.staging import may_donate, waves
-    from ..grid_search.runner import same_model_fitted
+    from ..fitting.runner import same_model_fitted
     earlier: list[tuple[Candidate, tuple[float, tuple[str, ...]]]] = []
     lift_chains: dict[str, tuple[float, tuple[str, ...]]] = {}
     longest: tuple[float, tuple[str, ...]] = (0.0, ())

@@ -41,14 +41,44 @@ def check_keys(table: dict, known: Sequence[str], where: str) -> None:
         raise DeclarationError(f"{where}: unknown key {unknown[0]!r}{hint}")
 
 
-def expand(doc: dict, source: str) -> Grid:
-    """Expand a grid document (see :mod:`structsearch.fitting.specs`) into its candidates, in order."""
+def _check_grid(doc: dict, source: str) -> None:
+    """Refuse a grid document with an unknown key, without its name, coefficient or entries, or whose entries are
+    not tables."""
     check_keys(doc, GRID_KEYS, source)
     for key in ("name", "coefficient", "entry"):
         if key not in doc:
             raise DeclarationError(f"{source}: missing {key!r}")
     if not isinstance(doc["entry"], list) or not all(isinstance(e, dict) for e in doc["entry"]):
         raise DeclarationError(f"{source}: 'entry' must be a list of [[entry]] tables")
+
+
+def _check_expressions(regs, where: str) -> None:
+    """Parse every regressor's expression of a candidate, refusing one that is not a string or does not parse."""
+    for reg_name, text in regs:   # parsed now (a grammar, never code): an error names the file and entry
+        if not isinstance(text, str):
+            raise DeclarationError(f"{where}: regressor {reg_name!r}: an expression is a quoted string, "
+                                   f"not {text!r}")
+        try:
+            parse(text, known=())
+        except DeclarationError as exc:
+            raise DeclarationError(f"{where}: regressor {reg_name!r}: {exc}") from None
+
+
+def _derived(entry: dict, candidates: Sequence[Candidate], where: str) -> tuple[Candidate, list]:
+    """An entry ``from`` an earlier candidate: that candidate and its regressors less the entry's ``drop``."""
+    base = next((c for c in candidates if c.name == entry["from"]), None)
+    if base is None:
+        raise DeclarationError(f"{where}: 'from' names {entry['from']!r}, which is not declared before it")
+    drop = entry.get("drop", [])
+    missing = [d for d in drop if d not in dict(base.regressors)]
+    if missing:
+        raise DeclarationError(f"{where}: cannot drop {missing[0]!r}: not a regressor of {base.name}")
+    return base, [r for r in base.regressors if r[0] not in drop]
+
+
+def expand(doc: dict, source: str) -> Grid:
+    """Expand a grid document (see :mod:`structsearch.fitting.specs`) into its candidates, in order."""
+    _check_grid(doc, source)
     name, coefficient = doc["name"], doc["coefficient"]
     prefix = doc.get("prefix", f"{name}-")
     default_lift = doc.get("lift")
@@ -70,14 +100,7 @@ def expand(doc: dict, source: str) -> Grid:
             raise DeclarationError(f"{where}: candidate name {cand_name!r} used twice")
         if not regs:
             raise DeclarationError(f"{where}: candidate {cand_name!r} has no regressors")
-        for reg_name, text in regs:   # parsed now (a grammar, never code): an error names the file and entry
-            if not isinstance(text, str):
-                raise DeclarationError(f"{where}: regressor {reg_name!r}: an expression is a quoted string, "
-                                       f"not {text!r}")
-            try:
-                parse(text, known=())
-            except DeclarationError as exc:
-                raise DeclarationError(f"{where}: regressor {reg_name!r}: {exc}") from None
+        _check_expressions(regs, where)
         own = {p for k, kind in states for p in _state_params(k, kind)}
         used_bounds.update(b[0] for b in bounds if b[0] in own)
         candidates.append(Candidate(cand_name, name, coefficient, tuple(regs), tuple(states), lift, note,
@@ -95,14 +118,7 @@ def expand(doc: dict, source: str) -> Grid:
         before = set(used_bounds)
         used_bounds.clear()
         if "from" in entry:
-            base = next((c for c in candidates if c.name == entry["from"]), None)
-            if base is None:
-                raise DeclarationError(f"{where}: 'from' names {entry['from']!r}, which is not declared before it")
-            drop = entry.get("drop", [])
-            missing = [d for d in drop if d not in dict(base.regressors)]
-            if missing:
-                raise DeclarationError(f"{where}: cannot drop {missing[0]!r}: not a regressor of {base.name}")
-            regs = [r for r in base.regressors if r[0] not in drop]
+            base, regs = _derived(entry, candidates, where)
             add(entry.get("name"), regs, base.states, base.lift, note, where, base.bounds + own_bounds)
         elif "kinds" in entry:
             kinds = entry["kinds"]

@@ -20,8 +20,8 @@ C_L (buffet noise would bias them as errors in variables). In the joint fit it i
 the current iterate: the weight iteration updates it with the weights, so at the fixed point drag and pitch
 see the C_L of the jointly estimated lift model. The drag and pitch blocks treat it as data within one step, so
 the estimating equations are J^T r = 0 with J at a fixed C_L; the joint covariance counts the C_L path in the
-estimator's bread (:func:`_through_the_lift_output`). The influence series :func:`joint_lift` hands a search
-are still conditional on that C_L (a known omission, which matters where drag or pitch lean on C_L).
+estimator's bread (:func:`.joint_covariance.through_the_lift_output`). The influence series :func:`joint_lift`
+hands a search are still conditional on that C_L (a known omission, which matters where drag or pitch lean on C_L).
 
 Statistics are the stacked problem's, with the options' covariance (``hac-maneuver`` by default: a maneuver's
 rows of every coefficient are one record), identifiability, convergence and bound flags as in every fit.
@@ -41,7 +41,6 @@ from ..engine.joint import JointProblem
 from ..engine.defaults import STALL_DEFAULTS
 from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores
-from ..engine.separation import SeparationState
 from ..engine.snls import Outcome, gauss_newton_step, model_jacobian, solve
 from ..engine.twostep import influence_series
 from .bands import bands_document, curve_bands
@@ -49,9 +48,12 @@ from .candidate_fit import fit_staged
 from .candidate_result import SplitScores
 from .candidates import Candidate
 from .lift_fit import JointLift, LiftAt, LiftFit
-from .models import build_model, model_with_lift, used_states, with_lift_prediction
+from .models import build_model, model_with_lift, with_lift_prediction
 from .options import FitOptions
 from .specs import load_grid
+# lift_output_jacobian and joint_structures are imported from here too
+from .joint_covariance import lift_output_jacobian, through_the_lift_output  # noqa: F401
+from .joint_spec import check_joint, joint_structures  # noqa: F401
 
 MAX_ITERATIONS = 20
 WEIGHT_TOLERANCE = 1e-3
@@ -127,45 +129,6 @@ class JointFit:
                 "seconds": self.seconds}
 
 
-def check_joint(candidates: Sequence[Candidate]) -> tuple[Candidate | None, list[Candidate]]:
-    """The lift structure (or None) and the drag and pitch ones; one clear error for a joint fit that cannot be."""
-    if len(candidates) < 2:
-        raise DeclarationError("a joint fit needs two or three structures (lift, drag, pitch)")
-    coefs = [c.coefficient for c in candidates]
-    twice = sorted({c for c in coefs if coefs.count(c) > 1})
-    if twice:
-        raise DeclarationError(f"a joint fit names the coefficient {twice[0]} twice "
-                               f"({', '.join(c.name for c in candidates if c.coefficient == twice[0])})")
-    lifts = [c for c in candidates if c.coefficient == "CL"]
-    lift = lifts[0] if lifts else None
-    others = [c for c in candidates if c.coefficient != "CL"]
-    for c in others:
-        if not c.lift:
-            raise DeclarationError(f"{c.name} reads no lift model's states: a joint fit shares separation states")
-        if lift is not None:
-            own = used_states(c)
-            theirs = dict(lift.states)
-            missing = [n for n, k in own.items() if theirs.get(n) != k]
-            if missing:
-                raise DeclarationError(
-                    f"{c.name} uses the state(s) {', '.join('X_' + n if n else 'X' for n in missing)} of its lift "
-                    f"model {c.lift}, which the joint lift structure {lift.name} does not have with the same kind "
-                    f"({', '.join(f'{n or chr(88)}: {k}' for n, k in theirs.items()) or 'no state'})")
-    shared = set.intersection(*[set(_params_of(c)) for c in candidates])
-    if not shared:
-        raise DeclarationError(f"{', '.join(c.name for c in candidates)} share no separation state: a joint fit "
-                               "would be separate fits")
-    if lift is None and len({c.lift for c in others}) > 1:
-        raise DeclarationError(f"{', '.join(c.name for c in others)} read different lift models "
-                               f"({', '.join(sorted({c.lift for c in others}))})")
-    return lift, others
-
-
-def _params_of(c: Candidate) -> list[str]:
-    states = dict(c.states) if c.coefficient == "CL" else used_states(c)
-    return [p for n, k in states.items() for p in SeparationState(n, k).parameters]
-
-
 def _scores(y: np.ndarray, pred: np.ndarray, data: FlightData) -> SplitScores:
     return SplitScores.of(ManeuverScores.of(y, y - pred, data.segment_slices()), None)
 
@@ -178,22 +141,7 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
     t0 = time.perf_counter()
     lift_c, others = check_joint(candidates)
     order = ([lift_c] if lift_c is not None else []) + others
-    # the sequential fits: starts and first weights (their estimates and residuals only: no cross-validation,
-    # no two-step covariance, no centred correlations)
-    starting = replace(options, cv_folds=0, scores_only=True)
-    if lift_c is not None:
-        lone = fit_staged(lift_c, train, validation, None, starting)
-    else:
-        lift_c_seq = load_grid("lift")[others[0].lift]
-        lone = fit_staged(lift_c_seq, train, validation, None, starting)
-    if lone.failed:
-        raise DeclarationError(f"the lift model {lone.name} could not be fitted: {lone.error}")
-    lift_fit = LiftFit(lift_c if lift_c is not None else lift_c_seq, lone)
-    seq = {c.coefficient: (lone if c is lift_c else fit_staged(c, train, validation, lift_fit, starting))
-           for c in order}
-    for coef, r in seq.items():
-        if r.failed:
-            raise DeclarationError(f"{coef}: the sequential fit that starts the joint one failed: {r.error}")
+    lift_fit, seq = _sequential_fits(lift_c, others, order, train, validation, options)
     # drag and pitch with their (the lift model's) states free: the joint fit estimates them
     models = [build_model(lift_c) if c is lift_c else model_with_lift(c, {}) for c in order]
     params = dict(lift_fit.params)   # the shared separation parameters start at the lift model's estimate
@@ -225,33 +173,9 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
     else:
         # the steps stopped contracting (or their budget ran out): solve each iteration's problem from where the
         # steps left off, the slower relaxation that needs no contraction, with a budget of its own
-        for iterations in range(iterations + 1, iterations + max_iterations + 1):
-            problem, datas, y = problem_at(params, weights)
-            theta0 = np.clip([params[n] for n in problem.nonlinear_names], lower, upper)
-            outcome = solve(problem, y, theta0, lower, upper, tol=STALL_DEFAULTS.tol)
-            params.update(dict(zip(problem.nonlinear_names, outcome.theta)))
-            params.update(dict(zip(problem.linear_names, outcome.coef)))
-            residual_var = [float(np.mean((d[c.coefficient] - m.predict(d, {n: params[n] for n in
-                                                                            m.nonlinear_names + m.linear_names})) ** 2))
-                            for c, m, d in zip(order, models, datas)]
-            new = 1.0 / np.array(residual_var)
-            history.append({c.coefficient: float(w) for c, w in zip(order, new)})
-            # settled: the weights, and the C_L that drag and pitch read (it moves with theta), no longer change.
-            # Both are needed: with the weights alone (settled after 2 iterations on the default campaign) tau1
-            # and tau2 were still drifting by 0.2-0.3 standard deviations as the C_L that drag and pitch read
-            # followed.
-            moved = float(np.max(np.abs(outcome.theta - theta0) / (upper - lower)))
-            if float(np.max(np.abs(new / weights - 1.0))) < tol:
-                if moved >= tol:
-                    # would one more iteration (the new weights, the C_L at this estimate) move the estimate?
-                    # A Gauss-Newton step of that problem answers to first order for one evaluation
-                    following, _, y_next = problem_at(params, new)
-                    step = gauss_newton_step(following, y_next, outcome.theta, lower, upper)
-                    moved = np.inf if step is None else float(np.max(np.abs(step) / (upper - lower)))
-                if moved < tol:
-                    settled = True
-                    break
-            weights = new
+        problem, y, outcome, iterations, settled = _relax_by_solves(problem_at, order, models, params, weights,
+                                                                    history, lower, upper, iterations,
+                                                                    max_iterations, tol)
     # the statistics at the settled estimate, on the problem it settled on (its weights, its C_L): one more
     # iteration would change the weights and the estimate by less than ``tol``
     result = fit_problem(problem, y, boundaries=problem.boundaries(train.bounds), segment_names=train.names,
@@ -259,17 +183,10 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
                          model=" + ".join(c.name for c in order), coefficient="joint", source=train.source,
                          flights=train.flights)
     if lift_c is not None and others:
-        result = _through_the_lift_output(result, problem, order, models, train, lift_candidate)
+        result = through_the_lift_output(result, problem, order, models, train, lift_candidate)
     params = dict(result.params)
-    coefficients = []
-    for c, m, w in zip(order, models, problem.weights):
-        own = {n: params[n] for n in m.nonlinear_names + m.linear_names}
-        scores = {}
-        for split, data in (("train", train), ("validation", validation)):
-            seen = data if c is lift_c else with_lift_prediction(data, lift_params_now(params), lift_candidate)
-            scores[split] = _scores(seen[c.coefficient], m.predict(seen, own), seen)
-        coefficients.append(CoefficientFit(c.coefficient, c.name, own, {n: result.stderr[n] for n in own},
-                                           scores["train"], scores["validation"], float(w)))
+    coefficients = _coefficient_fits(order, models, problem, result, params, train, validation, lift_c,
+                                     lift_params_now(params), lift_candidate)
     shared = tuple(n for n in problem.nonlinear_names if sum(n in m.nonlinear_names for m in models) > 1)
     # each coefficient's static curve with the joint covariance: drag and pitch through the shared states too
     read = LiftAt(lift_candidate, lift_params_now(params))   # what drag and pitch read at the settled estimate
@@ -281,74 +198,83 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
                     seconds=time.perf_counter() - t0, bands=bands, history=tuple(history), problem=problem)
 
 
-def lift_output_jacobian(problem: JointProblem, order, models, train: FlightData, lift_candidate: Candidate,
-                         params: Mapping[str, float], jac: np.ndarray) -> np.ndarray:
-    """K: the derivative of the joint model's (weighted, interleaved) output with respect to every parameter that
-    reaches it through the C_L drag and pitch read, the path the stacked problem's Jacobian ``jac`` holds fixed.
-    Block b's rows are sqrt(w_b) d pred_b / d C_L times d C_L / d theta_lift; the second factor is the lift
-    block's own rows of ``jac`` (its model Jacobian, unweighted by 1 / sqrt(w_lift)), the first a central
-    difference in the C_L column (exact for C_L and C_L^2 terms, which is what drag and pitch hold)."""
-    names = tuple(problem.nonlinear_names) + tuple(problem.linear_names)
-    lift_model = build_model(lift_candidate)
-    lift_names = lift_model.nonlinear_names + lift_model.linear_names
-    columns = [names.index(n) for n in lift_names if n in names]
-    lift_b = next(b for b, c in enumerate(order) if c.coefficient == "CL")
-    n_blocks = problem.n_blocks
-    dcl = jac[lift_b::n_blocks, columns] / np.sqrt(problem.weights[lift_b])
-    out = np.zeros_like(jac)
-    seen = with_lift_prediction(train, {n: params[n] for n in lift_names}, lift_candidate)
-    cl = np.asarray(seen["CL"], float)
-    step = 1e-6 * max(1.0, float(np.sqrt(np.mean(cl ** 2))))
-    for b, (c, m) in enumerate(zip(order, models)):
-        if b == lift_b:
-            continue
+def _sequential_fits(lift_c: Candidate | None, others: Sequence[Candidate], order: Sequence[Candidate],
+                     train: FlightData, validation: FlightData, options: FitOptions) -> tuple[LiftFit, dict]:
+    """The lift model's fit (the joint lift structure's, else the sequential lift model drag and pitch name) and
+    each coefficient's sequential fit, by coefficient: the joint fit's starts and first weights."""
+    # the sequential fits: starts and first weights (their estimates and residuals only: no cross-validation,
+    # no two-step covariance, no centred correlations)
+    starting = replace(options, cv_folds=0, scores_only=True)
+    if lift_c is not None:
+        lone = fit_staged(lift_c, train, validation, None, starting)
+    else:
+        lift_c_seq = load_grid("lift")[others[0].lift]
+        lone = fit_staged(lift_c_seq, train, validation, None, starting)
+    if lone.failed:
+        raise DeclarationError(f"the lift model {lone.name} could not be fitted: {lone.error}")
+    lift_fit = LiftFit(lift_c if lift_c is not None else lift_c_seq, lone)
+    seq = {c.coefficient: (lone if c is lift_c else fit_staged(c, train, validation, lift_fit, starting))
+           for c in order}
+    for coef, r in seq.items():
+        if r.failed:
+            raise DeclarationError(f"{coef}: the sequential fit that starts the joint one failed: {r.error}")
+    return lift_fit, seq
+
+
+def _relax_by_solves(problem_at, order: Sequence[Candidate], models, params: dict, weights: np.ndarray,
+                     history: list, lower: np.ndarray, upper: np.ndarray, iterations: int, max_iterations: int,
+                     tol: float):
+    """The weight iteration solving each iteration's problem (:func:`fit_joint` falls back to it when the
+    Gauss-Newton steps stop contracting), from ``params`` after ``iterations`` iterations, with a budget of
+    ``max_iterations`` of its own. Updates ``params`` and ``history`` in place; returns the last problem, its
+    observations and the optimum found on it, the iteration count and whether the iteration settled."""
+    settled = False
+    for iterations in range(iterations + 1, iterations + max_iterations + 1):
+        problem, datas, y = problem_at(params, weights)
+        theta0 = np.clip([params[n] for n in problem.nonlinear_names], lower, upper)
+        outcome = solve(problem, y, theta0, lower, upper, tol=STALL_DEFAULTS.tol)
+        params.update(dict(zip(problem.nonlinear_names, outcome.theta)))
+        params.update(dict(zip(problem.linear_names, outcome.coef)))
+        residual_var = [float(np.mean((d[c.coefficient] - m.predict(d, {n: params[n] for n in
+                                                                        m.nonlinear_names + m.linear_names})) ** 2))
+                        for c, m, d in zip(order, models, datas)]
+        new = 1.0 / np.array(residual_var)
+        history.append({c.coefficient: float(w) for c, w in zip(order, new)})
+        # settled: the weights, and the C_L that drag and pitch read (it moves with theta), no longer change.
+        # Both are needed: with the weights alone (settled after 2 iterations on the default campaign) tau1
+        # and tau2 were still drifting by 0.2-0.3 standard deviations as the C_L that drag and pitch read
+        # followed.
+        moved = float(np.max(np.abs(outcome.theta - theta0) / (upper - lower)))
+        if float(np.max(np.abs(new / weights - 1.0))) < tol:
+            if moved >= tol:
+                # would one more iteration (the new weights, the C_L at this estimate) move the estimate?
+                # A Gauss-Newton step of that problem answers to first order for one evaluation
+                following, _, y_next = problem_at(params, new)
+                step = gauss_newton_step(following, y_next, outcome.theta, lower, upper)
+                moved = np.inf if step is None else float(np.max(np.abs(step) / (upper - lower)))
+            if moved < tol:
+                settled = True
+                break
+        weights = new
+    return problem, y, outcome, iterations, settled
+
+
+def _coefficient_fits(order: Sequence[Candidate], models, problem: JointProblem, result: FitResult,
+                      params: Mapping[str, float], train: FlightData, validation: FlightData,
+                      lift_c: Candidate | None, lift_params: Mapping[str, float],
+                      lift_candidate: Candidate) -> list[CoefficientFit]:
+    """Each coefficient's view of the joint fit: its parameters and their standard deviations, its scores on both
+    splits (drag and pitch reading the C_L of ``lift_candidate`` at ``lift_params``) and its weight."""
+    coefficients = []
+    for c, m, w in zip(order, models, problem.weights):
         own = {n: params[n] for n in m.nonlinear_names + m.linear_names}
-        up = m.predict(seen.with_columns({**seen.columns, "CL": cl + step}), own)
-        down = m.predict(seen.with_columns({**seen.columns, "CL": cl - step}), own)
-        slope = (up - down) / (2.0 * step)
-        out[b::n_blocks][:, columns] = np.sqrt(problem.weights[b]) * slope[:, None] * dcl
-    return out
-
-
-def _through_the_lift_output(result: FitResult, problem: JointProblem, order, models, train: FlightData,
-                             lift_candidate: Candidate) -> FitResult:
-    """The joint covariance with the C_L path included. The weight iteration solves J^T r = 0 with J the stacked
-    problem's Jacobian at a fixed C_L (drag and pitch read the lift block's output as data within a solve), while
-    the residual also moves with the lift parameters through that C_L: the estimator's bread is H = J^T (J + K)
-    (K: :func:`lift_output_jacobian`), not J^T J. Every covariance computed with the bread (J^T J)^-1 becomes
-    T C T^T with T = H^-1 J^T J, whatever its meat. Without it the separation parameters' standard deviations were
-    0.56-0.72 of their Monte Carlo spread on the calibration's held-out campaigns: drag and pitch were credited
-    with information on the states that the C_L they read already carried. The reference degrees of freedom
-    stay those of the uncorrected combination (each parameter's effective maneuvers)."""
-    r = result
-    names = r.names
-    basis = np.asarray(r.covariance_basis, bool) if r.covariance_basis is not None else np.ones(len(names), bool)
-    basis = basis & np.isfinite(np.diag(np.asarray(r.estimates.covariance, float)))   # estimable ones only
-    k = len(problem.nonlinear_names)
-    theta = np.array([r.params[n] for n in problem.nonlinear_names])
-    coef = np.array([r.params[n] for n in problem.linear_names])
-    jac = model_jacobian(problem.evaluate(theta), coef, k)
-    extra = lift_output_jacobian(problem, order, models, train, lift_candidate, r.params, jac)
-    j, e = jac[:, basis], extra[:, basis]
-    a = j.T @ j
-    try:
-        t = np.linalg.solve(a + j.T @ e, a)
-    except np.linalg.LinAlgError:
-        # said, not hidden: the covariance stays the one conditional on the C_L drag and pitch read
-        return replace(r, generated_regressors="NOT the C_L drag and pitch read: the bread J^T (J + K) is singular; "
-                                               "conditional on that C_L")
-    keep = np.ix_(basis, basis)
-
-    def moved(cov):
-        if cov is None:
-            return None
-        out = np.array(cov, float, copy=True)
-        out[keep] = t @ out[keep] @ t.T
-        return out
-
-    said = "the C_L drag and pitch read, through the lift parameters (bread J^T (J + K))"
-    return replace(r, covariance=moved(r.estimates.covariance), white_covariance=moved(r.estimates.white_covariance),
-                   generated_regressors=said)
+        scores = {}
+        for split, data in (("train", train), ("validation", validation)):
+            seen = data if c is lift_c else with_lift_prediction(data, lift_params, lift_candidate)
+            scores[split] = _scores(seen[c.coefficient], m.predict(seen, own), seen)
+        coefficients.append(CoefficientFit(c.coefficient, c.name, own, {n: result.stderr[n] for n in own},
+                                           scores["train"], scores["validation"], float(w)))
+    return coefficients
 
 
 # A Gauss-Newton step must shrink to this fraction of the one before, or the relaxation falls back to solves.
@@ -459,41 +385,3 @@ def _box(problem: JointProblem, models, train):
             upper.setdefault(n, b)
     names = problem.nonlinear_names
     return np.array([lower[n] for n in names]), np.array([upper[n] for n in names])
-
-
-def joint_structures(spec: str) -> list[Candidate]:
-    """The structures of ``fit --joint``: comma-separated names or spec files, or a joint spec file (TOML)::
-
-        [joint]
-        structures = ["CL-VI", "CD-IXr", "Cm-XXXIIIr"]   # names or model spec files
-
-    The structures share the separation states they have in common, by name (X_ss, X_w): a drag or pitch
-    structure's states are its lift model's. One clear error naming the file and the entry otherwise."""
-    from pathlib import Path
-    from .specs import read_toml, resolve_candidate
-    items: list[str]
-    path = Path(spec)
-    if path.suffix == ".toml" and "," not in spec:
-        doc = read_toml(path)
-        joint = doc.get("joint")
-        if not isinstance(joint, dict) or not isinstance(joint.get("structures"), list) or \
-                not all(isinstance(s, str) for s in joint["structures"]):
-            raise DeclarationError(f"{path}: a joint spec needs [joint] structures = [\"LIFT\", \"DRAG\", ...] "
-                                   "(names or model spec files)")
-        items = [s if not s.endswith(".toml") or Path(s).is_absolute() else str(path.parent / s)
-                 for s in joint["structures"]]
-        where = f"{path}: "
-    else:
-        items = [s.strip() for s in spec.split(",") if s.strip()]
-        where = "--joint: "
-    out = []
-    for item in items:
-        try:
-            out.append(resolve_candidate(item))
-        except DeclarationError as exc:
-            raise DeclarationError(f"{where}structure {item!r}: {exc}") from None
-    try:
-        check_joint(out)
-    except DeclarationError as exc:
-        raise DeclarationError(f"{where}{exc}") from None
-    return out

@@ -67,6 +67,22 @@ class FitOptions:
         return key
 
 
+# Each command's fit options where they differ from FitOptions' defaults, stated here and nowhere else. A
+# structure search (diagnose, discover, the story) cross-validates structures with separation parameters by
+# one-step folds (they rank alike, experiments/bench) and fits with two starts (each child also starts from its
+# parent's estimates).
+COMMAND_OPTIONS: dict[str, dict] = {
+    "fit": {}, "search": {}, "study": {}, "report": {}, "demo": {},
+    "diagnose": {"n_starts": 2, "cv_method": "one-step"},
+    "discover": {"n_starts": 2, "cv_method": "one-step"},
+}
+
+
+def command_options(command: str, **changes) -> FitOptions:
+    """``command``'s FitOptions (:data:`COMMAND_OPTIONS`) with ``changes``."""
+    return FitOptions(**{**COMMAND_OPTIONS[command], **changes})
+
+
 def check_box_names(boxes: Iterable[tuple[str, tuple[float, float]]], candidates) -> None:
     """An unknown NAME in ``--bound NAME=LO:HI`` is an error naming the parameters it could have meant."""
     from .specs import load_grid

@@ -104,6 +104,38 @@ def vibration(rng: np.random.Generator, n: int, fs: float) -> np.ndarray:
                for f, w in zip(BUFFET_HZ, BUFFET_WEIGHTS))
 
 
+def _alpha_reading(rng: np.random.Generator, t: np.ndarray, vane: np.ndarray, flight: FlightErrors | None,
+                   vane_lag_s: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """The alpha vane's reading of ``vane`` (alpha and boom vibration) with the flight's calibration error and the
+    vane lag, and the reading without that lag (None without a lag): same noise and bias."""
+    if flight is not None:
+        vane = (1.0 + flight.alpha_scale) * vane + flight.alpha_bias
+    unlagged = None
+    if vane_lag_s > 0:
+        vane, unlagged = vane_lag(t, vane, vane_lag_s), vane
+    alpha_reading = sensor(rng, t, vane, RATES["boom"], NOISE["alpha"], rng.normal(0, BIAS["alpha"]), unlagged)
+    if unlagged is not None:
+        alpha_reading, unlagged = alpha_reading
+    return alpha_reading, unlagged
+
+
+def _other_readings(rng: np.random.Generator, t: np.ndarray, truth: dict, aircraft: Aircraft, ax_true: np.ndarray,
+                    az_true: np.ndarray, buffet: np.ndarray, gyro_buffet: np.ndarray) -> dict:
+    """The readings of every sensor but the alpha vane, drawn from ``rng`` in this order."""
+    return {
+        "q": sensor(rng, t, truth["q"] + aircraft.gyro_buffet * gyro_buffet, RATES["ahrs"], aircraft.gyro_noise,
+                     rng.normal(0, BIAS["q"])),
+        "theta": sensor(rng, t, truth["theta"], RATES["ahrs"], NOISE["theta"]),
+        "ax": sensor(rng, t, ax_true + 0.25 * BUFFET_AZ * buffet, RATES["ahrs"], NOISE["ax"],
+                      rng.normal(0, BIAS["ax"])),
+        "az": sensor(rng, t, az_true + BUFFET_AZ * buffet, RATES["ahrs"], NOISE["az"], rng.normal(0, BIAS["az"])),
+        "V": sensor(rng, t, truth["V"], RATES["tas"], NOISE["V"]),
+        "qbar": sensor(rng, t, truth["qbar"], RATES["qbar"], NOISE["qbar"]),
+        "de": sensor(rng, t, truth["de"], RATES["synchro"], NOISE["de"]),
+        "h": sensor(rng, t, truth["h"], RATES["gps"], NOISE["h"]),
+    }
+
+
 def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np.ndarray | None = None,
             slow_error_stall_gain: float = 1.0, aircraft: Aircraft = CITATION, vane_lag_s: float = 0.0,
             record_alpha: bool = False, flight: FlightErrors | None = None) -> dict:
@@ -127,7 +159,7 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     """
     fs = 1.0 / (t[1] - t[0])
     n = len(t)
-    alpha, V = truth["alpha"], truth["V"]
+    alpha = truth["alpha"]
     # body-axis specific forces measured by the AHRS (aerodynamic and thrust forces over mass)
     qs = truth["qbar"] * aircraft.S
     cx, cz = body_from_lift_drag(truth["CL"], truth["CD"], alpha)
@@ -140,28 +172,9 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     gyro_buffet = vibration(rng, n, fs) * separation
     boom = BOOM_VIBRATION * band_noise(rng, n, fs, 8.0, 12.0)
 
-    vane = alpha + boom
-    if flight is not None:
-        vane = (1.0 + flight.alpha_scale) * vane + flight.alpha_bias
-    unlagged = None
-    if vane_lag_s > 0:
-        vane, unlagged = vane_lag(t, vane, vane_lag_s), vane
-    alpha_reading = sensor(rng, t, vane, RATES["boom"], NOISE["alpha"], rng.normal(0, BIAS["alpha"]), unlagged)
-    if unlagged is not None:
-        alpha_reading, unlagged = alpha_reading
-    raw = {
-        "alpha": alpha_reading,
-        "q": sensor(rng, t, truth["q"] + aircraft.gyro_buffet * gyro_buffet, RATES["ahrs"], aircraft.gyro_noise,
-                     rng.normal(0, BIAS["q"])),
-        "theta": sensor(rng, t, truth["theta"], RATES["ahrs"], NOISE["theta"]),
-        "ax": sensor(rng, t, ax_true + 0.25 * BUFFET_AZ * buffet, RATES["ahrs"], NOISE["ax"],
-                      rng.normal(0, BIAS["ax"])),
-        "az": sensor(rng, t, az_true + BUFFET_AZ * buffet, RATES["ahrs"], NOISE["az"], rng.normal(0, BIAS["az"])),
-        "V": sensor(rng, t, V, RATES["tas"], NOISE["V"]),
-        "qbar": sensor(rng, t, truth["qbar"], RATES["qbar"], NOISE["qbar"]),
-        "de": sensor(rng, t, truth["de"], RATES["synchro"], NOISE["de"]),
-        "h": sensor(rng, t, truth["h"], RATES["gps"], NOISE["h"]),
-    }
+    alpha_reading, unlagged = _alpha_reading(rng, t, alpha + boom, flight, vane_lag_s)
+    raw = {"alpha": alpha_reading,
+           **_other_readings(rng, t, truth, aircraft, ax_true, az_true, buffet, gyro_buffet)}
     f = {name: prefilter(name, values, fs) for name, values in raw.items()}
     q_dot = derivative(f["q"], t)
     alpha_dot = derivative(f["alpha"], t)

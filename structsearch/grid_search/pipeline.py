@@ -3,8 +3,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Callable, Sequence
+from typing import Sequence
 
 from ..data.campaign import Campaign
 from ..fitting.candidate_result import CandidateResult
@@ -12,9 +11,8 @@ from .admissibility import AdmissibilityRules, MAX_CORRELATION, reasons
 from .ranking import rank
 from .ranking import near_best
 from .refinement import Refinement, refine, structure_key
+from ..fitting.fitter import Fitter
 from ..fitting.lift_fit import LiftFit
-from ..fitting.options import FitOptions
-from .runner import run
 from ..fitting.candidates import Candidate, Grid
 from ..fitting.specs import load_grid
 
@@ -62,65 +60,33 @@ def rules_for(campaign: Campaign, max_correlation: float = MAX_CORRELATION) -> A
                               cbar=float(campaign.aircraft["cbar"]))
 
 
-def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, options: FitOptions = FitOptions(),
-           backend: str = "loky", progress: Callable[[str], None] | None = None,
-           do_refine: bool = True, max_correlation: float = MAX_CORRELATION,
+def search(fitter: Fitter, grid_spec: str, *, do_refine: bool = True, max_correlation: float = MAX_CORRELATION,
            joint_lift: Sequence[Candidate] = ()) -> SearchResult:
-    """Fit and rank the grids of ``grid_spec``, refining each grid's best; ``out`` holds the cache.
+    """Fit and rank the grids of ``grid_spec`` with ``fitter``, refining each grid's best.
     ``joint_lift``: structures (a lift one among them) fitted jointly first; drag and pitch candidates that
     name that lift structure read its joint estimate, and their two-step covariance has the joint fit as
     its first step (:func:`structsearch.fitting.joint.joint_lift`)."""
-    say = progress or (lambda m: None)
-    rules = rules_for(campaign, max_correlation)
+    rules = rules_for(fitter.campaign, max_correlation)
     grids = grids_for(grid_spec)
     ranked_by_grid, seconds = {}, {}
     refinements: dict[str, list[Refinement]] = {}
-    lifts: dict = {}
     joint = None
     if joint_lift:
-        from ..fitting.joint import fit_joint, joint_lift as lift_of
-        say("joint lift model: " + " + ".join(c.name for c in joint_lift))
-        joint = fit_joint(list(joint_lift), campaign.split("train"), campaign.split("validation"), options)
-        if not joint.weights_settled or not joint.result.converged:
-            say(f"warning: the joint lift model {joint.name} "
-                + ("did NOT settle its weights" if not joint.weights_settled else "did NOT converge")
-                + "; drag and pitch read it all the same")
-        read = lift_of(joint)
-        if not read.influence_names:
-            from ..data.errors import FitError
-            raise FitError(f"the joint fit {joint.name} identifies none of the lift model's parameters: drag and "
-                           "pitch cannot read it")
-        if read.not_identifiable:
-            say(f"warning: the joint lift model cannot identify {', '.join(read.not_identifiable)}: held at their "
-                "estimates in the drag and pitch candidates' two-step covariance")
-        lifts[read.name] = read
+        joint, read = _joint_lift_model(fitter, joint_lift)
+        fitter = fitter.with_lifts({read.name: read})
     by_grid_results: dict[str, list[CandidateResult]] = {}
-
-    def ensure_lift(names):
-        missing = [n for n in names if n not in lifts]
-        if not missing:
-            return
-        lift_grid = load_grid("lift")
-        cands = [lift_grid[n] for n in missing]
-        for c, s in zip(cands, run(cands, campaign, out, options=options, n_jobs=n_jobs, backend=backend,
-                                   progress=say)):
-            lifts[c.name] = LiftFit(c, s)
-
     for grid in grids:
         t0 = time.perf_counter()
-        needed = sorted({c.lift for c in grid.candidates if c.lift})
-        ensure_lift(needed)
-        say(f"grid {grid.name}: {len(grid.candidates)} candidates")
+        fitter = _with_lift_models(fitter, sorted({c.lift for c in grid.candidates if c.lift}))
+        fitter.say(f"grid {grid.name}: {len(grid.candidates)} candidates")
         # earlier grids' candidates are warm starts too, and a candidate that is one of them under another
         # name is served its fit (the lift grid's CL-VI is the separation grid's U/S)
         earlier = [(c, r) for g in grids[:grids.index(grid)] for c, r in zip(g.candidates, by_grid_results[g.name])]
-        results = run(grid.candidates, campaign, out, lifts=lifts, options=options, n_jobs=n_jobs, backend=backend,
-                      progress=say, fitted_before=earlier)
+        results = fitter.fit(grid.candidates, earlier)
         by_grid_results[grid.name] = results
-        if grid.name == "lift":
-            for c, s in zip(grid.candidates, results):
-                if c.name not in lifts or not joint_lift:   # a joint lift stays what drag and pitch read
-                    lifts[c.name] = LiftFit(c, s)
+        if grid.name == "lift":   # a joint lift stays what drag and pitch read
+            fitter = fitter.with_lifts({c.name: LiftFit(c, s) for c, s in zip(grid.candidates, results)
+                                        if c.name not in fitter.lifts or not joint_lift})
         by_name = {c.name: c for c in grid.candidates}
 
         def judge(result, by_name=by_name):
@@ -128,24 +94,62 @@ def search(campaign: Campaign, grid_spec: str, out: Path, *, n_jobs: int = 1, op
 
         ranked = rank(results, judge)
         if do_refine:
-            known = {structure_key(c): (c, r) for c, r in zip(grid.candidates, results) if not r.failed}
-
-            def fit_one(c):
-                return run([c], campaign, out, lifts=lifts, options=options, n_jobs=1, backend=backend)[0]
-
-            extra = []
-            for start in refinement_starts(ranked):
-                done = refine(grid[start.name], start, fit_one, known)
-                new = [(c, r) for c, r in done.steps if c.name not in done.reached]
-                known.update({structure_key(c): (c, r) for c, r in new})
-                extra += new
-                steps = " -> ".join([start.name] + [c.name for c, _ in done.steps]) or start.name
-                say(f"grid {grid.name}: refined {steps}"
-                    + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {done.stopped}")
-                refinements.setdefault(grid.name, []).append(done)
+            extra, refinements[grid.name] = _refine_grid(fitter, grid, results, ranked)
+            if not refinements[grid.name]:
+                del refinements[grid.name]
             if extra:
                 by_name.update({c.name: c for c, _ in extra})
                 ranked = rank(results + [s for _, s in extra], judge)
         ranked_by_grid[grid.name] = ranked
         seconds[grid.name] = time.perf_counter() - t0
     return SearchResult(ranked_by_grid, seconds, refinements, joint)
+
+
+def _joint_lift_model(fitter: Fitter, joint_lift: Sequence[Candidate]):
+    """The joint fit of ``joint_lift`` and the lift model drag and pitch read from it."""
+    from ..data.errors import FitError
+    from ..fitting.joint import fit_joint, joint_lift as lift_of
+    say = fitter.say
+    say("joint lift model: " + " + ".join(c.name for c in joint_lift))
+    joint = fit_joint(list(joint_lift), *fitter.splits(), fitter.options)
+    if not joint.weights_settled or not joint.result.converged:
+        say(f"warning: the joint lift model {joint.name} "
+            + ("did NOT settle its weights" if not joint.weights_settled else "did NOT converge")
+            + "; drag and pitch read it all the same")
+    read = lift_of(joint)
+    if not read.influence_names:
+        raise FitError(f"the joint fit {joint.name} identifies none of the lift model's parameters: drag and "
+                       "pitch cannot read it")
+    if read.not_identifiable:
+        say(f"warning: the joint lift model cannot identify {', '.join(read.not_identifiable)}: held at their "
+            "estimates in the drag and pitch candidates' two-step covariance")
+    return joint, read
+
+
+def _with_lift_models(fitter: Fitter, names: Sequence[str]) -> Fitter:
+    """``fitter`` with the lift models ``names`` it lacks fitted (from the lift grid)."""
+    missing = [n for n in names if n not in fitter.lifts]
+    if not missing:
+        return fitter
+    lift_grid = load_grid("lift")
+    candidates = [lift_grid[n] for n in missing]
+    return fitter.with_lifts({c.name: LiftFit(c, s)
+                              for c, s in zip(candidates, fitter.fit(candidates))})
+
+
+def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ranked: list[CandidateResult]):
+    """The structures the refinement of ``grid``'s best candidates reached (with their fits) and the
+    refinements themselves."""
+    known = {structure_key(c): (c, r) for c, r in zip(grid.candidates, results) if not r.failed}
+    one_at_a_time = fitter.serial().quiet()
+    extra, done_all = [], []
+    for start in refinement_starts(ranked):
+        done = refine(grid[start.name], start, one_at_a_time.fit_one, known)
+        new = [(c, r) for c, r in done.steps if c.name not in done.reached]
+        known.update({structure_key(c): (c, r) for c, r in new})
+        extra += new
+        steps = " -> ".join([start.name] + [c.name for c, _ in done.steps]) or start.name
+        fitter.say(f"grid {grid.name}: refined {steps}"
+                   + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {done.stopped}")
+        done_all.append(done)
+    return extra, done_all

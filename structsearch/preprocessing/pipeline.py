@@ -148,20 +148,11 @@ def _derivative(data, x: np.ndarray) -> np.ndarray:
     return np.concatenate([derivative(x[sl], data["t"][sl]) for sl in data.segment_slices()])
 
 
-def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_suggested: bool = False,
-               stall_alpha_rad: float | None = None, stall_state: str | None = None,
-               progress: Callable[[str, float], None] | None = None) -> Preprocessed:
-    """The whole chain on a raw campaign (:func:`structsearch.data.campaign.read_campaign` with ``fmt="raw"``)."""
-    say = progress or (lambda stage, fraction: None)
+def _stalled_flow(raw: Campaign, stall_alpha_rad: float | None,
+                  stall_state: str | None) -> tuple[np.ndarray, float, str]:
+    """The samples of stalled flow for the spectra, the stall angle of attack [rad] (NaN when a separation state
+    says) and where the choice comes from; refused when too few samples are stalled."""
     d = raw.data
-    fs = sample_rate(raw)
-    slices = d.segment_slices()
-    iyy = _aircraft_value(raw, "Iyy", "the pitch inertia turns pitch acceleration into C_m")
-    s_ref, cbar = float(raw.aircraft["S"]), float(raw.aircraft["cbar"])
-    if "mass" not in d:
-        _aircraft_value(raw, "mass", "the mass turns specific forces into forces (or give a mass column)")
-    # spectra of stalled against attached flow
-    say("spectra", 0.0)
     if stall_alpha_rad is not None:
         stall_alpha, stall_source = float(stall_alpha_rad), "command line"
     elif "stall_alpha" in raw.extra:
@@ -188,16 +179,11 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
         raise DataError(f"only {100 * np.mean(stalled):.1f} % of the samples are stalled ({what}); give a lower "
                         "--stall-alpha or another --stall-state",
                         source=str(raw.directory or raw.name), column="alpha")
-    # attached flow: the lower half of the angles of attack flown (trim and entry conditions), clear of the
-    # separation that begins well below the stall on some aircraft
-    attached = (d["alpha"] <= np.median(d["alpha"])) & ~stalled
-    channels = _channels(raw)
-    spectra = {}
-    for i, c in enumerate(channels):
-        spectra[c] = channel_spectrum(c, d[c], stalled, slices, fs, attached)
-        say("spectra", (i + 1) / len(channels))
-    cutoffs = choose_cutoffs(raw, spectra, dict(overrides or {}), use_suggested, fs)
-    hz = {c.channel: c.applied_hz for c in cutoffs}
+    return stalled, stall_alpha, stall_source
+
+
+def _check_cutoffs(cutoffs: tuple[Cutoff, ...], hz: Mapping[str, float | None], fs: float) -> None:
+    """Refuse a cut-off at or above the Nyquist frequency, or a channel the reconstruction needs left unfiltered."""
     for c in cutoffs:
         if c.applied_hz is not None and not c.applied_hz < fs / 2:
             raise DeclarationError(f"channel {c.channel!r}: cut-off {c.applied_hz:g} Hz ({c.source}) is not below the "
@@ -205,9 +191,11 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
     for needed in ("ax", "az", "q", "V", "alpha", "theta", "h"):
         if hz.get(needed) is None:
             raise DeclarationError(f"channel {needed!r} needs a cut-off (--cutoff {needed}=HZ)")
-    # pre-filter, then reconstruct
-    f = {c: _filtered(d, c, hz.get(c), fs) for c in d.columns if c != "t" and not c.endswith("_true")}
-    f["q_dot"] = _derivative(d, f["q"])
+
+
+def _noise_levels(raw: Campaign, spectra: Mapping[str, ChannelSpectrum], fs: float) -> dict[str, float]:
+    """The noise floor of the specific forces and the pitch rate (the filter's process noise), from their
+    attached-flow spectra (stalled where there is none)."""
     noise = {}
     for c in ("ax", "az", "q"):
         sp = spectra[c]
@@ -218,17 +206,14 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
                             f"{2 * NOISE_BAND_HZ[0] / 0.45:.0f} Hz or more (this campaign: {fs:g} Hz)",
                             source=str(raw.directory or raw.name), column=c)
         noise[c] = level
-    accelerometer = tuple(raw.aircraft.get("accelerometer", (0.0, 0.0, 0.0)))
-    # the kinematic equations hold between signals filtered alike: the reconstruction sees every channel at
-    # the lowest of their cut-offs (a linear zero-phase filter commutes with the linear terms)
-    common = min(hz[c] for c in RECONSTRUCTION_CHANNELS if c in hz and hz[c] is not None)
-    g = {c: _filtered(d, c, common, fs) for c in RECONSTRUCTION_CHANNELS if c in d}
-    g["q_dot"] = _derivative(d, g["q"])
-    rec = reconstruct(g, slices, fs, {c: common for c in g}, noise, accelerometer,
-                      lambda x: say("reconstruction", x))
-    # coefficients from the corrected channels (thesis Eqs. 1-4)
-    say("coefficients", 0.0)
-    c = rec.correct(f)
+    return noise
+
+
+def _coefficient_columns(raw: Campaign, c: Mapping[str, np.ndarray], accelerometer: tuple, iyy: float,
+                         s_ref: float, cbar: float) -> dict[str, np.ndarray]:
+    """The standard campaign's columns: the coefficients of thesis Eqs. 1-4 from the corrected channels ``c``,
+    those channels, and the raw campaign's other columns passed through."""
+    d = raw.data
     ax, az = specific_force_at_cg(c["ax"], c["az"], c["q"], c["q_dot"], accelerometer)
     mass = d["mass"] if "mass" in d else np.full(d.n_samples, float(raw.aircraft["mass"]))
     rho = c["rho"] if "rho" in c else isa_density(c["h"])
@@ -246,7 +231,12 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
                "theta": c["theta"], "h": c["h"], "mass": mass}
     passed = [k for k in d.columns if k not in columns and k not in ("ax", "ay", "az", "thrust")]
     columns.update({k: (d[k] if k.endswith("_true") else c[k]) for k in passed})
-    segments = [{k: v[sl] for k, v in columns.items()} for sl in slices]
+    return columns
+
+
+def _extra_with_record(raw: Campaign, rec: Reconstruction, cutoffs: tuple[Cutoff, ...], stall_alpha: float,
+                       stall_source: str) -> dict:
+    """The raw campaign's extra keys (less its format) with the record of this preprocessing."""
     record = {"preprocessed_by": f"structsearch {__version__}",
               "preprocessed_from": str(raw.directory) if raw.directory is not None else raw.name,
               "stalled_flow": stall_source, "reconstruction_step_s": rec.step_s}
@@ -258,6 +248,52 @@ def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_
         record[f"estimated_{e.name}_sd"] = e.sd
     extra = {k: v for k, v in raw.extra.items() if k != "format"}
     extra.update(record)
+    return extra
+
+
+def preprocess(raw: Campaign, overrides: Mapping[str, float] | None = None, use_suggested: bool = False,
+               stall_alpha_rad: float | None = None, stall_state: str | None = None,
+               progress: Callable[[str, float], None] | None = None) -> Preprocessed:
+    """The whole chain on a raw campaign (:func:`structsearch.data.campaign.read_campaign` with ``fmt="raw"``)."""
+    say = progress or (lambda stage, fraction: None)
+    d = raw.data
+    fs = sample_rate(raw)
+    slices = d.segment_slices()
+    iyy = _aircraft_value(raw, "Iyy", "the pitch inertia turns pitch acceleration into C_m")
+    s_ref, cbar = float(raw.aircraft["S"]), float(raw.aircraft["cbar"])
+    if "mass" not in d:
+        _aircraft_value(raw, "mass", "the mass turns specific forces into forces (or give a mass column)")
+    # spectra of stalled against attached flow
+    say("spectra", 0.0)
+    stalled, stall_alpha, stall_source = _stalled_flow(raw, stall_alpha_rad, stall_state)
+    # attached flow: the lower half of the angles of attack flown (trim and entry conditions), clear of the
+    # separation that begins well below the stall on some aircraft
+    attached = (d["alpha"] <= np.median(d["alpha"])) & ~stalled
+    channels = _channels(raw)
+    spectra = {}
+    for i, c in enumerate(channels):
+        spectra[c] = channel_spectrum(c, d[c], stalled, slices, fs, attached)
+        say("spectra", (i + 1) / len(channels))
+    cutoffs = choose_cutoffs(raw, spectra, dict(overrides or {}), use_suggested, fs)
+    hz = {c.channel: c.applied_hz for c in cutoffs}
+    _check_cutoffs(cutoffs, hz, fs)
+    # pre-filter, then reconstruct
+    f = {c: _filtered(d, c, hz.get(c), fs) for c in d.columns if c != "t" and not c.endswith("_true")}
+    f["q_dot"] = _derivative(d, f["q"])
+    noise = _noise_levels(raw, spectra, fs)
+    accelerometer = tuple(raw.aircraft.get("accelerometer", (0.0, 0.0, 0.0)))
+    # the kinematic equations hold between signals filtered alike: the reconstruction sees every channel at
+    # the lowest of their cut-offs (a linear zero-phase filter commutes with the linear terms)
+    common = min(hz[c] for c in RECONSTRUCTION_CHANNELS if c in hz and hz[c] is not None)
+    g = {c: _filtered(d, c, common, fs) for c in RECONSTRUCTION_CHANNELS if c in d}
+    g["q_dot"] = _derivative(d, g["q"])
+    rec = reconstruct(g, slices, fs, {c: common for c in g}, noise, accelerometer,
+                      lambda x: say("reconstruction", x))
+    # coefficients from the corrected channels (thesis Eqs. 1-4)
+    say("coefficients", 0.0)
+    columns = _coefficient_columns(raw, rec.correct(f), accelerometer, iyy, s_ref, cbar)
+    segments = [{k: v[sl] for k, v in columns.items()} for sl in slices]
+    extra = _extra_with_record(raw, rec, cutoffs, stall_alpha, stall_source)
     # the raw campaign's length rules go with its coefficients (a lowered minimum must read back)
     standard = replace(make_campaign(raw.name, raw.aircraft, raw.maneuvers, segments, extra),
                        length_rules=raw.length_rules)

@@ -66,32 +66,30 @@ def _num(x, fmt=".2f") -> str:
     return "n/a" if x is None or not np.isfinite(x) else format(x, fmt)
 
 
-def markdown(doc: Diagnosis) -> str:
-    lines = [f"# Diagnosis of {doc.coefficient} (baseline {doc.baseline})", ""]
+def _gap_lines(doc: Diagnosis) -> list[str]:
+    """The baseline's gap over the noise floor and, when there is one, where it lies."""
     m = doc.mse
-    u = doc.unexplained
-    lines += [f"Validation MSE {m.validation:.4g} (training {m.train:.4g}); noise floor {doc.noise_floor:.4g} "
-              f"({doc.floor_source}): the lowest of every library model fitted ({doc.noise_floor_library:.4g}, "
-              f"the saturated model among them) and of a library-free flexible model of the residual "
-              f"({u.noise_floor:.4g}); spectral estimate {doc.noise_floor_spectral:.4g}.", ""]
-    lines += [f"Warning: {w}" for w in doc.warnings] + ([""] if doc.warnings else [])
     first = doc.first
     if doc.gap_explained_by_baseline:
-        lines += [f"**The baseline is already at the noise floor**: its per-maneuver validation MSE exceeds the "
-                  f"floor's by {_pct(first.excess_over_floor)} +- {_pct(first.excess_se)} (within "
-                  "one standard error, or below 1 %).", ""]
-    else:
-        lines += [f"**Gap**: {m.validation - doc.noise_floor:.4g} "
-                  f"({_pct(m.validation / doc.noise_floor - 1 if doc.noise_floor > 0 else None)} above the "
-                  "floor).", ""]
-        lines += ["## Where the gap lies", ""]
-        for dim in ("phase", "alpha_band", "alpha_dot_sign", "frequency_band", "maneuver"):
-            rows = sorted((r for r in doc.where if r.dimension == dim), key=lambda r: -r.share)
-            body = [[r.bin, f"{r.share:.2f}", "-" if not np.isfinite(r.share_std) else f"{r.share_std:.2f}",
-                     "-" if not np.isfinite(r.mse) else f"{r.mse:.3g}"] for r in rows[:8]]
-            lines += [f"### by {dim.replace('_', ' ')}", "",
-                      tabulate(body, headers=["bin", "share of excess", "+-", "MSE"], tablefmt="github"), ""]
-    lines += ["## Which effect (the moves tried from the baseline)", ""]
+        return [f"**The baseline is already at the noise floor**: its per-maneuver validation MSE exceeds the "
+                f"floor's by {_pct(first.excess_over_floor)} +- {_pct(first.excess_se)} (within "
+                "one standard error, or below 1 %).", ""]
+    lines = [f"**Gap**: {m.validation - doc.noise_floor:.4g} "
+             f"({_pct(m.validation / doc.noise_floor - 1 if doc.noise_floor > 0 else None)} above the "
+             "floor).", ""]
+    lines += ["## Where the gap lies", ""]
+    for dim in ("phase", "alpha_band", "alpha_dot_sign", "frequency_band", "maneuver"):
+        rows = sorted((r for r in doc.where if r.dimension == dim), key=lambda r: -r.share)
+        body = [[r.bin, f"{r.share:.2f}", "-" if not np.isfinite(r.share_std) else f"{r.share_std:.2f}",
+                 "-" if not np.isfinite(r.mse) else f"{r.mse:.3g}"] for r in rows[:8]]
+        lines += [f"### by {dim.replace('_', ' ')}", "",
+                  tabulate(body, headers=["bin", "share of excess", "+-", "MSE"], tablefmt="github"), ""]
+    return lines
+
+
+def _effect_lines(doc: Diagnosis) -> list[str]:
+    """The table of the moves tried from the baseline."""
+    lines = ["## Which effect (the moves tried from the baseline)", ""]
     body = []
     shown = doc.effects[:MOVES_SHOWN]
     for e in shown:
@@ -107,7 +105,12 @@ def markdown(doc: Diagnosis) -> str:
     if len(doc.effects) > len(shown):
         lines += [f"{len(doc.effects) - len(shown)} more moves in diagnosis.json. p (test): the structure search's "
                   "adoption test; p (Wald): the test of the parameters a nested move adds (fitted in full).", ""]
-    lines += ["## How far it shrinks", "", f"\"Closes\": {CLOSES_DEFINITION}", ""]
+    return lines
+
+
+def _round_lines(doc: Diagnosis) -> list[str]:
+    """How far the gap shrinks, round by round, and whether it is explained."""
+    lines = ["## How far it shrinks", "", f"\"Closes\": {CLOSES_DEFINITION}", ""]
     for i, r in enumerate(doc.rounds):
         best = r.effect(r.adopted) if r.adopted else None
         step = ("at the floor" if r.explained_before and not r.adopted else
@@ -120,6 +123,45 @@ def markdown(doc: Diagnosis) -> str:
     lines += ["", f"**Explained**: {'yes' if doc.explained else 'no'} (the final model's per-maneuver excess over "
               f"the floor: {_pct(doc.final_excess_over_floor)} +- {_pct(doc.final_excess_se)}). "
               f"Final model: {doc.final_model}" + _terms(doc) + ".", ""]
+    return lines
+
+
+def _state_level_lines(sl) -> list[str]:
+    """The state-level check (None: not made): the replayed states' RMS errors before and after the best effect."""
+    if sl is None:
+        return []
+    lines = ["## At the state level", ""]
+    if sl.failed:
+        lines += [f"Not available: {sl.error}", ""]
+    else:
+        units = {"alpha": "rad", "q": "rad/s", "V": "m/s", "theta": "rad"}
+        body = [[s, units[s], f"{sl.before[s]:.4g}", f"{sl.after[s]:.4g}",
+                 "n/a" if not np.isfinite(sl.reduction[s]) else f"{sl.reduction[s]:+.0%}"]
+                for s in ("alpha", "q", "theta", "V")]
+        lines += [f"Validation maneuvers replayed through the simulator (recorded elevator and thrust, "
+                  f"re-initialised on the measured states every {sl.window_s:g} s); RMS state error with "
+                  f"the baseline and with the best effect added:", "",
+                  tabulate(body, headers=["state", "unit", "before", "after", "reduction"], tablefmt="github"),
+                  ""]
+        for label, gone in (("baseline", sl.diverged_before), ("model with the effect", sl.diverged_after)):
+            if gone:
+                lines += [f"The replay with the {label} **diverged** on {len(gone)} maneuver(s), left out of "
+                          "both RMS: " + "; ".join(d.words() for d in gone) + ".", ""]
+    return lines
+
+
+def markdown(doc: Diagnosis) -> str:
+    lines = [f"# Diagnosis of {doc.coefficient} (baseline {doc.baseline})", ""]
+    m = doc.mse
+    u = doc.unexplained
+    lines += [f"Validation MSE {m.validation:.4g} (training {m.train:.4g}); noise floor {doc.noise_floor:.4g} "
+              f"({doc.floor_source}): the lowest of every library model fitted ({doc.noise_floor_library:.4g}, "
+              f"the saturated model among them) and of a library-free flexible model of the residual "
+              f"({u.noise_floor:.4g}); spectral estimate {doc.noise_floor_spectral:.4g}.", ""]
+    lines += [f"Warning: {w}" for w in doc.warnings] + ([""] if doc.warnings else [])
+    lines += _gap_lines(doc)
+    lines += _effect_lines(doc)
+    lines += _round_lines(doc)
     sentence = unexplained_sentence(doc)
     if u.gap_signals and not doc.gap_explained_by_baseline:
         top = ", ".join(f"{g.name} ({g.share:.2f})" for g in u.gap_signals[:4])
@@ -132,25 +174,7 @@ def markdown(doc: Diagnosis) -> str:
         body = [[s.name, f"{s.share:.2f}"] for s in u.signals[:8]]
         lines += ["Share of the remaining gap a smooth function of one signal removes on the validation maneuvers:",
                   "", tabulate(body, headers=["signal", "share"], tablefmt="github"), ""]
-    sl = doc.state_level
-    if sl is not None:
-        lines += ["## At the state level", ""]
-        if sl.failed:
-            lines += [f"Not available: {sl.error}", ""]
-        else:
-            units = {"alpha": "rad", "q": "rad/s", "V": "m/s", "theta": "rad"}
-            body = [[s, units[s], f"{sl.before[s]:.4g}", f"{sl.after[s]:.4g}",
-                     "n/a" if not np.isfinite(sl.reduction[s]) else f"{sl.reduction[s]:+.0%}"]
-                    for s in ("alpha", "q", "theta", "V")]
-            lines += [f"Validation maneuvers replayed through the simulator (recorded elevator and thrust, "
-                      f"re-initialised on the measured states every {sl.window_s:g} s); RMS state error with "
-                      f"the baseline and with the best effect added:", "",
-                      tabulate(body, headers=["state", "unit", "before", "after", "reduction"], tablefmt="github"),
-                      ""]
-            for label, gone in (("baseline", sl.diverged_before), ("model with the effect", sl.diverged_after)):
-                if gone:
-                    lines += [f"The replay with the {label} **diverged** on {len(gone)} maneuver(s), left out of "
-                              "both RMS: " + "; ".join(d.words() for d in gone) + ".", ""]
+    lines += _state_level_lines(doc.state_level)
     return "\n".join(lines)
 
 

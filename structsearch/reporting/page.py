@@ -15,7 +15,7 @@ import html
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -37,6 +37,8 @@ from ..thesis_study.model_set import ModelSet
 from ..fitting.specs import find_candidate
 
 GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
+# What draws a figure onto the page: emit(figure, file, title, caption) saves it and lists it.
+Emit = Callable[[Any, str, str, str], None]
 
 
 @dataclass(frozen=True)
@@ -150,6 +152,26 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
     train, val = campaign.split("train"), campaign.split("validation")
     ref = rd.reference(train)
     alpha = np.linspace(min(0.0, float(campaign.data["alpha"].min())), float(campaign.data["alpha"].max()), 400)
+    written: list[Figure] = []
+
+    def emit(fig, file, title, caption):
+        fg.save(fig, fig_dir / file)
+        written.append(Figure(file, title, caption))
+
+    curves = _static_figures(emit, campaign, names, ms, vi, train, alpha, ref)
+    _derived_pitch_figures(emit, campaign, names, ms, vi, alpha, ref, curves, notes)
+    hyst = _dynamic_figures(emit, campaign, names, ms, train, val, ref, options)
+    diagnosis = _diagnosis_figures(emit, campaign, fits, ms)
+    _replay_figure(emit, campaign, ms, hyst, notes)
+    page = render_html(campaign, out, names, ms, vi, written, notes, diagnosis, story)
+    write_text(out / "report.html", page)
+    return {"html": out / "report.html", "figures": [fig_dir / f.file for f in written], "notes": notes,
+            "seconds": time.perf_counter() - t0}
+
+
+def _static_figures(emit: Emit, campaign: Campaign, names: Mapping[str, str], ms: ModelSet, vi: ModelSet | None,
+                    train: Campaign, alpha: np.ndarray, ref) -> Any:
+    """The static separation, lift, drag and pitch figures (thesis Figs. 6-8, 11); returns the separation curves."""
     static = rd.static_coefficients(ms, alpha, ref)
     static_vi = rd.static_coefficients(vi, alpha, ref) if vi else None
     points = rd.partial_points(ms, campaign.data, ref)
@@ -157,15 +179,8 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
     pair = (names["CL"], VAN_INGEN_MODEL_NAMES["CL"])
     cond = (f"static condition: separation states at equilibrium, q = 0, delta_e = 0, C_T = 0, V = {ref.V:.1f} m/s"
             + (f", x_cg = {ref.x_cg:.3f} m" if ref.x_cg is not None else ""))
-    envelope = campaign.aircraft.get("x_cg_range")
     corrected = ("Grey points: every maneuver's measurements (a seeded subsample of 5000) corrected to the static "
                  "condition, i.e. the static model at the sample's alpha plus the sample's residual.")
-    written: list[Figure] = []
-
-    def emit(fig, file, title, caption):
-        fg.save(fig, fig_dir / file)
-        written.append(Figure(file, title, caption))
-
     emit(fg.separation(curves, alpha), "separation_static.png", "Static flow separation",
          f"X_0(alpha) of each separation state of {names['CL']} with the stall stages marked: flow starts to "
          "separate (X_0 = 0.9), half separated (alpha*, X_0 = 0.5), fully stalled (X_0 = 0.1) (thesis Fig. 6).")
@@ -192,6 +207,14 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
          f"{corrected} Both curves hold delta_e = 0: a structure whose elevator term cannot be told apart from "
          "alpha in trimmed flight (the elevator follows alpha) carries part of the alpha slope in that term. "
          "(thesis Fig. 11)")
+    return curves
+
+
+def _derived_pitch_figures(emit: Emit, campaign: Campaign, names: Mapping[str, str], ms: ModelSet,
+                           vi: ModelSet | None, alpha: np.ndarray, ref, curves, notes: list[str]) -> None:
+    """The centre of pressure (where the pitch model implies one and the cg is known) and the elevator
+    effectiveness (thesis Figs. 9-10); a note for a figure left out."""
+    envelope = campaign.aircraft.get("x_cg_range")
     derived = rd.derived_pitch(ms, alpha, ref)
     if derived["depends_on_CL"] and ref.x_cg is None:
         notes.append("The campaign has no x_cg column, so the centre of pressure cannot be placed; that figure is "
@@ -214,6 +237,12 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
          "Elevator effectiveness",
          f"C_m_delta_e*(alpha) = dC_m/d delta_e of {names['Cm']} (Eq. 33) and of {VAN_INGEN_MODEL_NAMES['Cm']}, whose "
          "max(1/2, X) term forces a 50 % loss, with the separation states at equilibrium (thesis Fig. 10).")
+
+
+def _dynamic_figures(emit: Emit, campaign: Campaign, names: Mapping[str, str], ms: ModelSet, train: Campaign,
+                     val: Campaign, ref, options: FitOptions) -> dict:
+    """The validation time traces, the dynamic stall hysteresis and the parameter correlations; returns the
+    hysteresis figure's data (its maneuver is the one the forward simulation replays)."""
     selection = rd.trace_selection(ms, val, train)
     emit(fg.traces(selection), "time_traces.png", "Measured and modelled coefficients",
          "Validation maneuvers with the best, median and worst R^2 of each coefficient (one row per coefficient; "
@@ -228,6 +257,12 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
          "lag makes lift overshoot the static curve while alpha rises and fall below it while alpha falls.")
     emit(fg.correlations(ms.summaries), "correlations.png", "Parameter correlations",
          f"Correlation matrices of the estimates ({options.covariance} covariance); '!' marks |rho| > 0.9.")
+    return hyst
+
+
+def _diagnosis_figures(emit: Emit, campaign: Campaign, fits: ReportFits, ms: ModelSet) -> dict | None:
+    """The gap breakdown before and after the best effect and the signals the library does not explain; returns
+    the diagnosis as its document (None: no diagnosis)."""
     diagnose_coefficient = fits.diagnosis_coefficient
     # the page renders the diagnosis as its document (diagnosis.json), the form its captions quote
     diagnosis = None if fits.diagnosis is None else fits.diagnosis.to_dict()
@@ -255,6 +290,11 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
                  f"{unexplained_sentence(diagnosis)} Residual of {diagnosis['final_model']} against the signals it "
                  "follows best: a smooth function of each signal alone, fitted on the training maneuvers (line), "
                  "and the validation maneuvers' mean residual per bin (points).")
+    return diagnosis
+
+
+def _replay_figure(emit: Emit, campaign: Campaign, ms: ModelSet, hyst: dict, notes: list[str]) -> None:
+    """The hysteresis maneuver replayed through the simulator (a note instead when it cannot be)."""
     try:
         from ..flight.replay import replay
         runs = replay(campaign.data.select([hyst["index"]]), ms.aero, window_s=5.0)
@@ -265,10 +305,6 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
              f"error: alpha {rms['alpha']:.4f} rad, q {rms['q']:.4f} rad/s, V {rms['V']:.2f} m/s.")
     except DataError as exc:
         notes.append(f"No forward simulation: {exc}")
-    page = render_html(campaign, out, names, ms, vi, written, notes, diagnosis, story)
-    write_text(out / "report.html", page)
-    return {"html": out / "report.html", "figures": [fig_dir / f.file for f in written], "notes": notes,
-            "seconds": time.perf_counter() - t0}
 
 
 def _or_nan(x):

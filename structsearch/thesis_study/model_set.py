@@ -5,12 +5,10 @@ study compares it; a set's coefficients are predicted on any data.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
-from ..data.campaign import Campaign
 from ..data.errors import DeclarationError
 from ..data.flightdata import FlightData
 from ..flight.aero import AeroModel
@@ -18,8 +16,7 @@ from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
 from ..fitting.models import build_model, predict_candidate
-from ..fitting.options import FitOptions
-from ..grid_search.runner import run
+from ..fitting.fitter import Fitter
 from ..fitting.specs import find_candidate
 
 COEFFICIENTS = ("CL", "CD", "Cm")
@@ -51,17 +48,15 @@ class ModelSet:
                                  None if coef == "CL" else self.lift)
 
 
-def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out: Path, options: FitOptions,
-                  n_jobs: int = 1, progress=None) -> ModelSet:
-    """Fit the named lift, drag and pitch structures (cached under ``out/cache``)."""
+def fit_model_set(label: str, names: Mapping[str, str], fitter: Fitter) -> ModelSet:
+    """Fit the named lift, drag and pitch structures (with ``fitter``: cached, on its workers)."""
     cands = {coef: find_candidate(names[coef]) for coef in COEFFICIENTS}
     for coef in ("CD", "Cm"):
         if cands[coef].lift != cands["CL"].name:
             raise DeclarationError(f"{cands[coef].name} takes its separation states from {cands[coef].lift}, "
                                    f"not from the lift model {cands['CL'].name} of the same model set")
-    lift = run([cands["CL"]], campaign, out, options=options, progress=progress)[0]
-    others = run([cands["CD"], cands["Cm"]], campaign, out, lifts={cands["CL"].name: LiftFit(cands["CL"], lift)},
-                 options=options, n_jobs=n_jobs, progress=progress)
+    lift = fitter.serial().fit_one(cands["CL"])
+    others = fitter.with_lifts({cands["CL"].name: LiftFit(cands["CL"], lift)}).fit([cands["CD"], cands["Cm"]])
     summaries = {"CL": lift, "CD": others[0], "Cm": others[1]}
     for coef, s in summaries.items():
         if s.failed:
@@ -75,21 +70,19 @@ def fit_model_set(label: str, names: Mapping[str, str], campaign: Campaign, out:
     return ModelSet(label, cands, summaries, aero)
 
 
-def fit_with_effect(ms: ModelSet, coef: str, effect: str, campaign: Campaign, out: Path,
-                    options: FitOptions) -> tuple[Candidate, CandidateResult]:
+def fit_with_effect(ms: ModelSet, coef: str, effect: str, fitter: Fitter) -> tuple[Candidate, CandidateResult]:
     """The set's ``coef`` model after a diagnosis' move (a library effect's name or a structural move's label),
-    fitted (cached under ``out/cache``) on the set's lift model: the "after" of the report's gap breakdown."""
+    fitted (with ``fitter``) on the set's lift model: the "after" of the report's gap breakdown."""
     from ..discovery.moves import generate
     from ..discovery.terms import library_for
     base = ms.candidates[coef]
     lift_candidates = {} if coef == "CL" else {ms.lift.name: ms.lift.candidate}
-    found = [child for move, child in generate(base, library_for(coef, campaign.split("train")), lift_candidates)
+    found = [child for move, child in generate(base, library_for(coef, fitter.campaign.split("train")), lift_candidates)
              if move.name == effect]
     if not found:
         raise DeclarationError(f"report: no move {effect!r} applies to {base.name}")
     changed = found[0]
-    lifts = None if coef == "CL" else {ms.lift.name: ms.lift}
-    result = run([changed], campaign, out, options=options, lifts=lifts)[0]
+    result = (fitter if coef == "CL" else fitter.with_lifts({ms.lift.name: ms.lift})).serial().quiet().fit_one(changed)
     if result.failed:
         raise DeclarationError(f"report: fitting {changed.name} failed: {result.error}")
     return changed, result

@@ -7,14 +7,11 @@ rendered by :mod:`structsearch.reporting.study_doc`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Callable, Mapping
+from typing import Mapping
 
-from ..data.campaign import Campaign
 from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_LIFT, VAN_INGEN_MODEL_NAMES, van_ingen_lift_model
 from ..fitting.models import build_model
-from ..fitting.options import FitOptions
-from ..grid_search.runner import run
+from ..fitting.fitter import Fitter
 from ..fitting.specs import load_grid
 from .comparison import CoefficientScores, score_set
 from .derived import Collinearity, DerivedQuantity, collinearity, physical_quantities, separation_matrix
@@ -57,18 +54,16 @@ class Study:
                 "joint": None if self.joint is None else self.joint.to_dict()}
 
 
-def run_study(campaign: Campaign, cache: Path, options: FitOptions = FitOptions(), n_jobs: int = 1,
-              progress: Callable[[str], None] | None = None) -> Study:
-    """Everything the study tables hold; fits go through the search's cache under ``cache`` (a search of the
-    same campaign with the same options makes them instant)."""
-    say = progress or (lambda m: None)
+def run_study(fitter: Fitter) -> Study:
+    """Everything the study tables hold; fits go through ``fitter``'s cache (a search of the same campaign with
+    the same options makes them instant)."""
+    campaign, options, say = fitter.campaign, fitter.options, fitter.say
     say("study: the final model set")
-    final = fit_model_set(FINAL, FINAL_MODEL_NAMES, campaign, cache, options, n_jobs=n_jobs, progress=progress)
+    final = fit_model_set(FINAL, FINAL_MODEL_NAMES, fitter)
     say("study: the final structures fitted jointly")
     joint = compare_joint(final, campaign, options)
     say("study: Van Ingen's structures refitted")
-    refitted = fit_model_set(VAN_INGEN_REFITTED, VAN_INGEN_MODEL_NAMES, campaign, cache, options, n_jobs=n_jobs,
-                             progress=progress)
+    refitted = fit_model_set(VAN_INGEN_REFITTED, VAN_INGEN_MODEL_NAMES, fitter)
     published = van_ingen_lift_model()
     scores = (score_set(FINAL, lambda c, d: final.predict(c, d), campaign)
               + score_set(VAN_INGEN_REFITTED, lambda c, d: refitted.predict(c, d), campaign)
@@ -76,8 +71,7 @@ def run_study(campaign: Campaign, cache: Path, options: FitOptions = FitOptions(
               + score_set(VAN_INGEN_PUBLISHED,
                           lambda c, d: published.predict(d, VAN_INGEN_LIFT) if c == "CL" else None, campaign))
     say("study: the separation grid")
-    separation = run(load_grid("separation").candidates, campaign, cache, options=options, n_jobs=n_jobs,
-                     progress=progress)
+    separation = fitter.fit(load_grid("separation").candidates)
     kinds, matrix = separation_matrix(separation)
     say("study: the lift, drag and pitch grids in the thesis' layout")
     lift_grid = load_grid("lift")
@@ -86,8 +80,7 @@ def run_study(campaign: Campaign, cache: Path, options: FitOptions = FitOptions(
         grid = lift_grid if name == "lift" else load_grid(name, lift_grid)
         # the grid's candidates take the final lift model's states, Van Ingen's drag and pitch his lift's
         lifts = {ms.candidates["CL"].name: ms.lift for ms in (final, refitted)}
-        results = run(grid.candidates, campaign, cache, lifts=lifts if name != "lift" else None, options=options,
-                      n_jobs=n_jobs, progress=progress)
+        results = (fitter.with_lifts(lifts) if name != "lift" else fitter).fit(grid.candidates)
         coefficient = grid.candidates[0].coefficient
         tables.append(thesis_table(name, grid.candidates, results, refitted.summaries[coefficient]))
     say("study: CL-VI with and without the dynamic stalls")
@@ -97,7 +90,7 @@ def run_study(campaign: Campaign, cache: Path, options: FitOptions = FitOptions(
     derived = physical_quantities(dict(lift.params), train)
     coll = collinearity(build_model(final.candidates["CL"]), dict(lift.params), train)
     estimators = compare_estimators(campaign, dict(VAN_INGEN_MODEL_NAMES), n_starts=options.n_starts,
-                                    seed=options.seed, progress=progress)
+                                    seed=options.seed, progress=say)
     models = {FINAL: dict(FINAL_MODEL_NAMES), VAN_INGEN_REFITTED: dict(VAN_INGEN_MODEL_NAMES),
               VAN_INGEN_PUBLISHED: {"CL": VAN_INGEN_MODEL_NAMES["CL"]}}
     return Study(models, tuple(scores), dynamic, kinds, matrix, tuple(derived), coll, estimators, tuple(tables),

@@ -24,12 +24,12 @@ import numpy as np
 from ..data.atomic import write_json
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
-from ..fitting.candidate_fit import fit_staged
-from ..fitting.candidate_result import JSON_LAYOUT, CandidateResult
-from ..fitting.candidates import Candidate
-from ..fitting.lift_fit import LiftFit
-from ..fitting.options import FitOptions
-from ..fitting.staging import best_contained, may_donate, warm_start, waves
+from .candidate_fit import fit_staged
+from .candidate_result import JSON_LAYOUT, CandidateResult
+from .candidates import Candidate
+from .lift_fit import LiftFit
+from .options import FitOptions
+from .staging import best_contained, may_donate, warm_start, waves
 from .shared_data import LOCAL_PROCESS_BACKENDS, resolve_splits, shared_splits
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from ..data.atomic import remove_orphans
 from ..data.flightdata import FlightData
-from ..fitting.lift_context import forget_lift_contexts
+from .lift_context import forget_lift_contexts
 
 # Backends whose workers are processes on this machine (a dask cluster's may not see this disk).
 LOCAL_PROCESS_BACKENDS = ("loky", "multiprocessing")

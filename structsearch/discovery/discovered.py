@@ -4,12 +4,17 @@ candidate and the thesis' final model. ``to_dict()`` is ``discover.json`` (docs/
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
 
-from .results import Diagnosis
+from ..fitting.fitter import Fitter
+from .adoption import move_test
+from .explore import Exploration
+from .judge import judge_for
+
 
 
 def _num(x) -> float | None:
@@ -114,7 +119,9 @@ class Discovery:
     structures_fitted: int
     noise_floor: float
     explained: bool
-    diagnosis: Diagnosis = field(repr=False)
+    # the diagnosis of the search (structsearch.diagnosis.results.Diagnosis: diagnosis.json), which the
+    # diagnosis layer made for it (discovery does not import the layer above it)
+    diagnosis: Any = field(repr=False)
     seconds: float = field(default=float("nan"), compare=False)
 
     def to_dict(self) -> dict:
@@ -126,3 +133,68 @@ class Discovery:
                 "stopped": self.stopped, "structures_fitted": self.structures_fitted,
                 "noise_floor": self.noise_floor, "at_floor": self.explained,
                 "terms": dict((self.diagnosis.search or {}).get("terms", {})), "seconds": self.seconds}
+
+
+# The grid each coefficient's rank-1 candidate comes from.
+GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
+
+
+def _cv(result) -> float | None:
+    return result.cv.mse if result.cv is not None else None
+
+
+def _row(role, candidate, result, found, judge) -> ComparisonRow:
+    if result.failed:
+        return ComparisonRow(role, candidate.name, 0, float("nan"), None, False, None, None, None)
+    reasons = tuple(judge(result, candidate))
+    if result is found:
+        excess = se = None
+        within = True
+    else:
+        test = move_test(result, found, 1.0, 1)   # the discovered structure against this one
+        excess, se, within = -test.gain, test.gain_se, test.within_one_se
+    return ComparisonRow(role, candidate.name, len(result.params), result.validation.mse, _cv(result), not reasons,
+                         excess, se, within, tuple(e for _, e in candidate.regressors))
+
+
+def build_discovery(fitter: Fitter, diagnosis, exploration: Exploration, seconds: float) -> Discovery:
+    """The :class:`Discovery` of ``exploration`` (its ``diagnosis`` says how far each adopted move closed the
+    gap), compared with the grid's rank-1 candidate and the thesis' final model (fitted with ``fitter``)."""
+    from ..fitting.specs import find_candidate, load_grid
+    from ..flight.reference import FINAL_MODEL_NAMES
+    from ..grid_search.pipeline import search
+    judge = judge_for(fitter.campaign)
+    say = fitter.say
+    nodes = exploration.final.path()
+    path = []
+    for i, node in enumerate(nodes[1:]):
+        r = diagnosis.rounds[i]
+        row = r.effect(node.move.name)
+        path.append(PathStep(node.move.name, node.move.kind, node.move.effect, node.candidate.to_dict(),
+                             node.result.validation.mse, _cv(node.result),
+                             node.test.to_dict() if node.test is not None else None,
+                             row.shrink if row is not None else None,
+                             dict(row.acts_in) if row is not None and row.acts_in else None, node.status))
+    final_node = exploration.final
+    final = FinalStructure(final_node.candidate.name, None, final_node.candidate.to_dict(),
+                           final_node.result.validation.mse, _cv(final_node.result), final_node.admissible,
+                           final_node.reasons)
+    coef = final_node.candidate.coefficient
+    say(f"the {GRIDS[coef]} grid's rank-1 candidate and the thesis' final model, for comparison")
+    rows = [_row("discovered", final_node.candidate, final_node.result, final_node.result, judge)]
+    grid = search(dataclasses.replace(fitter.quiet(), lifts={}), GRIDS[coef], do_refine=False)
+    ranked = grid.grids[GRIDS[coef]]
+    if ranked and not ranked[0].failed:
+        rank1 = load_grid(GRIDS[coef])[ranked[0].name]
+        rows.append(_row(f"{GRIDS[coef]} grid rank 1", rank1, ranked[0], final_node.result, judge))
+    thesis = find_candidate(FINAL_MODEL_NAMES[coef])
+    thesis_result = fitter.quiet().fit_one(thesis)
+    rows.append(_row("thesis final", thesis, thesis_result, final_node.result, judge))
+    steps = tuple(StepLine(s.index, len(s.tried), (s.beam[0].status + " " + s.beam[0].move.name) if s.beam else "-",
+                           min((n for n in s.beam), key=lambda n: n.mse).candidate.name if s.beam else "-",
+                           min((n.mse for n in s.beam), default=float("nan")), s.seconds)
+                  for s in exploration.steps)
+    start = exploration.start
+    return Discovery(coef, start.candidate.to_dict(), start.result.validation.mse, _cv(start.result), tuple(path),
+                     final, tuple(rows), steps, exploration.stopped, exploration.n_fitted, diagnosis.noise_floor,
+                     diagnosis.explained, diagnosis, seconds)

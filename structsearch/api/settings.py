@@ -1,0 +1,102 @@
+"""The settings every fitting command shares (``--starts``, ``--seed``, ``--covariance``, ``--bound``, ``--jobs``,
+``--backend``, ``--segment``, the cache and where progress goes), as one value made once, and each command's
+differences from the fit options' defaults, stated here and nowhere else. :func:`command_fitter` turns them into
+the :class:`~structsearch.fitting.fitter.Fitter` the command fits with."""
+from __future__ import annotations
+
+import os
+import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterable, Iterator, Mapping
+
+from ..data.campaign import Campaign
+from ..engine.statistics import DEFAULT_COVARIANCE
+from ..fitting.fitter import Fitter, RunConfig
+from ..fitting.options import COMMAND_OPTIONS, FitOptions
+
+Progress = Callable[[str], None] | None
+Bounds = Mapping[str, tuple[float, float]] | Iterable[tuple[str, tuple[float, float]]] | None
+
+@dataclass(frozen=True)
+class Settings:
+    """How a command fits: ``starts`` (None: the command's own default,
+    :data:`structsearch.fitting.options.COMMAND_OPTIONS`), ``seed``,
+    ``covariance``, ``bounds`` (``--bound NAME=LO:HI``: a mapping or pairs, the last box of a name winning),
+    ``jobs`` worker processes (0: every core) of ``backend``, ``segment`` ("cycles" fits a periodic record's
+    cycles as maneuvers), ``cache`` (the directory whose ``cache/`` holds the fits; default the command's
+    ``out``, else a temporary directory) and ``progress`` (receives the lines the command writes to stderr)."""
+
+    starts: int | None = None
+    seed: int = 0
+    covariance: str = DEFAULT_COVARIANCE
+    bounds: Bounds = None
+    jobs: int = 0
+    backend: str = "loky"
+    segment: str | None = None
+    cache: str | os.PathLike | None = None
+    progress: Progress = None
+
+    @property
+    def processes(self) -> int:
+        """``jobs`` as a process count: 0 means every core (the commands' ``--jobs``)."""
+        return self.jobs or os.cpu_count() or 1
+
+    def boxes(self) -> tuple:
+        """``bounds`` as FitOptions' sorted boxes, the last box of a name winning."""
+        b = self.bounds
+        pairs = dict(b.items() if isinstance(b, Mapping) else (b or ()))
+        return tuple(sorted((name, (float(lo), float(hi))) for name, (lo, hi) in pairs.items()))
+
+
+def fit_options(command: str, settings: Settings, campaign: Campaign | None = None, **changes) -> FitOptions:
+    """``command``'s FitOptions under ``settings``; with the ``campaign``, its cross-validation folds leave one
+    cycle out when its training maneuvers are cycles of periodic records
+    (:func:`structsearch.fitting.folds.fold_size_for`), and blocked folds last at least the campaign's shortest
+    maneuver worth fitting (:func:`structsearch.fitting.folds.block_convective_times`)."""
+    values = {**COMMAND_OPTIONS[command], "seed": settings.seed, "covariance": settings.covariance,
+              "parameter_boxes": settings.boxes()}
+    if settings.starts is not None:
+        values["n_starts"] = settings.starts
+    if campaign is not None:
+        from ..fitting.folds import block_convective_times, fold_size_for
+        values["cv_fold_size"] = fold_size_for(campaign.maneuvers)
+        values["cv_block_convective_times"] = block_convective_times(campaign)
+    return FitOptions(**{**values, **changes})
+
+
+@contextmanager
+def cache_directory(cache: str | os.PathLike | None) -> Iterator[Path]:
+    """``cache`` as a Path, or a temporary directory (removed afterwards) when it is None."""
+    if cache is not None:
+        yield Path(cache)
+        return
+    with tempfile.TemporaryDirectory(prefix="structsearch-") as tmp:
+        yield Path(tmp)
+
+
+@contextmanager
+def command_fitter(command: str, campaign: Campaign, settings: Settings, out: str | os.PathLike | None = None,
+                   **option_changes) -> Iterator[Fitter]:
+    """The fitter of ``command``: its options (:func:`fit_options`, with ``option_changes``), its cache
+    (``settings.cache``, else ``out``, else a temporary directory), workers and progress."""
+    options = fit_options(command, settings, campaign, **option_changes)
+    with cache_directory(settings.cache if settings.cache is not None else out) as where:
+        yield Fitter(RunConfig(campaign, where, options, settings.processes, settings.backend, settings.progress))
+
+
+@dataclass(frozen=True)
+class FlightTestPlan:
+    """What a simulated campaign flies besides its seed and scale (``structsearch simulate``'s other options):
+    the ``aircraft`` ("citation" or "transport"), effects of the truth to ``withhold``, an ``anomaly`` outside the
+    diagnosis' library, ``extras`` maneuvers, ``raw`` channels instead of coefficients, the scale of the slow
+    reconstruction errors and ``flights`` = N > 0: the maneuvers flown on N flights that share errors."""
+
+    aircraft: str = "citation"
+    withhold: tuple[str, ...] = ()
+    anomaly: str | None = None
+    extras: bool = False
+    raw: bool = False
+    slow_errors: float = 1.0
+    flights: int = 0

@@ -1,0 +1,206 @@
+"""The checks of a campaign on disk (docs/interfaces.md sections 1 and 5): campaign.toml's values (the [aircraft]
+table, the [[maneuver]] entries' keys and flights, [cutoffs], the top-level keys) and every maneuver file's columns
+(required columns, finite values, increasing time, positive airspeed, length, units of angles and rates). Each
+problem raises one :class:`~structsearch.errors.DataError` naming the file, the column and the row.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from .errors import DataError
+from . import records
+from .tables import LINE_KEY
+
+REQUIRED = ("t", "alpha", "q", "V", "de")
+ANGLES = ("alpha", "de", "theta")
+# Raw flight-test campaigns (docs/interfaces.md 5.2, ``format = "raw"``): the channels as recorded.
+RAW_REQUIRED = ("t", "ax", "ay", "az", "p", "q", "r", "phi", "theta", "V", "alpha", "h", "de", "thrust")
+RAW_ANGLES = ("alpha", "de", "theta", "phi", "beta", "da", "dr")
+# Largest plausible magnitude of an angle in radians; more looks like degrees.
+MAX_ANGLE_RAD = 1.2
+# The shortest maneuver worth fitting is measured in convective times cbar/V (structsearch.data.records)
+MIN_CONVECTIVE_TIMES = records.MIN_CONVECTIVE_TIMES
+MIN_SAMPLES = records.MIN_SAMPLES
+AIRCRAFT_KEYS = ("S", "cbar", "b")
+# optional aircraft data (docs/interfaces.md 5.1): positive scalars, signed scalars, and vectors of a length
+OPTIONAL_POSITIVE = ("mass", "Ixx", "Iyy", "Izz")
+OPTIONAL_SIGNED = ("Ixz", "thrust_line_z")
+OPTIONAL_VECTORS = {"x_cg_range": 2, "accelerometer": 3}
+# Top-level names of campaign.toml that free-text keys of a campaign may not take.
+RESERVED_KEYS = ("name", "format", "aircraft", "maneuver", "cutoffs", "min_convective_times")
+
+
+# The keys a [[maneuver]] entry may hold (docs/interfaces.md 1, 6.4, 6.9): any other is a typo, refused.
+MANEUVER_KEYS = ("id", "file", "kind", "split", "flight", "record", "segment")
+
+
+def _close_match(key: str, known) -> str:
+    close = difflib.get_close_matches(key, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else f" (known: {', '.join(known)})"
+
+
+def _check_top_level(doc: dict, toml: str) -> None:
+    """Top-level scalars are free metadata (the simulator's seed and truth, a preprocessing record), kept in
+    ``Campaign.extra``; a table or list that is not one of campaign.toml's, or a scalar whose name is one
+    letter or two from a reserved key (``fromat``), is a typo: refused with the close match."""
+    for key, value in doc.items():
+        if key in RESERVED_KEYS:
+            continue
+        close = difflib.get_close_matches(key, RESERVED_KEYS, n=1, cutoff=0.75)
+        if isinstance(value, (dict, list)) or close:
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (tables: {', '.join(RESERVED_KEYS[2:])})"
+            raise DataError(f"unknown key {key!r}{hint}", source=toml, column=key)
+
+
+def _flight(entry: dict, where: str) -> str | None:
+    """A maneuver's optional ``flight``: a non-empty string naming the flight it was flown on."""
+    if "flight" not in entry:
+        return None
+    value = entry["flight"]
+    if not isinstance(value, str) or not value.strip() or not value.isprintable():
+        hint = f' (quote it: flight = "{value}")' if _number(value) else ""
+        raise DataError(f"maneuver {entry['id']!r}: flight must be a non-empty string of printable characters "
+                        f"naming the flight it was flown on, not {value!r}{hint}", source=where, column="flight")
+    return value
+
+
+def _number(v) -> bool:
+    """A finite int or float (TOML integers are unbounded: one beyond float range is not finite)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
+
+
+def _parse_aircraft(aircraft: dict, toml: str) -> dict:
+    """The [aircraft] table: S, cbar, b required; the optional data of docs/interfaces.md 5.1 checked."""
+    out: dict = {}
+    for key in AIRCRAFT_KEYS:
+        if not _number(aircraft.get(key)) or aircraft[key] <= 0:
+            raise DataError(f"[aircraft] needs a positive finite number {key}", source=toml, column=key)
+        out[key] = float(aircraft[key])
+    known = AIRCRAFT_KEYS + OPTIONAL_POSITIVE + OPTIONAL_SIGNED + tuple(OPTIONAL_VECTORS)
+    for key, value in aircraft.items():
+        if key not in known:
+            raise DataError(f"[aircraft] has an unknown key {key!r}; known keys: {', '.join(known)}",
+                            source=toml, column=key)
+        if key in OPTIONAL_POSITIVE and not (_number(value) and value > 0):
+            raise DataError(f"[aircraft] {key} must be a positive finite number, not {value!r}", source=toml,
+                            column=key)
+        if key in OPTIONAL_SIGNED and not _number(value):
+            raise DataError(f"[aircraft] {key} must be a finite number, not {value!r}", source=toml, column=key)
+        if key in OPTIONAL_VECTORS:
+            n = OPTIONAL_VECTORS[key]
+            if not (isinstance(value, list) and len(value) == n and all(_number(v) for v in value)):
+                raise DataError(f"[aircraft] {key} must be a list of {n} finite numbers, not {value!r}",
+                                source=toml, column=key)
+            if key == "x_cg_range" and not value[0] < value[1]:
+                raise DataError(f"[aircraft] x_cg_range must be [forward, aft] with forward < aft, not {value!r}",
+                                source=toml, column=key)
+            out[key] = tuple(float(v) for v in value)
+        elif key not in AIRCRAFT_KEYS:
+            out[key] = float(value)
+    return out
+
+
+def _row_message(columns: Mapping[str, np.ndarray], row: int) -> str:
+    lines = columns.get(LINE_KEY)
+    return f" (line {int(lines[row])})" if lines is not None and row < len(lines) else ""
+
+
+def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=REQUIRED, angles=ANGLES, *,
+                      cbar: float | None = None, rule: records.LengthRule | None = None) -> None:
+    """One clear error for the first problem found in a maneuver's columns (``required`` and ``angles``: those
+    of the standard format, or RAW_REQUIRED and RAW_ANGLES for a raw campaign). With the aircraft's ``cbar``, a
+    maneuver shorter than ``rule`` (default: :class:`structsearch.data.records.LengthRule`) in convective times
+    cbar/V is an error too."""
+    source = str(path)
+    names = [c for c in columns if c != LINE_KEY]
+    for col in required:
+        if col not in columns:
+            close = [c for c in names if c.lower() == col.lower()]
+            spaced = [c for c in names if c.strip() == col]
+            hint = (f" (found {close[0]!r}: column names are case-sensitive)" if close else
+                    f" (found {spaced[0]!r}: remove the spaces around the column name)" if spaced else "")
+            raise DataError(f"required column is missing{hint}", source=source, column=col)
+    n = len(columns["t"])
+    if n < MIN_SAMPLES:
+        raise DataError(f"maneuver has {n} samples; it needs at least {MIN_SAMPLES} to fit separation dynamics",
+                        source=source, column="t")
+    for col in names:
+        values = columns[col]
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise DataError("value is NaN or infinite" + _row_message(columns, int(bad[0])), source=source,
+                            column=col, row=int(bad[0]))
+    t = columns["t"]
+    step = np.diff(t)
+    bad = np.flatnonzero(step <= 0)
+    if bad.size:
+        raise DataError("time is not strictly increasing" + _row_message(columns, int(bad[0]) + 1),
+                        source=source, column="t", row=int(bad[0]) + 1)
+    slow = np.flatnonzero(columns["V"] <= 0)
+    if slow.size:
+        raise DataError(f"airspeed {columns['V'][slow[0]]:g} m/s is not positive"
+                        + _row_message(columns, int(slow[0])), source=source, column="V", row=int(slow[0]))
+    why = None if cbar is None else (rule or records.LengthRule()).problem(t, columns["V"], cbar)
+    if why is not None:
+        raise DataError(f"maneuver is too short to fit separation dynamics: {why}", source=source, column="t")
+    for col in angles:
+        if col in columns:
+            big = np.flatnonzero(np.abs(columns[col]) > MAX_ANGLE_RAD)
+            if big.size:
+                raise DataError(f"value {columns[col][big[0]]:g} looks like degrees; angles must be in "
+                                f"radians" + _row_message(columns, int(big[0])), source=source, column=col,
+                                row=int(big[0]))
+    _check_rates(columns, source)
+
+
+# Body rates beyond a full turn per second are not flown by a fixed-wing aircraft: degrees per second.
+MAX_RATE_RAD_S = 2 * math.pi
+RATES = ("q", "p", "r")
+
+
+def _check_rates(columns: Mapping[str, np.ndarray], source: str) -> None:
+    """Rates in rad/s. A rate above a turn per second is refused; so is a pitch rate that follows the pitch
+    attitude's (else the angle of attack's) derivative 57 times over, which is q in degrees per second even
+    when its values are small (a gentle stall at 5 deg/s)."""
+    for col in RATES:
+        if col in columns:
+            big = np.flatnonzero(np.abs(columns[col]) > MAX_RATE_RAD_S)
+            if big.size:
+                raise DataError(f"value {columns[col][big[0]]:g} looks like degrees per second; rates must be in "
+                                "rad/s" + _row_message(columns, int(big[0])), source=source, column=col,
+                                row=int(big[0]))
+    reference = next((c for c in ("theta", "alpha") if c in columns), None)
+    if "q" not in columns or reference is None or len(columns["t"]) < 3:
+        return
+    rate = np.gradient(columns[reference], columns["t"])
+    q = columns["q"]
+    if not (np.all(np.isfinite(rate)) and np.any(rate) and np.any(q)):
+        return
+    slope = float(q @ rate / (rate @ rate))
+    correlation = float(np.corrcoef(q, rate)[0, 1])
+    # rad/s: slope about 1 (q = theta_dot in wings-level flight); deg/s: 57.3. Between 20 and 150 with a clear
+    # correlation is a unit, not aerodynamics.
+    if correlation > 0.5 and 20.0 < slope < 150.0:
+        raise DataError(f"q is {slope:.0f} times d({reference})/dt: it looks like degrees per second; rates must be "
+                        "in rad/s", source=source, column="q")
+
+
+def _parse_cutoffs(table, toml: str) -> dict[str, float]:
+    """``[cutoffs]``: pre-filter cut-offs [Hz] by channel that override the defaults (docs/interfaces.md 5.2)."""
+    if not isinstance(table, dict):
+        raise DataError("[cutoffs] must be a table of channel = frequency in Hz", source=toml, column="cutoffs")
+    for key, value in table.items():
+        if not (_number(value) and value > 0):
+            raise DataError(f"[cutoffs] {key} must be a positive frequency in Hz, not {value!r}", source=toml,
+                            column=key)
+    return {k: float(v) for k, v in table.items()}

@@ -1,0 +1,86 @@
+"""``discover``'s run: a structure search over moves (:mod:`.explore`) from a minimal or named structure, with
+the floor and the gap each move closes judged by the diagnosis the caller injects (``diagnose_search``: the
+layer above, :func:`structsearch.diagnosis.diagnose.diagnose_search`), compared with the grid's rank-1
+candidate and the thesis' final model (:func:`.discovered.build_discovery`)."""
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Any, Callable
+
+from ..data.errors import DeclarationError
+from ..fitting.fitter import Fitter
+from .discovered import GRIDS, Discovery, build_discovery
+from .explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, Exploration
+
+# A diagnosis of a structure search: (fitter, start, **settings) -> (its Diagnosis, the Exploration it ran)
+DiagnoseSearch = Callable[..., tuple[Any, Exploration]]
+
+def minimal(coefficient: str, lift: str | None):
+    """The minimal structure: the intercept alone (a drag or pitch one fed the lift model ``lift``)."""
+    from ..fitting.candidates import Candidate
+    from ..fitting.specs import load_grid
+    if coefficient == "CL":
+        return Candidate("CL-minimal", "discover", "CL", (("CL0", "1"),), note="the intercept alone")
+    lift_c = load_grid("lift")[lift]
+    return Candidate(f"{coefficient}-minimal", "discover", coefficient, ((f"{coefficient}0", "1"),), lift_c.states,
+                     lift, "the intercept alone", lift_c.bounds)
+
+
+def _start(coefficient: str, start: str, lift_names: list[str]):
+    from ..fitting.specs import resolve_candidate
+    if start == "minimal":
+        return minimal(coefficient, lift_names[0] if coefficient != "CL" else None)
+    c = resolve_candidate(start)
+    if c.coefficient != coefficient:
+        raise DeclarationError(f"--from {start}: {c.name} models {c.coefficient}, not {coefficient}")
+    return dataclasses.replace(c, grid="discover")
+
+
+
+def discover_structures(fitter: Fitter, coefficient: str, diagnose_search: DiagnoseSearch, *,
+                        start: str = "minimal", lifts=(), terms=None, beam: int | None = None,
+                        max_steps: int | None = None) -> Discovery:
+    """Search structures for ``coefficient`` from ``start`` ("minimal", a candidate name or a spec file) with
+    ``fitter``; drag and pitch structures may be fed ``lifts`` (names of the lift grid; default the thesis' CL-VI)
+    and the start's own lift model. Returns the typed :class:`Discovery` (nothing written)."""
+    from ..fitting.options import check_box_names
+    from ..fitting.specs import load_grid
+    from ..flight.reference import FINAL_MODEL_NAMES
+    if coefficient not in GRIDS:
+        raise DeclarationError(f"--coefficient {coefficient}: one of {', '.join(GRIDS)}")
+    lift_grid = load_grid("lift")
+    names = list(dict.fromkeys(list(lifts) or [FINAL_MODEL_NAMES["CL"]]))
+    for n in names:
+        lift_grid[n]   # an unknown lift model: the grid's error names the candidates it has
+    first = _start(coefficient, start, names)
+    if first.lift and first.lift not in names:
+        names.insert(0, first.lift)
+    check_box_names(fitter.options.parameter_boxes, [first])
+    if terms is not None:   # a bad term file is an error before any lift model is fitted
+        from .terms import read_terms
+        read_terms(terms, coefficient)
+    t0 = time.perf_counter()
+    fitter = dataclasses.replace(fitter, lifts=_lift_models(fitter, first, [lift_grid[n] for n in names]))
+    diagnosis, exploration = diagnose_search(fitter, first, max_rounds=max_steps or DEFAULT_MAX_STEPS,
+                                             seed=fitter.options.seed, states=False,
+                                             terms=None if terms is None else str(terms),
+                                             beam=beam or DEFAULT_BEAM, simplify=True)
+    return build_discovery(fitter, diagnosis, exploration, time.perf_counter() - t0)
+
+
+def _lift_models(fitter: Fitter, first, candidates) -> dict:
+    """The lift models a drag or pitch structure may be fed, fitted (none for a lift structure)."""
+    from ..fitting.candidate_fit import fit_staged
+    from ..fitting.lift_fit import LiftFit
+    if first.coefficient == "CL":
+        return {}
+    train, val = fitter.splits()
+    lifts = {}
+    for c in candidates:
+        fitter.say(f"fitting the lift model {c.name}")
+        result = fit_staged(c, train, val, None, fitter.options)
+        if result.failed:
+            raise DeclarationError(f"fitting the lift model {c.name} failed: {result.error}")
+        lifts[c.name] = LiftFit(c, result)
+    return lifts
