@@ -25,5 +25,5 @@ print(f"best drag structure: {ranking.best('drag').name}")
 
 # `structsearch diagnose --model CD-I`: where Van Ingen's drag model misses the data, and which effect closes it
 diagnosis = ss.diagnose(campaign, "CD-I", settings=ss.Settings(starts=1, jobs=2))
-doc = diagnosis.to_dict() if hasattr(diagnosis, "to_dict") else diagnosis
+doc = diagnosis.to_dict()
 print(f"{doc['baseline']}: final model {doc['final_model']}, explained: {'yes' if doc['explained'] else 'no'}")

@@ -123,3 +123,72 @@ def fitter_for(campaign, cache_dir, options=None, n_jobs: int = 1, lifts=None, p
     from structsearch.fitting.options import FitOptions
     config = RunConfig(campaign, cache_dir, options or FitOptions(), n_jobs, "loky", progress)
     return Fitter(config, dict(lifts or {}))
+
+
+# ----- results built from stated statistics (the tests' factory; a fit makes them otherwise) -----------------
+STATED_KEYWORDS = ("names", "nonlinear_names", "params", "stderr", "p_values", "at_bound", "high_correlations",
+                   "correlation", "significance", "reference_dof", "max_lag", "not_identifiable", "condition_number")
+
+
+def stated_result(*args, **fields):
+    """A CandidateResult whose estimates are the statistics given (``names``, ``params``, ``stderr``, ...;
+    :data:`STATED_KEYWORDS`), amending ``estimates`` when one is given (``params=None``: no fit)."""
+    from structsearch.fitting.candidate_result import CandidateResult
+    stated = {k: fields.pop(k) for k in STATED_KEYWORDS if k in fields}
+    if stated:
+        fields["estimates"] = (None if "params" in stated and stated["params"] is None
+                               else _restated(fields.get("estimates"), stated, fields.get("train")))
+    return CandidateResult(*args, **fields)
+
+
+def _restated(base, stated: dict, train):
+    """``base`` (or, without one, estimates of the stated parameters alone) with the ``stated`` statistics.
+    Without a fit to derive them from, a covariance is rebuilt from stated correlations and standard
+    deviations (NaN where either is missing) and the box is unknown (NaN)."""
+    old = base.params if base is not None else {}
+    params = stated.get("params", old) or {}
+    names = tuple(stated.get("names", base.names if base is not None else tuple(params)))
+    nonlinear = tuple(stated.get("nonlinear_names", base.nonlinear_names if base is not None else ()))
+    linear = tuple(n for n in names if n not in nonlinear)
+    ordered = nonlinear + linear
+    p = len(ordered)
+    same = base is not None and base.names == ordered
+    carried = dict(base.stated) if same else {}
+    carried.update({k: v for k, v in stated.items() if k in ("stderr", "p_values", "at_bound", "high_correlations",
+                                                             "correlation", "not_identifiable", "reference_dof")})
+    if base is None:  # a result built by hand names what it cannot identify (nothing, unless it says so)
+        carried.setdefault("not_identifiable", {})
+    if "high_correlations" in carried:
+        carried["high_correlations"] = [tuple(pair) for pair in carried["high_correlations"]]
+    if same and not ({"stderr", "correlation"} & set(stated)):
+        covariance = base.covariance
+    else:
+        sd = np.array([(carried.get("stderr") or (base.stderr if same else {})).get(n, np.nan) for n in ordered],
+                      float)
+        corr = (np.asarray(carried["correlation"], float).reshape(p, p) if len(carried.get("correlation", ())) else
+                base.correlation if same else np.where(np.eye(p, dtype=bool), 1.0, np.nan))
+        covariance = corr * np.outer(sd, sd)
+    box = (base.lower, base.upper) if base is not None and base.nonlinear_names == nonlinear else \
+        (np.full(len(nonlinear), np.nan), np.full(len(nonlinear), np.nan))
+    from structsearch.engine.estimates import ParameterEstimates
+    return ParameterEstimates(
+        nonlinear_names=nonlinear, linear_names=linear,
+        values=np.array([params.get(n, np.nan) for n in ordered], float), lower=box[0], upper=box[1],
+        covariance=covariance, covariance_kind=base.covariance_kind if base is not None else "white",
+        n_samples=(base.n_samples if base is not None else int(sum(train.n_maneuvers)) if train is not None else 0),
+        n_maneuvers=(base.n_maneuvers if base is not None else len(train.n_maneuvers) if train is not None else 0),
+        white_covariance=base.white_covariance if same else None,
+        max_lag=stated.get("max_lag", base.max_lag if base is not None else None),
+        bandwidth=base.bandwidth if base is not None else None,
+        effective_maneuvers=base.effective_maneuvers if same else None,
+        significance=stated.get("significance", base.significance if base is not None else 0.05),
+        unidentifiable=dict(base.unidentifiable) if same else {},
+        condition_number=_nan(stated.get("condition_number",
+                                                 base.condition_number if base is not None else None)),
+        generated_regressors=base.generated_regressors if base is not None else None, stated=carried,
+        units=dict(base.units) if base is not None else {},
+        n_flights=base.n_flights if base is not None else None)
+
+
+def _nan(v) -> float:
+    return float("nan") if v is None else float(v)

@@ -2,6 +2,7 @@
 fit, and the ranking that puts admissible candidates first."""
 import numpy as np
 import pytest
+from conftest import stated_result
 
 from structsearch.data.flightdata import FlightData
 from structsearch.flight.synthetic import campaign
@@ -27,7 +28,7 @@ def result(candidate=LIFT, mse=(1.0, 2.0, 3.0), **changes):
                   correlation=tuple(tuple(float(i == j) for j in range(len(names))) for i in range(len(names))),
                   converged=True, not_identifiable={}, message="ok", train=scores, validation=scores)
     fields.update(changes)
-    return CandidateResult(candidate.name, "g", candidate.coefficient, None, 0.0, **fields)
+    return stated_result(candidate.name, "g", candidate.coefficient, None, 0.0, **fields)
 
 
 def test_a_clean_result_is_admissible():
@@ -104,8 +105,8 @@ def test_centred_correlation_removes_the_datum_of_x_cg():
 
 def test_ranking_puts_admissible_candidates_first_and_names_the_passed_over():
     better = result(mse=(0.9, 1.8, 2.7), p_values={"tau1": 0.3})
-    better = CandidateResult(**{**better.__dict__, "name": "better"})
-    ok = CandidateResult(**{**result().__dict__, "name": "ok"})
+    better = stated_result(**{**better.__dict__, "name": "better"})
+    ok = stated_result(**{**result().__dict__, "name": "ok"})
     broken = CandidateResult.failure(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
     ranked = rank([better, ok, broken], lambda s: reasons(s, LIFT, RULES))
     assert [r.name for r in ranked] == ["ok", "better", "broken"]
@@ -126,7 +127,7 @@ def _fitted(candidate, p_values, corr=None, mse=(1.0, 2.0, 3.0)):
     base = result(candidate, mse=mse)
     names = base.names
     corr = np.eye(len(names)) if corr is None else corr
-    return CandidateResult(**{**base.__dict__, "name": candidate.name,
+    return stated_result(**{**base.__dict__, "name": candidate.name,
                               "p_values": {n: p_values.get(n, 1e-6) for n in names},
                               "correlation": tuple(map(tuple, corr))})
 
@@ -168,7 +169,26 @@ def test_refinement_drops_a_state_with_its_last_regressor():
     def fit(c):
         fitted.append(c)
         base = result(c)
-        return CandidateResult(**{**base.__dict__, "name": c.name})
+        return stated_result(**{**base.__dict__, "name": c.name})
     done = refine(DRAG, start, fit)
     ((step, _),) = done.steps[:1]
     assert step.states == () and "CD_1mX" not in dict(step.regressors) and "state(s) X" in step.note
+
+
+def test_every_kind_of_reason_is_told_from_its_words():
+    """The rules about kinds of reasons (hard ones reject a move, fixable ones start a refinement) read the kind
+    from the words ``reasons`` writes; a reason of another judge has no kind."""
+    from structsearch.grid_search.admissibility import FIXABLE_REASONS, HARD_REASONS, Reason
+    words = {"fit failed: singular": Reason.FIT_FAILED,
+             "optimizer did not converge (max nfev)": Reason.NOT_CONVERGED,
+             "not identifiable: tau1, tau2": Reason.NOT_IDENTIFIABLE,
+             "tau2_ss at its upper bound": Reason.AT_BOUND,
+             "t-test accepts 0 at 5%: CL_q": Reason.INSIGNIFICANT,
+             "|rho(CL0, CL_alpha)| = 0.972 > 0.95": Reason.CORRELATED,
+             "a_star = 31.0 deg outside the alpha range flown (-2.0 to 20.0 deg)": Reason.ALPHA_STAR_OUTSIDE,
+             "lift-curve term CL_alpha = -0.3 is not positive": Reason.NOT_POSITIVE,
+             "centre of pressure at 0.412 m is not aft of the cg at 0.300 m": Reason.CENTRE_OF_PRESSURE}
+    assert {Reason.of(w) for w in words} == set(Reason)
+    assert all(Reason.of(w) is kind for w, kind in words.items())
+    assert Reason.of("a judge's own words") is None
+    assert not HARD_REASONS & FIXABLE_REASONS

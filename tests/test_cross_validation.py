@@ -10,7 +10,7 @@ from structsearch.grid_search.ranking import rank
 from structsearch.fitting.cross_validation import cross_validate, maneuver_folds
 from structsearch.flight.reference import FINAL_LIFT
 
-from conftest import central_difference
+from conftest import central_difference, stated_result
 
 
 def test_folds_group_maneuvers_round_robin_and_refuse_tiny_folds():
@@ -49,7 +49,7 @@ def test_held_out_residuals_come_from_fits_that_did_not_see_the_maneuver():
 def _candidate(name, n, cv, validation):
     def scores(per):
         return SplitScores(float(np.mean(per)), tuple(per), (100,) * len(per), R2Summary(0.9, 0.8, 1.0))
-    return CandidateResult(name, "g", "CL", None, 0.0, names=tuple(f"p{i}" for i in range(n)),
+    return stated_result(name, "g", "CL", None, 0.0, names=tuple(f"p{i}" for i in range(n)),
                            train=scores(cv or validation), validation=scores(validation),
                            cv=scores(cv) if cv is not None else None, cv_folds=3 if cv is not None else 0)
 
@@ -177,15 +177,16 @@ def test_one_step_folds_keep_a_parameter_on_its_bound_where_the_fit_left_it(lift
 def test_candidates_of_different_cross_validation_methods_are_not_compared_by_it():
     import dataclasses
     nonlinear = dict(nonlinear_names=("p0",))
-    a = dataclasses.replace(_candidate("a", 3, [1.0, 2.0, 3.0], [1.3, 2.6, 3.9]), **nonlinear)
-    b = dataclasses.replace(_candidate("b", 3, [1.2, 2.4, 3.6], [1.0, 2.0, 3.0]), cv_method="one-step", **nonlinear)
+    a = stated_result(**{**_candidate("a", 3, [1.0, 2.0, 3.0], [1.3, 2.6, 3.9]).__dict__, **nonlinear})
+    b = stated_result(**{**_candidate("b", 3, [1.2, 2.4, 3.6], [1.0, 2.0, 3.0]).__dict__, "cv_method": "one-step",
+                         **nonlinear})
     assert [r.name for r in rank([a, b])] == ["b", "a"]  # by validation: b is better there
     b_refit = dataclasses.replace(b, cv_method="refit")
     assert [r.name for r in rank([a, b_refit])] == ["a", "b"]  # same method: by the CV
     back = CandidateResult.from_json(b.to_json())
     assert back.cv_method == "one-step"
     # a linear candidate's folds are exact fits whatever the method: it is compared by the CV with either
-    linear = dataclasses.replace(b, nonlinear_names=())
+    linear = stated_result(**{**b.__dict__, "nonlinear_names": ()})
     assert [r.name for r in rank([a, linear])] == ["a", "b"]
 
 

@@ -3,7 +3,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import fitter_for
+from conftest import fitter_for, stated_result
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -308,7 +308,7 @@ def _scores(per, counts=None):
 
 
 def _result(name, validation, cv=None, n=3):
-    return CandidateResult(name, "g", "CD", None, 0.0, names=tuple(f"p{i}" for i in range(n)),
+    return stated_result(name, "g", "CD", None, 0.0, names=tuple(f"p{i}" for i in range(n)),
                            train=_scores(validation if cv is None else cv), validation=_scores(validation),
                            cv=_scores(cv) if cv is not None else None, cv_folds=3 if cv is not None else 0)
 

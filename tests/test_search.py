@@ -18,7 +18,7 @@ from structsearch.grid_search.pipeline import search
 from structsearch.fitting.specs import load_grid
 from structsearch.fitting.candidates import roman
 
-from conftest import run_cli, fitter_for
+from conftest import run_cli, fitter_for, stated_result
 
 # Catalogue section 5, written out independently of model_specs/pitch.toml.
 BLOCK_REGRESSORS = {
@@ -97,7 +97,7 @@ def test_separation_and_lift_grids():
 def test_ranking_rule_prefers_the_smaller_model_within_noise():
     def summary(name, n, per):
         scores = SplitScores(float(np.mean(per)), tuple(per), (100,) * len(per), R2Summary(0.9, 0.8, 1.0))
-        return CandidateResult(name, "g", "CL", None, 0.0, names=tuple(f"p{i}" for i in range(n)),
+        return stated_result(name, "g", "CL", None, 0.0, names=tuple(f"p{i}" for i in range(n)),
                                train=scores, validation=scores)
     broken = CandidateResult.failure(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
     ranked = rank([summary("big", 9, [1.0, 2.0, 3.0]), summary("small", 6, [1.001, 2.002, 2.999]),
@@ -114,7 +114,7 @@ def test_a_rejected_candidate_is_measured_against_the_winner_not_the_best_reject
 
     def summary(name, per):
         scores = SplitScores(float(np.mean(per)), tuple(per), (100,) * len(per), R2Summary(0.9, 0.8, 1.0))
-        return CandidateResult(name, "g", "CL", None, 0.0, names=("p0", "p1"), train=scores, validation=scores)
+        return stated_result(name, "g", "CL", None, 0.0, names=("p0", "p1"), train=scores, validation=scores)
     ranked = rank([summary("winner", [1.0, 2.0, 3.0]), summary("rejected best", [1.25, 2.5, 3.75]),
                    summary("rejected worse", [1.5, 3.0, 4.5])],
                   lambda s: () if s.name == "winner" else ("not admissible",))

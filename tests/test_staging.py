@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import stated_result
 
 from structsearch.fitting.candidate_result import CandidateResult, R2Summary, SplitScores
 from structsearch.fitting.candidates import Candidate
@@ -40,7 +41,7 @@ def test_regressors_order_candidates_with_the_same_parameters():
 
 def _result(c: Candidate, params: dict, mse: float) -> CandidateResult:
     scores = SplitScores(mse, (mse,), (100,), R2Summary(0.9, 0.9, 0.9))
-    return CandidateResult(c.name, c.grid, c.coefficient, None, 0.0, names=tuple(params), params=dict(params),
+    return stated_result(c.name, c.grid, c.coefficient, None, 0.0, names=tuple(params), params=dict(params),
                            train=scores, validation=scores)
 
 
@@ -224,7 +225,7 @@ def test_a_candidate_that_is_an_earlier_grids_model_is_served_its_fit(tiny, tmp_
     assert not any("the same model" in m for m in said)
     boxed = dataclasses.replace(cl_vi, bounds=(("tau1_ss", (0.0, 1.0)),))
     assert same_model_fitted([cl_vi, boxed], [(us, first)]).keys() == {0}
-    failed = dataclasses.replace(first, error="FitError: x", params=None)
+    failed = dataclasses.replace(first, error="FitError: x", estimates=None)
     assert same_model_fitted([cl_vi], [(us, failed)]) == {}
 
 

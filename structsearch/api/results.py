@@ -32,18 +32,8 @@ class FitOutcome:
         return doc
 
     def summary(self) -> Any:
-        """The fit's summary (the result's own ``summary()``: text when printed, HTML in a notebook); a plain
-        parameter table where the result has none."""
-        if hasattr(self.result, "summary"):
-            return self.result.summary()
-        from ..reporting.tables import parameter_table
-        return f"{self.result.name}\n" + parameter_table(self.result, "text")
-
-    def __getattr__(self, name: str):
-        # params, stderr, mse_train, ...: the fit's own attributes, so that ``fit(...).params`` reads naturally
-        if name.startswith("__") or name in ("candidate", "result", "lift", "bands", "profile"):
-            raise AttributeError(name)
-        return getattr(self.result, name)
+        """The fit's summary (text when printed, HTML in a notebook)."""
+        return self.result.summary()
 
 
 @dataclass(frozen=True)
@@ -109,10 +99,7 @@ class StudyOutcome:
     written: list[Path]
 
     def to_dict(self) -> dict:
-        s = self.study
-        if hasattr(s, "to_dict"):
-            return s.to_dict()
-        return {"written": [str(p) for p in self.written]}
+        return self.study.to_dict()
 
 
 @dataclass(frozen=True)

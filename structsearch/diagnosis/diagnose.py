@@ -36,7 +36,7 @@ from . import floor as fl
 from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
 from ..discovery.adoption import DEFAULT_ALPHA, TEST_NAME
-from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, explore
+from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, Status, explore
 from ..discovery.moves import MOVE_KINDS, structure_key
 from ..discovery.search_start import start_search
 from ..fitting.comparison import MIN_MANEUVERS, relative_excess, within_noise as one_se_rule
@@ -146,7 +146,7 @@ def _flexible(fit: Fitted, model: Candidate, lift, train: FlightData, val: Fligh
     return flex, sig_train, sig_val, x_val
 
 
-VERDICT_ORDER = ("improves", "simplifies", "repairs", "look-ahead", "rejected", "failed")
+VERDICT_ORDER = (Status.IMPROVES, Status.SIMPLIFIES, Status.REPAIRS, Status.LOOK_AHEAD, Status.REJECTED, Status.FAILED)
 
 
 def _row_key(n):

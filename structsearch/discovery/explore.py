@@ -39,12 +39,16 @@ from ..engine.ties import is_tie, sort_by
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.fitter import Fitter
-from .adoption import DEFAULT_ALPHA, MoveTest, move_test
+from ..grid_search.admissibility import HARD_REASONS, Reason
+from .adoption import DEFAULT_ALPHA, move_test
 from .moves import MOVE_KINDS, Move, generate, structure_key
+from .search_nodes import Exploration, Node, Status, Step
 from .terms import TermLibrary
 
-STATUSES = ("start", "improves", "simplifies", "repairs", "look-ahead", "rejected", "failed")
-CONFIRMED = ("start", "improves", "simplifies", "repairs")
+
+
+STATUSES = tuple(Status)
+CONFIRMED = (Status.START, Status.IMPROVES, Status.SIMPLIFIES, Status.REPAIRS)
 # the moves that may repair admissibility: they remove or simplify, never add
 REPAIR_KINDS = ("drop", "replace", "state kind", "remove state")
 DEFAULT_BEAM = 3
@@ -55,93 +59,21 @@ SIMPLIFY_SHORTLIST = 4
 Judge = Callable[[CandidateResult, Candidate], Sequence[str]]
 
 
-@dataclass(frozen=True, eq=False)
-class Node:
-    """A structure the search fitted: how it was reached (``move`` from ``parent``), its test against the
-    structure it is compared with (``anchor``: its parent, or the parent's parent after a look-ahead) and its
-    verdict (``status``)."""
-
-    candidate: Candidate
-    result: CandidateResult
-    move: Move | None = None
-    parent: "Node | None" = field(default=None, repr=False)
-    anchor: "Node | None" = field(default=None, repr=False)
-    test: MoveTest | None = None
-    status: str = "start"
-    reasons: tuple[str, ...] = ()
-    step: int = 0
-    screened: bool = False        # fitted for its scores only (no statistics: not judged for admissibility)
-
-    @property
-    def admissible(self) -> bool:
-        return not self.reasons and not self.result.failed
-
-    @property
-    def mse(self) -> float:
-        """The held-out MSE the search compares: cross-validation, else validation."""
-        r = self.result
-        if r.failed:
-            return float("inf")
-        return r.cv.mse if r.cv is not None else r.validation.mse
-
-    @property
-    def n_params(self) -> int:
-        return len(self.result.params) if not self.result.failed else 0
-
-    def path(self) -> list["Node"]:
-        """The nodes from the start to this one (the start first)."""
-        out, node = [], self
-        while node is not None:
-            out.append(node)
-            node = node.parent
-        return out[::-1]
-
-
-@dataclass(frozen=True)
-class Step:
-    index: int
-    expanded: tuple[str, ...]     # the structures whose moves were tried
-    tried: tuple[Node, ...]       # every child fitted in this step, with its verdict
-    beam: tuple[Node, ...]        # what the next step expands
-    seconds: float
-
-
-@dataclass(frozen=True)
-class Exploration:
-    start: Node
-    final: Node
-    steps: tuple[Step, ...]
-    stopped: str                  # why the search ended
-    n_fitted: int
-    seconds: float
-
-    @property
-    def path(self) -> list[Node]:
-        """The adopted moves, in order (the start excluded)."""
-        return self.final.path()[1:]
-
-    def tried_from(self, node: Node) -> list[Node]:
-        """Every child fitted from ``node`` (look-aheads' children from their own parent)."""
-        return [n for s in self.steps for n in s.tried if n.parent is node]
-
-
 def donors(nodes: Sequence[Node]) -> list[tuple[Candidate, CandidateResult]]:
     """The fitted structures of ``nodes`` as warm-start donors of a fitter."""
     return [(n.candidate, n.result) for n in nodes]
 
 
-HARD_REASONS = ("not identifiable", "optimizer did not converge", "fit failed")
-
-
-def _hard(n: Node) -> set[str]:
-    return {h for h in HARD_REASONS for r in n.reasons if r.startswith(h)}
+def _hard(n: Node) -> set[Reason]:
+    """The kinds of hard reasons against ``n`` (:data:`~structsearch.grid_search.admissibility.HARD_REASONS`)."""
+    return {kind for kind in map(Reason.of, n.reasons) if kind in HARD_REASONS}
 
 
 def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool = True) -> Node:
     """The child's status against its anchor; a screened child (``judged`` False: no statistics yet) passes
     every condition on the reasons against it, which its full fit then decides."""
     if child.result.failed:
-        return dataclasses.replace(child, status="failed", anchor=anchor)
+        return dataclasses.replace(child, status=Status.FAILED, anchor=anchor)
     # a move from the anchor itself that only adds parameters is nested: its Wald test decides (fitted in full),
     # unless it adds a separation state: with the state's K term at zero its a1 and a_star are not identified
     # (Davies' problem), the chi-square reference of the Wald test does not hold and it over-rejects (a third
@@ -152,21 +84,21 @@ def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool
     test = move_test(anchor.result, child.result, alpha, n_moves, nested, statistics=judged)
     if judged and _hard(child) - _hard(anchor):
         # a structure the data cannot identify, or a fit that did not converge, is never adopted
-        return dataclasses.replace(child, status="rejected", anchor=anchor, test=test)
+        return dataclasses.replace(child, status=Status.REJECTED, anchor=anchor, test=test)
     fewer_reasons = not judged or len(child.reasons) <= len(anchor.reasons)
     strictly_fewer = not judged or len(child.reasons) < len(anchor.reasons)
     # screened (no statistics yet): a nested move that gains out of sample goes on to its full fit
     passes = test.improves or (not judged and nested and test.pooled_gain > 0)
     if passes and _lower(child.result.validation.mse, anchor.result.validation.mse):
-        status = "improves"
+        status = Status.IMPROVES
     elif child.parent is anchor and test.within_one_se and (
             (child.n_params < anchor.n_params and fewer_reasons) or
             (child.n_params <= anchor.n_params and strictly_fewer)):
-        status = "simplifies"   # fewer parameters, or as many and fewer reasons against it: not worse
+        status = Status.SIMPLIFIES   # fewer parameters, or as many and fewer reasons against it: not worse
     elif child.parent is anchor and (_lower(child.mse, anchor.mse) or test.within_one_se or child.move.kind == "lift"):
-        status = "look-ahead"   # a possible first of two moves (a lift model: the terms may need to follow)
+        status = Status.LOOK_AHEAD   # a possible first of two moves (a lift model: the terms may need to follow)
     else:
-        status = "rejected"
+        status = Status.REJECTED
     return dataclasses.replace(child, status=status, anchor=anchor, test=test)
 
 
@@ -205,8 +137,8 @@ def _nested_first(improved: list[Node], tried: list[Node], alpha: float) -> list
     def near_best(n):
         return n is best or move_test(best.result, n.result, alpha, 1).within_one_se
 
-    peers = [n for n in tried if n.parent is best.parent and n.anchor is best.anchor and n.status != "improves"
-             and n.move.effect and not n.screened and n.status != "failed" and n.test is not None
+    peers = [n for n in tried if n.parent is best.parent and n.anchor is best.anchor and n.status != Status.IMPROVES
+             and n.move.effect and not n.screened and n.status != Status.FAILED and n.test is not None
              and n.test.pooled_gain > 0 and _lower(n.result.validation.mse, n.anchor.result.validation.mse)
              and not (_hard(n) - _hard(n.anchor))]
     near = [n for n in improved if n.parent is best.parent and near_best(n)] + [n for n in peers if near_best(n)]
@@ -214,8 +146,8 @@ def _nested_first(improved: list[Node], tried: list[Node], alpha: float) -> list
     # a move that adds more than the data can tell apart from a smaller one is paid for in later steps
     # (CL from the intercept adopted X*de at two states in place of de alone, then needed three moves to undo it)
     preferred = _by_mse(near, lambda n: (_preference(n), n.n_params, n is not best))[0]
-    if preferred.status != "improves":
-        preferred = dataclasses.replace(preferred, status="improves",
+    if preferred.status != Status.IMPROVES:
+        preferred = dataclasses.replace(preferred, status=Status.IMPROVES,
                                         test=dataclasses.replace(preferred.test, stands_for=best.move.name))
     return [preferred] + [n for n in improved if n is not preferred]
 
@@ -225,9 +157,9 @@ def _shortlist(prelim: list[Node], beam: int) -> list[Node]:
     simplify, and the look-aheads the beam could keep (lift models first)."""
     def pick(status, prefix, n):
         return _by_mse((c for c in prelim if c.status == status), prefix)[:n]
-    chosen = pick("improves", lambda c: (), 2 * beam) + \
-        pick("simplifies", lambda c: (c.n_params,), SIMPLIFY_SHORTLIST) + \
-        pick("look-ahead", lambda c: (c.move.kind != "lift",), beam)
+    chosen = pick(Status.IMPROVES, lambda c: (), 2 * beam) + \
+        pick(Status.SIMPLIFIES, lambda c: (c.n_params,), SIMPLIFY_SHORTLIST) + \
+        pick(Status.LOOK_AHEAD, lambda c: (c.move.kind != "lift",), beam)
     seen, out = set(), []
     for c in chosen:
         if id(c) not in seen:
@@ -329,11 +261,11 @@ def _search_step(run: _Search, current: list[Node], index: int, beam: int, simpl
         n_moves[id(anchor)] = n_moves.get(id(anchor), 0) + n_all
         pending += [(parent, move, child) for move, child in fresh]
     tried = _judged_children(run, current, pending, n_moves, index, beam)
-    improved = _nested_first(_by_mse(n for n in tried if n.status == "improves"), tried, run.alpha)
+    improved = _nested_first(_by_mse(n for n in tried if n.status == Status.IMPROVES), tried, run.alpha)
     if improved:   # the preferred move may stand for the best (its status changed): the record shows it
         tried = [improved[0] if t.candidate is improved[0].candidate else t for t in tried]
-    simpler = _by_mse((n for n in tried if n.status == "simplifies"), lambda n: (len(n.reasons), n.n_params))
-    ahead = _by_mse(n for n in tried if n.status == "look-ahead")
+    simpler = _by_mse((n for n in tried if n.status == Status.SIMPLIFIES), lambda n: (len(n.reasons), n.n_params))
+    ahead = _by_mse(n for n in tried if n.status == Status.LOOK_AHEAD)
     if improved:
         nxt = improved[:beam]
     elif simpler and simplify:
@@ -346,8 +278,8 @@ def _search_step(run: _Search, current: list[Node], index: int, beam: int, simpl
         nxt = []
     # only the chosen look-aheads and simplifications keep that status: the others are rejected for the record
     chosen = {id(n) for n in nxt}
-    tried = [n if n.status not in ("look-ahead", "simplifies") or id(n) in chosen
-             else dataclasses.replace(n, status="rejected") for n in tried]
+    tried = [n if n.status not in (Status.LOOK_AHEAD, Status.SIMPLIFIES) or id(n) in chosen
+             else dataclasses.replace(n, status=Status.REJECTED) for n in tried]
     nxt = [next(t for t in tried if t.candidate is n.candidate) for n in nxt]
     step = Step(index, tuple(n.candidate.name for n in current), tuple(tried), tuple(nxt),
                 time.perf_counter() - t_step)
@@ -375,7 +307,7 @@ def _judged_children(run: _Search, current: list[Node], pending, n_moves: dict[i
     judged = {id(n): _verdict(run.node(n.candidate, r, move=n.move, parent=n.parent, step=index), n.anchor,
                               n_moves[id(n.anchor)], run.alpha)
               for n, r in zip(shortlist, fulls)}
-    return [judged.get(id(n), dataclasses.replace(n, status="rejected" if n.status != "failed" else "failed"))
+    return [judged.get(id(n), dataclasses.replace(n, status=Status.REJECTED if n.status != Status.FAILED else Status.FAILED))
             for n in prelim]
 
 
@@ -409,14 +341,14 @@ def _repair_step(run: _Search, current: Node, index: int) -> tuple[Step, int]:
     tried = []
     for (move, child), result in zip(pending, fulls):
         n = run.node(child, result, move=move, parent=current, step=index)
-        status = "failed" if result.failed else "rejected"
+        status = Status.FAILED if result.failed else Status.REJECTED
         tried.append(dataclasses.replace(n, status=status, anchor=current,
                                          test=move_test(current.result, result, run.alpha, max(len(pending), 1))))
-    fewer = [n for n in tried if n.status != "failed" and not (_hard(n) - _hard(current))
+    fewer = [n for n in tried if n.status != Status.FAILED and not (_hard(n) - _hard(current))
              and len(n.reasons) < len(current.reasons)]
     best = _by_mse(fewer, lambda n: (len(n.reasons), n.n_params))[0] if fewer else None
     if best is not None:
-        kept = dataclasses.replace(best, status="repairs")
+        kept = dataclasses.replace(best, status=Status.REPAIRS)
         tried = [kept if n is best else n for n in tried]
         beam = (kept,)
     else:

@@ -64,12 +64,6 @@ class SplitScores:
                    doc.get("mse_cx"), doc.get("mse_cz"))
 
 
-# Keywords a CandidateResult also accepts (and ``dataclasses.replace`` passes on): the statistics a result
-# built by hand states (a test's, a summary's), which replace those of ``estimates``.
-STATED_KEYWORDS = ("names", "nonlinear_names", "params", "stderr", "p_values", "at_bound", "high_correlations",
-                   "correlation", "significance", "reference_dof", "max_lag", "not_identifiable", "condition_number")
-
-
 def _delegate(name: str, failed: Any = None, convert=None):
     def get(self):
         if self.estimates is None:
@@ -85,7 +79,7 @@ def _rows(matrix) -> tuple[tuple[float, ...], ...]:
     return tuple(tuple(map(float, row)) for row in np.asarray(matrix, float))
 
 
-@dataclass(frozen=True, init=False)
+@dataclass(frozen=True)
 class CandidateResult:
     """One candidate of a grid after fitting (or failing) and, once ranked, its place.
 
@@ -104,7 +98,7 @@ class CandidateResult:
     # --- the fit (None when it failed) ---
     estimates: ParameterEstimates | None = None
     # the correlation with the data columns centred that can be (what admissibility judges; () when none can)
-    centred_correlation: tuple[tuple[float, ...], ...] = ()
+    centred_correlation: tuple[tuple[float, ...], ...] | np.ndarray = ()
     n_starts: int = 0
     n_reached_best: int = 0
     aic: float | None = None
@@ -127,29 +121,10 @@ class CandidateResult:
     gap: float | None = None            # mean per-maneuver relative held-out MSE excess over the best
     gap_se: float | None = None         # its standard error
 
-    def __init__(self, name: str, grid: str, coefficient: str, lift: str | None, seconds: float,
-                 error: str | None = None, estimates: ParameterEstimates | None = None,
-                 centred_correlation=(), n_starts: int = 0, n_reached_best: int = 0, aic: float | None = None,
-                 bic: float | None = None, converged: bool | None = None, message: str = "", nfev: int = 0,
-                 train: SplitScores | None = None, validation: SplitScores | None = None,
-                 cv: SplitScores | None = None, cv_folds: int = 0, cv_method: str = "refit",
-                 cv_scheme: str = "", cv_note: str = "",
-                 admissible: bool | None = None, reasons: tuple[str, ...] = (), rank: int | None = None,
-                 within_noise: bool | None = None, gap: float | None = None, gap_se: float | None = None,
-                 **stated: Any):
-        """The fields above; ``stated`` (names in :data:`STATED_KEYWORDS`) build or amend ``estimates`` from
-        statistics given rather than fitted (``params=None`` means no fit)."""
-        unknown = set(stated) - set(STATED_KEYWORDS)
-        if unknown:
-            raise TypeError(f"CandidateResult() got an unexpected keyword argument {sorted(unknown)[0]!r}")
-        if stated:
-            estimates = (None if "params" in stated and stated["params"] is None
-                         else _restated(estimates, stated, train))
-        values = dict(locals())
-        for f in fields(self):
-            object.__setattr__(self, f.name, values[f.name])
-        object.__setattr__(self, "centred_correlation", _rows(centred_correlation) if len(centred_correlation) else ())
-        object.__setattr__(self, "reasons", tuple(reasons))
+    def __post_init__(self):
+        rows = _rows(self.centred_correlation) if len(self.centred_correlation) else ()
+        object.__setattr__(self, "centred_correlation", rows)
+        object.__setattr__(self, "reasons", tuple(self.reasons))
 
     # ----- construction ---------------------------------------------------------------
     @classmethod
@@ -304,51 +279,3 @@ class CandidateResult:
                 if values.get(key) is None:
                     values[key] = float("nan")
         return cls(**values)
-
-
-def _restated(base: ParameterEstimates | None, stated: dict, train: SplitScores | None) -> ParameterEstimates:
-    """``base`` (or, without one, estimates of the stated parameters alone) with the ``stated`` statistics.
-    Without a fit to derive them from, a covariance is rebuilt from stated correlations and standard
-    deviations (NaN where either is missing) and the box is unknown (NaN)."""
-    old = base.params if base is not None else {}
-    params = stated.get("params", old) or {}
-    names = tuple(stated.get("names", base.names if base is not None else tuple(params)))
-    nonlinear = tuple(stated.get("nonlinear_names", base.nonlinear_names if base is not None else ()))
-    linear = tuple(n for n in names if n not in nonlinear)
-    ordered = nonlinear + linear
-    p = len(ordered)
-    same = base is not None and base.names == ordered
-    carried = dict(base.stated) if same else {}
-    carried.update({k: v for k, v in stated.items() if k in ("stderr", "p_values", "at_bound", "high_correlations",
-                                                             "correlation", "not_identifiable", "reference_dof")})
-    if base is None:  # a result built by hand names what it cannot identify (nothing, unless it says so)
-        carried.setdefault("not_identifiable", {})
-    if "high_correlations" in carried:
-        carried["high_correlations"] = [tuple(pair) for pair in carried["high_correlations"]]
-    if same and not ({"stderr", "correlation"} & set(stated)):
-        covariance = base.covariance
-    else:
-        sd = np.array([(carried.get("stderr") or (base.stderr if same else {})).get(n, np.nan) for n in ordered],
-                      float)
-        corr = (np.asarray(carried["correlation"], float).reshape(p, p) if len(carried.get("correlation", ())) else
-                base.correlation if same else np.where(np.eye(p, dtype=bool), 1.0, np.nan))
-        covariance = corr * np.outer(sd, sd)
-    box = (base.lower, base.upper) if base is not None and base.nonlinear_names == nonlinear else \
-        (np.full(len(nonlinear), np.nan), np.full(len(nonlinear), np.nan))
-    return ParameterEstimates(
-        nonlinear_names=nonlinear, linear_names=linear,
-        values=np.array([params.get(n, np.nan) for n in ordered], float), lower=box[0], upper=box[1],
-        covariance=covariance, covariance_kind=base.covariance_kind if base is not None else "white",
-        n_samples=(base.n_samples if base is not None else int(sum(train.n_maneuvers)) if train is not None else 0),
-        n_maneuvers=(base.n_maneuvers if base is not None else len(train.n_maneuvers) if train is not None else 0),
-        white_covariance=base.white_covariance if same else None,
-        max_lag=stated.get("max_lag", base.max_lag if base is not None else None),
-        bandwidth=base.bandwidth if base is not None else None,
-        effective_maneuvers=base.effective_maneuvers if same else None,
-        significance=stated.get("significance", base.significance if base is not None else 0.05),
-        unidentifiable=dict(base.unidentifiable) if same else {},
-        condition_number=_nan_if_none(stated.get("condition_number",
-                                                 base.condition_number if base is not None else None)),
-        generated_regressors=base.generated_regressors if base is not None else None, stated=carried,
-        units=dict(base.units) if base is not None else {},
-        n_flights=base.n_flights if base is not None else None)

@@ -15,6 +15,9 @@ what the data can separate; the thesis' C_m,K0 / C_m,cg pair (-1.00 in its Table
 """
 from __future__ import annotations
 
+import re
+from enum import StrEnum
+
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -37,6 +40,40 @@ class AdmissibilityRules:
     alpha_range: tuple[float, float] | None = None   # flown in the training maneuvers [rad]
     cg_range: tuple[float, float] | None = None      # cg envelope [m], the datum of the x_cg column
     cbar: float | None = None                        # [m]
+
+
+class Reason(StrEnum):
+    """The kinds of reasons against admissibility; a reason's message is plain words (ranking.csv,
+    diagnosis.json), and :meth:`of` tells its kind from them, so that rules about kinds of reasons (a refinement
+    can remove some, some reject a move outright) are written once, here."""
+
+    FIT_FAILED = "fit failed"
+    NOT_CONVERGED = "optimizer did not converge"
+    NOT_IDENTIFIABLE = "not identifiable"
+    AT_BOUND = "at a bound"
+    INSIGNIFICANT = "t-test accepts 0"
+    CORRELATED = "correlated"
+    ALPHA_STAR_OUTSIDE = "alpha* outside the alpha range flown"
+    NOT_POSITIVE = "not positive"
+    CENTRE_OF_PRESSURE = "centre of pressure not aft of the cg"
+
+    @classmethod
+    def of(cls, message: str) -> "Reason | None":
+        """The kind of the reason ``message`` as :func:`reasons` words it (None: a reason of another judge, of
+        no kind these rules know)."""
+        return next((kind for kind, pattern in _REASON_PATTERNS if pattern.search(message)), None)
+
+
+_REASON_PATTERNS = tuple((kind, re.compile(pattern)) for kind, pattern in (
+    (Reason.FIT_FAILED, r"^fit failed"), (Reason.NOT_CONVERGED, r"^optimizer did not converge"),
+    (Reason.NOT_IDENTIFIABLE, r"^not identifiable"), (Reason.INSIGNIFICANT, r"^t-test accepts 0"),
+    (Reason.CORRELATED, r"^\|rho\("), (Reason.AT_BOUND, r" at its \w+ bound$"),
+    (Reason.ALPHA_STAR_OUTSIDE, r" deg outside the alpha range flown"), (Reason.NOT_POSITIVE, r" is not positive$"),
+    (Reason.CENTRE_OF_PRESSURE, r"^centre of pressure at ")))
+# reasons a move may not add (the data cannot identify the structure, or its fit did not converge)
+HARD_REASONS = frozenset({Reason.FIT_FAILED, Reason.NOT_CONVERGED, Reason.NOT_IDENTIFIABLE})
+# reasons a refinement may remove (by dropping or merging terms)
+FIXABLE_REASONS = frozenset({Reason.INSIGNIFICANT, Reason.CORRELATED})
 
 
 def _fmt(names) -> str:

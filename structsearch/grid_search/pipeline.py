@@ -7,7 +7,7 @@ from typing import Sequence
 
 from ..data.campaign import Campaign
 from ..fitting.candidate_result import CandidateResult
-from .admissibility import AdmissibilityRules, MAX_CORRELATION, reasons
+from .admissibility import FIXABLE_REASONS, AdmissibilityRules, MAX_CORRELATION, Reason, reasons
 from .ranking import rank
 from .ranking import near_best
 from .refinement import Refinement, refine, structure_key
@@ -42,9 +42,8 @@ def refinement_starts(ranked: list[CandidateResult]) -> list[CandidateResult]:
     """The candidates worth refining: within noise of the best fit (admissible or not) and not admissible
     only for reasons a refinement can remove (insignificant or correlated terms), best fit first; the
     rank-1 candidate when there is none."""
-    fixable = ("t-test accepts 0", "|rho(")
     starts = [s for s in near_best(ranked) if not s.admissible and s.reasons
-              and all(r.startswith(fixable) for r in s.reasons)]
+              and all(Reason.of(r) in FIXABLE_REASONS for r in s.reasons)]
     starts = sorted(starts, key=lambda s: s.comparison.mse)[:REFINE_STARTS]
     if not starts and ranked and not ranked[0].failed:
         starts = [ranked[0]]

@@ -12,7 +12,7 @@ import numpy as np
 from tabulate import tabulate
 
 from ..data.atomic import write_json, write_text
-from ..diagnosis.discovered import Discovery
+from ..discovery.discovered import Discovery
 from ..discovery.spec_file import spec_text
 from ..fitting.candidates import Candidate
 from .diagnosis_doc import public
