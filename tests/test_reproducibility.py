@@ -88,3 +88,15 @@ def test_the_command_exits_1_on_a_difference_and_writes_json(two_runs, run_cli, 
     assert json.loads((tmp_path / "cmp.json").read_text())["same"] is False
     missing = run_cli("compare", a, tmp_path / "nowhere")
     assert missing.returncode == 2 and "not a directory" in missing.stderr
+
+
+def test_a_path_into_the_output_directory_names_where_it_ran_not_what_it_found(tmp_path):
+    """discover.json names the spec file it wrote: under each run's own directory; another file is a decision."""
+    a, b = tmp_path / "first", tmp_path / "second"
+    for root, spec in ((a, "Cm_discovered.toml"), (b, "Cm_discovered.toml")):
+        root.mkdir()
+        (root / "discover.json").write_text(json.dumps({"final": {"spec": str(root / spec)}}))
+    assert compare_outputs(a, b).same
+    (b / "discover.json").write_text(json.dumps({"final": {"spec": str(b / "CD_discovered.toml")}}))
+    found = compare_outputs(a, b)
+    assert [d.kind for d in found.differences] == ["decision"]

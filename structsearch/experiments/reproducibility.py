@@ -16,6 +16,7 @@ run rather than the answer (wall times, evaluation counts, the optimizer's stopp
 from __future__ import annotations
 
 import csv
+import io
 import dataclasses
 import json
 import math
@@ -126,14 +127,26 @@ def compare_outputs(first: str | Path, second: str | Path, tolerances: Tolerance
             differences.append(Difference(name, "file", "present", "missing", "decision"))
             continue
         compare = _compare_csv if name.endswith(".csv") else _compare_json
-        differences.extend(compare(name, a / name, b / name, tolerances))
+        differences.extend(compare(name, _text(a, name), _text(b, name), tolerances))
     for name in answer_files(b):
         if name not in files:
             differences.append(Difference(name, "file", "missing", "present", "decision"))
     return OutputComparison(str(a), str(b), tuple(files), tuple(differences), tolerances)
 
 
-def _compare_csv(name: str, a: Path, b: Path, tol: Tolerances) -> list[Difference]:
+OUTPUT_DIRECTORY = "<output directory>"
+
+
+def _text(root: Path, name: str) -> str:
+    """A file's text with its output directory's path replaced by a placeholder: a path a run writes into its own
+    output (a discovered structure's spec file) names where it ran, not what it found."""
+    text = (root / name).read_text(encoding="utf-8")
+    for prefix in sorted({str(root.resolve()), str(root)}, key=len, reverse=True):
+        text = text.replace(prefix, OUTPUT_DIRECTORY)
+    return text
+
+
+def _compare_csv(name: str, a: str, b: str, tol: Tolerances) -> list[Difference]:
     rows_a, rows_b = _read_csv(a), _read_csv(b)
     if len(rows_a) != len(rows_b):
         return [Difference(name, "rows", str(len(rows_a)), str(len(rows_b)), "decision")]
@@ -161,10 +174,9 @@ def _compare_csv(name: str, a: Path, b: Path, tol: Tolerances) -> list[Differenc
     return out
 
 
-def _read_csv(path: Path) -> list[list[str]]:
-    with path.open(newline="", encoding="utf-8") as f:
-        # a leading "# command: ..." line records how the file was made (its paths differ between runs)
-        return [row for row in csv.reader(f) if row and not row[0].startswith("#")]
+def _read_csv(text: str) -> list[list[str]]:
+    # a leading "# command: ..." line records how the file was made (its paths differ between runs)
+    return [row for row in csv.reader(io.StringIO(text, newline="")) if row and not row[0].startswith("#")]
 
 
 def _as_float(text: str) -> float | None:
@@ -174,10 +186,9 @@ def _as_float(text: str) -> float | None:
         return None
 
 
-def _compare_json(name: str, a: Path, b: Path, tol: Tolerances) -> list[Difference]:
+def _compare_json(name: str, a: str, b: str, tol: Tolerances) -> list[Difference]:
     out: list[Difference] = []
-    _walk(name, "", json.loads(a.read_text(encoding="utf-8")), json.loads(b.read_text(encoding="utf-8")),
-          0.0, tol, out)
+    _walk(name, "", json.loads(a), json.loads(b), 0.0, tol, out)
     return out
 
 
