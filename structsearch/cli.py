@@ -121,13 +121,13 @@ def _fit(args) -> int:
     from .reporting.documents import bands_table, covariance_sentence, held_out_phrase
     from .reporting.profile_doc import profile_table
     write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + covariance_sentence(summary.estimates.covariance_record())
-               + "\n" + parameter_table(summary, "md")
+               + "\n" + parameter_table(summary.estimates, "md")
                + ("\n\n" + bands_table(res.bands) if res.bands is not None else "")
                + ("\n\n" + profile_table(res.profile) if res.profile is not None else ""))
     not_converged = "" if summary.converged else f"; the optimizer did NOT converge ({summary.message})"
     print(f"{res.candidate.name}: MSE train {summary.mse_train:.4g}, validation {summary.mse_validation:.4g}"
           f"{held_out_phrase(summary)}; {len(summary.insignificant)} parameter(s) accept zero, "
-          f"{len(summary.at_bound)} at a bound{not_converged}; wrote {out / 'fit.json'}")
+          f"{len(summary.estimates.at_bound)} at a bound{not_converged}; wrote {out / 'fit.json'}")
     return 0
 
 
@@ -186,15 +186,15 @@ def _print_winners(result) -> None:
                       f"{runner_up.comparison.mse / best.comparison.mse - 1:+.1%})")
         not_converged = [s.name for s in ok if not s.converged]
         warning = (f"; optimizer did not converge for {', '.join(not_converged)}" if not_converged else "")
-        n_admissible = sum(bool(s.admissible) for s in ok)
-        status = "" if best.admissible else " (NOT admissible: no candidate is)"
+        n_admissible = sum(bool(s.placement.admissible) for s in ok)
+        status = "" if best.placement.admissible else " (NOT admissible: no candidate is)"
         print(f"{grid}: {best.name}{status} ({best.n_params} parameters, {_held_out(best)} MSE "
               f"{best.comparison.mse:.4g}, validation MSE {best.mse_validation:.4g}){margin}; {len(ok)} fitted "
               f"({n_admissible} admissible), {failed} failed"
               f"{warning}, {result.seconds[grid]:.1f} s")
         for s in passed_over(ranked)[:3]:
             print(f"  passed over {s.name} ({_held_out(s)} MSE {s.comparison.mse / best.comparison.mse - 1:+.1%}): "
-                  f"{'; '.join(s.reasons)}")
+                  f"{'; '.join(s.placement.reasons)}")
 
 
 def _demo(args) -> int:

@@ -58,13 +58,13 @@ def test_correlation_rule_and_its_threshold():
 
 
 def test_alpha_star_outside_the_flown_range():
-    why = reasons(result(params={**result().params, "a_star": 0.35}), LIFT, RULES)
+    why = reasons(result(params={**result().estimates.params, "a_star": 0.35}), LIFT, RULES)
     assert why == ("a_star = 20.1 deg outside the alpha range flown (0.0 to 17.2 deg)",)
-    assert reasons(result(params={**result().params, "a_star": 0.35}), LIFT, AdmissibilityRules()) == ()
+    assert reasons(result(params={**result().estimates.params, "a_star": 0.35}), LIFT, AdmissibilityRules()) == ()
 
 
 def test_negative_kirchhoff_and_lift_slope_terms():
-    why = reasons(result(params={**result().params, "CL_KL": -1.0, "CL_a": -0.1}), LIFT, RULES)
+    why = reasons(result(params={**result().estimates.params, "CL_KL": -1.0, "CL_a": -0.1}), LIFT, RULES)
     assert why == ("Kirchhoff term CL_KL = -1 is not positive", "lift-slope term CL_a = -0.1 is not positive")
 
 
@@ -110,13 +110,13 @@ def test_ranking_puts_admissible_candidates_first_and_names_the_passed_over():
     broken = CandidateResult.failure(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
     ranked = rank([better, ok, broken], lambda s: reasons(s, LIFT, RULES))
     assert [r.name for r in ranked] == ["ok", "better", "broken"]
-    assert ranked[0].admissible and not ranked[1].admissible and ranked[1].rank == 2
-    assert ranked[1].reasons == ("t-test accepts 0 at 5%: tau1",)
-    assert ranked[2].reasons == ("fit failed: boom",) and ranked[2].rank is None
+    assert ranked[0].placement.admissible and not ranked[1].placement.admissible and ranked[1].placement.rank == 2
+    assert ranked[1].placement.reasons == ("t-test accepts 0 at 5%: tau1",)
+    assert ranked[2].placement.reasons == ("fit failed: boom",) and ranked[2].placement.rank is None
     assert [r.name for r in passed_over(ranked)] == ["better"]
     # JSON round trip keeps the verdict
     again = CandidateResult.from_json(ranked[1].to_json())
-    assert again.admissible is False and again.reasons == ranked[1].reasons
+    assert again.placement.admissible is False and again.placement.reasons == ranked[1].placement.reasons
 
 
 # ----- refinement (issue 12 item 3) ---------------------------------------------------------------
@@ -125,7 +125,7 @@ from structsearch.grid_search.refinement import refine, structure_key  # noqa: E
 
 def _fitted(candidate, p_values, corr=None, mse=(1.0, 2.0, 3.0)):
     base = result(candidate, mse=mse)
-    names = base.names
+    names = base.estimates.names
     corr = np.eye(len(names)) if corr is None else corr
     return stated_result(**{**base.__dict__, "name": candidate.name,
                               "p_values": {n: p_values.get(n, 1e-6) for n in names},

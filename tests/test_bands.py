@@ -93,14 +93,14 @@ def test_the_static_curves_jacobian_is_its_finite_difference(fitted_finals, coef
     train, finals = fitted_finals
     cand, fit = finals[coefficient]
     lift = LiftFit(*finals["CL"]) if cand.lift else None
-    alpha, out, jac, names, held = static_evaluation(cand, fit.params, train, lift)
+    alpha, out, jac, names, held = static_evaluation(cand, fit.estimates.params, train, lift)
     assert len(alpha) == len(out) == jac.shape[0] and jac.shape[1] == len(names)
     assert alpha[0] == pytest.approx(train["alpha"].min()) and alpha[-1] == pytest.approx(train["alpha"].max())
     assert "V" in held and "CL" not in held
 
     def curve(values):
         return static_evaluation(cand, dict(zip(names, values)), train, lift, jacobian=False)[1]
-    x = np.array([fit.params[n] for n in names])
+    x = np.array([fit.estimates.params[n] for n in names])
     # the tolerance from the differences' own truncation and rounding errors: a fixed fraction of each column's
     # scale missed by 2e-9 on another BLAS kernel, where the steep sigmoid's curvature dominates the error
     assert_matches_finite_difference(jac, curve, x, rel=1e-5)
@@ -139,7 +139,7 @@ def test_the_static_jacobian_stays_finite_where_a_state_is_fully_stalled(fitted_
     from structsearch.fitting.bands import static_evaluation
     train, finals = fitted_finals
     cand, fit = finals["CL"]
-    params = dict(fit.params, a1_ss=3000.0)
+    params = dict(fit.estimates.params, a1_ss=3000.0)
     alpha, out, jac, names, _ = static_evaluation(cand, params, train)
     assert np.all(np.isfinite(jac)) and np.max(np.abs(jac)) < 1e6
     stalled = alpha > params["a_star_ss"] + 0.15
@@ -158,7 +158,7 @@ def test_trace_bands_follow_a_validation_maneuver(fitted_finals, simulated_campa
         use = lift if cand.lift else None
         b = trace_bands(cand, fit, train, one, use)
         assert len(b.estimate) == one.n_samples
-        np.testing.assert_allclose(b.estimate, predict_candidate(cand, fit.params, one, use), rtol=1e-10,
+        np.testing.assert_allclose(b.estimate, predict_candidate(cand, fit.estimates.params, one, use), rtol=1e-10,
                                    atol=1e-12)
         assert np.all(b.confidence_low <= b.estimate) and np.all(b.prediction_high > b.confidence_high)
         assert np.all(b.dof >= 1.0)

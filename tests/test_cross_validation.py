@@ -59,8 +59,8 @@ def test_ranking_compares_by_cross_validation_not_by_validation():
     big = _candidate("big", 9, [1.1, 2.2, 3.3, 1.1], [1.0, 2.0, 3.0])
     small = _candidate("small", 6, [1.0, 2.0, 3.0, 1.0], [1.2, 2.4, 3.6])
     ranked = rank([big, small])
-    assert [r.name for r in ranked] == ["small", "big"] and not ranked[1].within_noise
-    assert ranked[1].gap == pytest.approx(0.1)
+    assert [r.name for r in ranked] == ["small", "big"] and not ranked[1].placement.within_noise
+    assert ranked[1].placement.gap == pytest.approx(0.1)
 
 
 def test_too_few_maneuvers_give_no_standard_error():
@@ -68,8 +68,8 @@ def test_too_few_maneuvers_give_no_standard_error():
     a = _candidate("a", 3, None, [1.0, 2.0])
     b = _candidate("b", 3, None, [1.005, 2.01])
     ranked = rank([a, b])
-    assert all(np.isnan(r.gap_se) for r in ranked)
-    assert ranked[1].within_noise  # 0.5 % < the 1 % practical tolerance
+    assert all(np.isnan(r.placement.gap_se) for r in ranked)
+    assert ranked[1].placement.within_noise  # 0.5 % < the 1 % practical tolerance
 
 
 def test_scores_that_could_not_be_computed_survive_the_cache_as_nan():
@@ -77,7 +77,7 @@ def test_scores_that_could_not_be_computed_survive_the_cache_as_nan():
     c = _candidate("a", 3, [1.0, float("nan")], [1.0, 2.0])
     ranked = rank([c])[0]
     back = CandidateResult.from_json(ranked.to_json())
-    assert np.isnan(back.cv.mse_maneuvers[1]) and np.isnan(back.gap_se) and back.cv_folds == 3
+    assert np.isnan(back.cv.mse_maneuvers[1]) and np.isnan(back.placement.gap_se) and back.cv_folds == 3
 
 
 @pytest.fixture(scope="module")
@@ -204,8 +204,8 @@ def test_the_bench_compares_two_rankings_candidate_by_candidate():
               _candidate("b", 3, [1.5, 3.0, 4.5], [1.0, 2.0, 3.0])])
     b = rank([_candidate("a", 3, [1.6, 3.2, 4.8], [1.0, 2.0, 3.0]),
               _candidate("b", 3, [1.5, 3.0, 4.5], [1.0, 2.0, 3.0])])
-    a = [dataclasses.replace(s, admissible=True) for s in a]
-    b = [dataclasses.replace(s, admissible=s.name == "b") for s in b]
+    a = [s.placed(admissible=True) for s in a]
+    b = [s.placed(admissible=s.name == "b") for s in b]
     out = ranking_agreement({"g": a}, {"g": b})
     assert out["same_first"] == {"g": False} and out["same_admissible"] == {"g": False}
     assert out["moved"] == {"g": ["a", "b"]}

@@ -82,7 +82,7 @@ def test_refit_with_the_effect_recovers_its_parameter(campaign, effect, paramete
     train, val = campaign.split("train"), campaign.split("validation")
     lift = fit_lift_model(model, train, val, OPTIONS)
     s = fit_candidate(model, train, val, lift, OPTIONS)
-    assert abs(s.params[parameter] - truth) < 3 * s.stderr[parameter] + 0.05 * abs(truth), s.params
+    assert abs(s.estimates.params[parameter] - truth) < 3 * s.estimates.stderr[parameter] + 0.05 * abs(truth), s.estimates.params
 
 
 @pytest.fixture(scope="module")

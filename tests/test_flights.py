@@ -278,7 +278,7 @@ def test_final_models_fitted_with_hac_flight_record_their_flights(simulated_camp
     for coef, (cand, fit) in finals.items():
         record = fit.estimates.covariance_record()
         assert record["kind"] == "hac-flight" and record["grouped_by"] == "flights" and record["groups"] == 3, coef
-        assert all(d <= 2.0 for d in fit.reference_dof.values() if np.isfinite(d)), coef
+        assert all(d <= 2.0 for d in fit.estimates.reference_dof.values() if np.isfinite(d)), coef
         assert fit.estimates.to_dict()["n_flights"] == 3
     # the static curves' bands: each point's t reference rests on the flights too
     from structsearch.fitting.bands import static_bands

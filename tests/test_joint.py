@@ -148,7 +148,7 @@ def test_the_joint_fit_of_the_final_models(joint_and_sequential):
     for cf in joint.coefficients:
         assert cf.weight == pytest.approx(1.0 / cf.train.mse, rel=1e-2)
     # drag and pitch bring their information on the shared states: no shared parameter is known worse
-    worse = [n for n in joint.shared if r.stderr[n] > 1.05 * seq["CL"].stderr[n]]
+    worse = [n for n in joint.shared if r.stderr[n] > 1.05 * seq["CL"].estimates.stderr[n]]
     assert not worse, {n: (r.stderr[n], seq["CL"].stderr[n]) for n in worse}
 
 
@@ -390,14 +390,14 @@ def test_drag_and_pitch_under_the_joint_lift_model(joint_and_sequential, simulat
         c = find_candidate(name)
         r = fit_candidate(c, train, val, read, FitOptions(n_starts=1))
         block = next(cf for cf in joint.coefficients if cf.model == name)
-        for n in r.params:
-            assert r.params[n] == pytest.approx(block.params[n], rel=2e-2, abs=1e-3 * abs(block.params[n]) + 1e-6), n
+        for n in r.estimates.params:
+            assert r.estimates.params[n] == pytest.approx(block.params[n], rel=2e-2, abs=1e-3 * abs(block.params[n]) + 1e-6), n
         assert "joint fit" in r.estimates.generated_regressors
-        assert all(np.isfinite(v) and v > 0 for v in r.stderr.values())
+        assert all(np.isfinite(v) and v > 0 for v in r.estimates.stderr.values())
         # the lift model's error enters: the two-step standard deviations exceed the conditional (white) ones
         conditional = fit_candidate(c, train, val, read, FitOptions(n_starts=1, covariance="hac-maneuver",
                                                                     scores_only=True))
-        assert any(r.stderr[n] > conditional.stderr[n] for n in r.stderr)
+        assert any(r.estimates.stderr[n] > conditional.estimates.stderr[n] for n in r.estimates.stderr)
 
 
 @pytest.mark.slow

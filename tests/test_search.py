@@ -103,8 +103,8 @@ def test_ranking_rule_prefers_the_smaller_model_within_noise():
     ranked = rank([summary("big", 9, [1.0, 2.0, 3.0]), summary("small", 6, [1.001, 2.002, 2.999]),
                    summary("bad", 5, [1.5, 2.9, 4.4]), broken])
     assert [r.name for r in ranked] == ["small", "big", "bad", "broken"]
-    assert ranked[-1].rank is None and ranked[0].within_noise and [r.rank for r in ranked[:3]] == [1, 2, 3]
-    assert ranked[1].within_noise and not ranked[2].within_noise
+    assert ranked[-1].placement.rank is None and ranked[0].placement.within_noise and [r.placement.rank for r in ranked[:3]] == [1, 2, 3]
+    assert ranked[1].placement.within_noise and not ranked[2].placement.within_noise
 
 
 def test_a_rejected_candidate_is_measured_against_the_winner_not_the_best_rejected():
@@ -120,11 +120,11 @@ def test_a_rejected_candidate_is_measured_against_the_winner_not_the_best_reject
                   lambda s: () if s.name == "winner" else ("not admissible",))
     by_name = {r.name: r for r in ranked}
     assert [r.name for r in ranked] == ["winner", "rejected best", "rejected worse"]
-    assert by_name["rejected best"].gap == pytest.approx(0.25) and not by_name["rejected best"].within_noise
-    assert by_name["rejected worse"].gap == pytest.approx(0.5)
+    assert by_name["rejected best"].placement.gap == pytest.approx(0.25) and not by_name["rejected best"].placement.within_noise
+    assert by_name["rejected worse"].placement.gap == pytest.approx(0.5)
     assert "over the best-fitting admissible candidate, winner" in grid_table(ranked, "md")
     alone = rank([summary("a", [1.0, 2.0, 3.0]), summary("b", [1.0, 2.0, 3.01])], lambda s: ("no",))
-    assert alone[0].gap == 0.0 and "none is admissible" in grid_table(alone, "md")
+    assert alone[0].placement.gap == 0.0 and "none is admissible" in grid_table(alone, "md")
 
 
 @pytest.fixture(scope="module")
@@ -159,10 +159,10 @@ def test_jobs_do_not_change_results(tiny, tmp_path):
     assert [a.name for a in one] == [b.name for b in two]
     for a, b in zip(one, two):
         assert a.mse_validation == pytest.approx(b.mse_validation, rel=1e-8), a.name
-        for k, v in a.params.items():
-            se = a.stderr.get(k, np.nan)
+        for k, v in a.estimates.params.items():
+            se = a.estimates.stderr.get(k, np.nan)
             bound = 0.02 * se if np.isfinite(se) and se > 0 else 1e-8 * max(abs(v), 1.0)
-            assert abs(v - b.params[k]) <= bound + 1e-12, (a.name, k)
+            assert abs(v - b.estimates.params[k]) <= bound + 1e-12, (a.name, k)
 
 
 def test_interrupted_search_resumes(tiny, tmp_path):
@@ -186,7 +186,7 @@ def test_interrupted_search_resumes(tiny, tmp_path):
     assert messages[0] == "5 of 12 candidates from the cache"
     assert sum(m.startswith("[") for m in messages) == 7
     fresh = run(grid.candidates[:12], tiny, tmp_path / "fresh", **context)
-    assert [r.params for r in resumed] == [r.params for r in fresh]
+    assert [r.estimates.params for r in resumed] == [r.estimates.params for r in fresh]
 
 
 def test_collinear_candidate_ranked_after_identifiable_and_failure_recorded(tiny, tmp_path):
@@ -202,14 +202,14 @@ def test_collinear_candidate_ranked_after_identifiable_and_failure_recorded(tiny
     ranked = result.grids["mine"]
     assert [r.name for r in ranked] == ["M-III", "M-I", "M-II", "M-IV"]
     # a failing candidate is recorded with a reason naming the regressor and the row; the search goes on
-    assert ranked[-1].failed and ranked[-1].rank is None
+    assert ranked[-1].failed and ranked[-1].placement.rank is None
     assert "regressor 'bad' is NaN or infinite" in ranked[-1].error and "row 0" in ranked[-1].error
     assert "inputs alpha = " in ranked[-1].error  # the data values it read there
     ranked = ranked[:-1]
     # collinear a and b: a result without standard deviations for them, ranked after the identifiable ones
-    assert ranked[-1].error is None and not ranked[-1].identifiable and ranked[-1].rank == 3
-    assert "a and b are collinear" in ranked[-1].not_identifiable["a"]
-    assert np.isnan(ranked[-1].stderr["a"]) and np.isnan(ranked[-1].stderr["b"])
+    assert ranked[-1].error is None and not ranked[-1].identifiable and ranked[-1].placement.rank == 3
+    assert "a and b are collinear" in ranked[-1].estimates.not_identifiable["a"]
+    assert np.isnan(ranked[-1].estimates.stderr["a"]) and np.isnan(ranked[-1].estimates.stderr["b"])
     rows = list(csv.DictReader((tmp_path / "out" / "ranking.csv").open()))
     assert rows[-2]["model"] == "M-II" and rows[-2]["identifiable"] == "False"
     assert "a and b are collinear" in rows[-2]["not_identifiable"]
@@ -226,7 +226,7 @@ def test_refinement_drops_what_the_t_test_rejects(tiny, tmp_path):
     names = [r.name for r in result.grids["r"]]
     assert "R-Ir-auto" in names
     refined = next(r for r in result.grids["r"] if r.name == "R-Ir-auto")
-    assert "junk" not in refined.params
+    assert "junk" not in refined.estimates.params
 
 
 
@@ -250,11 +250,11 @@ def test_a_declared_candidate_whose_truth_has_one_zero_term_is_refined_and_the_r
     result = search(fitter_for(campaign, tmp_path / "out"), str(spec))
     ranked = result.grids["z"]
     full = next(r for r in ranked if r.name == declared.name)
-    assert not full.significant["d"], "the zero term is accepted at zero by its t-test"
+    assert not full.estimates.significant["d"], "the zero term is accepted at zero by its t-test"
     first = ranked[0]
-    assert first.name == "Z-Ir-auto" and "d" not in first.params and first.admissible, [
-        (r.name, r.admissible, r.reasons) for r in ranked]
-    assert set(first.params) == set(full.params) - {"d"}
+    assert first.name == "Z-Ir-auto" and "d" not in first.estimates.params and first.placement.admissible, [
+        (r.name, r.placement.admissible, r.placement.reasons) for r in ranked]
+    assert set(first.estimates.params) == set(full.estimates.params) - {"d"}
 
 @pytest.mark.slow
 def test_cli_fit_search_and_dask(tiny, tmp_path):
@@ -404,12 +404,12 @@ def test_cache_never_serves_a_changed_input_and_survives_a_truncated_file(tiny, 
     assert len({key, campaign_fingerprint(wider), campaign_fingerprint(swapped)}) == 3
     kwargs = dict(lifts={"CL-VI": LiftFit(load_grid("lift")["CL-VI"], lift)}, options=options)
     first = run(cand, tiny, tmp_path, **kwargs)[0]
-    path = cache_path(tmp_path, cand[0], key, lift.params, options)[0]
+    path = cache_path(tmp_path, cand[0], key, lift.estimates.params, options)[0]
     assert path.exists()
     path.write_text(path.read_text()[:100])          # a crash in the middle of a write elsewhere
     said = []
     again = run(cand, tiny, tmp_path, progress=said.append, **kwargs)[0]
-    assert any("unreadable" in m for m in said) and again.params == first.params
+    assert any("unreadable" in m for m in said) and again.estimates.params == first.estimates.params
 
 
 @pytest.mark.parametrize("tamper", ["altered numbers", "null", "list", "number", "another key", "old layout"])
@@ -438,7 +438,7 @@ def test_a_cache_entry_that_does_not_prove_itself_is_a_miss_never_served(tiny, t
     again = run([cand], tiny, tmp_path, options=options, progress=said.append)[0]
     warnings = [m for m in said if m.startswith("warning: cache file")]
     assert len(warnings) == 1 and "refitting" in warnings[0]
-    assert again.mse_validation == first.mse_validation and again.params == first.params
+    assert again.mse_validation == first.mse_validation and again.estimates.params == first.estimates.params
     # the refit replaced the bad entry: served from the cache next time, silently
     said.clear()
     run([cand], tiny, tmp_path, options=options, progress=said.append)
@@ -501,7 +501,8 @@ def _stub(names, p, corr=None, centred=None, mse=1.0):
     """What refinement reads of a fitted candidate, without a fit."""
     from types import SimpleNamespace
     corr = np.eye(len(names)) if corr is None else np.asarray(corr, float)
-    return SimpleNamespace(names=tuple(names), p_values=dict(zip(names, p)), correlation_matrix=corr,
+    estimates = SimpleNamespace(names=tuple(names), p_values=dict(zip(names, p)), correlation=corr)
+    return SimpleNamespace(estimates=estimates,
                            centred_correlation=() if centred is None else tuple(map(tuple, centred)),
                            insignificant=[n for n, v in zip(names, p) if v > 0.05], failed=False,
                            comparison=SimpleNamespace(mse=mse), error=None)
@@ -595,8 +596,9 @@ def test_a_fit_starts_from_the_contained_structures_optimum_with_the_added_time_
                               "a_star_w": 0.33})
     assert start["tau1_ss"] == 0.0 and start["tau2_ss"] == 0.3 and start["a_star_w"] == 0.33
     from types import SimpleNamespace
-    good = SimpleNamespace(failed=False, mse_train=1.0, params={"tau2_ss": 0.3, "tau2_w": 0.2})
-    worse = SimpleNamespace(failed=False, mse_train=2.0, params={"tau2_ss": 0.9, "tau2_w": 0.9})
+    good = SimpleNamespace(failed=False, mse_train=1.0, estimates=SimpleNamespace(params={"tau2_ss": 0.3, "tau2_w": 0.2}))
+    worse = SimpleNamespace(failed=False, mse_train=2.0, estimates=SimpleNamespace(params={"tau2_ss": 0.9,
+                                                                                           "tau2_w": 0.9}))
     got = best_contained(uq, [(sep["X_ss/X_w S/Q"], worse), (qq, good), (uu, good)])
     assert got["tau2_ss"] == 0.3 and got["tau1_ss"] == 0.0    # U/U is not contained in U/Q: not a donor
 

@@ -324,7 +324,7 @@ def test_fit_on_one_record_has_blocked_cross_validation_and_states_its_few_dof(t
     assert cov["few_maneuvers"] == list(doc["params"]) and "--segment cycles" in cov["note"]
     # the same campaign in memory, cut by the API
     cut = structsearch.fit(read_campaign(tmp_path / "wt"), "CL-II", settings=structsearch.Settings(starts=1, segment="cycles"))
-    assert cut.cv_scheme == "maneuvers" and cut.cv_folds == 4 and cut.estimates.n_maneuvers == 4
+    assert cut.result.cv_scheme == "maneuvers" and cut.result.cv_folds == 4 and cut.result.estimates.n_maneuvers == 4
 
 
 def test_cli_fit_of_a_pitching_airfoil_cut_into_cycles(tmp_path):

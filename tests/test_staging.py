@@ -214,8 +214,8 @@ def test_a_candidate_that_is_an_earlier_grids_model_is_served_its_fit(tiny, tmp_
     said = []
     served = run([cl_vi], tiny, tmp_path, options=FitOptions(cv_folds=0), fitted_before=[(us, first)],
                  progress=said.append)[0]
-    assert served.name == "CL-VI" and served.grid == "lift" and served.params == first.params
-    assert served.rank is None and served.admissible is None  # the ranking judges it afresh
+    assert served.name == "CL-VI" and served.grid == "lift" and served.estimates.params == first.estimates.params
+    assert served.placement is None  # the ranking judges it afresh
     assert any("the same model as separation X_ss/X_w U/S" in m for m in said)
     assert len(list((tmp_path / "cache" / "lift").glob("CL-VI-*.json"))) == 1  # cached under its own name
     # a twin fitted elsewhere (not in this run's cache) is not served: fitted anew

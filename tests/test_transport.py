@@ -151,12 +151,12 @@ def test_transport_searches_rank_an_admissible_one_state_structure_first(transpo
         ranked = search(fitter_for(transport, tmp_path / "out", FitOptions(n_starts=2), n_jobs=2), str(spec)
                         ).grids[grid]
         first = ranked[0]
-        assert first.admissible and not first.reasons, (grid, first.name, first.reasons)
+        assert first.placement.admissible and not first.placement.reasons, (grid, first.name, first.placement.reasons)
         assert first.name.startswith({"separation": "X U", "lift": "CL-II"}[grid]), (grid, first.name)
-        assert not any(n.endswith(("_ss", "_w")) for n in first.names), grid
-        two_state = [r for r in ranked if any(n.endswith("_w") for n in r.names)]
-        assert two_state and all(r.admissible or r.reasons for r in two_state), grid
-        assert not any(r.admissible for r in two_state), grid  # two states on a one-state wing
+        assert not any(n.endswith(("_ss", "_w")) for n in first.estimates.names), grid
+        two_state = [r for r in ranked if any(n.endswith("_w") for n in r.estimates.names)]
+        assert two_state and all(r.placement.admissible or r.placement.reasons for r in two_state), grid
+        assert not any(r.placement.admissible for r in two_state), grid  # two states on a one-state wing
         for r in ranked:
             stderr = np.array([r.stderr[n] for n in r.names], float)
             assert not np.any(stderr == 0), (r.name, r.stderr)

@@ -56,7 +56,7 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
     if profile:
         from ..fitting.profile import profile_candidate
         if progress is not None:
-            progress(f"fit: profile intervals of {', '.join(result.nonlinear_names) or 'no nonlinear parameter'}")
+            progress(f"fit: profile intervals of {', '.join(result.estimates.nonlinear_names) or 'no nonlinear parameter'}")
         profiles = profile_candidate(candidate, result, train, lift)
     return FitOutcome(candidate, result, lift, static_bands(candidate, result, train, lift, samples=band_samples,
                                                             seed=settings.seed), profiles)

@@ -106,7 +106,7 @@ def wald_p_value(summary: CandidateResult, names) -> float:
     if summary.failed:
         return float("nan")
     # on the covariance the fit kept (engine.estimates.ParameterEstimates.wald_test: F(q, fewest dof))
-    return summary.wald_test([n for n in names if n in summary.params]).p_value
+    return summary.wald_test([n for n in names if n in summary.estimates.params]).p_value
 
 
 def within_noise(residual: np.ndarray, floor_residual: np.ndarray, data: FlightData) -> tuple[bool, float, float]:
@@ -170,8 +170,8 @@ class _Context:
         """A node of the structure search as a :class:`Fitted` (its residuals on both splits)."""
         c, r = node.candidate, node.result
         lift = self.lift_of(c)
-        return Fitted(c, r, self.val[c.coefficient] - predict_candidate(c, r.params, self.val, lift),
-                      self.train[c.coefficient] - predict_candidate(c, r.params, self.train, lift))
+        return Fitted(c, r, self.val[c.coefficient] - predict_candidate(c, r.estimates.params, self.val, lift),
+                      self.train[c.coefficient] - predict_candidate(c, r.estimates.params, self.train, lift))
 
 
 def _row(child, base: Fitted, floor: _Floor, explained_now: bool, where_rows, ctx: _Context, x_val) -> EffectRow:
@@ -274,7 +274,7 @@ def _first_floors(fitter: Fitter, base_fit: Fitted, ctx: _Context, warnings: lis
     if fx.applicable(baseline):
         saturated_c, added = saturated(baseline, fx.applicable(baseline))
         try:
-            sat_fit = _fit(saturated_c, ctx.train, ctx.val, lift, fitter.options, start=base_fit.summary.params)
+            sat_fit = _fit(saturated_c, ctx.train, ctx.val, lift, fitter.options, start=base_fit.summary.estimates.params)
             floors.append(_Floor(float(np.mean(sat_fit.residual ** 2)), sat_fit.residual, "saturated library model"))
             p = wald_p_value(sat_fit.summary, [q for ps in added.values() for q in ps])
             p_gap = p if np.isfinite(p) else None
@@ -352,8 +352,8 @@ def _state_level(fitter: Fitter, fits, ctx: _Context) -> StateLevel:
 
 def _residuals(ctx: _Context, c: Candidate, r) -> tuple[np.ndarray, np.ndarray]:
     lift = ctx.lift_of(c)
-    return (ctx.val[c.coefficient] - predict_candidate(c, r.params, ctx.val, lift),
-            ctx.train[c.coefficient] - predict_candidate(c, r.params, ctx.train, lift))
+    return (ctx.val[c.coefficient] - predict_candidate(c, r.estimates.params, ctx.val, lift),
+            ctx.train[c.coefficient] - predict_candidate(c, r.estimates.params, ctx.train, lift))
 
 
 def _lowest(floors: list[_Floor], ctx: _Context) -> _Floor:

@@ -29,8 +29,8 @@ def fit(c: Candidate, train: FlightData, val: FlightData, lift, options, start=N
     summary = fit_candidate(c, train, val, lift, options, start=start)
     if summary.failed:
         raise DeclarationError(f"fitting {c.name} failed: {summary.error}")
-    pred = predict_candidate(c, summary.params, val, lift)
-    pred_train = predict_candidate(c, summary.params, train, lift)
+    pred = predict_candidate(c, summary.estimates.params, val, lift)
+    pred_train = predict_candidate(c, summary.estimates.params, train, lift)
     return Fitted(c, summary, val[c.coefficient] - pred, train[c.coefficient] - pred_train)
 
 
@@ -38,7 +38,7 @@ def state_for_phases(c: Candidate, summary: CandidateResult, lift: LiftFit | Non
                      data: FlightData) -> np.ndarray:
     """The separation state that defines flight phases: the model's first state, or a static stall-strip
     curve from the lift fit; without any, the thesis' stall-strip curve."""
-    params = summary.params if not c.lift else (lift.params if lift is not None else {})
+    params = summary.estimates.params if not c.lift else (lift.params if lift is not None else {})
     for name, _ in (c.states or ()):
         suffix = f"_{name}" if name else ""
         if f"a1{suffix}" in params and f"a_star{suffix}" in params:

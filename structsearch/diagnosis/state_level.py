@@ -53,7 +53,7 @@ def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options
         for other in ("CD", "Cm"):
             if other == coef:
                 models[other] = build_model(fitted.candidate, lift)
-                params.update(fitted.summary.params)
+                params.update(fitted.summary.estimates.params)
                 continue
             structure = find_candidate(FINAL_MODEL_NAMES[other])
             # terms on states this lift model does not have, or on columns the campaign lacks (x_cg), are left
@@ -74,7 +74,7 @@ def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options
             if s.failed:
                 raise DeclarationError(f"state-level comparison: {s.error}")
             models[other] = build_model(structure, lift_fit)
-            params.update({k: v for k, v in s.params.items() if k not in lift_fit.result.nonlinear_names})
+            params.update({k: v for k, v in s.estimates.params.items() if k not in lift_fit.result.estimates.nonlinear_names})
         return AeroModel(models["CL"], models["CD"], models["Cm"], params, name=fitted.candidate.name)
 
     runs, diverged = {}, {}

@@ -108,7 +108,7 @@ def move_test(parent: CandidateResult, child: CandidateResult, alpha: float, n_m
     Wald test decides, when the child has ``statistics``)."""
     test = _paired(parent, child, alpha, n_moves)
     if new_parameters and statistics and not child.failed:
-        wald = child.wald_test([n for n in new_parameters if n in child.params]).p_value
+        wald = child.wald_test([n for n in new_parameters if n in child.estimates.params]).p_value
         test = dataclasses.replace(test, wald_p_value=float(wald) if np.isfinite(wald) else float("nan"))
     return test
 

@@ -153,7 +153,7 @@ def _row(role, candidate, result, found, judge) -> ComparisonRow:
     else:
         test = move_test(result, found, 1.0, 1)   # the discovered structure against this one
         excess, se, within = -test.gain, test.gain_se, test.within_one_se
-    return ComparisonRow(role, candidate.name, len(result.params), result.validation.mse, _cv(result), not reasons,
+    return ComparisonRow(role, candidate.name, result.n_params, result.validation.mse, _cv(result), not reasons,
                          excess, se, within, tuple(e for _, e in candidate.regressors))
 
 

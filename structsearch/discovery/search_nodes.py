@@ -52,7 +52,7 @@ class Node:
 
     @property
     def n_params(self) -> int:
-        return len(self.result.params) if not self.result.failed else 0
+        return self.result.n_params
 
     def path(self) -> list["Node"]:
         """The nodes from the start to this one (the start first)."""

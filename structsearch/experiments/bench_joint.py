@@ -52,8 +52,8 @@ def run_joint_bench(scale: float = 1.0, seed: int = 0, starts: int = 4,
         "weights_settled": joint.weights_settled, "iterations": joint.iterations, "converged": r.converged,
         "mse_validation": {c.coefficient: {"joint": c.validation.mse, "sequential": seq[c.coefficient].mse_validation}
                            for c in joint.coefficients},
-        "shared": {n: {"joint": r.params[n], "joint_sd": r.stderr[n], "lift_only": lift.params[n],
-                       "lift_only_sd": lift.stderr[n]} for n in joint.shared},
+        "shared": {n: {"joint": r.params[n], "joint_sd": r.stderr[n], "lift_only": lift.estimates.params[n],
+                       "lift_only_sd": lift.estimates.stderr[n]} for n in joint.shared},
         "bands_points": len(bands.alpha),
     }
 

@@ -181,9 +181,9 @@ def ranking_agreement(refit: dict, one_step: dict) -> dict:
         b = {s.name: s for s in one_step[g] if not s.failed}
         first = lambda r: next((s.name for s in r if not s.failed), None)  # noqa: E731
         out["same_first"][g] = first(ranked) == first(one_step[g])
-        out["same_admissible"][g] = {n for n, s in a.items() if s.admissible} == \
-            {n for n, s in b.items() if s.admissible}
-        out["moved"][g] = sorted(n for n in a if n in b and a[n].rank != b[n].rank)
+        out["same_admissible"][g] = {n for n, s in a.items() if s.placement.admissible} == \
+            {n for n, s in b.items() if s.placement.admissible}
+        out["moved"][g] = sorted(n for n in a if n in b and a[n].placement.rank != b[n].placement.rank)
         diffs = [abs(b[n].cv.mse / a[n].cv.mse - 1) for n in a
                  if n in b and a[n].cv is not None and b[n].cv is not None and a[n].cv.mse > 0]
         out["max_rel_cv_difference"][g] = float(np.nanmax(diffs)) if diffs and not np.all(np.isnan(diffs)) \

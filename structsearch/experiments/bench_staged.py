@@ -86,7 +86,7 @@ def run_staged(campaigns: int = 50, scale: float = 0.05, random_starts: int = 64
         t0 = time.perf_counter()
         previous = model.fit(train, n_starts=4, seed=0)
         t_previous = time.perf_counter() - t0
-        fits = {"staged": (float(staged.mse_train * len(y)), sorted(staged.at_bound), t_staged),
+        fits = {"staged": (float(staged.mse_train * len(y)), sorted(staged.estimates.at_bound), t_staged),
                 "previous": (float(np.sum(previous.residuals ** 2)), sorted(previous.at_bound), t_previous)}
         fits.update({k: fit_variant(model, stage_model, train, *v[1:]) for k, v in chosen.items()})
         admissible = [r for r, bound in random if not bound] + [f[0] for f in fits.values() if not f[1]]

@@ -120,12 +120,13 @@ def draw(seed: int, scale: float, kinds: Sequence[str], profile: bool = False,
         for coef, (cand, fit) in finals.items():
             if fit.failed:
                 raise RuntimeError(f"seed {seed}: {cand.name} failed: {fit.error}")
-            starts[coef] = dict(fit.params)   # the next kind refits from this optimum
-            estimates.setdefault(cand.name, dict(fit.params))
-            stderr[kind][cand.name] = dict(fit.stderr)
-            dof[kind][cand.name] = dict(fit.reference_dof)
+            e = fit.estimates
+            starts[coef] = dict(e.params)   # the next kind refits from this optimum
+            estimates.setdefault(cand.name, dict(e.params))
+            stderr[kind][cand.name] = dict(e.stderr)
+            dof[kind][cand.name] = dict(e.reference_dof)
             sat_cand, added = saturated(cand, fx.applicable(cand))
-            sat = fit_candidate(sat_cand, train, val, lift if cand.lift else None, options, start=fit.params)
+            sat = fit_candidate(sat_cand, train, val, lift if cand.lift else None, options, start=fit.estimates.params)
             names = [p for ps in added.values() for p in ps]
             gap[kind][cand.name] = float("nan") if sat.failed else wald_p_value(sat, names)
         if kind == DEFAULT_COVARIANCE:
@@ -156,7 +157,8 @@ def default_start_draw(train, val, truth_mse: Mapping[str, float]) -> tuple[dict
             raise RuntimeError(f"{name} from the default start failed: {fit.error}")
         if coef == "CL":
             lift = LiftFit(cand, fit)
-        estimates[name], stderr[name], dof[name] = dict(fit.params), dict(fit.stderr), dict(fit.reference_dof)
+        e = fit.estimates
+        estimates[name], stderr[name], dof[name] = dict(e.params), dict(e.stderr), dict(e.reference_dof)
         if fit.mse_train > truth_mse[name] * (1.0 + BASIN_TOLERANCE):
             other.append(name)
     return estimates, stderr, dof, tuple(other)

@@ -2,10 +2,9 @@
 
 The runner caches it as JSON (``to_json``/``from_json``), the ranking orders it, and the
 tables, ``fit.json`` and ``ranking.csv`` read it; a failed candidate carries its reason
-in ``error`` and no estimates. Its parameters' estimates and statistics are the engine's
-:class:`~structsearch.engine.estimates.ParameterEstimates`, the object a ``FitResult`` composes,
-covariance included; the statistics are reached under the same names (``params``, ``stderr``,
-``p_values``, ``cov_params()``, ``wald_test()``, ...).
+in ``error`` and no estimates. Its parameters' estimates and statistics are one value, the engine's
+:class:`~structsearch.engine.estimates.ParameterEstimates` (``result.estimates``, covariance included); the
+methods a fit result has (``summary()``, ``cov_params()``, ``conf_int()``, ``wald_test()``) are its own.
 """
 from __future__ import annotations
 
@@ -25,8 +24,9 @@ if TYPE_CHECKING:
     from ..engine.summary import FitSummary
 
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
-# 7: the parameters' estimates and covariance as one object (ParameterEstimates.to_dict)
-JSON_LAYOUT = 7
+# 7: the parameters' estimates and covariance as one object (ParameterEstimates.to_dict); 8: the ranking's
+# fields as one placement
+JSON_LAYOUT = 8
 
 
 def _nan_if_none(v) -> float:
@@ -64,15 +64,32 @@ class SplitScores:
                    doc.get("mse_cx"), doc.get("mse_cz"))
 
 
-def _delegate(name: str, failed: Any = None, convert=None):
-    def get(self):
-        if self.estimates is None:
-            return failed
-        value = getattr(self.estimates, name)
-        return convert(value) if convert is not None else value
-    get.__name__ = name
-    get.__doc__ = f"``estimates.{name}`` ({failed!r} for a failed candidate)."
-    return property(get)
+@dataclass(frozen=True)
+class Placement:
+    """A candidate's place in its grid's ranking (:func:`structsearch.grid_search.ranking.rank`)."""
+
+    admissible: bool | None = None
+    reasons: tuple[str, ...] = ()       # why it is not admissible
+    rank: int | None = None             # None: failed, not ranked
+    within_noise: bool | None = None
+    gap: float | None = None            # mean per-maneuver relative held-out MSE excess over the best
+    gap_se: float | None = None         # its standard error
+
+    def __post_init__(self):
+        object.__setattr__(self, "reasons", tuple(self.reasons))
+
+    def to_json(self) -> dict:
+        return {f.name: (list(getattr(self, f.name)) if f.name == "reasons" else getattr(self, f.name))
+                for f in fields(self)}
+
+    @classmethod
+    def from_json(cls, doc: dict) -> "Placement":
+        values = dict(doc)
+        if values.get("rank") is not None:  # a ranked result has a gap; a NaN one was written as null
+            for key in ("gap", "gap_se"):
+                if values.get(key) is None:
+                    values[key] = float("nan")
+        return cls(**values)
 
 
 def _rows(matrix) -> tuple[tuple[float, ...], ...]:
@@ -83,10 +100,10 @@ def _rows(matrix) -> tuple[tuple[float, ...], ...]:
 class CandidateResult:
     """One candidate of a grid after fitting (or failing) and, once ranked, its place.
 
-    Parameter tables read ``names``, ``nonlinear_names``, ``params``, ``stderr``,
-    ``p_values``, ``significant``, ``at_bound``, ``high_correlations`` and
-    ``correlation`` as they read a :class:`~structsearch.engine.results.FitResult`: both
-    delegate to the same :class:`~structsearch.engine.estimates.ParameterEstimates`.
+    Its parameters' statistics are one value, ``estimates`` (a
+    :class:`~structsearch.engine.estimates.ParameterEstimates`; None when the fit failed), read as
+    ``result.estimates.params``, ``result.estimates.stderr``, ...; the ranking's verdict is another,
+    ``placement``.
     """
 
     name: str
@@ -113,18 +130,11 @@ class CandidateResult:
     cv_method: str = "refit"            # how the folds were fitted (runner.CV_METHODS)
     cv_scheme: str = ""                 # how they were formed: .folds.SCHEMES ("": a result that does not say)
     cv_note: str = ""                   # in words, or why there is no cross-validation (cv None)
-    # --- set by the ranking ---
-    admissible: bool | None = None
-    reasons: tuple[str, ...] = ()       # why it is not admissible
-    rank: int | None = None
-    within_noise: bool | None = None
-    gap: float | None = None            # mean per-maneuver relative held-out MSE excess over the best
-    gap_se: float | None = None         # its standard error
+    placement: Placement | None = None  # its place in a ranking (None: not ranked)
 
     def __post_init__(self):
         rows = _rows(self.centred_correlation) if len(self.centred_correlation) else ()
         object.__setattr__(self, "centred_correlation", rows)
-        object.__setattr__(self, "reasons", tuple(self.reasons))
 
     # ----- construction ---------------------------------------------------------------
     @classmethod
@@ -146,51 +156,30 @@ class CandidateResult:
                 seconds: float) -> "CandidateResult":
         return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds, error=error)
 
-    def ranked(self, **placing: Any) -> "CandidateResult":
-        """A copy with the ranking's fields (``admissible``, ``reasons``, ``rank``, ``within_noise``, ``gap``,
-        ``gap_se``) set."""
-        return replace(self, **placing)
+    def placed(self, **changes: Any) -> "CandidateResult":
+        """A copy whose :class:`Placement` has ``changes`` (``admissible``, ``reasons``, ``rank``,
+        ``within_noise``, ``gap``, ``gap_se``)."""
+        return replace(self, placement=replace(self.placement or Placement(), **changes))
 
-    # ----- the estimates --------------------------------------------------------------
-    names = _delegate("names", ())
-    nonlinear_names = _delegate("nonlinear_names", ())
-    linear_names = _delegate("linear_names", ())
-    params = _delegate("params")
-    stderr = _delegate("stderr")
-    p_values = _delegate("p_values")
-    t_values = _delegate("t_values")
-    at_bound = _delegate("at_bound")
-    reference_dof = _delegate("reference_dof")
-    units = _delegate("units", {})
-    not_identifiable = _delegate("not_identifiable")
-    significant = _delegate("significant")
-    significance = _delegate("significance", 0.05)
-    max_lag = _delegate("max_lag")
-    condition_number = _delegate("condition_number")
-    covariance_kind = _delegate("covariance_kind")
-    high_correlations = _delegate("high_correlations", (), lambda pairs: tuple((a, b, float(c)) for a, b, c in pairs))
-    correlation = _delegate("correlation", (), _rows)
-
+    # ----- what the estimates say of the fit (its statistics: ``estimates``) ------------------------------
     @property
     def failed(self) -> bool:
         return self.error is not None
 
     @property
     def n_params(self) -> int:
-        return len(self.names)
+        """How many parameters it estimated (0: it failed)."""
+        return 0 if self.estimates is None else self.estimates.n_params
 
     @property
     def identifiable(self) -> bool | None:
-        return None if self.failed else not self.not_identifiable
+        """Whether the data identify every parameter (None: it failed)."""
+        return None if self.estimates is None else not self.estimates.not_identifiable
 
     @property
     def insignificant(self) -> tuple[str, ...]:
-        """Parameters whose t-test accepts zero."""
-        return tuple(n for n, s in self.significant.items() if not s)
-
-    @property
-    def correlation_matrix(self) -> np.ndarray:
-        return np.asarray(self.correlation, float)
+        """Parameters whose t-test accepts zero (none: it failed)."""
+        return () if self.estimates is None else tuple(n for n, s in self.estimates.significant.items() if not s)
 
     def _fitted(self) -> ParameterEstimates:
         if self.estimates is None:
@@ -226,8 +215,9 @@ class CandidateResult:
                                f"({self.nfev} evaluations)"),
                  ("starts reaching the best cost", f"{self.n_reached_best} of {self.n_starts}"),
                  *covariance_head(e)]
-        if self.rank is not None:
-            head.append(("rank", f"{self.rank}" + ("" if self.admissible else " (not admissible)")))
+        p = self.placement
+        if p is not None and p.rank is not None:
+            head.append(("rank", f"{p.rank}" + ("" if p.admissible else " (not admissible)")))
         return FitSummary(e, tuple(head))
 
     # ----- scores ------------------------------------------------------------------------
@@ -257,7 +247,7 @@ class CandidateResult:
             s = getattr(self, split)
             doc[split] = s.to_json() if s is not None else None
         doc["centred_correlation"] = [list(row) for row in self.centred_correlation]
-        doc["reasons"] = list(self.reasons)
+        doc["placement"] = None if self.placement is None else self.placement.to_json()
         return json_ready(doc)
 
     @classmethod
@@ -273,9 +263,6 @@ class CandidateResult:
             values["estimates"] = ParameterEstimates.from_dict(values["estimates"])
         values["centred_correlation"] = tuple(tuple(map(_nan_if_none, row))
                                               for row in values.get("centred_correlation", ()))
-        values["reasons"] = tuple(values.get("reasons", ()))
-        if values.get("rank") is not None:  # a ranked result has a gap; a NaN one was written as null
-            for key in ("gap", "gap_se"):
-                if values.get(key) is None:
-                    values[key] = float("nan")
+        if values.get("placement") is not None:
+            values["placement"] = Placement.from_json(values["placement"])
         return cls(**values)

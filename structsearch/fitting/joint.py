@@ -146,7 +146,7 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
     models = [build_model(lift_c) if c is lift_c else model_with_lift(c, {}) for c in order]
     params = dict(lift_fit.params)   # the shared separation parameters start at the lift model's estimate
     for c in others:
-        params.update(seq[c.coefficient].params)
+        params.update(seq[c.coefficient].estimates.params)
     weights = np.array([1.0 / seq[c.coefficient].mse_train for c in order])
     lift_candidate = lift_fit.candidate
 

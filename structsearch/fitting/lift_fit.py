@@ -28,7 +28,7 @@ class LiftFit:
 
     @property
     def params(self) -> dict[str, float]:
-        return self.result.params
+        return self.result.estimates.params
 
     @property
     def failed(self) -> bool:
@@ -36,7 +36,7 @@ class LiftFit:
 
     @property
     def not_identifiable(self) -> Mapping[str, str]:
-        return self.result.not_identifiable
+        return self.result.estimates.not_identifiable
 
     @property
     def cache_key(self) -> dict:

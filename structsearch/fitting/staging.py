@@ -87,7 +87,7 @@ def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResult]]
     # equal fits (a structure and one it contains) tie up to rounding: the name decides, not the processor
     donor, result = first_of_lowest(sorted(((d, r) for d, r in donors if len(d.state_parameters) == most),
                                            key=lambda dr: dr[0].name), lambda dr: dr[1].mse_train)
-    return {k: result.params[k] for k in c.state_parameters if k in result.params}
+    return {k: result.estimates.params[k] for k in c.state_parameters if k in result.estimates.params}
 
 
 # The value of a separation parameter at which a state of a higher kind is the lower kind's (tau1 -> 0: U is Q;
@@ -132,7 +132,7 @@ def best_contained(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResu
     if not inner:
         return None
     d, r = first_of_lowest(sorted(inner, key=lambda dr: dr[0].name), lambda dr: dr[1].mse_train)
-    return nested_start(c, r.params)
+    return nested_start(c, r.estimates.params)
 
 
 def demoted(c: Candidate, highest: str) -> Candidate:

@@ -87,15 +87,16 @@ def reasons(result: CandidateResult, candidate: Candidate | None, rules: Admissi
     out = []
     if result.converged is False:
         out.append(f"optimizer did not converge ({result.message})")
-    if result.not_identifiable:
-        out.append(f"not identifiable: {_fmt(result.not_identifiable)}")
-    for name, side in (result.at_bound or {}).items():
+    e = result.estimates
+    if e.not_identifiable:
+        out.append(f"not identifiable: {_fmt(e.not_identifiable)}")
+    for name, side in (e.at_bound or {}).items():
         out.append(f"{name} at its {side} bound")
-    unidentified = set(result.not_identifiable or {})
-    accepts = [n for n, p in (result.p_values or {}).items()
-               if n not in unidentified and not (p < result.significance)]
+    unidentified = set(e.not_identifiable or {})
+    accepts = [n for n, p in (e.p_values or {}).items()
+               if n not in unidentified and not (p < e.significance)]
     if accepts:
-        out.append(f"t-test accepts 0 at {result.significance:.0%}: {_fmt(accepts)}")
+        out.append(f"t-test accepts 0 at {e.significance:.0%}: {_fmt(accepts)}")
     out += _correlation_reasons(result, rules.max_correlation)
     if candidate is not None:
         out += _alpha_star_reasons(result, candidate, rules.alpha_range)
@@ -104,15 +105,16 @@ def reasons(result: CandidateResult, candidate: Candidate | None, rules: Admissi
 
 
 def _correlation_reasons(result: CandidateResult, limit: float) -> list[str]:
-    corr = np.asarray(result.centred_correlation or result.correlation, float)
+    names = result.estimates.names
+    corr = np.asarray(result.centred_correlation or result.estimates.correlation, float)
     if corr.size == 0:
         return []
     note = " (data columns centred)" if result.centred_correlation else ""
     out = []
-    for i in range(len(result.names)):
-        for j in range(i + 1, len(result.names)):
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
             if np.isfinite(corr[i, j]) and abs(corr[i, j]) > limit:
-                out.append(f"|rho({result.names[i]}, {result.names[j]})| = {abs(corr[i, j]):.3f} > {limit:g}{note}")
+                out.append(f"|rho({names[i]}, {names[j]})| = {abs(corr[i, j]):.3f} > {limit:g}{note}")
     return out
 
 
@@ -123,7 +125,7 @@ def _alpha_star_reasons(result: CandidateResult, candidate: Candidate, alpha_ran
     out = []
     for name, kind in candidate.states:
         p = SeparationState(name, kind).parameter_name("a_star")
-        v = (result.params or {}).get(p)
+        v = (result.estimates.params or {}).get(p)
         if v is not None and not lo <= v <= hi:
             out.append(f"{p} = {np.degrees(v):.1f} deg outside the alpha range flown "
                        f"({np.degrees(lo):.1f} to {np.degrees(hi):.1f} deg)")
@@ -135,7 +137,7 @@ def _expr(text: str) -> sympy.Expr:
 
 
 def _physics_reasons(result: CandidateResult, candidate: Candidate, rules: AdmissibilityRules) -> list[str]:
-    params = result.params or {}
+    params = result.estimates.params or {}
     out = []
     if candidate.coefficient == "CL":
         for name, text in candidate.regressors:

@@ -42,8 +42,8 @@ def refinement_starts(ranked: list[CandidateResult]) -> list[CandidateResult]:
     """The candidates worth refining: within noise of the best fit (admissible or not) and not admissible
     only for reasons a refinement can remove (insignificant or correlated terms), best fit first; the
     rank-1 candidate when there is none."""
-    starts = [s for s in near_best(ranked) if not s.admissible and s.reasons
-              and all(Reason.of(r) in FIXABLE_REASONS for r in s.reasons)]
+    starts = [s for s in near_best(ranked) if not s.placement.admissible and s.placement.reasons
+              and all(Reason.of(r) in FIXABLE_REASONS for r in s.placement.reasons)]
     starts = sorted(starts, key=lambda s: s.comparison.mse)[:REFINE_STARTS]
     if not starts and ranked and not ranked[0].failed:
         starts = [ranked[0]]

@@ -45,7 +45,7 @@ def _use_cv(group: list[CandidateResult]) -> bool:
     """Compare by cross-validation when every candidate of the group has it: the same folds and, among the
     candidates with nonlinear parameters, the same method (a linear candidate's folds are exact fits)."""
     return bool(group) and all(s.cv is not None for s in group) and len({s.cv_folds for s in group}) == 1 \
-        and len({s.cv_method for s in group if s.nonlinear_names}) <= 1
+        and len({s.cv_method for s in group if s.estimates.nonlinear_names}) <= 1
 
 
 def _placed(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult]:
@@ -61,7 +61,7 @@ def _best_fitting(group: list[CandidateResult], use_cv: bool) -> CandidateResult
 def _measured(s: CandidateResult, best: CandidateResult, use_cv: bool) -> CandidateResult:
     """``s`` with its gap to ``best``, the gap's standard error and whether it is within noise."""
     gap, se = _paired_gap(s, best, use_cv)
-    return s.ranked(gap=gap, gap_se=se, within_noise=bool(s is best or within_noise(gap, se)))
+    return s.placed(gap=gap, gap_se=se, within_noise=bool(s is best or within_noise(gap, se)))
 
 
 def _ordered(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult]:
@@ -73,8 +73,8 @@ def _ordered(group: list[CandidateResult], use_cv: bool) -> list[CandidateResult
     # first, then the name, on every machine
     def by_mse(items):
         return sort_with_ties(list(items), lambda s: _scores(s, use_cv).mse, lambda s: (s.n_params, s.name))
-    top = sorted(by_mse(s for s in placed if s.within_noise), key=lambda s: s.n_params)
-    rest = by_mse(s for s in placed if not s.within_noise)
+    top = sorted(by_mse(s for s in placed if s.placement.within_noise), key=lambda s: s.n_params)
+    rest = by_mse(s for s in placed if not s.placement.within_noise)
     return [s for s in top + rest if s.identifiable] + [s for s in top + rest if not s.identifiable]
 
 
@@ -85,11 +85,11 @@ def rank(results: list[CandidateResult],
     judged = []
     for s in results:
         why = (f"fit failed: {s.error}",) if s.failed else tuple(judge(s)) if judge else ()
-        judged.append(s.ranked(admissible=not why, reasons=why))
+        judged.append(s.placed(admissible=not why, reasons=why))
     # one basis of comparison for the whole grid, so both groups' gaps mean the same thing
     use_cv = _use_cv([s for s in judged if not s.failed])
-    admissible = _ordered([s for s in judged if not s.failed and s.admissible], use_cv)
-    others = _ordered([s for s in judged if not s.failed and not s.admissible], use_cv)
+    admissible = _ordered([s for s in judged if not s.failed and s.placement.admissible], use_cv)
+    others = _ordered([s for s in judged if not s.failed and not s.placement.admissible], use_cv)
     if admissible:
         # the inadmissible are ordered among themselves, but their gap and "within noise" are measured against
         # the best-fitting admissible candidate, as everyone's: a rejected candidate never looks tied with the
@@ -97,7 +97,7 @@ def rank(results: list[CandidateResult],
         best = _best_fitting(admissible, use_cv)
         others = [_measured(s, best, use_cv) for s in others]
     failed = [s for s in judged if s.failed]
-    return [s.ranked(rank=i + 1) for i, s in enumerate(admissible + others)] + failed
+    return [s.placed(rank=i + 1) for i, s in enumerate(admissible + others)] + failed
 
 
 def gap_reference(ranked: list[CandidateResult]) -> CandidateResult | None:
@@ -107,19 +107,19 @@ def gap_reference(ranked: list[CandidateResult]) -> CandidateResult | None:
     if not fitted:
         return None
     use_cv = _use_cv(fitted)
-    return _best_fitting([s for s in fitted if s.admissible] or fitted, use_cv)
+    return _best_fitting([s for s in fitted if s.placement.admissible] or fitted, use_cv)
 
 
 def near_best(results: list[CandidateResult]) -> list[CandidateResult]:
     """Candidates within noise of the best-fitting one, admissible or not (fitted ones only)."""
     ok = [s for s in results if not s.failed]
-    return [s for s in _placed(ok, _use_cv(ok)) if s.within_noise] if ok else []
+    return [s for s in _placed(ok, _use_cv(ok)) if s.placement.within_noise] if ok else []
 
 
 def passed_over(ranked: list[CandidateResult]) -> list[CandidateResult]:
     """Candidates that fit better than the winner (by the comparison's scores) but are not admissible."""
     ok = [s for s in ranked if not s.failed]
-    if not ok or not ok[0].admissible:
+    if not ok or not ok[0].placement.admissible:
         return []
     use_cv = _use_cv(ok)
-    return [s for s in ok if not s.admissible and _scores(s, use_cv).mse < _scores(ok[0], use_cv).mse]
+    return [s for s in ok if not s.placement.admissible and _scores(s, use_cv).mse < _scores(ok[0], use_cv).mse]

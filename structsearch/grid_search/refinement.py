@@ -80,7 +80,7 @@ def _orphans(c: Candidate, drop: list[str]) -> list[str]:
 
 def _p(summary: CandidateResult, name: str) -> float:
     """A p-value for ordering; NaN (no standard deviation) counts as the least significant."""
-    p = summary.p_values.get(name, float("nan"))
+    p = summary.estimates.p_values.get(name, float("nan"))
     return p if np.isfinite(p) else 2.0
 
 
@@ -88,8 +88,8 @@ def _correlated_pairs(summary: CandidateResult, linear: list[str]) -> list[tuple
     """Pairs of ``linear`` correlated above REFINE_CORRELATION, most correlated first, read as admissibility reads
     them (data columns centred where that keeps the model, else as estimated)."""
     centred = summary.centred_correlation
-    corr = np.asarray(centred, float) if len(centred) else summary.correlation_matrix
-    names = list(summary.names)
+    corr = np.asarray(centred, float) if len(centred) else summary.estimates.correlation
+    names = list(summary.estimates.names)
     pairs = [(a, b, float(corr[names.index(a), names.index(b)])) for i, a in enumerate(linear)
              for b in linear[i + 1:]]
     return sorted((p for p in pairs if np.isfinite(p[2]) and abs(p[2]) > REFINE_CORRELATION), key=lambda p: -abs(p[2]))

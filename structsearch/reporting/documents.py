@@ -12,18 +12,19 @@ def fit_document(fit: CandidateResult, lift: LiftFit | None, bands=None) -> dict
     """``fit.json`` of one fitted candidate (and the lift model whose states it uses, and its static curve's
     ``bands``: :class:`structsearch.fitting.bands.StaticBands`); written with
     :func:`structsearch.data.atomic.write_json`, which turns what could not be estimated into null."""
+    e = fit.estimates
     doc = {
-        "model": fit.name, "coefficient": fit.coefficient, "params": fit.params, "stderr": fit.stderr,
+        "model": fit.name, "coefficient": fit.coefficient, "params": e.params, "stderr": e.stderr,
         "mse": {"train": fit.mse_train, "validation": fit.mse_validation,
                 **({"cv": fit.cv.mse, "cv_folds": fit.cv_folds} if fit.cv is not None else {})},
-        "reference_dof": fit.reference_dof,
-        "p_values": fit.p_values, "at_bound": fit.at_bound,
-        "high_correlations": [list(p) for p in fit.high_correlations], "insignificant": list(fit.insignificant),
+        "reference_dof": e.reference_dof,
+        "p_values": e.p_values, "at_bound": e.at_bound,
+        "high_correlations": [list(p) for p in e.high_correlations], "insignificant": list(fit.insignificant),
         "r2": {"train": fit.train.r2.as_dict(), "validation": fit.validation.r2.as_dict()},
         "n_starts": fit.n_starts, "n_reached_best": fit.n_reached_best,
         "converged": fit.converged, "message": fit.message, "nfev": fit.nfev,
-        "identifiable": fit.identifiable, "not_identifiable": fit.not_identifiable,
-        "condition_number": fit.condition_number,
+        "identifiable": fit.identifiable, "not_identifiable": e.not_identifiable,
+        "condition_number": e.condition_number,
         "lift": lift and {"model": lift.name, "params": lift.params},
         "covariance": covariance_document(fit.estimates.covariance_record()),
         "cross_validation": {"scheme": fit.cv_scheme or None, "folds": fit.cv_folds,
@@ -94,7 +95,7 @@ def held_out_phrase(fit) -> str:
         words = f", {fit.cv_note}" if fit.cv_note else ""
     few = few_maneuvers(fit.estimates.covariance_record())
     if few:
-        dof = [fit.reference_dof[n] for n in few if math.isfinite(fit.reference_dof[n])]
+        dof = [fit.estimates.reference_dof[n] for n in few if math.isfinite(fit.estimates.reference_dof[n])]
         words += f"; {len(few)} t reference(s) on few maneuvers (dof {_span(dof)}: fit.md says what that means)"
     return words
 
@@ -194,7 +195,7 @@ def joint_markdown(joint) -> str:
              tabulate(rows, headers=["coefficient", "structure", "MSE train", "MSE validation",
                                      "R^2 validation (mean)", "weight"], tablefmt="github"), "",
              "## Every parameter", "", covariance_sentence(r.estimates.covariance_record()),
-             parameter_table(r, "md"), ""]
+             parameter_table(r.estimates, "md"), ""]
     lines += [sampled_sentence(b) for b in joint.bands if b.sampled is not None]
     if joint.replay is not None:
         lines.append(replay_paragraph(joint.replay))

@@ -196,7 +196,7 @@ def with_effect(ms: ModelSet, coef: str, changed: Candidate, fitted: CandidateRe
     is the model with the effect, ``fitted`` its fit (:func:`structsearch.thesis_study.model_set.fit_with_effect`)."""
     baseline = ms.candidates[coef]
     val = campaign.split("validation")
-    after = ms.predict(coef, val, changed, fitted.params)
+    after = ms.predict(coef, val, changed, fitted.estimates.params)
     bands = alpha_bands(val["alpha"])
     before_residual, after_residual = val[coef] - ms.predict(coef, val), val[coef] - after
     return {"baseline": baseline.name, "model": changed.name, "bands": bands,

@@ -164,7 +164,7 @@ def correlations(summaries: dict):
     fig, axes = plt.subplots(1, len(summaries), figsize=(5.2 * len(summaries), 5), squeeze=False)
     image = None
     for ax, (coef, s) in zip(axes[0], summaries.items()):
-        names, matrix = list(s.names), s.correlation_matrix
+        names, matrix = list(s.estimates.names), s.estimates.correlation
         image = ax.imshow(matrix, vmin=-1, vmax=1, cmap="RdBu_r")
         ax.set_xticks(range(len(names)), names, rotation=90, fontsize=7)
         ax.set_yticks(range(len(names)), names, fontsize=7)

@@ -388,11 +388,11 @@ def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, di
     for coef in rd.COEFFICIENTS:
         s = ms.summaries[coef]
         parts.append(f"<h3>{html.escape(s.name)}</h3><p>MSE training {s.mse_train:.4g}, validation "
-                     f"{s.mse_validation:.4g}</p>" + parameter_table(s, "html"))
+                     f"{s.mse_validation:.4g}</p>" + parameter_table(s.estimates, "html"))
     if vi is not None:
         parts.append("<h3>Van Ingen structures, refitted on this campaign</h3><p>"
                      + "; ".join(f"{html.escape(s.name)}: MSE validation {s.mse_validation:.4g}"
-                                 + (f" (at a bound: {html.escape(', '.join(s.at_bound))})" if s.at_bound else "")
+                                 + (f" (at a bound: {html.escape(', '.join(s.estimates.at_bound))})" if s.estimates.at_bound else "")
                                  for s in vi.summaries.values())
                      + ". An estimate on its bound means the structure fits these data best at the edge of its "
                        "physical range: a sign that it misses something the data contain.</p>")

@@ -22,7 +22,7 @@ from ..engine.estimates import HIGH_CORRELATION
 from ..engine.summary import (CSV_DIGITS, FORMATS, PARAMETER_HEADERS, TABLEFMT,  # noqa: F401
                               csv_value, parameter_flags, parameter_rows, parameter_table, render_table)
 from ..engine.summary import with_newline as _with_newline
-from ..fitting.candidate_result import CandidateResult
+from ..fitting.candidate_result import CandidateResult, Placement
 from ..grid_search.ranking import gap_reference
 
 
@@ -58,22 +58,23 @@ RANKING_FIELDS = ["grid", "model", "rank", "mse_train", "mse_validation", "n_par
 
 def table_row(s: CandidateResult) -> dict:
     """One candidate as the fields of ``ranking.csv`` (None where there is no value)."""
-    row = {"grid": s.grid, "model": s.name, "rank": s.rank, "lift": s.lift or "-", "error": s.error,
-           "admissible": s.admissible, "reasons": "; ".join(s.reasons)}
+    p = s.placement or Placement()
+    row = {"grid": s.grid, "model": s.name, "rank": p.rank, "lift": s.lift or "-", "error": s.error,
+           "admissible": p.admissible, "reasons": "; ".join(p.reasons)}
     if not s.failed:
         v = s.validation
         row.update({"n_params": s.n_params, "mse_train": s.mse_train, "mse_validation": s.mse_validation,
                     "mse_cx_validation": v.mse_cx, "mse_cz_validation": v.mse_cz,
                     # no maneuver with an R^2 (constant signal): empty, not "nan"
                     **{f"r2_validation_{k}": (x if math.isfinite(x) else None) for k, x in v.r2.as_dict().items()},
-                    "aic": s.aic, "n_insignificant": len(s.insignificant), "n_high_corr": len(s.high_correlations),
-                    "within_noise": s.within_noise, "converged": s.converged, "nfev": s.nfev,
+                    "aic": s.aic, "n_insignificant": len(s.insignificant), "n_high_corr": len(s.estimates.high_correlations),
+                    "within_noise": p.within_noise, "converged": s.converged, "nfev": s.nfev,
                     "mse_cv": s.cv.mse if s.cv is not None else None, "cv_folds": s.cv_folds,
                     # how the folds were formed, or why there is no mse_cv (structsearch.fitting.folds)
                     "cv_scheme": s.cv_scheme or None, "cv_note": s.cv_note or None,
-                    "gap": s.gap, "gap_se": s.gap_se if s.gap_se is not None and math.isfinite(s.gap_se) else "n/a",
-                    "message": s.message, "identifiable": s.identifiable, "condition_number": s.condition_number,
-                    "not_identifiable": "; ".join(f"{k}: {v}" for k, v in s.not_identifiable.items())})
+                    "gap": p.gap, "gap_se": p.gap_se if p.gap_se is not None and math.isfinite(p.gap_se) else "n/a",
+                    "message": s.message, "identifiable": s.identifiable, "condition_number": s.estimates.condition_number,
+                    "not_identifiable": "; ".join(f"{k}: {v}" for k, v in s.estimates.not_identifiable.items())})
     return row
 
 
@@ -109,7 +110,7 @@ def gap_note(ranked: list[CandidateResult]) -> str:
     reference = gap_reference(ranked)
     if reference is None:
         return ""
-    against = ("the best-fitting admissible candidate" if reference.admissible else
+    against = ("the best-fitting admissible candidate" if reference.placement.admissible else
                "the best-fitting candidate (none is admissible)")
     return (f"Gap to best: each candidate's mean per-maneuver relative excess of held-out MSE over {against}, "
             f"{reference.name}; within noise of best: a gap below its standard error (or 1 %). "
@@ -139,11 +140,11 @@ def thesis_stderr_rows(ranked_by_grid: dict[str, list[CandidateResult]]) -> list
                     if s.name == name and not s.failed), None)
         if fit is None:
             continue
-        for p in fit.names:
-            sd = fit.stderr.get(p, float("nan"))
+        for p in fit.estimates.names:
+            sd = fit.estimates.stderr.get(p, float("nan"))
             ratio = sd / THESIS_STDERR[p] if p in THESIS_STDERR and sd > 0 else float("nan")
             within = "n/a (not estimable)" if math.isnan(ratio) else "yes" if 0.5 <= ratio <= 2.0 else "no"
-            rows.append([name, p, truth.get(p, float("nan")), fit.params[p], THESIS_STDERR.get(p, float("nan")),
+            rows.append([name, p, truth.get(p, float("nan")), fit.estimates.params[p], THESIS_STDERR.get(p, float("nan")),
                          sd, ratio, within])
     return rows
 
@@ -166,8 +167,8 @@ def write_tables(ranked_by_grid: dict[str, list[CandidateResult]], out: Path,
         for fmt in ("md", "tex", "csv"):
             written.append(write_text(out / f"{safe}.{fmt}", grid_table(ranked, fmt)))
             if best is not None:
-                written.append(write_text(out / f"{safe}_best_parameters.{fmt}", parameter_table(best, fmt)))
-                written.append(write_text(out / f"{safe}_best_correlation.{fmt}", correlation_table(best, fmt)))
+                written.append(write_text(out / f"{safe}_best_parameters.{fmt}", parameter_table(best.estimates, fmt)))
+                written.append(write_text(out / f"{safe}_best_correlation.{fmt}", correlation_table(best.estimates, fmt)))
     rows = thesis_stderr_rows(thesis_fits) if thesis_fits else []
     if rows:
         for fmt in ("md", "csv"):

@@ -81,17 +81,17 @@ def compare_joint(final: ModelSet, campaign: Campaign, options: FitOptions) -> J
     parameters = []
     for c in COEFFICIENTS:
         seq = final.summaries[c]
-        for n in seq.params:
+        for n in seq.estimates.params:
             if n in seen or n not in r.params:
                 continue
             seen.add(n)
-            parameters.append(ParameterComparison(c, n, float(seq.params[n]), float(seq.stderr[n]),
+            parameters.append(ParameterComparison(c, n, float(seq.estimates.params[n]), float(seq.estimates.stderr[n]),
                                                   float(r.params[n]), float(r.stderr[n])))
     scores = tuple(ScoreComparison(cf.coefficient, cf.model, final.summaries[cf.coefficient].mse_train,
                                    cf.train.mse, final.summaries[cf.coefficient].mse_validation, cf.validation.mse)
                    for cf in joint.coefficients)
     lift = final.summaries["CL"]
-    rho = (_rho(lift.names, lift.estimates.correlation, TAU_PAIR), _rho(r.names, r.estimates.correlation, TAU_PAIR))
+    rho = (_rho(lift.estimates.names, lift.estimates.correlation, TAU_PAIR), _rho(r.estimates.names, r.estimates.correlation, TAU_PAIR))
     return JointComparison(tuple(cand.name for cand in joint.candidates), tuple(parameters), scores,
                            tuple(float(x) if np.isfinite(x) else float("nan") for x in rho),
                            r.covariance_kind, joint.iterations, joint.weights_settled, bool(r.converged))

@@ -44,7 +44,7 @@ class ModelSet:
                 params: dict | None = None) -> np.ndarray:
         """Output of the set's ``coef`` model (or of ``candidate`` with ``params`` in its place) on ``data``."""
         c = candidate or self.candidates[coef]
-        return predict_candidate(c, params or self.summaries[coef].params, data,
+        return predict_candidate(c, params or self.summaries[coef].estimates.params, data,
                                  None if coef == "CL" else self.lift)
 
 
@@ -61,9 +61,9 @@ def fit_model_set(label: str, names: Mapping[str, str], fitter: Fitter) -> Model
     for coef, s in summaries.items():
         if s.failed:
             raise DeclarationError(f"report: fitting {cands[coef].name} failed: {s.error}")
-    params = dict(lift.params)
+    params = dict(lift.estimates.params)
     for coef in ("CD", "Cm"):
-        params.update({k: v for k, v in summaries[coef].params.items() if k not in lift.params})
+        params.update({k: v for k, v in summaries[coef].estimates.params.items() if k not in lift.estimates.params})
     lift_fit = LiftFit(cands["CL"], lift)
     aero = AeroModel(build_model(cands["CL"]), build_model(cands["CD"], lift_fit), build_model(cands["Cm"], lift_fit),
                      params, name=label)

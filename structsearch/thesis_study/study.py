@@ -87,8 +87,8 @@ def run_study(fitter: Fitter) -> Study:
     dynamic = dynamic_stall_study(campaign, FINAL_MODEL_NAMES["CL"], options)
     train = campaign.split("train")
     lift = final.summaries["CL"]
-    derived = physical_quantities(dict(lift.params), train)
-    coll = collinearity(build_model(final.candidates["CL"]), dict(lift.params), train)
+    derived = physical_quantities(dict(lift.estimates.params), train)
+    coll = collinearity(build_model(final.candidates["CL"]), dict(lift.estimates.params), train)
     estimators = compare_estimators(campaign, dict(VAN_INGEN_MODEL_NAMES), n_starts=options.n_starts,
                                     seed=options.seed, progress=say)
     models = {FINAL: dict(FINAL_MODEL_NAMES), VAN_INGEN_REFITTED: dict(VAN_INGEN_MODEL_NAMES),

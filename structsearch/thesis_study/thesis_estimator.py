@@ -36,6 +36,6 @@ def thesis_estimator_fits(grids: Mapping[str, Sequence], campaign) -> dict[str, 
     if not all(name in found for name in FINAL_MODEL_NAMES.values()):
         return {}
     options = FitOptions(n_starts=1, covariance=THESIS_COVARIANCE, cv_folds=0)
-    starts = {coef: found[name].params for coef, name in FINAL_MODEL_NAMES.items()}
+    starts = {coef: found[name].estimates.params for coef, name in FINAL_MODEL_NAMES.items()}
     finals = fit_final_models(campaign.split("train"), campaign.split("validation"), options, starts)
     return {cand.name: [fit] for cand, fit in finals.values()}
