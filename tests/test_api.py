@@ -93,7 +93,7 @@ def test_fit_is_the_fit_command(tmp_path):
     outcome = structsearch.fit(tmp_path / "c", "CL-VI", settings=structsearch.Settings(starts=1))
     from structsearch.data.atomic import json_ready
     assert json.loads(json.dumps(json_ready(outcome.to_dict()))) == written
-    assert outcome.lift is None and outcome.result.params == written["params"]
+    assert outcome.lift is None and outcome.result.estimates.params == written["params"]
     with pytest.raises(structsearch.StructSearchError, match="no_such_parameter"):
         structsearch.fit(campaign, "CL-VI", settings=structsearch.Settings(bounds={"no_such_parameter": (0.0, 1.0)}))
 

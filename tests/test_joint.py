@@ -149,7 +149,7 @@ def test_the_joint_fit_of_the_final_models(joint_and_sequential):
         assert cf.weight == pytest.approx(1.0 / cf.train.mse, rel=1e-2)
     # drag and pitch bring their information on the shared states: no shared parameter is known worse
     worse = [n for n in joint.shared if r.stderr[n] > 1.05 * seq["CL"].estimates.stderr[n]]
-    assert not worse, {n: (r.stderr[n], seq["CL"].stderr[n]) for n in worse}
+    assert not worse, {n: (r.stderr[n], seq["CL"].estimates.stderr[n]) for n in worse}
 
 
 def test_the_joint_fit_document(joint_and_sequential):

@@ -158,5 +158,5 @@ def test_transport_searches_rank_an_admissible_one_state_structure_first(transpo
         assert two_state and all(r.placement.admissible or r.placement.reasons for r in two_state), grid
         assert not any(r.placement.admissible for r in two_state), grid  # two states on a one-state wing
         for r in ranked:
-            stderr = np.array([r.stderr[n] for n in r.names], float)
-            assert not np.any(stderr == 0), (r.name, r.stderr)
+            stderr = np.array([r.estimates.stderr[n] for n in r.estimates.names], float)
+            assert not np.any(stderr == 0), (r.name, r.estimates.stderr)

@@ -46,8 +46,9 @@ def run_search(n_jobs: int = 2, seed: int = 0, progress=None, naive: bool = True
     measured in the same run (issue 27, decision 1): the naive fan-out of the same candidates
     (:func:`naive_fan_out`) and the search's own critical path (:func:`critical_path`)."""
     import tempfile
-    from ..flight.flighttest import build_campaign
+    from ..fitting.fitter import Fitter, RunConfig
     from ..fitting.options import FitOptions
+    from ..flight.flighttest import build_campaign
     from ..grid_search.pipeline import grids_for, search
     from ..reporting.tables import write_tables
     say = progress or (lambda m: None)
@@ -61,7 +62,7 @@ def run_search(n_jobs: int = 2, seed: int = 0, progress=None, naive: bool = True
     with tempfile.TemporaryDirectory() as tmp:
         say("search --grid all from an empty cache")
         t0 = time.perf_counter()
-        result = search(campaign, "all", Path(tmp), n_jobs=n_jobs, options=FitOptions())
+        result = search(Fitter(RunConfig(campaign, Path(tmp), FitOptions(), n_jobs)), "all")
         write_tables(result.grids, Path(tmp))
         total = time.perf_counter() - t0
         workers = _children(os.getpid())
@@ -86,7 +87,7 @@ def run_search(n_jobs: int = 2, seed: int = 0, progress=None, naive: bool = True
         with tempfile.TemporaryDirectory() as tmp:
             say("search --grid all --cv-method one-step from an empty cache")
             t0 = time.perf_counter()
-            other = search(campaign, "all", Path(tmp), n_jobs=n_jobs, options=FitOptions(cv_method="one-step"))
+            other = search(Fitter(RunConfig(campaign, Path(tmp), FitOptions(cv_method="one-step"), n_jobs)), "all")
             write_tables(other.grids, Path(tmp))
             total_one_step = time.perf_counter() - t0
         out["one_step"] = {"search_s": total_one_step, "search_in_cl_vi_starts": total_one_step / unit,
