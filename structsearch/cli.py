@@ -124,7 +124,8 @@ def _fit(args) -> int:
                + "\n" + parameter_table(summary.estimates, "md")
                + ("\n\n" + bands_table(res.bands) if res.bands is not None else "")
                + ("\n\n" + profile_table(res.profile) if res.profile is not None else ""))
-    not_converged = "" if summary.converged else f"; the optimizer did NOT converge ({summary.message})"
+    not_converged = ("" if summary.optimizer.converged
+                     else f"; the optimizer did NOT converge ({summary.optimizer.message})")
     print(f"{res.candidate.name}: MSE train {summary.mse_train:.4g}, validation {summary.mse_validation:.4g}"
           f"{held_out_phrase(summary)}; {len(summary.insignificant)} parameter(s) accept zero, "
           f"{len(summary.estimates.at_bound)} at a bound{not_converged}; wrote {out / 'fit.json'}")
@@ -184,7 +185,7 @@ def _print_winners(result) -> None:
         if runner_up is not None:
             margin = (f"; next {runner_up.name} ({runner_up.n_params} parameters, {_held_out(best)} MSE "
                       f"{runner_up.comparison.mse / best.comparison.mse - 1:+.1%})")
-        not_converged = [s.name for s in ok if not s.converged]
+        not_converged = [s.name for s in ok if not s.optimizer.converged]
         warning = (f"; optimizer did not converge for {', '.join(not_converged)}" if not_converged else "")
         n_admissible = sum(bool(s.placement.admissible) for s in ok)
         status = "" if best.placement.admissible else " (NOT admissible: no candidate is)"

@@ -134,11 +134,15 @@ def stated_result(*args, **fields):
     """A CandidateResult whose estimates are the statistics given (``names``, ``params``, ``stderr``, ...;
     :data:`STATED_KEYWORDS`), amending ``estimates`` when one is given (``params=None``: no fit), and whose
     placement in a ranking is the one given (``rank``, ``admissible``, ...)."""
-    from structsearch.fitting.candidate_result import CandidateResult, Placement
+    from structsearch.fitting.candidate_result import CandidateResult, OptimizerReport, Placement
     placing = {k: fields.pop(k) for k in ("admissible", "reasons", "rank", "within_noise", "gap", "gap_se")
                if k in fields}
     if placing:
         fields["placement"] = Placement(**placing)
+    optimizer = {k: fields.pop(k) for k in ("converged", "message", "nfev", "n_starts", "n_reached_best")
+                 if k in fields}
+    if optimizer:
+        fields["optimizer"] = OptimizerReport(**optimizer)
     stated = {k: fields.pop(k) for k in STATED_KEYWORDS if k in fields}
     if stated:
         fields["estimates"] = (None if "params" in stated and stated["params"] is None

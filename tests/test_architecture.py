@@ -114,7 +114,7 @@ def test_candidate_result_survives_the_cache_as_json(error):
         assert back == r
         return
     assert back.validation.r2.mean == r.validation.r2.mean and math.isnan(back.validation.r2.min)
-    assert back.estimates.params == r.estimates.params and back.converged is False and back.message == "max_nfev reached"
+    assert back.estimates.params == r.estimates.params and back.optimizer.converged is False and back.optimizer.message == "max_nfev reached"
     assert back.estimates.high_correlations == r.estimates.high_correlations and back.insignificant == ("b",)
     np.testing.assert_array_equal(back.estimates.correlation, [[1.0, 0.95], [0.95, 1.0]])
 
@@ -264,7 +264,7 @@ def _fitted_candidate():
 
 def test_a_candidate_result_keeps_the_fits_estimates_and_covariance():
     fit, cand = _fitted_candidate()
-    assert cand.estimates is fit.estimates and cand.converged is fit.converged
+    assert cand.estimates is fit.estimates and cand.optimizer.converged is fit.converged
     for name in ("names", "nonlinear_names", "params", "stderr", "p_values", "at_bound", "reference_dof",
                  "not_identifiable", "significant", "condition_number", "significance", "max_lag"):
         assert getattr(cand.estimates, name) == getattr(fit, name), name

@@ -63,5 +63,5 @@ def test_a_single_fit_may_trust_its_stage_with_fewer_optimizer_runs(simulated_ca
     lean = fit_staged(resolve_candidate("CL-VI"), train, validation, None, options, stage_starts=1, declared_too=False)
     # the stage's estimates, the stage's optimum with tau1 at 0 (never worse than the stage) and the declared start;
     # trusting the stage drops the declared one
-    assert (usual.n_starts, lean.n_starts) == (3, 2)
+    assert (usual.optimizer.n_starts, lean.optimizer.n_starts) == (3, 2)
     assert lean.mse_train == pytest.approx(usual.mse_train, rel=1e-6)

@@ -87,7 +87,7 @@ def test_staged_fit_reaches_the_optimum_of_many_quasi_random_starts(tiny):
     staged = fit_staged(c, train, validation, None, options)
     many = fit_candidate(c, train, validation, None, FitOptions(n_starts=16, cv_folds=0))
     # the stage's estimates, the stage's optimum with tau1 at its nesting value 0, declared, quasi-random
-    assert staged.n_starts == 2 + FitOptions().n_starts
+    assert staged.optimizer.n_starts == 2 + FitOptions().n_starts
     assert staged.mse_train <= many.mse_train * (1 + 1e-7)
 
 
@@ -101,7 +101,7 @@ def test_a_staged_grid_is_served_from_the_cache_on_the_second_run(tiny, tmp_path
     assert messages == ["3 of 3 candidates from the cache"]
     # X U started from X Q's estimates, X Q's optimum with tau1 at 0 (the nested start) and its declared start,
     # X S from quasi-random starts
-    assert first[2].n_starts == 3 and first[0].n_starts == FitOptions().n_starts
+    assert first[2].optimizer.n_starts == 3 and first[0].optimizer.n_starts == FitOptions().n_starts
     assert first[2].mse_train <= first[1].mse_train    # never worse than the structure it contains
     assert np.isfinite(first[2].mse_train)
 

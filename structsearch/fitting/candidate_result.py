@@ -25,8 +25,8 @@ if TYPE_CHECKING:
 
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
 # 7: the parameters' estimates and covariance as one object (ParameterEstimates.to_dict); 8: the ranking's
-# fields as one placement
-JSON_LAYOUT = 8
+# fields as one placement; 9: the optimizer's account as one report
+JSON_LAYOUT = 9
 
 
 def _nan_if_none(v) -> float:
@@ -62,6 +62,21 @@ class SplitScores:
                    R2Summary(_nan_if_none(r2["mean"]), _nan_if_none(r2["min"]), _nan_if_none(r2["max"]),
                              _nan_if_none(r2.get("pooled"))),
                    doc.get("mse_cx"), doc.get("mse_cz"))
+
+
+@dataclass(frozen=True)
+class OptimizerReport:
+    """How the optimizer reached a candidate's estimates: its own verdict on the best start, its words, the
+    residual evaluations of the best start, and how many starts reached the best cost."""
+
+    converged: bool | None = None
+    message: str = ""
+    nfev: int = 0
+    n_starts: int = 0
+    n_reached_best: int = 0
+
+    def to_json(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 @dataclass(frozen=True)
@@ -116,13 +131,9 @@ class CandidateResult:
     estimates: ParameterEstimates | None = None
     # the correlation with the data columns centred that can be (what admissibility judges; () when none can)
     centred_correlation: tuple[tuple[float, ...], ...] | np.ndarray = ()
-    n_starts: int = 0
-    n_reached_best: int = 0
     aic: float | None = None
     bic: float | None = None
-    converged: bool | None = None      # the optimizer's own verdict on the best start
-    message: str = ""                  # and its words
-    nfev: int = 0                      # residual evaluations of the best start
+    optimizer: OptimizerReport = OptimizerReport()   # how the optimizer got there (nothing: it failed)
     train: SplitScores | None = None
     validation: SplitScores | None = None
     cv: SplitScores | None = None       # held-out scores of the training maneuvers (cross-validation)
@@ -146,8 +157,9 @@ class CandidateResult:
         return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds,
                    estimates=result.estimates,
                    centred_correlation=() if centred_correlation is None else centred_correlation,
-                   n_starts=result.n_starts, n_reached_best=result.n_reached_best, aic=result.aic, bic=result.bic,
-                   converged=bool(result.converged), message=result.message, nfev=int(result.nfev),
+                   optimizer=OptimizerReport(bool(result.converged), result.message, int(result.nfev),
+                                             result.n_starts, result.n_reached_best),
+                   aic=result.aic, bic=result.bic,
                    train=train, validation=validation, cv=cv, cv_folds=cv_folds, cv_method=cv_method,
                    cv_scheme=cv_scheme, cv_note=cv_note)
 
@@ -198,7 +210,7 @@ class CandidateResult:
     def summary(self) -> "FitSummary":
         """Scores, optimizer and parameters with tests and flags (text, Markdown, HTML, LaTeX)."""
         from ..engine.summary import FitSummary, covariance_head, covariance_line
-        e = self._fitted()
+        e, o = self._fitted(), self.optimizer
         head = [("model", self.name), ("coefficient", self.coefficient), ("lift model", self.lift or "-"),
                 ("parameters (nonlinear + linear)", f"{len(e.nonlinear_names)} + {len(e.linear_names)}")]
         for label, split in (("train", self.train), ("cross-validation", self.cv), ("validation", self.validation)):
@@ -211,9 +223,9 @@ class CandidateResult:
             head.append(("R^2 validation per maneuver mean / min / max",
                          f"{r2.mean:.4f} / {r2.min:.4f} / {r2.max:.4f}"))
         head += [("covariance", covariance_line(e.covariance_kind, e.max_lag, e.bandwidth)),
-                 ("optimizer", f"{'converged' if self.converged else 'NOT CONVERGED'}: {self.message} "
-                               f"({self.nfev} evaluations)"),
-                 ("starts reaching the best cost", f"{self.n_reached_best} of {self.n_starts}"),
+                 ("optimizer", f"{'converged' if o.converged else 'NOT CONVERGED'}: {o.message} "
+                               f"({o.nfev} evaluations)"),
+                 ("starts reaching the best cost", f"{o.n_reached_best} of {o.n_starts}"),
                  *covariance_head(e)]
         p = self.placement
         if p is not None and p.rank is not None:
@@ -248,6 +260,7 @@ class CandidateResult:
             doc[split] = s.to_json() if s is not None else None
         doc["centred_correlation"] = [list(row) for row in self.centred_correlation]
         doc["placement"] = None if self.placement is None else self.placement.to_json()
+        doc["optimizer"] = self.optimizer.to_json()
         return json_ready(doc)
 
     @classmethod
@@ -263,6 +276,7 @@ class CandidateResult:
             values["estimates"] = ParameterEstimates.from_dict(values["estimates"])
         values["centred_correlation"] = tuple(tuple(map(_nan_if_none, row))
                                               for row in values.get("centred_correlation", ()))
+        values["optimizer"] = OptimizerReport(**values.get("optimizer", {}))
         if values.get("placement") is not None:
             values["placement"] = Placement.from_json(values["placement"])
         return cls(**values)

@@ -85,8 +85,8 @@ def reasons(result: CandidateResult, candidate: Candidate | None, rules: Admissi
     if result.failed:
         return (f"fit failed: {result.error}",)
     out = []
-    if result.converged is False:
-        out.append(f"optimizer did not converge ({result.message})")
+    if result.optimizer.converged is False:
+        out.append(f"optimizer did not converge ({result.optimizer.message})")
     e = result.estimates
     if e.not_identifiable:
         out.append(f"not identifiable: {_fmt(e.not_identifiable)}")

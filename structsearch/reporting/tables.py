@@ -68,12 +68,12 @@ def table_row(s: CandidateResult) -> dict:
                     # no maneuver with an R^2 (constant signal): empty, not "nan"
                     **{f"r2_validation_{k}": (x if math.isfinite(x) else None) for k, x in v.r2.as_dict().items()},
                     "aic": s.aic, "n_insignificant": len(s.insignificant), "n_high_corr": len(s.estimates.high_correlations),
-                    "within_noise": p.within_noise, "converged": s.converged, "nfev": s.nfev,
+                    "within_noise": p.within_noise, "converged": s.optimizer.converged, "nfev": s.optimizer.nfev,
                     "mse_cv": s.cv.mse if s.cv is not None else None, "cv_folds": s.cv_folds,
                     # how the folds were formed, or why there is no mse_cv (structsearch.fitting.folds)
                     "cv_scheme": s.cv_scheme or None, "cv_note": s.cv_note or None,
                     "gap": p.gap, "gap_se": p.gap_se if p.gap_se is not None and math.isfinite(p.gap_se) else "n/a",
-                    "message": s.message, "identifiable": s.identifiable, "condition_number": s.estimates.condition_number,
+                    "message": s.optimizer.message, "identifiable": s.identifiable, "condition_number": s.estimates.condition_number,
                     "not_identifiable": "; ".join(f"{k}: {v}" for k, v in s.estimates.not_identifiable.items())})
     return row
 
