@@ -330,3 +330,27 @@ def test_ci_runs_exactly_the_readme_test_command():
           if line.strip() and not line.lstrip().startswith(("#", "set ", "cd "))]
     assert ci == [tests, "bash .ci/another_machine"]
     assert ".ci/another_machine" in readme
+
+
+def test_rooms_stay_small_and_the_api_takes_one_settings_value():
+    """No function over 80 lines, no module over 450, no API function with more than 8 keyword options besides
+    its settings value (the house's limits: a function or module past them is split, an API option past them
+    belongs in structsearch.Settings)."""
+    import ast
+    package = ROOT / "structsearch"
+    long_functions, long_modules, wide = [], [], []
+    for path in sorted(package.rglob("*.py")):
+        text = path.read_text()
+        if len(text.splitlines()) > 450:
+            long_modules.append(str(path.relative_to(ROOT)))
+        tree = ast.parse(text)
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno >= 80:
+                long_functions.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}")
+        if path.parent.name == "api":
+            for node in tree.body:
+                if isinstance(node, ast.FunctionDef) and not node.name.startswith("_"):
+                    options = [a.arg for a in node.args.kwonlyargs if a.arg != "settings"]
+                    if len(options) > 8:
+                        wide.append(f"{node.name}: {len(options)}")
+    assert long_functions == [] and long_modules == [] and wide == [], (long_functions, long_modules, wide)
