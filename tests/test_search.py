@@ -610,3 +610,25 @@ def test_a_pair_tries_its_other_member_when_the_less_significant_was_tried_as_in
     corr[1, 2] = corr[2, 1] = 0.95
     options = _options(c, _stub(["c0", "a", "b"], [1e-9, 0.01, 0.3], corr))
     assert [n for n, _ in options] == ["b", "a"] and options[1][1].startswith("|rho(a, b)|")
+
+
+def test_a_fitter_fits_through_its_cache_and_its_variants_leave_it_as_it_was(tiny, tmp_path):
+    """The one object every command fits with: a second call is served from its cache (the same estimates); its
+    variants (other options, lift models, silence, one process) are new fitters and leave it unchanged."""
+    from structsearch.fitting.fitter import Fitter, RunConfig
+    from structsearch.fitting.options import FitOptions
+    said = []
+    fitter = Fitter(RunConfig(tiny, tmp_path, FitOptions(n_starts=1, cv_folds=0), n_jobs=2, progress=said.append))
+    candidate = load_grid("separation").candidates[0]
+    first = fitter.fit_one(candidate)
+    again = fitter.fit([candidate])
+    assert not first.failed and again[0].estimates.params == first.estimates.params
+    assert said[-1] == "1 of 1 candidates from the cache"
+    n_said = len(said)
+    assert fitter.quiet().fit_one(candidate).estimates.params == first.estimates.params and len(said) == n_said
+    screening = fitter.with_options(scores_only=True)
+    assert screening.options.scores_only and not fitter.options.scores_only
+    assert fitter.serial().config.n_jobs == 1 and fitter.config.n_jobs == 2
+    lift = LiftFit(load_grid("lift")["CL-VI"], first)
+    assert fitter.with_lifts({"CL-VI": lift}).lifts == {"CL-VI": lift} and fitter.lifts == {}
+    assert fitter.fit([]) == []
