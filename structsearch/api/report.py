@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
-from ..fitting.fitter import Fitter, temporary_fitter
+from ..fitting.fitter import Fitter
 from ..fitting.options import check_box_names
 from .commands import as_campaign, search_candidates
 from .settings import Settings, command_fitter, fit_options
@@ -37,10 +37,8 @@ def fit_report_models(fitter: Fitter, out: Path, *, diagnose: str | None = "Cm",
     diagnosis = effect = None
     if diagnose:
         say(f"report: diagnosing {names[diagnose]}")
-        # the report's own options (not the diagnose command's), and a cache of its own: nothing it fits here
-        # is a fit the report shows
-        with temporary_fitter(campaign, fitter.options, n_jobs=fitter.config.n_jobs) as apart:
-            diagnosis = run_diagnosis(apart, identified.candidates[diagnose], max_rounds=1, states=False)
+        # the report's own options (not the diagnose command's): its cache serves the baseline fitted above
+        diagnosis = run_diagnosis(quiet, identified.candidates[diagnose], max_rounds=1, states=False)
         best = best_effect(diagnosis)
         if best is not None:
             effect = (best, *fit_with_effect(identified, diagnose, best, quiet))

@@ -14,7 +14,7 @@ from typing import Callable, Iterable, Iterator, Mapping
 from ..data.campaign import Campaign
 from ..engine.statistics import DEFAULT_COVARIANCE
 from ..fitting.fitter import Fitter, RunConfig
-from ..fitting.options import COMMAND_OPTIONS, FitOptions
+from ..fitting.options import FitOptions, command_options
 
 Progress = Callable[[str], None] | None
 Bounds = Mapping[str, tuple[float, float]] | Iterable[tuple[str, tuple[float, float]]] | None
@@ -55,15 +55,14 @@ def fit_options(command: str, settings: Settings, campaign: Campaign | None = No
     cycle out when its training maneuvers are cycles of periodic records
     (:func:`structsearch.fitting.folds.fold_size_for`), and blocked folds last at least the campaign's shortest
     maneuver worth fitting (:func:`structsearch.fitting.folds.block_convective_times`)."""
-    values = {**COMMAND_OPTIONS[command], "seed": settings.seed, "covariance": settings.covariance,
-              "parameter_boxes": settings.boxes()}
+    values = {"seed": settings.seed, "covariance": settings.covariance, "parameter_boxes": settings.boxes()}
     if settings.starts is not None:
         values["n_starts"] = settings.starts
     if campaign is not None:
         from ..fitting.folds import block_convective_times, fold_size_for
         values["cv_fold_size"] = fold_size_for(campaign.maneuvers)
         values["cv_block_convective_times"] = block_convective_times(campaign)
-    return FitOptions(**{**values, **changes})
+    return command_options(command, **{**values, **changes})
 
 
 @contextmanager

@@ -40,7 +40,6 @@ from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, Status, explore
 from ..discovery.moves import MOVE_KINDS, structure_key
 from ..discovery.search_start import start_search
 from ..fitting.comparison import MIN_MANEUVERS, relative_excess, within_noise as one_se_rule
-from ..fitting.options import command_options
 from ..fitting.candidates import Candidate
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.fitter import Fitter
@@ -59,8 +58,6 @@ __all__ = ["diagnose", "diagnose_search", "saturated", "wald_p_value", "within_n
 SPECTRAL_SPLIT_HZ = 3.0
 # A model is at the floor when its per-maneuver relative excess over the floor model is within one standard
 # error or below this (the ranking's practical tolerance); the error needs this many maneuvers.
-# The diagnose command's options (fitting.options.COMMAND_OPTIONS)
-DIAGNOSIS_OPTIONS = command_options("diagnose")
 
 
 def spectral_floor(residual: np.ndarray, data: FlightData) -> float:

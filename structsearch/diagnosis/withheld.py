@@ -36,8 +36,7 @@ from ..flight.flighttest import build_campaign
 from ..flight.reference import FINAL_MODEL_NAMES
 from ..fitting.candidates import Candidate
 from ..fitting.fitter import temporary_fitter
-from ..fitting.options import FitOptions
-from .diagnose import DIAGNOSIS_OPTIONS
+from ..fitting.options import FitOptions, command_options
 from ..fitting.specs import find_candidate
 
 # effect -> (coefficient, regressors to drop, state kind changes)
@@ -260,7 +259,7 @@ def anomaly_row(name: str, seed: int, scale: float, options: FitOptions, n_jobs:
 
 
 def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, anomalies=None,
-        progress: Callable[[str], None] | None = None, options: FitOptions = DIAGNOSIS_OPTIONS,
+        progress: Callable[[str], None] | None = None, options: FitOptions = command_options("diagnose"),
         n_jobs: int = 1) -> BenchmarkResult:
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
