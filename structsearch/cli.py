@@ -39,7 +39,7 @@ def _settings(args, prefix: str = "", progress: bool = True):
                     covariance=getattr(args, "covariance", DEFAULT_COVARIANCE), bounds=_bounds(args),
                     jobs=getattr(args, "jobs", 0) or 0, backend=getattr(args, "backend", "loky") or "loky",
                     segment=getattr(args, "segment", None), cache=getattr(args, "cache", None) or None,
-                    progress=_progress(args, prefix) if progress else None)
+                    progress=_progress(args, prefix) if progress else None, trace=getattr(args, "trace", None))
 
 
 def raise_error(message: str):

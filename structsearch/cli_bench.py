@@ -54,7 +54,32 @@ def _reading_bench(args) -> int:
     return 0
 
 
+def _trace_bench(args) -> int:
+    """``bench --trace FILE``: the recorded task graph's work, critical path and predicted walls."""
+    import json
+    from .data.atomic import write_json, write_text
+    from .experiments.trace_bench import analyse, markdown, read_trace
+    out = Path(args.out)
+    fig = {"file": str(args.trace), **analyse(read_trace(args.trace))}
+    bench_json = out / "bench.json"
+    doc = json.loads(bench_json.read_text(encoding="utf-8")) if bench_json.exists() else {}
+    doc["trace"] = fig   # the other benchmarks' figures stay as they were
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(bench_json, doc, indent=1)
+    write_text(out / "trace_bench.md", markdown(fig, f"structsearch bench --trace {args.trace} --out {out}"))
+    p = fig["predicted_wall_s"]
+    print(f"{fig['tasks']} tasks: work {fig['work_s']:.1f} s, critical path {fig['critical_path_s']:.1f} s, "
+          f"parallelism {fig['parallelism'] or float('nan'):.1f}; predicted wall "
+          + ", ".join(f"{w} workers {s:.1f} s" for w, s in p.items())
+          + f"; 2 -> 16 workers {fig['predicted_speedup_2_to_16']:.2f}x; measured {fig['wall_s']:.1f} s on "
+          f"{fig['workers_recorded']}")
+    print(f"wrote {out / 'trace_bench.md'} and the trace entry of {bench_json}")
+    return 0
+
+
 def _bench(args) -> int:
+    if args.trace:
+        return _trace_bench(args)
     if args.reading:
         return _reading_bench(args)
     if args.calibration:

@@ -93,6 +93,10 @@ def _add_bench(sub, handler: Callable) -> None:
     b.add_argument("--reading", action="store_true",
                    help="instead: the peak memory of reading the default campaign (CSV and Parquet) against the "
                         "size of its data, each in a fresh process (writes reading_bench.md and .json; --scale)")
+    b.add_argument("--trace", metavar="FILE", default=None,
+                   help="instead: what the task graph of a run recorded with --trace allows: total work, critical "
+                        "path, available parallelism, the wall a list schedule predicts at 2, 4, 8, 16, 64 workers "
+                        "(writes trace_bench.md and the 'trace' entry of bench.json)")
     b.add_argument("--campaigns", type=_count, default=50,
                    help="--calibration: number of seeded campaigns (seeds 2000 on: held out from the seeds the "
                         "defaults were chosen on)")
@@ -215,6 +219,9 @@ def _add_search(sub, handler: Callable) -> None:
                    help="fit these structures jointly first (names, spec files, or a joint spec file); drag and "
                         "pitch candidates that name its lift structure read the joint estimate, and their "
                         "two-step covariance has the joint fit as first step (writes joint_lift.json)")
+    r.add_argument("--trace", metavar="FILE", default=None,
+                   help="write every task (start, end, worker, the tasks it waited for) to FILE as Chrome "
+                        "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     r.add_argument("--quiet", action="store_true", help="no progress lines")
     _admissibility_options(r)
     r.set_defaults(func=handler)
@@ -233,6 +240,11 @@ def _add_diagnose(sub, handler: Callable) -> None:
     g.add_argument("--parts", type=_benchmark_parts, default=None,
                    help="benchmark: which parts, comma-separated: withheld, anomalies, null (default: all)")
     g.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
+    g.add_argument("--backend", default="loky", choices=("loky", "dask"),
+                   help="loky: local processes; dask: a dask.distributed cluster (a local one of --jobs workers)")
+    g.add_argument("--trace", metavar="FILE", default=None,
+                   help="write every task (start, end, worker, the tasks it waited for) to FILE as Chrome "
+                        "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     _structure_search_options(g)
     g.add_argument("--quiet", action="store_true", help="no progress lines")
     g.set_defaults(func=handler)
@@ -250,7 +262,10 @@ def _add_discover(sub, handler: Callable) -> None:
                         "and the thesis' CL-VI)")
     d.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
     d.add_argument("--backend", default="loky", choices=("loky", "dask"),
-                   help="loky: local processes; dask: a dask.distributed cluster")
+                   help="loky: local processes; dask: a dask.distributed cluster (a local one of --jobs workers)")
+    d.add_argument("--trace", metavar="FILE", default=None,
+                   help="write every task (start, end, worker, the tasks it waited for) to FILE as Chrome "
+                        "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     _structure_search_options(d)
     d.add_argument("--quiet", action="store_true", help="no progress lines")
     d.set_defaults(func=handler)

@@ -116,12 +116,12 @@ def assert_matches_finite_difference(jacobian, fun, x, rel=1e-5, safety=10.0):
                              f", finite difference {extrapolated[i, j]!r}, bound {bound[i, j]!r}")
 
 
-def fitter_for(campaign, cache_dir, options=None, n_jobs: int = 1, lifts=None, progress=None):
+def fitter_for(campaign, cache_dir, options=None, n_jobs: int = 1, lifts=None, progress=None, trace=None):
     """A :class:`~structsearch.fitting.fitter.Fitter` on ``campaign`` caching in ``cache_dir`` (what a command's
     API function makes from its settings)."""
     from structsearch.fitting.fitter import Fitter, RunConfig
     from structsearch.fitting.options import FitOptions
-    config = RunConfig(campaign, cache_dir, options or FitOptions(), n_jobs, "loky", progress)
+    config = RunConfig(campaign, cache_dir, options or FitOptions(), n_jobs, "loky", progress, trace)
     return Fitter(config, dict(lifts or {}))
 
 

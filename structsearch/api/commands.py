@@ -37,7 +37,6 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
     cross-check by parameter sampling (that many draws, seeded by ``settings.seed``). ``profile``: also the 95 %
     and 68 % profile intervals of the nonlinear parameters (``.profile``, :mod:`structsearch.engine.profile`)."""
     _check_samples(band_samples)
-    from ..fitting.candidate_fit import fit_lift_model, fit_staged
     from ..fitting.specs import resolve_candidate
     candidate = resolve_candidate(model)   # a misspelled name is answered before the campaign is read
     campaign = as_campaign(campaign, settings.segment)
@@ -47,8 +46,9 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
     train, validation = campaign.split("train"), campaign.split("validation")
     if progress is not None:
         progress(f"fit: {candidate.name}" + (f" on {candidate.lift}" if candidate.lift else ""))
-    lift = fit_lift_model(candidate, train, validation, options)
-    result = fit_staged(candidate, train, validation, lift, options)
+    with command_fitter("fit", campaign, settings) as fitter:  # its starts and folds are tasks on the workers
+        lift = _lift_model(fitter, candidate)
+        result = fitter.with_lifts({candidate.lift: lift} if lift else {}).fit_one(candidate)
     if result.failed:
         raise DeclarationError(result.error)
     from ..fitting.bands import static_bands
@@ -60,6 +60,20 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
         profiles = profile_candidate(candidate, result, train, lift)
     return FitOutcome(candidate, result, lift, static_bands(candidate, result, train, lift, samples=band_samples,
                                                             seed=settings.seed), profiles)
+
+
+def _lift_model(fitter, candidate):
+    """The fitted lift model a drag or pitch candidate names (None for a lift or separation candidate)."""
+    from ..fitting.lift_fit import LiftFit
+    from ..fitting.specs import load_grid
+    if not candidate.lift:
+        return None
+    lift_candidate = load_grid("lift")[candidate.lift]
+    lift = fitter.fit_one(lift_candidate)
+    if lift.failed:
+        raise DeclarationError(f"fitting the lift model {candidate.lift} that {candidate.name} needs failed: "
+                               f"{lift.error}")
+    return LiftFit(lift_candidate, lift)
 
 
 def _check_samples(band_samples: int) -> None:

@@ -13,7 +13,9 @@ from typing import Callable, Iterable, Iterator, Mapping
 
 from ..data.campaign import Campaign
 from ..engine.statistics import DEFAULT_COVARIANCE
+from ..data.atomic import write_json
 from ..fitting.fitter import Fitter, RunConfig
+from ..fitting.trace import Trace
 from ..fitting.options import FitOptions, command_options
 
 Progress = Callable[[str], None] | None
@@ -26,7 +28,8 @@ class Settings:
     ``covariance``, ``bounds`` (``--bound NAME=LO:HI``: a mapping or pairs, the last box of a name winning),
     ``jobs`` worker processes (0: every core) of ``backend``, ``segment`` ("cycles" fits a periodic record's
     cycles as maneuvers), ``cache`` (the directory whose ``cache/`` holds the fits; default the command's
-    ``out``, else a temporary directory) and ``progress`` (receives the lines the command writes to stderr)."""
+    ``out``, else a temporary directory), ``progress`` (receives the lines the command writes to stderr) and
+    ``trace`` (a file the command writes its tasks to, as Chrome trace-event JSON: ``--trace FILE``)."""
 
     starts: int | None = None
     seed: int = 0
@@ -37,6 +40,7 @@ class Settings:
     segment: str | None = None
     cache: str | os.PathLike | None = None
     progress: Progress = None
+    trace: str | os.PathLike | None = None
 
     @property
     def processes(self) -> int:
@@ -79,10 +83,39 @@ def cache_directory(cache: str | os.PathLike | None) -> Iterator[Path]:
 def command_fitter(command: str, campaign: Campaign, settings: Settings, out: str | os.PathLike | None = None,
                    **option_changes) -> Iterator[Fitter]:
     """The fitter of ``command``: its options (:func:`fit_options`, with ``option_changes``), its cache
-    (``settings.cache``, else ``out``, else a temporary directory), workers and progress."""
+    (``settings.cache``, else ``out``, else a temporary directory), workers (on ``backend="dask"``, the client the
+    caller opened, else a local cluster of ``jobs`` workers) and progress; with ``settings.trace``, every task
+    it ran is written there when it ends (also when it fails: the trace shows how far it got)."""
     options = fit_options(command, settings, campaign, **option_changes)
-    with cache_directory(settings.cache if settings.cache is not None else out) as where:
-        yield Fitter(RunConfig(campaign, where, options, settings.processes, settings.backend, settings.progress))
+    trace = Trace() if settings.trace is not None else None
+    with cache_directory(settings.cache if settings.cache is not None else out) as where, \
+            _dask_client(settings) as _:
+        try:
+            yield Fitter(RunConfig(campaign, where, options, settings.processes, settings.backend, settings.progress,
+                                   trace))
+        finally:
+            if trace is not None:
+                write_json(Path(settings.trace), trace.to_chrome())
+
+
+@contextmanager
+def _dask_client(settings: Settings):
+    """The dask client a command's tasks run on: the caller's, else a local cluster closed afterwards."""
+    if settings.backend != "dask":
+        yield None
+        return
+    try:
+        from distributed import get_client
+        yield get_client()
+        return
+    except (ImportError, ValueError):
+        pass
+    from .commands import dask_client
+    client = dask_client(None, settings.processes)
+    try:
+        yield client
+    finally:
+        client.close()
 
 
 @dataclass(frozen=True)

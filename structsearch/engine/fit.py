@@ -8,7 +8,7 @@ from .ols import solved
 from .estimates import ParameterEstimates
 from .results import FitResult
 from .identifiability import covariance_basis, rank_reasons
-from .snls import Outcome, SeparableProblem, model_jacobian, multistart, project
+from .snls import MultistartOutcome, Outcome, SeparableProblem, model_jacobian, multistart, project
 from .scores import ManeuverScores, slices_of
 from .defaults import SEPARABLE_DEFAULTS, STALL_DEFAULTS
 from .statistics import (COVARIANCE_KINDS, Covariances, scaled_condition_number, scaled_factor,
@@ -48,11 +48,14 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
                 seed: int = 0, n_jobs: int = 1, covariance: str = SEPARABLE_DEFAULTS.covariance, max_lag=None,
                 tol: float = STALL_DEFAULTS.tol, max_nfev: int | None = None, also=(), model: str = "model",
                 coefficient: str | None = None, source: str = "<memory>",
-                solution: Outcome | None = None, flights=None) -> FitResult:
+                solution: Outcome | None = None, flights=None,
+                starts: MultistartOutcome | None = None) -> FitResult:
     """Estimate all parameters and their statistics.
 
     ``solution``, an optimum already found on this problem and these observations (a joint fit's last weight
-    iteration), skips the solve: only its statistics are computed.
+    iteration), skips the solve: only its statistics are computed. ``starts``, the solves from every start of a
+    multistart that ran elsewhere (each start a task of its own), skips the solve too and reports them as the
+    multistart it is.
 
     ``boundaries`` are the maneuver boundaries ``[0, ..., m]``; they delimit the
     residual autocorrelation and the per-maneuver R^2. ``lower``/``upper`` are the box of the nonlinear
@@ -78,6 +81,9 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
         lower, upper = np.asarray(lower, float), np.asarray(upper, float)
         if solution is not None:
             outcome, n_starts_used, reached, ev = solution, 1, 1, ev0
+        elif starts is not None:
+            outcome, n_starts_used, reached = starts.best, len(starts.outcomes), starts.n_reached_best
+            ev = problem.evaluate(outcome.theta)
         else:
             ms = multistart(problem, y, start, lower, upper, n_starts=n_starts, seed=seed,
                             n_jobs=n_jobs, tol=tol, max_nfev=max_nfev, also=also)

@@ -306,28 +306,47 @@ def reached(outcomes, best_cost: float, scale: float, rtol: float = 1e-6) -> int
     return int(sum(o.cost <= best_cost + rtol * best_cost + 1e-14 * scale for o in outcomes))
 
 
-def multistart(problem: SeparableProblem, y: np.ndarray, start, lower, upper, *, n_starts: int = 1,
-               seed: int = 0, n_jobs: int = 1, tol: float = 1e-10,
-               max_nfev: int | None = None, also=()) -> MultistartOutcome:
-    """Solve from several starts (in parallel with joblib); keep the lowest cost. The starts are ``start``,
-    the points in ``also`` (inside the bounds) and ``n_starts`` - 1 scrambled Sobol points."""
-    check_start_in_box(problem.nonlinear_names, np.asarray(start, float), np.asarray(lower, float),
-                 np.asarray(upper, float))
+def start_list(problem: SeparableProblem, start, lower, upper, *, n_starts: int = 1, seed: int = 0,
+               also=()) -> np.ndarray:
+    """The starts of a multistart, in the order it tries them: ``start``, the points in ``also`` (inside the
+    bounds) and ``n_starts`` - 1 scrambled Sobol points. Each is checked inside the box."""
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    check_start_in_box(problem.nonlinear_names, np.asarray(start, float), lower, upper)
     for point in also:
-        check_start_in_box(problem.nonlinear_names, np.asarray(point, float), np.asarray(lower, float),
-                     np.asarray(upper, float))
+        check_start_in_box(problem.nonlinear_names, np.asarray(point, float), lower, upper)
     points = start_points(start, lower, upper, n_starts, seed)
     if len(also):
         points = np.vstack([points[:1], np.asarray(also, float).reshape(-1, len(points[0])), points[1:]])
-    if n_jobs == 1 or len(points) == 1:
-        outcomes = [_solve_or_record(problem, y, p, lower, upper, tol, max_nfev) for p in points]
-    else:
-        from joblib import Parallel, delayed
-        outcomes = Parallel(n_jobs=n_jobs)(
-            delayed(_solve_or_record)(problem, y, p, lower, upper, tol, max_nfev) for p in points)
+    return points
+
+
+def best_of(outcomes, y: np.ndarray) -> MultistartOutcome:
+    """The lowest-cost outcome of solves from several starts (given in start order)."""
     finite = [o for o in outcomes if np.isfinite(o.cost)]
     if not finite:
         raise FitError("no start produced a fit: " + outcomes[0].message)
     # starts that reach the same optimum differ in cost by rounding: the first of them (start order) wins
     best = first_of_lowest(finite, lambda o: o.cost)
     return MultistartOutcome(best, tuple(outcomes), reached(finite, best.cost, float(y @ y)))
+
+
+def solve_recorded(problem: SeparableProblem, y: np.ndarray, start, lower, upper, *, tol: float = 1e-10,
+                   max_nfev: int | None = None) -> Outcome:
+    """One local solve whose failure is recorded in its outcome (infinite cost, the reason), never raised: one
+    start of a multistart, which may run as a task of its own."""
+    return _solve_or_record(problem, y, start, lower, upper, tol, max_nfev)
+
+
+def multistart(problem: SeparableProblem, y: np.ndarray, start, lower, upper, *, n_starts: int = 1,
+               seed: int = 0, n_jobs: int = 1, tol: float = 1e-10,
+               max_nfev: int | None = None, also=()) -> MultistartOutcome:
+    """Solve from several starts (in parallel with joblib); keep the lowest cost. The starts are ``start``,
+    the points in ``also`` (inside the bounds) and ``n_starts`` - 1 scrambled Sobol points."""
+    points = start_list(problem, start, lower, upper, n_starts=n_starts, seed=seed, also=also)
+    if n_jobs == 1 or len(points) == 1:
+        outcomes = [_solve_or_record(problem, y, p, lower, upper, tol, max_nfev) for p in points]
+    else:
+        from joblib import Parallel, delayed
+        outcomes = Parallel(n_jobs=n_jobs)(
+            delayed(_solve_or_record)(problem, y, p, lower, upper, tol, max_nfev) for p in points)
+    return best_of(outcomes, y)

@@ -28,7 +28,7 @@ from .results import FitResult
 from ..data.default_boxes import DEFAULT_BOUNDS, DEFAULT_START, data_bounds
 from .separation import SeparationState, common_step, evaluate_state
 from .ols import ols
-from .snls import BoundProblem, Evaluation, model_jacobian, multistart
+from .snls import BoundProblem, Evaluation, MultistartOutcome, model_jacobian, multistart, solve_recorded, start_list
 from .defaults import STALL_DEFAULTS
 from .units import coefficient_unit, separation_unit
 
@@ -179,18 +179,32 @@ class StallModel:
     def fit(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
             seed: int = 0, n_jobs: int = 1, covariance: str = STALL_DEFAULTS.covariance, max_lag=None,
             tol: float = STALL_DEFAULTS.tol, max_nfev: int | None = None, declared_too: bool = False,
-            more_starts: Sequence[Mapping[str, float]] = ()) -> FitResult:
+            more_starts: Sequence[Mapping[str, float]] = (), solved: MultistartOutcome | None = None) -> FitResult:
         """Fit the coefficient column of ``data``: SNLS when there are separation states, else OLS.
         The covariance defaults to the project's best-calibrated one (per-maneuver HAC), the tolerance to
         1e-10 (:data:`~.defaults.STALL_DEFAULTS`, which says why they differ from a SeparableModel's). The box
         is the declared one (``declare(bounds=...)``), else the default box of each parameter kind. With
-        ``declared_too`` the declared start is tried after a given ``start``, and so is each of ``more_starts``."""
+        ``declared_too`` the declared start is tried after a given ``start``, and so is each of ``more_starts``.
+        ``solved``: the solves from every start of :meth:`start_points` (with the same arguments), run
+        elsewhere (:meth:`solve_from`, one task each): only the statistics are computed here."""
         problem, y, theta0, lower, upper, also = self._prepared(data, start, declared_too, more_starts)
         return fit_problem(problem, y, boundaries=data.bounds, segment_names=data.names, start=theta0,
                            lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
                            covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev, also=also,
                            model=self.name, coefficient=self.coefficient, source=data.source,
-                           flights=data.flights)
+                           flights=data.flights, starts=solved)
+
+    def start_points(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
+                     seed: int = 0, declared_too: bool = False,
+                     more_starts: Sequence[Mapping[str, float]] = ()) -> np.ndarray:
+        """The starts :meth:`fit` (or :meth:`estimate`) tries with these arguments, in its order, one per row."""
+        problem, _, theta0, lower, upper, also = self._prepared(data, start, declared_too, more_starts)
+        return start_list(problem, theta0, lower, upper, n_starts=n_starts, seed=seed, also=also)
+
+    def solve_from(self, data: FlightData, point: np.ndarray, tol: float = STALL_DEFAULTS.tol):
+        """One local solve from ``point`` (a row of :meth:`start_points`), its failure recorded in the outcome."""
+        lower, upper = self.bound_vectors(data)
+        return solve_recorded(self.bind(data), data[self.coefficient], point, lower, upper, tol=tol)
 
     def estimate(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
                  seed: int = 0, tol: float = STALL_DEFAULTS.tol, declared_too: bool = False,

@@ -3,8 +3,10 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import time
-from typing import Mapping
+from dataclasses import dataclass
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -14,8 +16,8 @@ from ..engine.scores import ManeuverScores
 from .candidate_result import CandidateResult, SplitScores
 from .candidates import Candidate
 from .centred_correlation import centred_correlation
-from .cross_validation import cross_validate
-from .folds import plan_folds
+from .cross_validation import cross_validate, refit_fold
+from .folds import FoldPlan, plan_folds
 from .lift_context import lift_context
 from .lift_fit import LiftFit
 from .lift_uncertainty import with_lift_uncertainty
@@ -48,6 +50,51 @@ def body_axis_errors(coef: str, predicted: np.ndarray, data: FlightData,
     return float(np.mean((cx - mx) ** 2)), float(np.mean((cz - mz) ** 2))
 
 
+@dataclass(frozen=True)
+class StartSpec:
+    """Where a candidate's fit starts: ``start`` (a warm start: a donor's or a stage's estimates, None: the
+    declared start), ``n_starts`` (None: the options'), ``declared_too`` (the declared start follows a warm
+    start) and ``nested`` (a contained structure's optimum, one more start)."""
+
+    start: Mapping[str, float] | None = None
+    n_starts: int | None = None
+    declared_too: bool = False
+    nested: Mapping[str, float] | None = None
+
+
+@dataclass(frozen=True)
+class _Setup:
+    """A candidate's model and the data it is fitted on (a drag or pitch candidate's: its lift model's context)."""
+
+    model: object
+    measured: FlightData
+    train: FlightData
+    validation: FlightData
+    context: object | None
+
+
+def _setup(c: Candidate, train: FlightData, validation: FlightData, lift: LiftFit | None) -> _Setup | str:
+    """The model of ``c`` (bounded already) on its data, or why it does not apply to them."""
+    model = build_model(c, lift)
+    missing = [col for col in model.required_columns if col not in train and col not in train.constants]
+    if missing:  # e.g. a pitch candidate with x_cg terms on a campaign without x_cg
+        return f"not applicable: the campaign has no column {', '.join(missing)}"
+    context = None
+    if c.lift and lift is not None:
+        context = lift_context(train, validation, lift)
+        return _Setup(model, train, context.train, context.validation, context)
+    return _Setup(model, train, train, validation, None)
+
+
+def _model_starts(model, train: FlightData, options: FitOptions, spec: StartSpec) -> dict:
+    """The start arguments of ``model.fit`` (and ``model.start_points``) for ``spec``."""
+    warm = model.inside(train, spec.start or {})  # a donor's or baseline's estimates, inside the bounds
+    starts = options.n_starts if spec.n_starts is None else spec.n_starts
+    return {"start": warm or None, "n_starts": starts if model.nonlinear_names else 1,
+            "seed": options.seed, "declared_too": spec.declared_too,
+            "more_starts": [model.inside(train, spec.nested)] if spec.nested and model.nonlinear_names else ()}
+
+
 def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift: LiftFit | None,
                   options: FitOptions, start: Mapping[str, float] | None = None, n_starts: int | None = None,
                   declared_too: bool = False, nested: Mapping[str, float] | None = None) -> CandidateResult:
@@ -56,54 +103,118 @@ def fit_candidate(c: Candidate, train: FlightData, validation: FlightData, lift:
     with ``declared_too``, and by ``nested`` (a contained structure's optimum, :func:`.staging.best_contained`).
     ``lift`` is the fitted lift model a drag or pitch candidate names. A failure
     that follows from the data or the declaration is returned as a failed result with its reason."""
+    return fit_from(c, train, validation, lift, options, StartSpec(start, n_starts, declared_too, nested))[0]
+
+
+def fit_from(c: Candidate, train: FlightData, validation: FlightData, lift: LiftFit | None, options: FitOptions,
+             spec: StartSpec, solved=None, folds_apart: bool = False) -> tuple[CandidateResult, FoldPlan | None]:
+    """:func:`fit_candidate` from ``spec``. ``solved``: the solves from every start of :func:`start_points`,
+    run as tasks of their own (only the statistics and scores are computed here). With ``folds_apart`` a
+    nonlinear candidate's refitted cross-validation folds are left to the caller (:func:`fold_residual`, a task
+    each; :func:`with_folds` adds them): the result comes without them, with the plan they follow."""
     t0 = time.perf_counter()
     c = c.with_bounds(options.parameter_boxes)
     try:
-        model = build_model(c, lift)
-        missing = [col for col in model.required_columns if col not in train and col not in train.constants]
-        if missing:  # e.g. a pitch candidate with x_cg terms on a campaign without x_cg
-            return CandidateResult.failure(
-                name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift, seconds=time.perf_counter() - t0,
-                error=f"not applicable: the campaign has no column {', '.join(missing)}")
-        measured, context = train, None
-        if c.lift and lift is not None:
-            context = lift_context(train, validation, lift)
-            train, validation = context.train, context.validation
-        warm = model.inside(train, start or {})  # a donor's or baseline's estimates, inside the bounds
-        starts = options.n_starts if n_starts is None else n_starts
+        setup = _setup(c, train, validation, lift)
+        if isinstance(setup, str):
+            return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
+                                           seconds=time.perf_counter() - t0, error=setup), None
+        model, train = setup.model, setup.train
         # with a lift model the two-step covariance replaces the fit's own: the fit computes the white one
-        result = model.fit(train, start=warm or None, n_starts=starts if model.nonlinear_names else 1,
-                           seed=options.seed,
-                           covariance="white" if context is not None or options.scores_only else options.covariance,
-                           declared_too=declared_too,
-                           more_starts=[model.inside(train, nested)] if nested and model.nonlinear_names else ())
-        if context is not None and not options.scores_only:
-            result = with_lift_uncertainty(result, model, measured, lift, context, options.covariance)
-        scores = {}
+        white = setup.context is not None or options.scores_only
+        result = model.fit(train, **_model_starts(model, train, options, spec), solved=solved,
+                           covariance="white" if white else options.covariance)
+        if setup.context is not None and not options.scores_only:
+            result = with_lift_uncertainty(result, model, setup.measured, lift, setup.context, options.covariance)
         plan = plan_folds(train, options.cv_folds, options.cv_fold_size, options.cv_block_convective_times)
-        if plan.folds:   # scored per unit held out: per maneuver, or per block of a record
-            y = train[c.coefficient]
-            scores["cv"] = SplitScores.of(ManeuverScores.of(y, cross_validate(model, train, result, plan,
-                                                                              options.cv_method),
-                                                            plan.slices()), None)
-        for split, data in (("train", train), ("validation", validation)):
-            y = data[c.coefficient]
-            pred = model.predict(data, result.params)
-            other = data["CL"] if c.lift and c.coefficient == "CD" else None  # the lift model's output
-            scores[split] = SplitScores.of(ManeuverScores.of(y, y - pred, data.segment_slices()),
-                                           body_axis_errors(c.coefficient, pred, data, other))
-        return CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
-                                        result=result, train=scores["train"], validation=scores["validation"],
-                                        cv=scores.get("cv"), cv_folds=plan.n_folds,
-                                        # a linear candidate's folds are exact fits whichever method is asked
-                                        cv_method=options.cv_method if model.nonlinear_names and plan.folds
-                                        else "refit", cv_scheme=plan.scheme, cv_note=plan.note,
-                                        seconds=time.perf_counter() - t0,
-                                        centred_correlation=None if options.scores_only else
-                                        centred_correlation(c, model, train, result))
+        apart = folds_apart and bool(plan.folds) and bool(model.nonlinear_names) and options.cv_method == "refit"
+        cv = None
+        if plan.folds and not apart:   # scored per unit held out: per maneuver, or per block of a record
+            cv = cross_validate(model, train, result, plan, options.cv_method)
+        return _scored(c, setup, result, plan, options, cv, t0), plan if apart else None
     except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
-                                       error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
+                                       error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0), None
+
+
+def _scored(c: Candidate, setup: _Setup, result, plan: FoldPlan, options: FitOptions, cv: np.ndarray | None,
+            t0: float) -> CandidateResult:
+    """The candidate's record: its fit scored on both splits, and by its cross-validation's held-out residuals."""
+    model, train = setup.model, setup.train
+    scores = {}
+    if cv is not None:
+        scores["cv"] = SplitScores.of(ManeuverScores.of(train[c.coefficient], cv, plan.slices()), None)
+    for split, data in (("train", train), ("validation", setup.validation)):
+        y = data[c.coefficient]
+        pred = model.predict(data, result.params)
+        other = data["CL"] if c.lift and c.coefficient == "CD" else None  # the lift model's output
+        scores[split] = SplitScores.of(ManeuverScores.of(y, y - pred, data.segment_slices()),
+                                       body_axis_errors(c.coefficient, pred, data, other))
+    return CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
+                                    result=result, train=scores["train"], validation=scores["validation"],
+                                    cv=scores.get("cv"), cv_folds=plan.n_folds,
+                                    # a linear candidate's folds are exact fits whichever method is asked
+                                    cv_method=options.cv_method if model.nonlinear_names and plan.folds
+                                    else "refit", cv_scheme=plan.scheme, cv_note=plan.note,
+                                    seconds=time.perf_counter() - t0,
+                                    centred_correlation=None if options.scores_only else
+                                    centred_correlation(c, model, train, result))
+
+
+def start_points(c: Candidate, train: FlightData, options: FitOptions, spec: StartSpec) -> np.ndarray:
+    """The starts the fit of ``c`` (without a lift model) from ``spec`` tries, in its order, one per row."""
+    model = build_model(c.with_bounds(options.parameter_boxes))
+    return model.start_points(train, **_model_starts(model, train, options, spec))
+
+
+def solve_start(c: Candidate, train: FlightData, options: FitOptions, point: np.ndarray):
+    """One start of ``c``'s fit (a row of :func:`start_points`): its local solve's outcome."""
+    return build_model(c.with_bounds(options.parameter_boxes)).solve_from(train, point)
+
+
+def fold_residual(c: Candidate, train: FlightData, options: FitOptions, params: Mapping[str, float],
+                  plan: FoldPlan, fold: int) -> tuple[np.ndarray, np.ndarray]:
+    """The held-out rows of fold ``fold`` and their residuals (the fold refitted from ``params``, the fit of
+    every training maneuver): one fold of :func:`.cross_validation.cross_validate`, as a task of its own."""
+    return refit_fold(build_model(c.with_bounds(options.parameter_boxes)), train, params, plan, fold)
+
+
+def with_folds(result: CandidateResult, train: FlightData, plan: FoldPlan,
+               parts: Sequence[tuple[np.ndarray, np.ndarray]], seconds: float) -> CandidateResult:
+    """``result`` (fitted with ``folds_apart``) with its cross-validation scores from the folds' ``parts``."""
+    y = train[result.coefficient]
+    residual = np.full_like(y, np.nan)
+    for rows, values in parts:
+        residual[rows] = values
+    cv = SplitScores.of(ManeuverScores.of(y, residual, plan.slices()), None)
+    return dataclasses.replace(result, cv=cv, seconds=result.seconds + seconds)
+
+
+def stage_of(c: Candidate, options: FitOptions) -> tuple[Candidate, object] | None:
+    """The quasi-steady stage a fit of ``c`` without a warm start climbs first, and its model (None: none)."""
+    for stage in stages(c):
+        return stage, build_model(stage.with_bounds(options.parameter_boxes))
+    return None
+
+
+def staged_spec(c: Candidate, options: FitOptions, start: Mapping[str, float] | None, *,
+                declared_too: bool = True, nested: Mapping[str, float] | None = None,
+                stage_params: Mapping[str, float] | None = None, stage_model=None) -> StartSpec:
+    """Where :func:`fit_staged` starts ``c``: from a warm ``start`` (a donor's), else from its stage's estimates
+    (``stage_params`` of ``stage_model``; None: no stage, or one the data could not fit)."""
+    if start is not None:
+        if options.scores_only:
+            # a screening trusts one start: the contained structure's optimum when there is one (never worse than
+            # that structure), else the warm start; the full fit of a structure worth it adds the others
+            return StartSpec(nested or start, WARM_STARTS)
+        return StartSpec(start, WARM_STARTS, declared_too, nested)
+    if stage_params is not None:
+        start = {k: stage_params[k] for k in stage_model.nonlinear_names}
+        # the stage is c with its unsteady states quasi-steady: its optimum with tau1 at its nesting value is
+        # c's point as good as the stage (the stage's tau2 alone, tau1 declared, may start c in another basin)
+        if nested is None:
+            nested = nested_start(c, stage_params)
+    return StartSpec(start, None, declared_too and start is not None, nested)
 
 
 def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: LiftFit | None,
@@ -118,27 +229,17 @@ def fit_staged(c: Candidate, train: FlightData, validation: FlightData, lift: Li
     (a single fit that trusts its stage; the search always keeps it); nor does it follow a warm start in a
     screening (``options.scores_only``: the structure search's first look at a child of a fitted parent).
     ``nested``: a contained structure's optimum (its time constants at their nesting values), one more start, so
-    that the fit never ends above that structure's; a stage is contained in ``c``, so its estimates give one too."""
-    if start is not None:
-        if options.scores_only:
-            # a screening trusts one start: the contained structure's optimum when there is one (never worse than
-            # that structure), else the warm start; the full fit of a structure worth it adds the others
-            return fit_candidate(c, train, validation, lift, options, start=nested or start, n_starts=WARM_STARTS)
-        return fit_candidate(c, train, validation, lift, options, start=start, n_starts=WARM_STARTS,
-                             declared_too=declared_too, nested=nested)
-    for stage in stages(c):
-        model = build_model(stage.with_bounds(options.parameter_boxes))
+    that the fit never ends above that structure's; a stage is contained in ``c``, so its estimates give one too.
+    (:mod:`.candidate_job` runs the same fit as tasks: each start, each fold.)"""
+    params, stage = None, stage_of(c, options) if start is None else None
+    if stage is not None:
         try:
-            params = model.estimate(train, n_starts=stage_starts, seed=options.seed)
+            params = stage[1].estimate(train, n_starts=stage_starts, seed=options.seed)
         except (StructSearchError, np.linalg.LinAlgError, FloatingPointError):
-            break  # a stage the data cannot fit gives no start: c keeps its usual starts
-        start = {k: params[k] for k in model.nonlinear_names}
-        # the stage is c with its unsteady states quasi-steady: its optimum with tau1 at its nesting value is
-        # c's point as good as the stage (the stage's tau2 alone, tau1 declared, may start c in another basin)
-        if nested is None:
-            nested = nested_start(c, params)
-    return fit_candidate(c, train, validation, lift, options, start=start,
-                         declared_too=declared_too and start is not None, nested=nested)
+            params = None  # a stage the data cannot fit gives no start: c keeps its usual starts
+    spec = staged_spec(c, options, start, declared_too=declared_too, nested=nested, stage_params=params,
+                       stage_model=stage[1] if stage else None)
+    return fit_from(c, train, validation, lift, options, spec)[0]
 
 
 def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, options: FitOptions) -> LiftFit | None:

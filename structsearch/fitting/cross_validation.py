@@ -47,37 +47,33 @@ def cross_validate(model, train: FlightData, result, folds: FoldPlan | list[list
         # fold's refit could move it inward, never past the bound; a step along a null direction is arbitrary)
         free = [i for i, n in enumerate(result.names) if n not in result.at_bound and n not in result.unidentifiable]
         return held_out_residuals(jac[:, free], y - output, plan.bounds, plan.folds)
-    if plan.scheme == "blocks":
-        return _blocked_refits(model, train, result, plan, y)
-    folds = plan.maneuver_folds()
-    residual = np.empty_like(y)
-    slices = train.segment_slices()
-    warm = {k: result.params[k] for k in model.nonlinear_names}
-    everything = range(len(slices))
-    for held in folds:
-        rest = [i for i in everything if i not in held]
-        subset = train.select(rest)
-        # the subset's default box may be narrower (alpha range flown): start inside it
-        start = model.inside(subset, warm)
-        predicted = model.predict(train.select(held), model.estimate(subset, start=start))
-        at = 0
-        for i in held:
-            n = slices[i].stop - slices[i].start
-            residual[slices[i]] = y[slices[i]] - predicted[at:at + n]
-            at += n
+    residual = np.full_like(y, np.nan)
+    for fold in range(plan.n_folds):
+        rows, values = refit_fold(model, train, result.params, plan, fold)
+        residual[rows] = values
     return residual
 
 
-def _blocked_refits(model, train: FlightData, result, plan: FoldPlan, y: np.ndarray) -> np.ndarray:
-    """Held-out residuals of blocked folds: each fold fitted on the outputs of the blocks it keeps, its states flown
-    over the whole record (a block's inputs are not held out, only its outputs: no state restarts at a block's
-    edge), and its held-out blocks predicted by the same flight with the fold's estimates."""
-    residual = np.full_like(y, np.nan)
-    start = model.inside(train, {k: result.params[k] for k in model.nonlinear_names})
-    for held in plan.folds:
+def refit_fold(model, train: FlightData, params, plan: FoldPlan, fold: int) -> tuple[np.ndarray, np.ndarray]:
+    """Fold ``fold`` of a refitted cross-validation: the rows it holds out and their residuals. It is one solve
+    warm started from ``params`` (the fit of every training maneuver): on the maneuvers it keeps, or (blocked
+    folds) on the outputs of the blocks it keeps, its states flown over the whole record (a block's inputs are not
+    held out, only its outputs: no state restarts at a block's edge), the held-out blocks predicted by the same
+    flight with the fold's estimates."""
+    y = train[model.coefficient]
+    warm = {k: params[k] for k in model.nonlinear_names}
+    held = plan.folds[fold]
+    if plan.scheme == "blocks":
         keep = np.ones(len(y), bool)
         for i in held:
             keep[slice(*plan.units[i])] = False
+        start = model.inside(train, warm)
         predicted = model.predict(train, model.estimate(train, start=start, rows=np.flatnonzero(keep)))
-        residual[~keep] = y[~keep] - predicted[~keep]
-    return residual
+        rows = np.flatnonzero(~keep)
+        return rows, y[rows] - predicted[rows]
+    slices = train.segment_slices()
+    subset = train.select([i for i in range(len(slices)) if i not in held])
+    # the subset's default box may be narrower (alpha range flown): start inside it
+    predicted = model.predict(train.select(list(held)), model.estimate(subset, start=model.inside(subset, warm)))
+    rows = np.concatenate([np.arange(slices[i].start, slices[i].stop) for i in held])
+    return rows, y[rows] - predicted

@@ -18,6 +18,7 @@ from .candidate_result import CandidateResult
 from .candidates import Candidate
 from .lift_fit import LiftFit
 from .options import FitOptions
+from .trace import Trace
 
 Progress = Callable[[str], None]
 
@@ -31,7 +32,8 @@ class RunConfig:
     """Where and how a command fits: ``campaign`` (split into training and validation maneuvers by its
     manifest), ``options`` (starts, seed, covariance, cross-validation, boxes), ``cache_dir`` (whose ``cache/``
     holds every fit, keyed by what it depends on), ``n_jobs`` worker processes of ``backend`` (joblib's, or
-    "dask" on a client the caller opened) and ``progress`` (the lines a command prints to stderr)."""
+    "dask" on a client the caller opened), ``progress`` (the lines a command prints to stderr) and ``trace`` (where
+    every task is recorded, for ``--trace``; None: nowhere)."""
 
     campaign: Campaign
     cache_dir: Path
@@ -39,6 +41,7 @@ class RunConfig:
     n_jobs: int = 1
     backend: str = "loky"
     progress: Progress = _silent
+    trace: Trace | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "cache_dir", Path(self.cache_dir))
@@ -85,7 +88,8 @@ class Fitter:
             return []
         c = self.config
         return run(list(candidates), c.campaign, c.cache_dir, lifts=dict(self.lifts), options=c.options,
-                   n_jobs=c.n_jobs, backend=c.backend, progress=c.progress, fitted_before=list(donors))
+                   n_jobs=c.n_jobs, backend=c.backend, progress=c.progress, fitted_before=list(donors),
+                   trace=c.trace)
 
     def fit_one(self, candidate: Candidate,
                 donors: Iterable[tuple[Candidate, CandidateResult]] = ()) -> CandidateResult:

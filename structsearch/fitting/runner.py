@@ -24,12 +24,14 @@ import numpy as np
 from ..data.atomic import write_json
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
-from .candidate_fit import fit_staged
 from .candidate_result import JSON_LAYOUT, CandidateResult
 from .candidates import Candidate
 from .lift_fit import LiftFit
 from .options import FitOptions
-from .staging import best_contained, may_donate, warm_start, waves
+from .pools import task_pool
+from .scheduling import CallPlan, fit_as_tasks
+from .staging import may_donate, waves
+from .trace import Trace
 from .shared_data import LOCAL_PROCESS_BACKENDS, resolve_splits, shared_splits
 
 
@@ -115,7 +117,8 @@ def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None,
 def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts: dict[str, LiftFit] | None = None,
         options: FitOptions = FitOptions(), n_jobs: int = 1,
         backend: str = "loky", progress: Callable[[str], None] | None = None,
-        fitted_before: Sequence[tuple[Candidate, CandidateResult]] = ()) -> list[CandidateResult]:
+        fitted_before: Sequence[tuple[Candidate, CandidateResult]] = (), trace: Trace | None = None
+        ) -> list[CandidateResult]:
     """Fit candidates (cached, in parallel), staged (:mod:`.staging`): a candidate starts from the
     estimates of a candidate nested in it, fitted before it in this grid (an earlier wave) or in
     ``fitted_before`` (earlier grids of the same search). A candidate that is one of ``fitted_before``
@@ -123,7 +126,8 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     written by an earlier run serves first, as for every candidate). Local worker processes take a
     candidate as soon as the candidates it may start from are fitted; other backends fit wave after
     wave. Either way a candidate's donors are the same (those of earlier waves), so the results do not
-    depend on the backend or the number of jobs. Results come in the order of ``candidates``."""
+    depend on the backend or the number of jobs. Results come in the order of ``candidates``.
+    Each candidate's starts and folds are tasks of their own (:mod:`.scheduling`); ``trace`` records them."""
     say = progress or (lambda msg: None)
     train, validation = campaign.split("train"), campaign.split("validation")
     data_key = campaign_fingerprint(campaign)
@@ -158,138 +162,29 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     todo = [i for i in range(len(candidates)) if results[i] is None]
     if not todo:
         return results
+    t0, finished = time.perf_counter(), [0]
 
-    def start_of(i):
-        fitted = list(fitted_before) + [(candidates[j], results[j]) for j in needs[i]]
-        return warm_start(candidates[i], fitted), best_contained(candidates[i], fitted)
-
-    def done(i, summary, finished, t0, starts):
-        warm = starts[0] is not None
+    def done(i, summary, warm):
         if not summary.failed or summary.error.startswith(CACHED_FAILURES):
             write_cached(*paths[i], summary)
         results[i] = summary
+        finished[0] += 1
         status = "failed: " + summary.error if summary.failed else f"{summary.seconds:.1f} s"
-        say(f"[{finished}/{len(todo)}] {candidates[i].grid} {candidates[i].name}{' (warm start)' if warm else ''}: "
+        say(f"[{finished[0]}/{len(todo)}] {candidates[i].grid} {candidates[i].name}{' (warm start)' if warm else ''}: "
             f"{status} ({time.perf_counter() - t0:.0f} s elapsed)")
 
+    plan = CallPlan(candidates, todo, needs, {i: r for i, r in enumerate(results) if r is not None},
+                    list(fitted_before))
+    since = len(trace) if trace is not None else 0
     with ExitStack() as stack:  # the splits are shared with the workers once
         splits = stack.enter_context(shared_splits(train, validation, backend, n_jobs))
-        task = _Task(candidates, splits, lifts, options)
-        t0 = time.perf_counter()
-        if backend in LOCAL_PROCESS_BACKENDS and n_jobs > 1:
-            _fit_as_ready(todo, needs, start_of, task, n_jobs, lambda i, s, k, w: done(i, s, k, t0, w))
-        else:
-            from joblib import Parallel, delayed, parallel_config
-            finished = 0
-            for wave in order:
-                mine = [i for i in wave if i in set(todo)]
-                starts = {i: start_of(i) for i in mine}
-                with parallel_config(backend=backend, n_jobs=n_jobs):
-                    # unordered: each result is cached as soon as it exists (a crash loses only running fits)
-                    for i, summary in Parallel(return_as="generator_unordered")(
-                            delayed(task)(i, starts[i]) for i in mine):
-                        finished += 1
-                        done(i, summary, finished, t0, starts[i])
+        pool = stack.enter_context(task_pool(backend, n_jobs))
+        try:
+            fit_as_tasks(plan, splits, train, options, lifts, pool, trace, done)
+        finally:
+            if trace is not None:
+                trace.call_boundary(since)
     return results
-
-
-# Thread pools of numerical libraries a worker process must not multiply by the number of workers.
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
-                    "VECLIB_MAXIMUM_THREADS", "NUMBA_NUM_THREADS", "NUMEXPR_NUM_THREADS")
-
-
-class _Task:
-    """One candidate's fit in a worker: the splits come from the shared handle."""
-
-    def __init__(self, candidates, splits, lifts, options):
-        self.candidates, self.splits, self.lifts, self.options = candidates, splits, lifts, options
-
-    def __call__(self, i, starts):
-        """``starts``: the warm start (a donor's estimates) and the nested one (the best contained structure's)."""
-        c = self.candidates[i]
-        train, validation = resolve_splits(self.splits)
-        warm, nested = starts
-        return i, fit_staged(c, train, validation, self.lifts.get(c.lift) if c.lift else None, self.options,
-                             start=warm, nested=nested)
-
-
-_WATCHED: list[int] = []
-
-
-def watch_parent(poll_seconds: float = 1.0) -> None:
-    """In a worker process: end it when the process that started it is gone (killed with -9, it cannot stop
-    its workers; an orphan would go on fitting for minutes). Started once per process, a daemon thread."""
-    if _WATCHED:
-        return
-    parent = os.getppid()
-    _WATCHED.append(parent)
-
-    def watch():
-        import time
-        while True:
-            time.sleep(poll_seconds)
-            if os.getppid() != parent:
-                os._exit(70)
-
-    import threading
-    threading.Thread(target=watch, name="structsearch-parent-watch", daemon=True).start()
-
-
-def _in_worker(task, i, start):
-    """``task(i, start)`` in a local worker process, which ends itself if the search's process dies."""
-    watch_parent()
-    return task(i, start)
-
-
-def _fit_as_ready(todo, needs, start_of, task, n_jobs, done) -> None:
-    """Fit ``todo`` on local worker processes, each candidate as soon as the ones it ``needs`` are fitted
-    (joblib's reusable memmapping executor; its workers survive between the grids of a search)."""
-    from concurrent.futures import FIRST_COMPLETED, wait
-    from joblib import cpu_count
-    from joblib.executor import get_memmapping_executor
-    # the workers' thread pools share the cores, as joblib's Parallel arranges, unless the caller said
-    threads = str(max(cpu_count() // n_jobs, 1))
-    env = {var: os.environ.get(var, threads) for var in THREAD_VARIABLES}
-    if "ENABLE_IPC" not in os.environ:  # TBB's schedulers coordinate across processes, as joblib sets it
-        env["ENABLE_IPC"] = "1"
-    executor = get_memmapping_executor(n_jobs, timeout=300, env=env)
-    waiting, running, finished = set(todo), {}, 0
-    fitted = set(needs) - set(todo)   # the cached ones
-    try:
-        while waiting or running:
-            for i in sorted(waiting):
-                if all(j in fitted for j in needs[i]):
-                    start = start_of(i)
-                    running[executor.submit(_in_worker, task, i, start)] = (i, start)
-                    waiting.discard(i)
-            if not running:  # cannot happen: needs only point to earlier waves
-                raise RuntimeError(f"candidates {sorted(waiting)} wait for candidates that never finish")
-            complete, _ = wait(running, return_when=FIRST_COMPLETED)
-            failure = None
-            for future in complete:  # every finished fit is kept (cached) before a failure is raised
-                i, start = running.pop(future)
-                try:
-                    _, summary = future.result()
-                except BaseException as exc:
-                    failure = failure or exc
-                    continue
-                fitted.add(i)
-                finished += 1
-                done(i, summary, finished, start)
-            if failure is not None:
-                raise failure
-    except KeyboardInterrupt:
-        # Ctrl-C or SIGTERM: the fits still running are lost anyway (the finished ones are cached); the workers
-        # end now, before the caller removes the shared splits they read
-        executor.shutdown(wait=True, kill_workers=True)
-        raise
-    except BaseException:
-        # a failed task: nothing more starts; the caller then removes the shared splits, so wait for the fits
-        # already running rather than pull their data from under them
-        for future in running:
-            future.cancel()
-        wait(running)
-        raise
 
 
 # A cache entry proves itself: {"key": the full sha256 of its question, "digest": the sha256 of its content,

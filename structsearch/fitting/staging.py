@@ -18,6 +18,7 @@ Drag and pitch candidates take their states from the lift model (nothing to stag
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -36,6 +37,22 @@ WARM_STARTS = 1
 STAGE_STARTS = 2
 # Kinds in order of nesting: each adds one parameter to the previous one.
 KIND_ORDER = {"S": 0, "Q": 1, "U": 2}
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """What a warm start reads of a fitted candidate: its estimates and training MSE (a fit whose statistics are
+    still being computed has both already: the optimum of its best start)."""
+
+    params: Mapping[str, float]
+    mse_train: float
+    failed: bool = False
+
+    @classmethod
+    def of(cls, result: CandidateResult) -> "Fitted":
+        if result.failed:
+            return cls({}, float("nan"), True)
+        return cls(dict(result.estimates.params), result.mse_train)
 
 
 def _stageable(c: Candidate) -> bool:
@@ -74,7 +91,7 @@ def may_donate(d: Candidate, c: Candidate) -> bool:
         and set(d.state_parameters) <= set(c.state_parameters)
 
 
-def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResult]]) -> dict[str, float] | None:
+def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, Fitted]]) -> dict[str, float] | None:
     """Estimates of ``c``'s separation parameters from the fitted candidate that shares most of them (of
     the same coefficient, without a lift model; the lowest training MSE among equals), for those it has;
     None when no fitted candidate shares all of its own separation parameters with ``c``."""
@@ -87,7 +104,7 @@ def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResult]]
     # equal fits (a structure and one it contains) tie up to rounding: the name decides, not the processor
     donor, result = first_of_lowest(sorted(((d, r) for d, r in donors if len(d.state_parameters) == most),
                                            key=lambda dr: dr[0].name), lambda dr: dr[1].mse_train)
-    return {k: result.estimates.params[k] for k in c.state_parameters if k in result.estimates.params}
+    return {k: result.params[k] for k in c.state_parameters if k in result.params}
 
 
 # The value of a separation parameter at which a state of a higher kind is the lower kind's (tau1 -> 0: U is Q;
@@ -123,7 +140,7 @@ def nested_start(c: Candidate, inner_params: Mapping[str, float]) -> dict[str, f
     return out
 
 
-def best_contained(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResult]]) -> dict[str, float] | None:
+def best_contained(c: Candidate, fitted: Sequence[tuple[Candidate, Fitted]]) -> dict[str, float] | None:
     """The nested start (:func:`nested_start`) from the fitted structure contained in ``c`` with the lowest training
     MSE: a fit that also starts there never ends above it (issue 30: U/Q ended above the Q/Q it contains)."""
     if not _stageable(c):
@@ -132,7 +149,7 @@ def best_contained(c: Candidate, fitted: Sequence[tuple[Candidate, CandidateResu
     if not inner:
         return None
     d, r = first_of_lowest(sorted(inner, key=lambda dr: dr[0].name), lambda dr: dr[1].mse_train)
-    return nested_start(c, r.estimates.params)
+    return nested_start(c, r.params)
 
 
 def demoted(c: Candidate, highest: str) -> Candidate:

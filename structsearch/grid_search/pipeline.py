@@ -140,7 +140,8 @@ def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ran
     """The structures the refinement of ``grid``'s best candidates reached (with their fits) and the
     refinements themselves."""
     known = {structure_key(c): (c, r) for c, r in zip(grid.candidates, results) if not r.failed}
-    one_at_a_time = fitter.serial().quiet()
+    # a step waits for the one before, but its starts and folds spread over the workers
+    one_at_a_time = fitter.quiet()
     extra, done_all = [], []
     for start in refinement_starts(ranked):
         done = refine(grid[start.name], start, one_at_a_time.fit_one, known)

@@ -55,7 +55,7 @@ def fit_model_set(label: str, names: Mapping[str, str], fitter: Fitter) -> Model
         if cands[coef].lift != cands["CL"].name:
             raise DeclarationError(f"{cands[coef].name} takes its separation states from {cands[coef].lift}, "
                                    f"not from the lift model {cands['CL'].name} of the same model set")
-    lift = fitter.serial().fit_one(cands["CL"])
+    lift = fitter.fit_one(cands["CL"])
     others = fitter.with_lifts({cands["CL"].name: LiftFit(cands["CL"], lift)}).fit([cands["CD"], cands["Cm"]])
     summaries = {"CL": lift, "CD": others[0], "Cm": others[1]}
     for coef, s in summaries.items():
@@ -82,7 +82,7 @@ def fit_with_effect(ms: ModelSet, coef: str, effect: str, fitter: Fitter) -> tup
     if not found:
         raise DeclarationError(f"report: no move {effect!r} applies to {base.name}")
     changed = found[0]
-    result = (fitter if coef == "CL" else fitter.with_lifts({ms.lift.name: ms.lift})).serial().quiet().fit_one(changed)
+    result = (fitter if coef == "CL" else fitter.with_lifts({ms.lift.name: ms.lift})).quiet().fit_one(changed)
     if result.failed:
         raise DeclarationError(f"report: fitting {changed.name} failed: {result.error}")
     return changed, result

@@ -1,0 +1,221 @@
+"""One candidate's fit as tasks small enough to spread: each start of its multistart, its quasi-steady stage's
+starts, its statistics and scores, and each refitted cross-validation fold, a task of its own.
+
+It computes what :func:`.candidate_fit.fit_staged` computes, start for start: the starts are the same points in
+the same order (:func:`.candidate_fit.start_points`), the best is chosen the same way (the first of the lowest
+cost, in start order), the statistics are those of that optimum and the folds refit from it. Only where the
+solves run differs. The declared start is solved at once, before the candidates the fit may start from are
+fitted (every fit of the search tries it); the other starts wait for what they are made from. The candidates
+that start from this one wait only for its estimates, not for its folds.
+
+A candidate with a lift model or without separation parameters (a linear fit, or one that reads its states)
+is one task; so is any fit whose starts cannot be planned apart (a declaration the data reject): it is then
+fitted as a whole, by the same function as a serial run, and fails or succeeds the same way.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable, Mapping
+
+import numpy as np
+
+from ..data.errors import StructSearchError
+from ..engine.snls import best_of
+from .candidate_fit import (StartSpec, fit_from, fit_staged, fold_residual, solve_start, stage_of, staged_spec,
+                            start_points, with_folds)
+from .candidate_result import CandidateResult
+from .candidates import Candidate
+from .options import FitOptions
+from .shared_data import resolve_splits
+from .staging import STAGE_STARTS, Fitted
+from .task_graph import Task
+
+PLANNING_ERRORS = (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError)
+
+
+# ----- what runs on a worker (module functions: a process pool pickles them by name) ---------------------------
+def _solve(splits, c: Candidate, options: FitOptions, point: np.ndarray):
+    t0 = time.perf_counter()
+    return solve_start(c, resolve_splits(splits)[0], options, point), time.perf_counter() - t0
+
+
+def _fit(splits, c: Candidate, options: FitOptions, spec: StartSpec, solved):
+    train, validation = resolve_splits(splits)
+    return fit_from(c, train, validation, None, options, spec, solved=solved, folds_apart=True)
+
+
+def _fold(splits, c: Candidate, options: FitOptions, params: Mapping[str, float], plan, fold: int):
+    t0 = time.perf_counter()
+    rows, values = fold_residual(c, resolve_splits(splits)[0], options, params, plan, fold)
+    return rows, values, time.perf_counter() - t0
+
+
+def _whole(splits, c: Candidate, lift, options: FitOptions, warm, nested):
+    train, validation = resolve_splits(splits)
+    return fit_staged(c, train, validation, lift, options, start=warm, nested=nested)
+
+
+@dataclass(frozen=True)
+class JobContext:
+    """What every candidate job of a call shares: the splits' handle for the workers, the training maneuvers for
+    planning on the driver, the options and lift models, how tasks are named, the first tasks' parents, and the
+    runner's callbacks: ``estimated(i, fitted, tasks)`` once a fit's estimates exist (a :class:`.staging.Fitted`,
+    made by ``tasks``: its dependants may start), ``finished(i, result)`` once it is scored; each returns the tasks
+    it makes ready."""
+
+    splits: object
+    train: object
+    options: FitOptions
+    lifts: Mapping
+    name: Callable[[str], str]
+    roots: tuple[str, ...]
+    estimated: Callable
+    finished: Callable
+
+
+class CandidateJob:
+    """The tasks of candidate ``index`` (see the module's docstring); ``priority``: lower runs first."""
+
+    def __init__(self, index: int, candidate: Candidate, ctx: JobContext, priority: float):
+        self.i, self.c, self.ctx, self.priority = index, candidate, ctx, priority
+        self.whole = bool(candidate.lift) or not candidate.state_parameters
+        self.outcomes: dict[bytes, object] = {}
+        self.solving: dict[bytes, str] = {}
+        self.keys: list[bytes] | None = None
+        self.work = 0.0
+
+    def _task(self, what: str, fn, args, then, parents, urgency: float = 0.0) -> Task:
+        """A task of this candidate; ``then(result, name)`` on the driver once it has run."""
+        name = self.ctx.name(f"{self.c.grid}/{self.c.name}: {what}")
+        return Task(name, what.rsplit(" ", 1)[0] if what[-1].isdigit() else what, fn, (self.ctx.splits, *args),
+                    lambda out: then(out, name), tuple(parents) or self.ctx.roots, self.priority + urgency)
+
+    # ----- starts -------------------------------------------------------------------------------------------
+    def early(self) -> list[Task]:
+        """The declared start, which every full fit tries, solved before the fit's donors are fitted."""
+        if self.whole or self.ctx.options.scores_only:
+            return []
+        try:
+            point = start_points(self.c, self.ctx.train, self.ctx.options, StartSpec(None, 1))[0]
+        except PLANNING_ERRORS:
+            return []
+        return self._solve_tasks([point], ())
+
+    def begin(self, warm, nested, parents: tuple[str, ...]) -> list[Task]:
+        """The tasks that follow once the candidates this fit may start from are fitted (``warm``: a donor's
+        estimates, ``nested``: a contained structure's optimum; ``parents``: their tasks)."""
+        self.warm, self.nested = warm, nested
+        if self.whole:
+            return [self._whole_task(parents)]
+        if warm is None:
+            stage = stage_of(self.c, self.ctx.options)
+            if stage is not None:
+                return self._stage(stage, parents)
+        return self._plan(staged_spec(self.c, self.ctx.options, warm, nested=nested), parents)
+
+    def _whole_task(self, parents) -> Task:
+        self.whole = True
+        lift = self.ctx.lifts.get(self.c.lift) if self.c.lift else None
+        return self._task("fit", _whole, (self.c, lift, self.ctx.options, self.warm, self.nested),
+                          self._estimated_whole, parents)
+
+    def _stage(self, stage, parents) -> list[Task]:
+        candidate, model = stage
+        try:
+            points = model.start_points(self.ctx.train, n_starts=STAGE_STARTS, seed=self.ctx.options.seed)
+        except PLANNING_ERRORS:
+            return self._plan(staged_spec(self.c, self.ctx.options, None, nested=self.nested), parents)
+        self.stage_outcomes: list = [None] * len(points)
+        tasks = [self._task(f"stage start {k}", _solve, (candidate, self.ctx.options, p),
+                            lambda out, _, k=k: self._stage_done(k, out, model), parents) for k, p in enumerate(points)]
+        self.stage_tasks = tuple(t.name for t in tasks)
+        return tasks
+
+    def _stage_done(self, k: int, out, model) -> list[Task]:
+        self.stage_outcomes[k], seconds = out
+        self.work += seconds
+        if any(o is None for o in self.stage_outcomes):
+            return []
+        try:
+            best = best_of(self.stage_outcomes, self.ctx.train[model.coefficient]).best
+            params = dict(zip(model.nonlinear_names + model.linear_names, np.concatenate([best.theta, best.coef])))
+        except PLANNING_ERRORS:
+            params = None   # a stage the data cannot fit gives no start: the candidate keeps its usual starts
+        spec = staged_spec(self.c, self.ctx.options, None, nested=self.nested, stage_params=params,
+                           stage_model=model)
+        return self._plan(spec, self.stage_tasks)
+
+    def _plan(self, spec: StartSpec, parents) -> list[Task]:
+        try:
+            points = start_points(self.c, self.ctx.train, self.ctx.options, spec)
+        except PLANNING_ERRORS:
+            return [self._whole_task(parents)]
+        self.spec, self.keys = spec, [p.tobytes() for p in points]
+        tasks = self._solve_tasks([p for p in points if p.tobytes() not in self.solving], parents)
+        return tasks or self._select()
+
+    def _solve_tasks(self, points, parents) -> list[Task]:
+        tasks = []
+        for p in points:
+            key = p.tobytes()
+            tasks.append(self._task(f"start {len(self.solving)}", _solve, (self.c, self.ctx.options, p),
+                                    lambda out, _, key=key: self._solved(key, out), parents))
+            self.solving[key] = tasks[-1].name
+        return tasks
+
+    def _solved(self, key: bytes, out) -> list[Task]:
+        self.outcomes[key], seconds = out
+        self.work += seconds
+        if self.keys is None or any(k not in self.outcomes for k in self.keys):
+            return []
+        return self._select()
+
+    # ----- the fit's statistics, then its folds --------------------------------------------------------------
+    def _select(self) -> list[Task]:
+        parents = tuple(self.solving[k] for k in self.keys)
+        try:
+            solved = best_of([self.outcomes[k] for k in self.keys], self.ctx.train[self.c.coefficient])
+        except PLANNING_ERRORS:
+            return [self._whole_task(parents)]   # no start fitted: the whole fit says why, as a serial run does
+        fit = self._task("fit", _fit, (self.c, self.ctx.options, self.spec, solved), self._fitted, parents)
+        # the optimum is the estimate (the statistics that follow do not move it): the candidates that start from
+        # this one need not wait for them; its training MSE is the optimum's cost per sample
+        best = solved.best
+        params = dict(zip(self._names(), np.concatenate([best.theta, best.coef])))
+        fitted = Fitted(params, 2.0 * best.cost / len(self.ctx.train[self.c.coefficient]))
+        return [fit] + self.ctx.estimated(self.i, fitted, parents)
+
+    def _names(self) -> tuple[str, ...]:
+        """The candidate's parameter names, nonlinear then linear (as its fit reports them)."""
+        from .models import build_model
+        model = build_model(self.c.with_bounds(self.ctx.options.parameter_boxes))
+        return tuple(model.nonlinear_names) + tuple(model.linear_names)
+
+    def _estimated_whole(self, result: CandidateResult, name: str) -> list[Task]:
+        return self.ctx.estimated(self.i, Fitted.of(result), (name,)) + self.ctx.finished(self.i, result)
+
+    def _fitted(self, out, name: str) -> list[Task]:
+        result, plan = out
+        ready: list[Task] = []
+        if plan is None:
+            return ready + self.ctx.finished(self.i, result if not self.work else _plus(result, self.work))
+        self.result, self.plan, self.parts = result, plan, [None] * plan.n_folds
+        params = result.estimates.params
+        return ready + [self._task(f"fold {k}", _fold, (self.c, self.ctx.options, params, plan, k),
+                                   lambda out, _, k=k: self._fold_done(k, out), (name,), urgency=0.5)
+                        for k in range(plan.n_folds)]
+
+    def _fold_done(self, k: int, out) -> list[Task]:
+        rows, values, seconds = out
+        self.parts[k] = (rows, values)
+        self.work += seconds
+        if any(p is None for p in self.parts):
+            return []
+        return self.ctx.finished(self.i, with_folds(self.result, self.ctx.train, self.plan, self.parts, self.work))
+
+
+def _plus(result: CandidateResult, seconds: float) -> CandidateResult:
+    """``result`` with the seconds its starts took on other tasks added to its own."""
+    import dataclasses
+    return dataclasses.replace(result, seconds=result.seconds + seconds)
