@@ -468,17 +468,17 @@ def test_grid_bounds_for_a_parameter_no_candidate_has_are_errors(tmp_path, bound
 def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
     """Issue 13: a failure that may be a programming error (a bare ValueError) is retried next run; a
     failure that is a property of the data (not applicable, DataError, ...) is cached."""
-    import structsearch.fitting.candidate_fit as candidate_fit
+    import structsearch.fitting.candidate_job as candidate_job
     from structsearch.fitting.options import FitOptions
     from structsearch.fitting.runner import cache_path, campaign_fingerprint
     cand = load_grid("lift")["CL-I"]
     options = FitOptions(n_starts=1, cv_folds=0)
     path = cache_path(tmp_path, cand, campaign_fingerprint(tiny), None, options)[0]
     for error, cached in (("ValueError: boom", False), ("DataError: m01.csv, column 'V': bad", True)):
-        def failing(c, *args, error=error, **kwargs):
+        def failing(c, *args, error=error, **kwargs):   # a fit's statistics task, failing
             return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
-                                           error=error, seconds=0.0)
-        monkeypatch.setattr(candidate_fit, "fit_candidate", failing)
+                                           error=error, seconds=0.0), None
+        monkeypatch.setattr(candidate_job, "fit_from", failing)
         out = run([cand], tiny, tmp_path, options=options, backend="threading")[0]
         assert out.failed and path.exists() == cached, error
 
@@ -595,10 +595,9 @@ def test_a_fit_starts_from_the_contained_structures_optimum_with_the_added_time_
     start = nested_start(uq, {"tau2_ss": 0.3, "a1_ss": 50.0, "a_star_ss": 0.2, "tau2_w": 0.1, "a1_w": 12.0,
                               "a_star_w": 0.33})
     assert start["tau1_ss"] == 0.0 and start["tau2_ss"] == 0.3 and start["a_star_w"] == 0.33
-    from types import SimpleNamespace
-    good = SimpleNamespace(failed=False, mse_train=1.0, estimates=SimpleNamespace(params={"tau2_ss": 0.3, "tau2_w": 0.2}))
-    worse = SimpleNamespace(failed=False, mse_train=2.0, estimates=SimpleNamespace(params={"tau2_ss": 0.9,
-                                                                                           "tau2_w": 0.9}))
+    from structsearch.fitting.staging import Fitted
+    good = Fitted({"tau2_ss": 0.3, "tau2_w": 0.2}, 1.0)
+    worse = Fitted({"tau2_ss": 0.9, "tau2_w": 0.9}, 2.0)
     got = best_contained(uq, [(sep["X_ss/X_w S/Q"], worse), (qq, good), (uu, good)])
     assert got["tau2_ss"] == 0.3 and got["tau1_ss"] == 0.0    # U/U is not contained in U/Q: not a donor
 

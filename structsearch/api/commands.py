@@ -15,7 +15,7 @@ from ..data.errors import DeclarationError
 from ..fitting.options import check_box_names
 from ..grid_search.admissibility import MAX_CORRELATION
 from .results import FitOutcome, PreprocessOutcome, Ranking, StudyOutcome
-from .settings import FlightTestPlan, Settings, command_fitter, fit_options
+from .settings import FlightTestPlan, Settings, command_fitter, dask_client, fit_options
 
 
 
@@ -43,7 +43,7 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
     options = fit_options("fit", settings, campaign)
     progress = settings.progress
     check_box_names(options.parameter_boxes, [candidate])
-    train, validation = campaign.split("train"), campaign.split("validation")
+    train = campaign.split("train")
     if progress is not None:
         progress(f"fit: {candidate.name}" + (f" on {candidate.lift}" if candidate.lift else ""))
     with command_fitter("fit", campaign, settings) as fitter:  # its starts and folds are tasks on the workers
@@ -171,18 +171,6 @@ def write_search_tables(ranking: Ranking, campaign: Campaign, out: Path) -> list
     from ..reporting.tables import write_tables
     from ..thesis_study.thesis_estimator import thesis_estimator_fits
     return write_tables(ranking.grids, out, thesis_estimator_fits(ranking.grids, campaign))
-
-
-def dask_client(scheduler: str | None, jobs: int):
-    """A dask.distributed Client: the given scheduler, else a local cluster of ``jobs`` single-threaded workers."""
-    try:
-        from dask.distributed import Client, LocalCluster
-    except ImportError:
-        raise DeclarationError("--backend dask needs the optional dependency dask.distributed "
-                               "(pip install 'structsearch[dask]')") from None
-    if scheduler:
-        return Client(scheduler)
-    return Client(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None))
 
 
 def diagnose(campaign: Campaign | str | os.PathLike, model: str, *, settings: Settings = Settings(),

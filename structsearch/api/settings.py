@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Iterator, Mapping
 
 from ..data.campaign import Campaign
+from ..data.errors import DeclarationError
 from ..engine.statistics import DEFAULT_COVARIANCE
 from ..data.atomic import write_json
 from ..fitting.fitter import Fitter, RunConfig
@@ -105,17 +106,28 @@ def _dask_client(settings: Settings):
         yield None
         return
     try:
-        from distributed import get_client
+        from dask.distributed import get_client
         yield get_client()
         return
     except (ImportError, ValueError):
         pass
-    from .commands import dask_client
     client = dask_client(None, settings.processes)
     try:
         yield client
     finally:
         client.close()
+
+
+def dask_client(scheduler: str | None, jobs: int):
+    """A dask.distributed Client: the given scheduler, else a local cluster of ``jobs`` single-threaded workers."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise DeclarationError("--backend dask needs the optional dependency dask.distributed "
+                               "(pip install 'structsearch[dask]')") from None
+    if scheduler:
+        return Client(scheduler)
+    return Client(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None))
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,6 @@ from typing import Mapping
 import numpy as np
 
 from .diagnose import diagnose
-from ..fitting.candidate_fit import fit_staged
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
 from .results import Diagnosis
@@ -47,7 +46,7 @@ def van_ingen_story(fitter: Fitter, kinds=MOVE_KINDS, beam: int = STORY_BEAM) ->
     """Diagnose each Van Ingen structure (a structure search from each until it is at the floor or no move
     passes), lift first: the drag and pitch searches may feed their models the lift structure found for C_L.
     ``kinds`` and ``beam`` restrict the search (``("effect",)`` and 1: the effect library alone, one at a time)."""
-    say, campaign, options = fitter.say, fitter.campaign, fitter.options
+    say = fitter.say
     docs = {}
     lifts: dict[str, LiftFit] = {}
     for coef, name in VAN_INGEN_MODEL_NAMES.items():
@@ -60,8 +59,7 @@ def van_ingen_story(fitter: Fitter, kinds=MOVE_KINDS, beam: int = STORY_BEAM) ->
             found = dataclasses.replace(Candidate.from_dict(docs[coef].final_structure), name=FOUND_LIFT,
                                         note=f"the lift structure the story found: {docs[coef].final_model}")
             say(f"story: fitting the lift structure found for CL ({found.name}) for the drag and pitch models")
-            train, val = campaign.split("train"), campaign.split("validation")
-            result = fit_staged(found, train, val, None, options)
+            result = fitter.quiet().fit_one(found)   # its starts and folds are tasks on the workers
             if not result.failed:
                 lifts[found.name] = LiftFit(found, result)
     return Story(docs, tuple(story_lines(docs)))

@@ -71,15 +71,13 @@ def discover_structures(fitter: Fitter, coefficient: str, diagnose_search: Diagn
 
 def _lift_models(fitter: Fitter, first, candidates) -> dict:
     """The lift models a drag or pitch structure may be fed, fitted (none for a lift structure)."""
-    from ..fitting.candidate_fit import fit_staged
     from ..fitting.lift_fit import LiftFit
     if first.coefficient == "CL":
         return {}
-    train, val = fitter.splits()
+    fitter.say(f"fitting the lift model{'s' if len(candidates) > 1 else ''} {', '.join(c.name for c in candidates)}")
     lifts = {}
-    for c in candidates:
-        fitter.say(f"fitting the lift model {c.name}")
-        result = fit_staged(c, train, val, None, fitter.options)
+    # fitted together: their starts and folds are tasks on the workers
+    for c, result in zip(candidates, fitter.quiet().fit(candidates)):
         if result.failed:
             raise DeclarationError(f"fitting the lift model {c.name} failed: {result.error}")
         lifts[c.name] = LiftFit(c, result)

@@ -43,6 +43,14 @@ def _check_regressors(problem: SeparableProblem, phi: np.ndarray, boundaries: np
                         row=int(bad[0][0] - boundaries[seg]))
 
 
+def _optimum(problem: SeparableProblem, solved: Outcome | MultistartOutcome, ev0):
+    """The optimum a fit's statistics are computed at, the starts tried, those that reached it, and the regressors
+    there: a given optimum (``ev0`` is evaluated at it already) or the best of a multistart."""
+    if isinstance(solved, Outcome):
+        return solved, 1, 1, ev0
+    return solved.best, len(solved.outcomes), solved.n_reached_best, problem.evaluate(solved.best.theta)
+
+
 def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndarray,
                 segment_names, start=None, lower=None, upper=None, n_starts: int = 1,
                 seed: int = 0, n_jobs: int = 1, covariance: str = SEPARABLE_DEFAULTS.covariance, max_lag=None,
@@ -79,16 +87,10 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
         lower = upper = np.zeros(0)
     else:
         lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-        if solution is not None:
-            outcome, n_starts_used, reached, ev = solution, 1, 1, ev0
-        elif starts is not None:
-            outcome, n_starts_used, reached = starts.best, len(starts.outcomes), starts.n_reached_best
-            ev = problem.evaluate(outcome.theta)
-        else:
-            ms = multistart(problem, y, start, lower, upper, n_starts=n_starts, seed=seed,
-                            n_jobs=n_jobs, tol=tol, max_nfev=max_nfev, also=also)
-            outcome, n_starts_used, reached = ms.best, len(ms.outcomes), ms.n_reached_best
-            ev = problem.evaluate(outcome.theta)
+        ms = solution if solution is not None else starts if starts is not None else \
+            multistart(problem, y, start, lower, upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs, tol=tol,
+                       max_nfev=max_nfev, also=also)
+        outcome, n_starts_used, reached, ev = _optimum(problem, ms, ev0)
         # the solve's coefficients are Phi^+ y at its theta already: no second projection of Phi
         proj = None
     coef = outcome.coef

@@ -153,7 +153,9 @@ class CandidateJob:
             return [self._whole_task(parents)]
         self.spec, self.keys = spec, [p.tobytes() for p in points]
         tasks = self._solve_tasks([p for p in points if p.tobytes() not in self.solving], parents)
-        return tasks or self._select()
+        if tasks or any(k not in self.outcomes for k in self.keys):
+            return tasks   # the last start to finish makes the fit ready (one may be running already)
+        return self._select()
 
     def _solve_tasks(self, points, parents) -> list[Task]:
         tasks = []

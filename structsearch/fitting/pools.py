@@ -59,7 +59,7 @@ def task_pool(backend: str, n_jobs: int) -> Iterator[object]:
     """The pool of ``n_jobs`` workers of ``backend`` ("loky" or "multiprocessing": local processes; "threading";
     "dask": the cluster of the client the caller opened)."""
     if backend == "dask":
-        from distributed import get_client
+        from dask.distributed import get_client
         client = get_client()
         workers = len(client.scheduler_info().get("workers", {})) or n_jobs
         yield DaskPool(client, DASK_TASKS_PER_WORKER * workers)

@@ -5,14 +5,14 @@ Every finished candidate is written to ``<out>/cache/<grid>/<name>-<key>.json``
 depends on and the options, so an interrupted search resumes where it stopped
 and a changed input is never served from a stale cache. A failing candidate is
 recorded with its reason and never stops the search. Results are identical for
-any number of jobs: each fit is seeded and runs on one process.
+any number of jobs and either backend: every task (a start, a fold, a fit's statistics) is seeded and
+its arguments are fixed when it is made, never by which task finished first.
 """
 from __future__ import annotations
 
 import dataclasses
 import hashlib
 import json
-import os
 import time
 from contextlib import ExitStack
 from functools import lru_cache
@@ -32,7 +32,7 @@ from .pools import task_pool
 from .scheduling import CallPlan, fit_as_tasks
 from .staging import may_donate, waves
 from .trace import Trace
-from .shared_data import LOCAL_PROCESS_BACKENDS, resolve_splits, shared_splits
+from .shared_data import shared_splits
 
 
 def fingerprint(data: FlightData) -> str:
@@ -123,11 +123,10 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     estimates of a candidate nested in it, fitted before it in this grid (an earlier wave) or in
     ``fitted_before`` (earlier grids of the same search). A candidate that is one of ``fitted_before``
     under another name is served that fit from this run's cache (when it has none of its own: a cache
-    written by an earlier run serves first, as for every candidate). Local worker processes take a
-    candidate as soon as the candidates it may start from are fitted; other backends fit wave after
-    wave. Either way a candidate's donors are the same (those of earlier waves), so the results do not
-    depend on the backend or the number of jobs. Results come in the order of ``candidates``.
-    Each candidate's starts and folds are tasks of their own (:mod:`.scheduling`); ``trace`` records them."""
+    written by an earlier run serves first, as for every candidate). Each candidate's starts, statistics and
+    folds are tasks of their own (:mod:`.scheduling`), on any backend; a candidate's donors are fixed (those of
+    earlier waves), so the results do not depend on the backend, the number of jobs or the order tasks finish
+    in. Results come in the order of ``candidates``; ``trace`` records every task."""
     say = progress or (lambda msg: None)
     train, validation = campaign.split("train"), campaign.split("validation")
     data_key = campaign_fingerprint(campaign)

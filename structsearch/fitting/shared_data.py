@@ -28,7 +28,7 @@ def shared_splits(train: FlightData, validation: FlightData, backend: str, n_job
     """A handle to (train, validation) for tasks: a file path for local worker processes, else the
     objects themselves (one process: nothing is pickled), or a dask future of them (scattered to the workers)."""
     if backend == "dask":   # scattered to every worker once; a task carries the future, which dask resolves
-        from distributed import get_client
+        from dask.distributed import get_client
         yield get_client().scatter([(train, validation)], broadcast=True)[0]
         return
     if backend not in LOCAL_PROCESS_BACKENDS or n_jobs == 1:

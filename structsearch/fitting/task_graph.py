@@ -101,7 +101,7 @@ class DaskPool:
         return self.client.submit(timed, fn, args, pure=False)
 
     def wait_first(self, futures) -> set:
-        from distributed import wait as dask_wait
+        from dask.distributed import wait as dask_wait
         return set(dask_wait(list(futures), return_when="FIRST_COMPLETED").done)
 
     def abandon(self, futures, interrupted: bool) -> None:
