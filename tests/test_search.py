@@ -501,8 +501,11 @@ def _stub(names, p, corr=None, centred=None, mse=1.0):
     """What refinement reads of a fitted candidate, without a fit."""
     from types import SimpleNamespace
     corr = np.eye(len(names)) if corr is None else np.asarray(corr, float)
-    estimates = SimpleNamespace(names=tuple(names), p_values=dict(zip(names, p)), correlation=corr)
-    return SimpleNamespace(estimates=estimates,
+    nonlinear = tuple(n for n in names if n in ("tau1", "tau2", "a1", "a_star"))
+    estimates = SimpleNamespace(names=tuple(names), p_values=dict(zip(names, p)), correlation=corr,
+                                params=dict.fromkeys(names, 0.1), nonlinear_names=nonlinear, lower=(0.0,) * len(nonlinear),
+                                at_bound={}, not_identifiable={}, withheld=None)
+    return SimpleNamespace(estimates=estimates, optimizer=SimpleNamespace(converged=True, message=""),
                            centred_correlation=() if centred is None else tuple(map(tuple, centred)),
                            insignificant=[n for n, v in zip(names, p) if v > 0.05], failed=False,
                            comparison=SimpleNamespace(mse=mse), error=None)

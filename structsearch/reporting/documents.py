@@ -24,6 +24,7 @@ def fit_document(fit: CandidateResult, lift: LiftFit | None, bands=None) -> dict
         "n_starts": fit.optimizer.n_starts, "n_reached_best": fit.optimizer.n_reached_best,
         "converged": fit.optimizer.converged, "message": fit.optimizer.message, "nfev": fit.optimizer.nfev,
         "identifiable": fit.identifiable, "not_identifiable": e.not_identifiable,
+        "statistics_withheld": e.withheld,
         "condition_number": e.condition_number,
         "lift": lift and {"model": lift.name, "params": lift.params},
         "covariance": covariance_document(fit.estimates.covariance_record()),
