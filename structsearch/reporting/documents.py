@@ -19,6 +19,7 @@ def fit_document(fit: CandidateResult, lift: LiftFit | None, bands=None) -> dict
                 **({"cv": fit.cv.mse, "cv_folds": fit.cv_folds} if fit.cv is not None else {})},
         "reference_dof": e.reference_dof,
         "p_values": e.p_values, "at_bound": e.at_bound,
+        "bounds": {n: [float(lo), float(hi)] for n, lo, hi in zip(e.nonlinear_names, e.lower, e.upper)},
         "high_correlations": [list(p) for p in e.high_correlations], "insignificant": list(fit.insignificant),
         "r2": {"train": fit.train.r2.as_dict(), "validation": fit.validation.r2.as_dict()},
         "n_starts": fit.optimizer.n_starts, "n_reached_best": fit.optimizer.n_reached_best,
