@@ -190,3 +190,8 @@ def test_a_fit_that_did_not_converge_reports_no_statistics(noise_free_lift):
     said = reasons(back, None, AdmissibilityRules())
     assert [Reason.of(r) for r in said if Reason.of(r) is not Reason.AT_BOUND] == [Reason.NOT_CONVERGED], said
     assert "no standard deviations" in said[0] and why in str(back.summary())
+    # nor is it refined: there is no t-test or interval to judge a move by
+    from structsearch.fitting.candidates import Candidate
+    from structsearch.grid_search.refinement import refine
+    done = refine(Candidate("S", "g", "CL", (("CL0", "1"),)), back, lambda c: pytest.fail("no move is fitted"))
+    assert done.steps == () and why in done.stopped

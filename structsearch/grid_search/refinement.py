@@ -231,6 +231,8 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
     steps, reached = [], []
     current, current_summary, dropped, kinds = c, summary, [], {}
     stopped = "nothing left to drop"
+    if summary.estimates.withheld:   # no t-test, interval or bound to judge a move by
+        return Refinement(c.name, (), f"{summary.estimates.withheld}: no statistics to refine by")
     for step in range(1, MAX_STEPS + 1):
         moves = _moves(current, current_summary, alpha_range)
         if not moves:
