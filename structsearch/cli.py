@@ -125,7 +125,7 @@ def _fit(args) -> int:
                + ("\n\n" + bands_table(res.bands) if res.bands is not None else "")
                + ("\n\n" + profile_table(res.profile) if res.profile is not None else ""))
     not_converged = ("" if summary.optimizer.converged
-                     else f"; the optimizer did NOT converge ({summary.optimizer.message})")
+                     else f"; the optimizer did NOT converge ({summary.optimizer.message}): no standard deviations")
     print(f"{res.candidate.name}: MSE train {summary.mse_train:.4g}, validation {summary.mse_validation:.4g}"
           f"{held_out_phrase(summary)}; {len(summary.insignificant)} parameter(s) accept zero, "
           f"{len(summary.estimates.at_bound)} at a bound{not_converged}; wrote {out / 'fit.json'}")

@@ -122,11 +122,76 @@ def test_indefinite_covariance_is_flagged_not_repaired(exponential_fit):
     assert "INDEFINITE" in fit_report(broken) and broken.to_dict()["covariance_psd"] is False
 
 
-@pytest.mark.parametrize("inside,flag", [(4e-7, "lower"), (1e-6 * 0.8, "lower"), (1e-3, None)])
+@pytest.mark.parametrize("inside,flag", [(4e-7, "lower"), (1e-6 * 0.8, "lower"), (0.99e-3, "lower"), (2e-3, None)])
 def test_at_bound_is_relative_to_the_range(exponential_fit, inside, flag):
-    """k's box is [0.5, 1.4]; 4e-7 of absolute distance (4.4e-7 of the range) is at the bound."""
+    """k's box is [0.5, 1.4]: within 1e-3 of the range (PRACTICAL_BOUND_FRACTION) is at the bound, the solver's stops
+    short of it (4e-7 of the range) among them; its standard deviation is shrunk below that reach here, so that
+    the fraction alone decides."""
+    from structsearch.engine.estimates import PRACTICAL_BOUND_FRACTION
+    assert PRACTICAL_BOUND_FRACTION == 1e-3
     lo, hi = exponential_fit.lower[0], exponential_fit.upper[0]
     values = exponential_fit.values.copy()
-    values[0] = lo + inside * (hi - lo) if flag != "upper" else hi - inside * (hi - lo)
-    moved = dataclasses.replace(exponential_fit, values=values)
+    values[0] = lo + inside * (hi - lo)
+    moved = dataclasses.replace(exponential_fit, values=values, covariance=exponential_fit.covariance * 1e-8)
+    assert moved.stderr["k"] < 1e-4 * (hi - lo)
     assert moved.at_bound == ({"k": flag} if flag else {})
+
+
+@pytest.mark.parametrize("standard_deviations,flag", [(0.99, "upper"), (3.0, None)])
+def test_an_estimate_within_its_standard_deviation_of_a_bound_is_at_it(standard_deviations, flag):
+    """A converged fit whose optimum lies inside the box, the upper bound ``standard_deviations`` of its own standard
+    deviation away: within one it is at the bound (the data do not place it inside the box), at three it is an
+    interior optimum (both far beyond 1e-3 of the box)."""
+    rng = np.random.default_rng(5)
+    x = np.linspace(0.0, 4.0, 300)
+    y = 2.0 * np.exp(-1.3 * x) + 0.5 + 0.01 * rng.standard_normal(300)
+    model = SeparableModel({"c": "exp(-k*x)", "d": "1"}, variables=["x"])
+    free = model.fit({"x": x}, y, start={"k": 1.0}, bounds={"k": (0.5, 3.0)}, covariance="white")
+    k, se = free.params["k"], free.stderr["k"]
+    edge = k + standard_deviations * se
+    boxed = model.fit({"x": x}, y, start={"k": 1.1}, bounds={"k": (1.0, edge)}, covariance="white")
+    assert boxed.converged and boxed.params["k"] == pytest.approx(k, rel=1e-7)
+    assert edge - boxed.params["k"] > 5 * 1e-3 * (edge - 1.0)     # the fraction of the box is not what flags it
+    assert boxed.at_bound == ({"k": flag} if flag else {})
+    assert free.at_bound == {}
+
+
+def test_a_fit_that_did_not_converge_reports_no_statistics(noise_free_lift):
+    """An optimizer stopped by its evaluation budget: the estimates are where it stopped, and no standard deviation,
+    p-value, interval or correlation is reported, each with the reason, in the summary, the JSON and the
+    candidate's admissibility."""
+    import json
+    from structsearch.data.atomic import json_ready
+    from structsearch.engine.scores import R2Summary
+    from structsearch.fitting.candidate_result import CandidateResult, SplitScores
+    from structsearch.grid_search.admissibility import AdmissibilityRules, Reason, reasons
+    model, data = noise_free_lift
+    stopped = model.fit(_noisy(data), max_nfev=2)
+    assert not stopped.converged
+    why = f"the optimizer did not converge: {stopped.message}"
+    assert stopped.withheld == why and not stopped.identifiable
+    for table in (stopped.stderr, stopped.p_values, stopped.white_stderr):
+        assert all(np.isnan(v) for v in table.values())
+    assert np.isnan(stopped.conf_int().to_numpy()).all() and np.isnan(stopped.covariance).all()
+    off_diagonal = stopped.correlation[~np.eye(stopped.n_params, dtype=bool)]
+    assert np.isnan(off_diagonal).all() and stopped.high_correlations == []
+    assert stopped.not_identifiable == dict.fromkeys(stopped.names, why)
+    assert stopped.wald_test([stopped.names[-1]]).reason.endswith(why)
+    text = str(stopped.summary())
+    assert why in text and "NOT CONVERGED" in text and "no statistics: not converged" in text
+    doc = json.loads(json.dumps(json_ready(stopped.to_dict()), allow_nan=False))
+    assert doc["statistics_withheld"] == why and set(doc["stderr"].values()) == {None}
+    assert set(doc["p_values"].values()) == {None}
+    scores = SplitScores(stopped.mse, (stopped.mse,), (stopped.n_samples,), R2Summary(0.9, 0.9, 0.9, 0.9))
+    cand = CandidateResult.from_fit(name="S", grid="g", coefficient="CL", lift=None, result=stopped, train=scores,
+                                    validation=scores, seconds=0.1)
+    back = CandidateResult.from_json(json.loads(json.dumps(cand.to_json(), allow_nan=False)))
+    assert back == cand and back.estimates.withheld == why and np.isnan(back.estimates.stderr["CL0"])
+    said = reasons(back, None, AdmissibilityRules())
+    assert [Reason.of(r) for r in said if Reason.of(r) is not Reason.AT_BOUND] == [Reason.NOT_CONVERGED], said
+    assert "no standard deviations" in said[0] and why in str(back.summary())
+    # nor is it refined: there is no t-test or interval to judge a move by
+    from structsearch.fitting.candidates import Candidate
+    from structsearch.grid_search.refinement import refine
+    done = refine(Candidate("S", "g", "CL", (("CL0", "1"),)), back, lambda c: pytest.fail("no move is fitted"))
+    assert done.steps == () and why in done.stopped

@@ -1,5 +1,6 @@
 """Structure search: grids from rules, runner (parallel, cached, resumable), ranking, refinement, CLI."""
 import csv
+import dataclasses
 import json
 
 import numpy as np
@@ -200,14 +201,17 @@ def test_collinear_candidate_ranked_after_identifiable_and_failure_recorded(tiny
     result = search(fitter_for(tiny, tmp_path / "out"), str(spec))
     write_tables(result.grids, tmp_path / "out")
     ranked = result.grids["mine"]
-    assert [r.name for r in ranked] == ["M-III", "M-I", "M-II", "M-IV"]
+    # M-III's lag ends at tau1 = 0, where its U state is Q: the refinement's M-IIIr-auto, the same fit with fewer
+    # parameters, comes first
+    assert [r.name for r in ranked] == ["M-IIIr-auto", "M-III", "M-I", "M-II", "M-IV"]
+    assert ranked[0].estimates.params["tau2"] == pytest.approx(ranked[1].estimates.params["tau2"], rel=1e-4)
     # a failing candidate is recorded with a reason naming the regressor and the row; the search goes on
     assert ranked[-1].failed and ranked[-1].placement.rank is None
     assert "regressor 'bad' is NaN or infinite" in ranked[-1].error and "row 0" in ranked[-1].error
     assert "inputs alpha = " in ranked[-1].error  # the data values it read there
     ranked = ranked[:-1]
     # collinear a and b: a result without standard deviations for them, ranked after the identifiable ones
-    assert ranked[-1].error is None and not ranked[-1].identifiable and ranked[-1].placement.rank == 3
+    assert ranked[-1].error is None and not ranked[-1].identifiable and ranked[-1].placement.rank == 4
     assert "a and b are collinear" in ranked[-1].estimates.not_identifiable["a"]
     assert np.isnan(ranked[-1].estimates.stderr["a"]) and np.isnan(ranked[-1].estimates.stderr["b"])
     rows = list(csv.DictReader((tmp_path / "out" / "ranking.csv").open()))
@@ -255,6 +259,77 @@ def test_a_declared_candidate_whose_truth_has_one_zero_term_is_refined_and_the_r
     assert first.name == "Z-Ir-auto" and "d" not in first.estimates.params and first.placement.admissible, [
         (r.name, r.placement.admissible, r.placement.reasons) for r in ranked]
     assert set(first.estimates.params) == set(full.estimates.params) - {"d"}
+
+def test_a_symmetric_airfoil_loses_its_constant_in_refinement_and_becomes_admissible(tiny, tmp_path):
+    """A symmetric airfoil has no lift at zero alpha: every lift candidate carries C_L0, whose t-test accepts 0.
+    Before, refinement never dropped the constant and no candidate was admissible; now it drops C_L0 (and the lag
+    the data put at zero: U -> Q) and the refined structure is admissible, ranked first."""
+    import dataclasses
+    from structsearch.fitting.models import build_model
+    from structsearch.flight.synthetic import with_coefficient
+    spec = tmp_path / "grid.toml"
+    spec.write_text('name = "sym"\ncoefficient = "CL"\nprefix = "S-"\n'
+                    '[[entry]]\nregressors = { CL0 = "1", CL_KL = "K_L(X)" }\nstates = { "" = "U" }\n')
+    declared = load_grid(str(spec)).candidates[0]
+    truth = {"tau1": 0.1, "tau2": 0.15, "a1": 25.0, "a_star": 0.28, "CL0": 0.0, "CL_KL": 1.0}
+    data = with_coefficient(tiny.data, build_model(declared), truth, noise_sigma=0.02, noise_phi=0.9, seed=3)
+    result = search(fitter_for(dataclasses.replace(tiny, data=data), tmp_path / "out"), str(spec))
+    ranked = result.grids["sym"]
+    full = next(r for r in ranked if r.name == declared.name)
+    assert "CL0" in full.insignificant and not full.placement.admissible
+    first = ranked[0]
+    assert first.name.endswith("-auto") and first.placement.admissible, [
+        (r.name, r.placement.admissible, r.placement.reasons) for r in ranked]
+    assert "CL0" not in first.estimates.params and first.estimates.significant["tau2"]
+    (refinement,) = result.refinements["sym"]
+    assert "CL0" in refinement.steps[0][0].note
+
+
+def _two_states():
+    return Candidate("T", "lift", "CL", (("c0", "1"), ("k_ss", "K_L(X_ss)"), ("k_w", "K_L(X_w)"), ("q", "qstar")),
+                     (("ss", "U"), ("w", "S")), None, "", (("a_star_ss", (0.05, 0.27)), ("a_star_w", (0.22, 0.45))))
+
+
+def _state_stub(at_bound=None, a_star_w=0.3, p=None, not_identifiable=None, mse=1.0):
+    names = ["tau1_ss", "tau2_ss", "a1_ss", "a_star_ss", "a1_w", "a_star_w", "c0", "k_ss", "k_w", "q"]
+    stub = _stub(names, [1e-9] * len(names) if p is None else p, mse=mse)
+    e = stub.estimates
+    e.nonlinear_names, e.lower = tuple(names[:6]), (0.0, 0.0, 2.0, 0.05, 2.0, 0.22)
+    e.params = {**e.params, "a_star_ss": 0.2, "a_star_w": a_star_w}
+    e.at_bound, e.not_identifiable = dict(at_bound or {}), dict(not_identifiable or {})
+    return stub
+
+
+def test_a_state_the_data_do_not_place_is_a_refinement_move():
+    """A second separation state a campaign cannot place (alpha* outside the range flown, a parameter at a bound or
+    not identifiable) is dropped with the regressors that read it; a lag at zero makes the state the one it nests."""
+    from structsearch.grid_search.refinement import _state_moves, refine
+    c = _two_states()
+    assert _state_moves(c, _state_stub(), (0.0, 0.35)) == []
+    outside = _state_moves(c, _state_stub(a_star_w=0.4), (0.0, 0.35))
+    assert [(m.what, m.drop) for m in outside] == [("dropping the state X_w", ("k_w",))]
+    assert "a_star_w outside the alpha range flown" in outside[0].why
+    assert [m.what for m in _state_moves(c, _state_stub(at_bound={"a1_w": "upper"}), None)] == [
+        "dropping the state X_w"]
+    assert [m.what for m in _state_moves(c, _state_stub(not_identifiable={"a1_w": "flat"}), None)] == [
+        "dropping the state X_w"]
+    # tau1_ss at its lower bound 0: U is Q there (and dropping the state is the next move); with tau2_ss
+    # insignificant too, S first
+    lag = _state_moves(c, _state_stub(at_bound={"tau1_ss": "lower"}), None)
+    assert [(m.what, m.kinds) for m in lag] == [("making X_ss Q", (("ss", "Q"),)), ("dropping the state X_ss", ())]
+    both = _state_moves(c, _state_stub(at_bound={"tau1_ss": "lower"}, p=[0.5, 0.4] + [1e-9] * 8), None)
+    assert [m.what for m in both][:2] == ["making X_ss S", "making X_ss Q"]
+    # a drag or pitch candidate's states are its lift model's
+    assert _state_moves(dataclasses.replace(c, lift="CL-VI"), _state_stub(a_star_w=0.4), (0.0, 0.35)) == []
+
+    def fit(cand):
+        return _state_stub(mse=1.002)
+    done = refine(c, _state_stub(a_star_w=0.4), fit, alpha_range=(0.0, 0.35))
+    step = done.steps[0][0]
+    assert step.states == (("ss", "U"),) and "k_w" not in dict(step.regressors) and "a_star_w" not in dict(step.bounds)
+    simpler = refine(c, _state_stub(at_bound={"tau1_ss": "lower"}), fit).steps[0][0]
+    assert simpler.states == (("ss", "Q"), ("w", "S")) and "X_ss as Q" in simpler.note
+
 
 @pytest.mark.slow
 def test_cli_fit_search_and_dask(tiny, tmp_path):
@@ -501,8 +576,11 @@ def _stub(names, p, corr=None, centred=None, mse=1.0):
     """What refinement reads of a fitted candidate, without a fit."""
     from types import SimpleNamespace
     corr = np.eye(len(names)) if corr is None else np.asarray(corr, float)
-    estimates = SimpleNamespace(names=tuple(names), p_values=dict(zip(names, p)), correlation=corr)
-    return SimpleNamespace(estimates=estimates,
+    nonlinear = tuple(n for n in names if n in ("tau1", "tau2", "a1", "a_star"))
+    estimates = SimpleNamespace(names=tuple(names), p_values=dict(zip(names, p)), correlation=corr,
+                                params=dict.fromkeys(names, 0.1), nonlinear_names=nonlinear, lower=(0.0,) * len(nonlinear),
+                                at_bound={}, not_identifiable={}, withheld=None)
+    return SimpleNamespace(estimates=estimates, optimizer=SimpleNamespace(converged=True, message=""),
                            centred_correlation=() if centred is None else tuple(map(tuple, centred)),
                            insignificant=[n for n, v in zip(names, p) if v > 0.05], failed=False,
                            comparison=SimpleNamespace(mse=mse), error=None)

@@ -24,13 +24,22 @@ if TYPE_CHECKING:
     import pandas
 
 HIGH_CORRELATION = 0.9
-# A parameter closer than this fraction of its bound interval to a bound is "at the bound". The
-# trust-region solver stops short of an active bound by ~1e-7..1e-6 of the range (it keeps iterates
-# strictly inside), so 1e-5 catches those stops without touching an interior optimum.
+# Where the solver left a parameter on its bound: the trust-region solver stops short of an active bound by
+# ~1e-7..1e-6 of the range (it keeps iterates strictly inside), so 1e-5 of the range catches those stops without
+# touching an interior optimum. A numerical tolerance (profiles, the benchmarks' "on a bound"); the flag a fit
+# reports is the practical one below.
 AT_BOUND_RTOL = 1e-5
+# A parameter is reported at its bound (``at_bound``) when it lies within this fraction of its box of the bound,
+# or closer to it than its own standard deviation. 1e-3 of the default boxes is 2 ms of a time constant (a fifth
+# of a sample at 100 Hz), 0.2 1/rad of a1 and 0.02 deg of alpha*: nothing a flight-test engineer would tell from
+# the bound, while an optimizer that ran out of evaluations on its way there (a1 = 199.997 of 200) is caught. An
+# estimate whose standard deviation reaches the bound is one the data do not place inside the box either.
+PRACTICAL_BOUND_FRACTION = 1e-3
 # The statistics a result rebuilt from a summary may state instead of deriving them.
 STATABLE = ("stderr", "p_values", "at_bound", "high_correlations", "correlation", "not_identifiable",
             "reference_dof")
+# The statistics a fit whose optimizer did not converge withholds (``withheld``), stated or not.
+WITHHELD = frozenset({"stderr", "p_values", "high_correlations", "correlation", "not_identifiable"})
 
 
 @dataclass(frozen=True)
@@ -84,6 +93,16 @@ class ParameterEstimates:
     units: Mapping[str, str] = field(default_factory=dict)
     # the flights a covariance that groups by flight (hac-flight) rests on; None: another kind, or none recorded
     n_flights: int | None = None
+    # why no statistic of the estimates is reported ("the optimizer did not converge: ..."): a covariance taken
+    # where the optimizer stopped short describes no optimum, so it is NaN (standard deviations, p-values,
+    # intervals and correlations with it) and every parameter names this reason; None: a converged fit
+    withheld: str | None = None
+
+    def __post_init__(self):
+        if self.withheld:
+            nan = np.full((len(self.values), len(self.values)), np.nan)
+            object.__setattr__(self, "covariance", nan)
+            object.__setattr__(self, "white_covariance", nan.copy())
 
     # ----- sizes -------------------------------------------------------------
     @property
@@ -99,6 +118,8 @@ class ParameterEstimates:
         return self.n_samples - self.n_params
 
     def _stated(self, name: str, derive):
+        if self.withheld and name in WITHHELD:   # a non-converged fit states none of them either
+            return derive()
         return self.stated[name] if name in self.stated else derive()
 
     # ----- estimates and their statistics -----------------------------------
@@ -108,7 +129,7 @@ class ParameterEstimates:
 
     @cached_property
     def _stderr(self) -> np.ndarray:
-        if "stderr" in self.stated:
+        if "stderr" in self.stated and not self.withheld:
             return np.array([self.stated["stderr"][n] for n in self.names], float)
         return standard_deviations(self.covariance)
 
@@ -140,6 +161,8 @@ class ParameterEstimates:
     def not_identifiable(self) -> dict[str, str]:
         """Parameters whose standard deviation cannot be estimated, with the reason (never reported as 0)."""
         def derive():
+            if self.withheld:
+                return {name: self.withheld for name in self.names}
             out = dict(self.unidentifiable)
             kind = covariance_kind(self.covariance_kind)
             too_few = kind.not_estimable(self.n_maneuvers, self.n_params, self.n_flights)
@@ -177,7 +200,7 @@ class ParameterEstimates:
 
     @cached_property
     def correlation(self) -> np.ndarray:
-        if "correlation" in self.stated:
+        if "correlation" in self.stated and not self.withheld:
             return np.asarray(self.stated["correlation"], float).reshape(self.n_params, self.n_params)
         s = self._stderr
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -206,15 +229,18 @@ class ParameterEstimates:
 
     @cached_property
     def at_bound(self) -> dict[str, str]:
-        """Nonlinear parameters that ended on a bound: name -> "lower" or "upper"."""
+        """Nonlinear parameters at a bound: name -> "lower" or "upper", the nearer one. At it means within
+        PRACTICAL_BOUND_FRACTION of the box, or closer than the parameter's own standard deviation."""
         def derive():
             flags = {}
-            for name, v, lo, hi in zip(self.nonlinear_names, self.values, self.lower, self.upper):
+            for name, v, lo, hi, se in zip(self.nonlinear_names, self.values, self.lower, self.upper, self._stderr):
                 span = hi - lo if np.isfinite(hi - lo) else max(abs(v), 1.0)
-                if np.isfinite(lo) and v - lo <= AT_BOUND_RTOL * span:
-                    flags[name] = "lower"
-                elif np.isfinite(hi) and hi - v <= AT_BOUND_RTOL * span:
-                    flags[name] = "upper"
+                reach = max(PRACTICAL_BOUND_FRACTION * span, se if np.isfinite(se) else 0.0)
+                below, above = v - lo, hi - v     # NaN or inf for a bound that is not finite
+                side = "lower" if not above < below else "upper"
+                gap = below if side == "lower" else above
+                if np.isfinite(gap) and gap <= reach:
+                    flags[name] = side
             return flags
         return self._stated("at_bound", derive)
 
@@ -316,6 +342,7 @@ class ParameterEstimates:
             "condition_number": _finite_or_inf([self.condition_number])[0],
             "generated_regressors": self.generated_regressors, "units": dict(self.units),
             **({} if self.n_flights is None else {"n_flights": self.n_flights}),
+            **({} if self.withheld is None else {"withheld": self.withheld}),
             "stated": json_ready({k: (np.asarray(v).tolist() if k == "correlation" else
                                       [list(p) for p in v] if k == "high_correlations" else dict(v))
                                   for k, v in self.stated.items()}),
@@ -351,7 +378,8 @@ class ParameterEstimates:
                    condition_number=_float(doc.get("condition_number")),
                    generated_regressors=doc.get("generated_regressors"), stated=stated,
                    units=dict(doc.get("units") or {}),
-                   n_flights=None if doc.get("n_flights") is None else int(doc["n_flights"]))
+                   n_flights=None if doc.get("n_flights") is None else int(doc["n_flights"]),
+                   withheld=doc.get("withheld"))
 
     def __eq__(self, other) -> bool:
         return isinstance(other, ParameterEstimates) and self.to_dict() == other.to_dict()

@@ -118,7 +118,8 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
         n_maneuvers=len(segment_names), white_covariance=estimate.white, max_lag=estimate.max_lag,
         bandwidth=estimate.bandwidth, effective_maneuvers=estimate.effective_maneuvers,
         condition_number=scaled_condition_number(jac, factor[0]), unidentifiable=reasons,
-        units=dict(getattr(problem, "units", None) or {}), n_flights=estimate.flights)
+        units=dict(getattr(problem, "units", None) or {}), n_flights=estimate.flights,
+        withheld=None if outcome.success else f"the optimizer did not converge: {outcome.message}")
     return FitResult(
         model=model, coefficient=coefficient, estimates=estimates,
         residuals=residual, segment_names=tuple(segment_names),

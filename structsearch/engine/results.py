@@ -104,6 +104,7 @@ class FitResult:
     condition_number = _delegate("condition_number")
     generated_regressors = _delegate("generated_regressors")
     units = _delegate("units")
+    withheld = _delegate("withheld")
     n_params = _delegate("n_params")
     params = _delegate("params")
     stderr = _delegate("stderr")
@@ -220,6 +221,7 @@ class FitResult:
             "identifiable": self.identifiable,
             "covariance_psd": self.covariance_psd,
             "not_identifiable": self.not_identifiable,
+            "statistics_withheld": self.withheld,
             "rss": self.rss,
             "mse": self.mse,
             "r2": self.r2,

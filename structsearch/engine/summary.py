@@ -70,7 +70,9 @@ def parameter_flags(fit, name: str) -> list[str]:
         flags.append(f"few maneuvers (t dof {dof:.1f})")
     if name in fit.at_bound:
         flags.append(f"at {fit.at_bound[name]} bound")
-    if name in (fit.not_identifiable or {}):
+    if getattr(fit, "withheld", None):
+        flags.append("no statistics: not converged")
+    elif name in (fit.not_identifiable or {}):
         flags.append("not identifiable")
     elif not fit.significant[name]:
         flags.append("t-test accepts 0")
@@ -115,9 +117,12 @@ def parameter_table(fit, fmt: str = "text", floatfmt: str = ".4g") -> str:
 
 def covariance_head(estimates) -> list[tuple[str, str]]:
     """The head lines every summary shows of a fit's covariance and identifiability."""
-    head = [("scaled condition number", f"{estimates.condition_number:.3g}"),
-            ("identifiable", "yes" if estimates.identifiable else
-             f"NO ({len(estimates.not_identifiable)} parameters)")]
+    head = [("scaled condition number", f"{estimates.condition_number:.3g}")]
+    if estimates.withheld:   # whether the data identify the parameters is not known where the optimizer stopped
+        head.append(("standard deviations", f"NONE: {estimates.withheld}"))
+    else:
+        head.append(("identifiable", "yes" if estimates.identifiable else
+                     f"NO ({len(estimates.not_identifiable)} parameters)"))
     if not estimates.covariance_psd:
         head.append(("covariance", "INDEFINITE: some standard deviations or correlations are not estimable"))
     return head
@@ -148,7 +153,11 @@ class FitSummary:
         if self.fit.high_correlations:
             corr = [[a, b, f"{c:+.3f}"] for a, b, c in self.fit.high_correlations]
             parts.append(tabulate(corr, headers=["parameter", "parameter", "correlation"], tablefmt=tablefmt))
-        if self.fit.not_identifiable:
+        withheld = getattr(self.fit, "withheld", None)
+        if withheld:
+            parts.append(tabulate([[withheld]], headers=["no standard deviation, p-value, interval or correlation"],
+                                  tablefmt=tablefmt))
+        elif self.fit.not_identifiable:
             why = [[name, reason] for name, reason in self.fit.not_identifiable.items()]
             parts.append(tabulate(why, headers=["not identifiable", "why"], tablefmt=tablefmt))
         sep = "\n\n" if fmt != "html" else "\n"

@@ -50,9 +50,14 @@ def commands(data: Path, work: Path) -> dict[str, list[str]]:
 
 
 def _fit_answer(path: Path, n_train: int) -> dict:
+    """A fit's answer; ``at_bound`` as the script and the random starts judge it: where the solver left a parameter
+    on its bound (:data:`AT_BOUND_RTOL` of the span), not ``fit.json``'s practical flag (which also counts an
+    estimate within its standard deviation of a bound), so that every answer is held to the same rule."""
+    from ..engine.results import AT_BOUND_RTOL
     doc = json.loads(path.read_text())
-    return {"rss": float(doc["mse"]["train"]) * n_train, "at_bound": sorted(doc["at_bound"]),
-            "params": doc["params"]}
+    on_bound = [n for n, (lo, hi) in doc["bounds"].items()
+                if min(doc["params"][n] - lo, hi - doc["params"][n]) <= AT_BOUND_RTOL * (hi - lo)]
+    return {"rss": float(doc["mse"]["train"]) * n_train, "at_bound": sorted(on_bound), "params": doc["params"]}
 
 
 def best_admissible(campaign, random_starts: int, seed: int, n_jobs: int) -> dict:

@@ -25,8 +25,9 @@ if TYPE_CHECKING:
 
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
 # 7: the parameters' estimates and covariance as one object (ParameterEstimates.to_dict); 8: the ranking's
-# fields as one placement; 9: the optimizer's account as one report
-JSON_LAYOUT = 9
+# fields as one placement; 9: the optimizer's account as one report; 10: a fit that did not converge withholds
+# its statistics (``ParameterEstimates.withheld``)
+JSON_LAYOUT = 10
 
 
 def _nan_if_none(v) -> float:

@@ -1,7 +1,8 @@
 """Admissibility: the conditions under which a flight-test engineer would accept a candidate's estimates.
 
-A candidate is admissible when its fit converged, the data identify every parameter, no
-nonlinear parameter sits on a bound, every t-test rejects zero, no two parameters correlate
+A candidate is admissible when its fit converged (a fit that did not reports no statistics to judge), the data
+identify every parameter, no nonlinear parameter sits at a bound (within 1e-3 of its box or within its own standard
+deviation of the bound: ``ParameterEstimates.at_bound``), every t-test rejects zero, no two parameters correlate
 beyond ``max_correlation``, every alpha* lies inside the angle-of-attack range flown, and the
 physics is plausible: positive Kirchhoff (K_L) and lift-slope (alpha) terms in a lift model, and,
 for a pitch model on a campaign that gives a cg envelope, the centre of pressure of the attached
@@ -72,8 +73,10 @@ _REASON_PATTERNS = tuple((kind, re.compile(pattern)) for kind, pattern in (
     (Reason.CENTRE_OF_PRESSURE, r"^centre of pressure at ")))
 # reasons a move may not add (the data cannot identify the structure, or its fit did not converge)
 HARD_REASONS = frozenset({Reason.FIT_FAILED, Reason.NOT_CONVERGED, Reason.NOT_IDENTIFIABLE})
-# reasons a refinement may remove (by dropping or merging terms)
-FIXABLE_REASONS = frozenset({Reason.INSIGNIFICANT, Reason.CORRELATED})
+# reasons a refinement may remove: by dropping terms (the constant included), or a separation state the data do
+# not place (a parameter at a bound, alpha* outside the range flown) by dropping it or, a time constant at zero,
+# by the simpler state it nests (:mod:`.refinement`)
+FIXABLE_REASONS = frozenset({Reason.INSIGNIFICANT, Reason.CORRELATED, Reason.AT_BOUND, Reason.ALPHA_STAR_OUTSIDE})
 
 
 def _fmt(names) -> str:
@@ -85,10 +88,10 @@ def reasons(result: CandidateResult, candidate: Candidate | None, rules: Admissi
     if result.failed:
         return (f"fit failed: {result.error}",)
     out = []
-    if result.optimizer.converged is False:
-        out.append(f"optimizer did not converge ({result.optimizer.message})")
     e = result.estimates
-    if e.not_identifiable:
+    if result.optimizer.converged is False or e.withheld:
+        out.append(f"optimizer did not converge ({result.optimizer.message}): no standard deviations")
+    if e.not_identifiable and not e.withheld:   # withheld: every parameter, for the reason just given
         out.append(f"not identifiable: {_fmt(e.not_identifiable)}")
     for name, side in (e.at_bound or {}).items():
         out.append(f"{name} at its {side} bound")

@@ -40,14 +40,23 @@ REFINE_STARTS = 3
 
 def refinement_starts(ranked: list[CandidateResult]) -> list[CandidateResult]:
     """The candidates worth refining: within noise of the best fit (admissible or not) and not admissible
-    only for reasons a refinement can remove (insignificant or correlated terms), best fit first; the
-    rank-1 candidate when there is none."""
+    only for reasons a refinement can remove (insignificant or correlated terms, a separation state the data do
+    not place), best fit first; the rank-1 candidate when there is none."""
     starts = [s for s in near_best(ranked) if not s.placement.admissible and s.placement.reasons
-              and all(Reason.of(r) in FIXABLE_REASONS for r in s.placement.reasons)]
+              and all(_fixable(s, r) for r in s.placement.reasons)]
     starts = sorted(starts, key=lambda s: s.comparison.mse)[:REFINE_STARTS]
     if not starts and ranked and not ranked[0].failed:
         starts = [ranked[0]]
     return starts
+
+
+def _fixable(s: CandidateResult, reason: str) -> bool:
+    """Whether a refinement can remove ``reason`` against ``s``: a fixable kind, or parameters the data cannot
+    identify that are all separation parameters (the refinement drops their state)."""
+    kind = Reason.of(reason)
+    if kind is Reason.NOT_IDENTIFIABLE:
+        return not s.estimates.withheld and set(s.estimates.not_identifiable) <= set(s.estimates.nonlinear_names)
+    return kind in FIXABLE_REASONS
 
 
 def rules_for(campaign: Campaign, max_correlation: float = MAX_CORRELATION) -> AdmissibilityRules:
@@ -93,7 +102,7 @@ def search(fitter: Fitter, grid_spec: str, *, do_refine: bool = True, max_correl
 
         ranked = rank(results, judge)
         if do_refine:
-            extra, refinements[grid.name] = _refine_grid(fitter, grid, results, ranked)
+            extra, refinements[grid.name] = _refine_grid(fitter, grid, results, ranked, rules.alpha_range)
             if not refinements[grid.name]:
                 del refinements[grid.name]
             if extra:
@@ -136,15 +145,16 @@ def _with_lift_models(fitter: Fitter, names: Sequence[str]) -> Fitter:
                               for c, s in zip(candidates, fitter.fit(candidates))})
 
 
-def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ranked: list[CandidateResult]):
+def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ranked: list[CandidateResult],
+                 alpha_range: tuple[float, float] | None = None):
     """The structures the refinement of ``grid``'s best candidates reached (with their fits) and the
-    refinements themselves."""
+    refinements themselves (``alpha_range``: the alpha range flown in training)."""
     known = {structure_key(c): (c, r) for c, r in zip(grid.candidates, results) if not r.failed}
     # a step waits for the one before, but its starts and folds spread over the workers
     one_at_a_time = fitter.quiet()
     extra, done_all = [], []
     for start in refinement_starts(ranked):
-        done = refine(grid[start.name], start, one_at_a_time.fit_one, known)
+        done = refine(grid[start.name], start, one_at_a_time.fit_one, known, alpha_range)
         new = [(c, r) for c, r in done.steps if c.name not in done.reached]
         known.update({structure_key(c): (c, r) for c, r in new})
         extra += new

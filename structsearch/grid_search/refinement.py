@@ -1,23 +1,35 @@
 """Refinement (thesis chapter 10): drop what the data cannot support while the fit barely changes.
 
-A well-fitting candidate that is not admissible because some of its terms are insignificant or strongly
-correlated is refined step by step, one term at a time. Each step tries, in this order, until one is taken:
+A well-fitting candidate that is not admissible for reasons a refinement can remove (insignificant or strongly
+correlated terms, a separation state the data do not place) is refined step by step, one move at a time. Each
+step tries, in this order, until one is taken:
 
 1. every linear term whose t-test accepts zero: first those without a correlated partner, then those with one
    (issue 30: such a term was skipped for the pair, whose dropping then cost 4857 % and ended the refinement
-   before the insignificant term was ever tried), each group least significant first;
+   before the insignificant term was ever tried), each group least significant first; the constant last, since
+   dropping it changes what every other term means (they must carry the coefficient's mean). The constant is a
+   term like any other: a symmetric airfoil has no lift at zero alpha, and a constant the data put at zero
+   only widens the other terms' intervals (before, it was exempt and no lift candidate of such data could ever
+   become admissible);
 2. the less significant member of each pair correlated above |rho| = 0.8 (the thesis' threshold), most
    correlated first. Correlations are read as admissibility reads them: with the data columns centred where
    centring keeps the model (``CandidateResult.centred_correlation``), else as estimated. A pair the ranking
-   forgave (C_L with x_cg C_L, one column times another) is not chased.
+   forgave (C_L with x_cg C_L, one column times another) is not chased, nor a pair with the constant (its
+   correlation moves with the other column's datum);
+3. every separation state of the candidate's own (not a drag or pitch candidate's, which are its lift model's)
+   the data do not support: a state whose time constant the data put at zero (at its lower bound 0, or a t-test
+   that accepts 0) is replaced by the simpler state it nests there (U with tau1 = 0 is Q, with tau1 = tau2 = 0
+   S; Q with tau2 = 0 is S); a state the data do not place (a parameter at a bound or not identifiable, alpha*
+   outside the alpha range flown) is dropped with every regressor that reads it (a second separation state two
+   stalls cannot identify).
 
-A drop is taken when the held-out MSE (cross-validation, else validation) rises by less than 1 %. A drop that
-removes a separation state's last regressor removes the state too (its parameters and box): the state can no
-longer be identified, and keeping it would end the refinement (a drag or pitch candidate keeps its lift model's
-states, whose parameters it does not estimate). Every structure a step takes is a candidate of the
-ranking (the search adds them), so the best admissible one it passes through is kept. A refined structure that
-equals a candidate already fitted (the thesis' declared CD-IXr, for one) reuses that result and is reported as
-reached.
+A move is taken when the held-out MSE (cross-validation, else validation) rises by less than 1 % and the refined
+fit converged. A drop that removes a separation state's last regressor removes the state too (its parameters
+and box): the state can no longer be identified, and keeping it would end the refinement (a drag or pitch
+candidate keeps its lift model's states, whose parameters it does not estimate). Every structure a step takes
+is a candidate of the ranking (the search adds them), so the best admissible one it passes through is kept. A
+refined structure that equals a candidate already fitted (the thesis' declared CD-IXr, for one) reuses that
+result and is reported as reached.
 """
 from __future__ import annotations
 
@@ -48,20 +60,38 @@ class Refinement:
     reached: tuple[str, ...] = ()      # existing candidates a step turned out to be
 
 
-def _refined(c: Candidate, drop: list[str], suffix: str) -> Candidate:
-    """``c`` without the regressors in ``drop`` (all drops so far, relative to ``c``), and without the separation
-    states no remaining regressor uses (with their parameters' boxes)."""
+@dataclass(frozen=True)
+class Move:
+    """One move a step tries: ``what`` in words ("dropping CL0"), the regressors it drops, the states whose kind
+    it simplifies (name -> kind), and ``why``."""
+
+    what: str
+    drop: tuple[str, ...] = ()
+    kinds: tuple[tuple[str, str], ...] = ()
+    why: str = ""
+
+
+def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] | None = None) -> Candidate:
+    """``c`` without the regressors in ``drop`` (all drops so far, relative to ``c``), with the states of ``kinds``
+    (name -> kind) simplified, and without the separation states no remaining regressor uses (with the boxes of
+    the parameters that went)."""
+    kinds = kinds or {}
     regs = tuple(r for r in c.regressors if r[0] not in drop)
     # a drag or pitch candidate reads its lift model's states (their parameters fixed): one it no longer uses
     # costs nothing, and its states must stay the lift model's
     orphans = set() if c.lift else set(_orphans(c, drop))
-    states = tuple((n, k) for n, k in c.states if SeparationState(n, k).symbol not in orphans)
+    states = tuple((n, kinds.get(n, k)) for n, k in c.states if SeparationState(n, k).symbol not in orphans)
     kept = {p for n, k in states for p in SeparationState(n, k).parameters}
     gone = {p for n, k in c.states for p in SeparationState(n, k).parameters} - kept
     bounds = tuple((name, box) for name, box in c.bounds if name not in gone)
-    note = f"refined from {c.name}: dropped {', '.join(drop)}"
+    changes = [f"dropped {', '.join(drop)}"] if drop else []
     if orphans:
-        note += f" and the state(s) {', '.join(sorted(orphans))} they left without a regressor"
+        changes[-1] += f" and the state(s) {', '.join(sorted(orphans))} they left without a regressor"
+    simpler = [f"{SeparationState(n, k).symbol} as {kinds[n]}" for n, k in c.states if n in kinds and
+               SeparationState(n, k).symbol not in orphans]
+    if simpler:
+        changes.append(f"the state(s) {', '.join(simpler)} (a time constant at zero)")
+    note = f"refined from {c.name}: " + "; ".join(changes)
     return Candidate(f"{c.name}{suffix}", c.grid, c.coefficient, regs, states, c.lift, note, bounds)
 
 
@@ -96,15 +126,15 @@ def _correlated_pairs(summary: CandidateResult, linear: list[str]) -> list[tuple
 
 
 def _options(current: Candidate, summary: CandidateResult) -> list[tuple[str, str]]:
-    """The drops a step tries, in order (module docstring): (term, why)."""
+    """The terms a step tries to drop, in order (module docstring, 1 and 2): (term, why)."""
     linear = [r[0] for r in current.regressors]
-    constant = linear[0] if current.regressors[0][1].strip() == "1" else None
+    constant = next((n for n, t in current.regressors if t.strip() == "1"), None)
     pairs = [p for p in _correlated_pairs(summary, linear) if constant not in p[:2]]
     paired = {n for a, b, _ in pairs for n in (a, b)}
-    weak = [n for n in summary.insignificant if n in linear and n != constant]
+    weak = [n for n in summary.insignificant if n in linear]
     # the insignificant terms without a correlated partner first (their t-tests are not inflated by one: the
-    # thesis' q* before C_L in CD-IX), then those with one, each least significant first; then the pairs
-    ordered = sorted(weak, key=lambda n: (n in paired, -_p(summary, n)))
+    # thesis' q* before C_L in CD-IX), then those with one, each least significant first; the constant last
+    ordered = sorted(weak, key=lambda n: (n == constant, n in paired, -_p(summary, n)))
     out = [(n, f"t-test accepts 0, p = {_p(summary, n):.2g}") for n in ordered]
     for a, b, rho in pairs:
         # the less significant member first; the other when that one was tried already (as insignificant)
@@ -116,49 +146,112 @@ def _options(current: Candidate, summary: CandidateResult) -> list[tuple[str, st
     return out
 
 
+# a time constant at zero nests a simpler state: (kind, its time constants at zero, the state it equals there),
+# the simplest first
+_NESTED = (("U", frozenset({"tau1", "tau2"}), "S"), ("U", frozenset({"tau1"}), "Q"), ("Q", frozenset({"tau2"}), "S"))
+
+
+def _simpler_kinds(state: SeparationState, summary: CandidateResult) -> list[tuple[str, str]]:
+    """The simpler states ``state`` nests where the data put its time constants at zero (at the lower bound 0 of
+    their box, or a t-test that accepts 0): (kind, why), the simplest first."""
+    e = summary.estimates
+    lower = dict(zip(e.nonlinear_names, e.lower))
+    why = {}
+    for base in ("tau1", "tau2"):
+        p = state.parameter_name(base)
+        if p in state.parameters and lower.get(p) == 0.0:
+            if e.at_bound.get(p) == "lower":
+                why[base] = f"{p} at its lower bound 0"
+            elif p in summary.insignificant:
+                why[base] = f"{p}: t-test accepts 0"
+    return [(simpler, "; ".join(why[b] for b in sorted(zero))) for kind, zero, simpler in _NESTED
+            if kind == state.kind and zero <= set(why)]
+
+
+def _state_moves(current: Candidate, summary: CandidateResult,
+                 alpha_range: tuple[float, float] | None) -> list[Move]:
+    """The moves on separation states a step tries (module docstring, 3), in the candidate's order of states."""
+    if current.lift or not current.states:   # a drag or pitch candidate's states are its lift model's
+        return []
+    e = summary.estimates
+    unplaced = {} if e.withheld else dict(e.not_identifiable)   # withheld: the optimizer, not the data
+    out = []
+    for name, kind in current.states:
+        state = SeparationState(name, kind)
+        out += [Move(f"making {state.symbol} {simpler}", kinds=((name, simpler),), why=why)
+                for simpler, why in _simpler_kinds(state, summary)]
+        why = [f"{p} at its {e.at_bound[p]} bound" for p in state.parameters if p in e.at_bound]
+        why += [f"{p} not identifiable" for p in state.parameters if p in unplaced]
+        a_star = e.params.get(state.parameter_name("a_star"))
+        if alpha_range is not None and a_star is not None and not alpha_range[0] <= a_star <= alpha_range[1]:
+            why.append(f"{state.parameter_name('a_star')} outside the alpha range flown")
+        users = tuple(n for n, t in current.regressors if state.symbol in symbol_names(t))
+        if why and users:
+            out.append(Move(f"dropping the state {state.symbol}", users, why="; ".join(why)))
+    return out
+
+
+def _moves(current: Candidate, summary: CandidateResult, alpha_range) -> list[Move]:
+    """Every move a step tries, in order: terms, then states."""
+    terms = [Move(f"dropping {n}", (n,), why=why) for n, why in _options(current, summary)]
+    return terms + _state_moves(current, summary, alpha_range)
+
+
+def _try(move: Move, c: Candidate, dropped: list[str], kinds: dict[str, str], suffix: str, current_mse: float,
+         fit: Callable[[Candidate], CandidateResult], known: dict) -> tuple[tuple | None, str | None]:
+    """``move`` made on top of the refinement so far: (candidate, result, drops, kinds, was_known) when it is
+    taken, else None and why not."""
+    drop = dropped + [n for n in move.drop if n not in dropped]
+    new_kinds = {**kinds, **dict(move.kinds)}
+    what = f"{move.what} ({move.why})"
+    if len(drop) >= len(c.regressors):
+        return None, f"{what} would leave no term"
+    candidate = _refined(c, drop, suffix, new_kinds)
+    same = known.get(structure_key(candidate))
+    candidate, result = same if same is not None else (candidate, fit(candidate))
+    if result.failed:
+        return None, f"the refined {candidate.name} ({move.what}) failed: {result.error}"
+    if result.optimizer.converged is False:
+        return None, f"the refined {candidate.name} ({move.what}) did not converge: {result.optimizer.message}"
+    rise = result.comparison.mse / current_mse - 1
+    if not np.isfinite(rise):
+        return None, f"the held-out MSE after {move.what} cannot be compared (not finite)"
+    if rise > REFINE_TOLERANCE:
+        return None, f"{what} raises the held-out MSE by {rise:.1%}"
+    return (candidate, result, drop, new_kinds, same is not None), None
+
+
 def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], CandidateResult],
-           known: dict[tuple, tuple[Candidate, CandidateResult]] | None = None) -> Refinement:
+           known: dict[tuple, tuple[Candidate, CandidateResult]] | None = None,
+           alpha_range: tuple[float, float] | None = None) -> Refinement:
     """Refine ``c`` (fitted as ``summary``); ``fit`` fits a new structure, ``known`` maps the structures
-    fitted already to their candidate and result (reused instead of refitting)."""
+    fitted already to their candidate and result (reused instead of refitting); ``alpha_range``: the alpha range
+    flown in training (an alpha* outside it is a state the data do not place; None: not judged)."""
     known = known or {}
     steps, reached = [], []
-    current, current_summary, dropped = c, summary, []
+    current, current_summary, dropped, kinds = c, summary, [], {}
     stopped = "nothing left to drop"
+    if summary.estimates.withheld:   # no t-test, interval or bound to judge a move by
+        return Refinement(c.name, (), f"{summary.estimates.withheld}: no statistics to refine by")
     for step in range(1, MAX_STEPS + 1):
-        options = _options(current, current_summary)
-        if not options:
+        moves = _moves(current, current_summary, alpha_range)
+        if not moves:
             stopped = "nothing left to drop"
             break
-        refused = []
-        taken = None
-        for name, why in options:
-            drop = dropped + [name]
-            if len(drop) >= len(c.regressors):
-                refused.append(f"dropping {name} ({why}) would leave no term")
-                continue
-            candidate = _refined(c, drop, "r" + ("" if step == 1 else str(step)) + "-auto")
-            same = known.get(structure_key(candidate))
-            candidate, result = same if same is not None else (candidate, fit(candidate))
-            if result.failed:
-                refused.append(f"the refined {candidate.name} (without {name}) failed: {result.error}")
-                continue
-            rise = result.comparison.mse / current_summary.comparison.mse - 1
-            if not np.isfinite(rise):
-                refused.append(f"the held-out MSE without {name} cannot be compared (not finite)")
-                continue
-            if rise > REFINE_TOLERANCE:
-                refused.append(f"dropping {name} ({why}) raises the held-out MSE by {rise:.1%}")
-                continue
-            taken = (candidate, result, name, same is not None)
-            break
+        refused, taken = [], None
+        suffix = "r" + ("" if step == 1 else str(step)) + "-auto"
+        for move in moves:
+            taken, why = _try(move, c, dropped, kinds, suffix, current_summary.comparison.mse, fit, known)
+            if taken is not None:
+                break
+            refused.append(why)
         if taken is None:
             stopped = "; ".join(refused) + "; not taken"
             break
-        candidate, result, name, was_known = taken
-        steps.append((candidate, result))
+        current, current_summary, dropped, kinds, was_known = taken
+        steps.append((current, current_summary))
         if was_known:
-            reached.append(candidate.name)
-        current, current_summary, dropped = candidate, result, dropped + [name]
+            reached.append(current.name)
     else:
         stopped = f"stopped after {MAX_STEPS} steps"
     return Refinement(c.name, tuple(steps), stopped, tuple(reached))

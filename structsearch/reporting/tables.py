@@ -74,7 +74,9 @@ def table_row(s: CandidateResult) -> dict:
                     "cv_scheme": s.cv_scheme or None, "cv_note": s.cv_note or None,
                     "gap": p.gap, "gap_se": p.gap_se if p.gap_se is not None and math.isfinite(p.gap_se) else "n/a",
                     "message": s.optimizer.message, "identifiable": s.identifiable, "condition_number": s.estimates.condition_number,
-                    "not_identifiable": "; ".join(f"{k}: {v}" for k, v in s.estimates.not_identifiable.items())})
+                    # a fit that did not converge withholds every parameter's statistics for one reason: said once
+                    "not_identifiable": (f"every parameter: {s.estimates.withheld}" if s.estimates.withheld else
+                                         "; ".join(f"{k}: {v}" for k, v in s.estimates.not_identifiable.items()))})
     return row
 
 
