@@ -312,7 +312,7 @@ def test_a_story_from_an_inadmissible_baseline_says_so_first():
 INTERFACE_KEYS = ["coefficient", "baseline", "mse", "noise_floor", "floor_source", "noise_floor_library",
                   "noise_floor_spectral", "where", "effects", "explained", "gap_explained_by_baseline",
                   "final_excess_over_floor", "final_excess_se", "rounds", "final_model", "final_mse", "unexplained",
-                  "warnings", "baseline_admissible", "baseline_reasons", "state_level", "final_structure", "search",
+                  "warnings", "baseline_admissible", "baseline_reasons", "equivalences", "state_level", "final_structure", "search",
                   "seconds"]
 # what each effect row says of the move that made it (issue 28)
 MOVE_KEYS = {"kind", "effect", "verdict", "test"}

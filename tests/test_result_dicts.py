@@ -22,7 +22,8 @@ WITHHELD_KEYS = ["effect", "coefficient", "baseline", "ranked_first", "first", "
 ANOMALY_KEYS = ["anomaly", "coefficient", "baseline", "description", "signal", "detected", "top_phase",
                 "top_alpha_band", "truth_phase", "truth_alpha_band", "truth_mse", "located", "adopted",
                 "closed_by_library", "explained", "false_claim", "unexplained_share", "first_signal", "says",
-                "first_signal_remaining", "signal_first", "gap_p_value", "seconds"]
+                "first_signal_remaining", "signal_first", "gap_p_value", "equivalence", "equivalent_value",
+                "injected_value", "right", "seconds"]
 NULL_KEYS = ["seed", "model", "explained", "gap_p_value", "alarm_test", "alarm_combined", "seconds", "adopted"]
 
 
@@ -33,7 +34,7 @@ def _benchmark():
                         "stalled", "0.20-0.24", 2e-7, False, None, False, None, None, 2.0))
     outside = (AnomalyRow("vane_lag", "Cm", "Cm-XXXIIIr", "A lag.", "alpha_dot", True, "reattaching", "0.16-0.20",
                           "reattaching", "0.16-0.20", 1e-7, True, "Cm-XXXIIIr", float("nan"), False, False, 0.8,
-                          "alpha_dot", "80% of the gap ...", "alpha_dot", True, 1e-4, 5.0),)
+                          "alpha_dot", "80% of the gap ...", "alpha_dot", True, 1e-4, None, None, 0.4, True, 5.0),)
     null = (NullRow(0, "CL-VI", True, 0.3, False, False, 1.0), NullRow(0, "CD-IXr", False, None, None, True, 1.0))
     return BenchmarkResult(0, 0.1, rows, outside, null, NOT_EXPRESSIBLE, 12.0)
 
@@ -48,8 +49,8 @@ def test_benchmark_to_dict_keeps_the_keys_of_withheld_benchmark_json():
     assert doc["not_expressible"] == NOT_EXPRESSIBLE
     # the summary line and the page count the same rows
     assert benchmark_console_line(res, "out/withheld_benchmark.md") == (
-        "withheld effect ranked first 1/2; out-of-library effects located, not falsely explained and their signal "
-        "first 1/1; false alarms 1/2 (Wald test alone 0); wrote out/withheld_benchmark.md")
+        "withheld effect ranked first 1/2; out-of-library effects right (located, not falsely explained and their "
+        "signal first, or explained with the equivalence named) 1/1; false alarms 1/2 (Wald test alone 0); wrote out/withheld_benchmark.md")
     page = markdown(res, "cmd")
     assert "Ranked first: **1/2**" in page and "by the combined rule: **1/2**" in page and "| n/a" in page
 

@@ -47,6 +47,7 @@ from ..fitting.models import predict_candidate
 from ..engine.scores import maneuver_mse, sizes_of, weighted_mean_se
 from ..engine.ties import first_of_lowest, sort_by
 from .fitted import Fitted, fit as _fit, state_for_phases
+from .equivalence import equivalences
 from .results import Diagnosis, EffectRow, Round, StateLevel, TrainValidation
 from .state_level import state_level
 from .unexplained import unexplained as _unexplained
@@ -246,7 +247,16 @@ def diagnose_search(fitter: Fitter, baseline: Candidate, *, max_rounds: int = DE
                      min(f.mse for f in floors if not f.library_free), explained, final_excess, final_excess_se,
                      tuple(rounds), final_fit.candidate.name, float(np.mean(final_fit.residual ** 2)), block,
                      tuple(warnings), sl, time.perf_counter() - t0, final_fit.candidate.to_dict(), search_doc,
-                     start.reasons), ex
+                     start.reasons, _equivalences(baseline, path[-1], ctx)), ex
+
+
+def _equivalences(baseline: Candidate, node, ctx: _Context):
+    """What the terms the search added are also the signature of, read on the training maneuvers (the samples
+    the coefficients were fitted to)."""
+    if node.result.failed or node.candidate is baseline:
+        return ()
+    return equivalences(baseline, node.candidate, node.result.estimates.params, ctx.train,
+                        ctx.lift_of(node.candidate))
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from .equivalence import Equivalence
+
 STATES = ("alpha", "q", "V", "theta")
 
 
@@ -338,6 +340,8 @@ class Diagnosis:
     # why the baseline, as fitted on this campaign, is not admissible by the ranking's rules (empty: it is); a
     # story told from a degenerate fit says so (issue 31)
     baseline_reasons: tuple[str, ...] = ()
+    # the anomalies the terms it added are also the first-order signature of (.equivalence)
+    equivalences: tuple[Equivalence, ...] = ()
 
     @property
     def baseline_admissible(self) -> bool:
@@ -393,7 +397,8 @@ class Diagnosis:
                "rounds": [r.to_dict() for r in self.rounds], "final_model": self.final_model,
                "final_mse": self.final_mse, "unexplained": self.unexplained.to_dict(),
                "warnings": list(self.warnings), "baseline_admissible": self.baseline_admissible,
-               "baseline_reasons": list(self.baseline_reasons)}
+               "baseline_reasons": list(self.baseline_reasons),
+               "equivalences": [e.to_dict() for e in self.equivalences]}
         if self.state_level is not None:
             out["state_level"] = self.state_level.to_dict()
         if self.final_structure is not None:
@@ -413,4 +418,5 @@ class Diagnosis:
                    tuple(Round.from_dict(r) for r in d["rounds"]), d["final_model"], d["final_mse"],
                    Unexplained.from_dict(d["unexplained"]), tuple(d.get("warnings", ())),
                    None if sl is None else StateLevel.from_dict(sl), d.get("seconds", float("nan")),
-                   d.get("final_structure"), d.get("search"), tuple(d.get("baseline_reasons", ())))
+                   d.get("final_structure"), d.get("search"), tuple(d.get("baseline_reasons", ())),
+                   tuple(Equivalence.from_dict(e) for e in d.get("equivalences", ())))

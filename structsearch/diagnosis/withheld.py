@@ -8,7 +8,10 @@ against the truth itself, never against the diagnosis' own fits.
 * Out-of-library effects (:mod:`structsearch.flight.anomalies`): campaigns whose truth contains
   something no library effect expresses; the baseline is the final model of the coefficient it affects.
   Is the gap located where the truth differs, is it not claimed explained by a library effect that
-  closes less than half of it, and is the responsible signal ranked first among what remains?
+  closes less than half of it, and is the responsible signal ranked first among what remains? An anomaly
+  that library terms reproduce to first order (a vane lag: an alpha_dot term) may end explained: that is
+  right only when the diagnosis also names the equivalence (:mod:`.equivalence`); explained without it
+  is not counted right, since the reader is not told what else the fit means.
 * Null case: the final models themselves on several seeds. A false alarm by the Wald test alone (the
   saturated model's additions significant at 1 %) and by the combined rule (not at the floor).
 
@@ -146,6 +149,12 @@ class AnomalyRow(_Row):
     first_signal_remaining: str | None
     signal_first: bool
     gap_p_value: float | None
+    # "explained by library terms, equivalence named": what the diagnosis says the added terms are also the
+    # signature of for this anomaly, the parameter it converts to and the one injected (None: none named)
+    equivalence: str | None
+    equivalent_value: float | None
+    injected_value: float | None
+    right: bool
     seconds: float
 
 
@@ -186,8 +195,8 @@ class BenchmarkResult:
 
     @property
     def outside_scored(self) -> int:
-        """Out-of-library effects located, not falsely explained and with their signal first."""
-        return sum(r.located and not r.false_claim and r.signal_first for r in self.outside)
+        """Out-of-library effects diagnosed right (:func:`outside_right`)."""
+        return sum(r.right for r in self.outside)
 
     @property
     def false_alarms(self) -> int:
@@ -235,6 +244,21 @@ def withheld_row(campaign, effect: str, options: FitOptions, n_jobs: int) -> Wit
                        doc.seconds)
 
 
+def outside_right(explained_by_library: bool, equivalence_named: bool, located: bool, false_claim: bool,
+                  signal_first: bool) -> bool:
+    """The scoring rule of an out-of-library effect. Explained by library terms (adopted moves close the gap to
+    the floor): right only with the equivalence named and at least half of the gap closed; else: located, not
+    falsely explained and the responsible signal first."""
+    if explained_by_library:
+        return equivalence_named and not false_claim
+    return located and not false_claim and signal_first
+
+
+def _injected(anomaly) -> float | None:
+    """The anomaly's own size in the parameter its declared equivalents convert to (a vane lag: seconds)."""
+    return anomaly.vane_lag_s if anomaly.vane_lag_s else None
+
+
 def anomaly_row(name: str, seed: int, scale: float, options: FitOptions, n_jobs: int) -> AnomalyRow:
     anomaly = ANOMALIES[name]
     campaign = build_campaign(seed=seed, scale=scale, anomaly=name)
@@ -248,14 +272,19 @@ def anomaly_row(name: str, seed: int, scale: float, options: FitOptions, n_jobs:
     # anomaly and leave a remainder that follows something else (flight-to-flight offsets)
     signals, remaining = doc.unexplained.gap_signals, doc.unexplained.signals
     detected = not doc.gap_explained_by_baseline
-    false_claim = bool(doc.explained and doc.final_model != base.name and not closed >= HALF)
+    by_library = bool(doc.explained and doc.final_model != base.name)
+    false_claim = bool(by_library and not closed >= HALF)
+    named = next((e for e in doc.equivalences if e.anomaly == name), None)
+    located = bool(detected and top_phase is not None and top_phase == truth["phase"])
+    signal_first = bool(signals and signals[0].name == anomaly.signal)
     return AnomalyRow(name, anomaly.coefficient, base.name, anomaly.description, anomaly.signal, detected,
                       top_phase, top_band, truth["phase"], truth["alpha_band"], truth["truth_mse"],
-                      bool(detected and top_phase is not None and top_phase == truth["phase"]), doc.final_model,
-                      closed, doc.explained, false_claim, doc.unexplained.share,
+                      located, doc.final_model, closed, doc.explained, false_claim, doc.unexplained.share,
                       signals[0].name if signals else None, unexplained_sentence(doc),
-                      remaining[0].name if remaining else None, bool(signals and signals[0].name == anomaly.signal),
-                      doc.rounds[0].gap_p_value, doc.seconds)
+                      remaining[0].name if remaining else None, signal_first, doc.rounds[0].gap_p_value,
+                      None if named is None else named.words(), None if named is None else named.value,
+                      _injected(anomaly), outside_right(by_library, named is not None, located, false_claim,
+                                                                signal_first), doc.seconds)
 
 
 def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, anomalies=None,
@@ -317,32 +346,7 @@ def markdown(res: BenchmarkResult, command: str = "structsearch diagnose --bench
              f"**{sum(r.located for r in rows)}/{n}**.", "",
              "Not benchmarked: " + "; ".join(f"{k}: {v}" for k, v in res.not_expressible.items()) + ".", ""]
     if outside:
-        m = len(outside)
-        scored = [r.located and not r.false_claim and r.signal_first for r in outside]
-        lines += ["## Effects outside the library", "",
-                  "Campaigns whose truth contains an effect no library term expresses; baseline = the final model "
-                  "of the coefficient it affects (two rounds).", "",
-                  tabulate([[r.anomaly, r.coefficient, _yes(r.detected),
-                             f"{r.top_phase} / {r.top_alpha_band}",
-                             f"{r.truth_phase} / {r.truth_alpha_band}", _yes(r.located), r.adopted,
-                             "n/a" if not np.isfinite(r.closed_by_library) else f"{r.closed_by_library:.2f}",
-                             "NO (false claim)" if r.false_claim else "yes",
-                             "n/a" if r.unexplained_share is None else f"{r.unexplained_share:.2f}",
-                             r.signal, r.first_signal or "-", r.first_signal_remaining or "-",
-                             _yes(r.signal_first), f"{r.seconds:.0f}"]
-                            for r in outside],
-                           headers=["effect", "coef.", "gap found", "gap's top phase / band", "truth's top phase / band",
-                                    "located", "model after adopted effects", "share the library closes",
-                                    "not falsely explained", "unexplained share", "responsible signal",
-                                    "first signal of the gap", "first signal of what remains", "signal first",
-                                    "s"],
-                           tablefmt="github"), "",
-                  f"Located: **{sum(r.located for r in outside)}/{m}**; not falsely explained: "
-                  f"**{sum(not r.false_claim for r in outside)}/{m}**; responsible signal first: "
-                  f"**{sum(r.signal_first for r in outside)}/{m}**; all three: **{sum(scored)}/{m}**.", "",
-                  *[f"- `{r.anomaly}`: {r.description} The diagnosis says: "
-                    f"{r.says or ('explained by ' + r.adopted if r.explained else '(nothing)')}"
-                    for r in outside], ""]
+        lines += _outside_lines(outside)
     lines += ["## Null case (nothing withheld)", "",
               tabulate([[r.seed, r.model, "n/a" if r.gap_p_value is None else f"{r.gap_p_value:.2g}",
                          "not testable" if r.alarm_test is None else _yes(not r.alarm_test),
@@ -356,3 +360,41 @@ def markdown(res: BenchmarkResult, command: str = "structsearch diagnose --bench
               f"**{sum(r.adopted is not None for r in null)}/{len(null)}**"
               + "".join(f"; seed {r.seed} {r.model}: {r.adopted}" for r in null if r.adopted) + ".", ""]
     return "\n".join(lines)
+
+
+def _outside_lines(outside) -> list[str]:
+    """The section on anomalies: the table, the scores and what the diagnosis says of each."""
+    from tabulate import tabulate
+    m = len(outside)
+    return ["## Effects outside the library", "",
+            "Campaigns whose truth contains an effect no library term expresses; baseline = the final model "
+            "of the coefficient it affects (two rounds).", "",
+            tabulate([[r.anomaly, r.coefficient, _yes(r.detected), f"{r.top_phase} / {r.top_alpha_band}",
+                       f"{r.truth_phase} / {r.truth_alpha_band}", _yes(r.located), r.adopted,
+                       "n/a" if not np.isfinite(r.closed_by_library) else f"{r.closed_by_library:.2f}",
+                       "NO (false claim)" if r.false_claim else "yes",
+                       "n/a" if r.unexplained_share is None else f"{r.unexplained_share:.2f}",
+                       r.signal, r.first_signal or "-", r.first_signal_remaining or "-", _yes(r.signal_first),
+                       _equivalence_cell(r), _yes(r.right), f"{r.seconds:.0f}"]
+                      for r in outside],
+                     headers=["effect", "coef.", "gap found", "gap's top phase / band", "truth's top phase / band",
+                              "located", "model after adopted effects", "share the library closes",
+                              "not falsely explained", "unexplained share", "responsible signal",
+                              "first signal of the gap", "first signal of what remains", "signal first",
+                              "equivalence named (injected)", "right", "s"],
+                     tablefmt="github"), "",
+            f"Located: **{sum(r.located for r in outside)}/{m}**; not falsely explained: "
+            f"**{sum(not r.false_claim for r in outside)}/{m}**; responsible signal first: "
+            f"**{sum(r.signal_first for r in outside)}/{m}**; right: **{sum(r.right for r in outside)}/{m}** "
+            "(explained by library terms: right only with the equivalence named; otherwise located, not falsely "
+            "explained and the signal first; explained without an equivalence named is not counted right).", "",
+            *[f"- `{r.anomaly}`: {r.description} The diagnosis says: "
+              f"{r.says or ('explained by ' + r.adopted if r.explained else '(nothing)')}"
+              + (f"; {r.equivalence}" if r.equivalence else "") for r in outside], ""]
+
+
+def _equivalence_cell(r: AnomalyRow) -> str:
+    if r.equivalence is None:
+        return "-"
+    injected = "" if r.injected_value is None else f" ({r.injected_value:.2g})"
+    return f"{r.equivalent_value:.2g}{injected}"

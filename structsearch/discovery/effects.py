@@ -3,15 +3,17 @@
 Each effect knows the coefficients it applies to and how to add itself to a
 candidate: a new regressor, a new separation state, or a change of a state's
 kind (S -> Q adds tau2, Q -> U adds tau1). Applying an effect the candidate
-already has, or to a coefficient it does not apply to, is a clear error.
+already has, or to a coefficient it does not apply to, is a clear error. An effect
+also declares the anomalies its term is the first-order signature of (:mod:`.equivalents`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 from ..data.errors import DeclarationError
 from ..fitting.candidates import Candidate
+from .equivalents import ALPHA_DOT_TERM, VANE_LAG, Equivalent
 
 ALL = ("CL", "CD", "Cm")
 
@@ -24,6 +26,8 @@ class Effect:
     apply: Callable[[Candidate], Candidate]
     # names of the parameters whose "absent" value is zero (Wald test of the improvement)
     new_parameters: Callable[[Candidate, Candidate], tuple[str, ...]]
+    # measurement or structural anomalies its term equals to first order, with the conversion of the coefficient
+    equivalents: tuple[Equivalent, ...] = ()
 
 
 def _prefix(c: Candidate) -> str:
@@ -127,8 +131,8 @@ LIBRARY: dict[str, Effect] = {e.name: e for e in [
     _kind_change("separation_delay", "tau2 on a separation state (S -> Q)", "S", "Q", "tau2"),
     _second_state(),
     _regressor_effect("pitch_rate", "q* regressor", ALL, lambda c: [(f"{c.coefficient}_qstar", "qstar")]),
-    _regressor_effect("alpha_dot", "alpha_dot regressor (distinct from q*)", ALL,
-                      lambda c: [(f"{c.coefficient}_alphadot", "alpha_dot*cbar/V")]),
+    replace(_regressor_effect("alpha_dot", "alpha_dot regressor (distinct from q*)", ALL,
+                              lambda c: [(f"{c.coefficient}_alphadot", ALPHA_DOT_TERM)]), equivalents=(VANE_LAG,)),
     _regressor_effect("elevator", "delta_e regressor", ALL, lambda c: [(f"{c.coefficient}_de", "de")]),
     _regressor_effect("elevator_effectiveness_loss", "X*delta_e regressor(s)", ("CL", "Cm"),
                       lambda c: _per_state(c, "{X}*de", "Xde")),
@@ -184,3 +188,9 @@ def effect_terms(coefficient: str) -> list[tuple[str, str]]:
         if changed.states == probe.states:  # a regressor effect (not a change of states)
             out += [pair for pair in changed.regressors if pair not in probe.regressors]
     return out
+
+
+def equivalents_of(expression: str) -> list[tuple[str, Equivalent]]:
+    """(effect, equivalent) for every declared equivalent whose term is ``expression`` (spaces aside)."""
+    key = expression.replace(" ", "")
+    return [(e.name, q) for e in LIBRARY.values() for q in e.equivalents if q.term.replace(" ", "") == key]

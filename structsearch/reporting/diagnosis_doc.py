@@ -123,7 +123,17 @@ def _round_lines(doc: Diagnosis) -> list[str]:
     lines += ["", f"**Explained**: {'yes' if doc.explained else 'no'} (the final model's per-maneuver excess over "
               f"the floor: {_pct(doc.final_excess_over_floor)} +- {_pct(doc.final_excess_se)}). "
               f"Final model: {doc.final_model}" + _terms(doc) + ".", ""]
-    return lines
+    return lines + equivalence_lines(doc)
+
+
+def equivalence_lines(doc: Diagnosis) -> list[str]:
+    """What the added terms are also the signature of: the gap stays explained by library terms, and a reader
+    learns which measurement or structural anomaly the same fit would mean (first order)."""
+    if not doc.equivalences:
+        return []
+    return ["## What the added terms are also the signature of", ""] + [
+        f"- {e.term} (library effect `{e.effect}`) is {e.words()}: to first order the data cannot tell the "
+        f"term from that anomaly (`structsearch simulate --anomaly {e.anomaly}`)." for e in doc.equivalences] + [""]
 
 
 def _state_level_lines(sl) -> list[str]:
@@ -264,8 +274,9 @@ def diagnosis_console_lines(diagnosis: Diagnosis, written: tuple[Path, Path] | N
     if sl is not None and (sl.failed or sl.diverged_before or sl.diverged_after):
         # an error inside the command reaches the console, not only the json (issue 31)
         replay = [f"warning: {sl.words()}"]
-    return [head] + [line for line in [unexplained_sentence(d)] + [f"warning: {w}" for w in d.warnings] + replay
-                     if line]
+    also = [f"{e.term}: {e.words()}" for e in d.equivalences]
+    return [head] + [line for line in also + [unexplained_sentence(d)] + [f"warning: {w}" for w in d.warnings]
+                     + replay if line]
 
 
 def story_console_lines(story: Story) -> list[str]:
@@ -275,7 +286,8 @@ def story_console_lines(story: Story) -> list[str]:
 
 def benchmark_console_line(result: BenchmarkResult, written: Path | None = None) -> str:
     """The summary ``structsearch diagnose --benchmark`` prints (ending with the Markdown file ``written``)."""
-    text = (f"withheld effect ranked first {result.ranked_first}/{len(result.rows)}; out-of-library effects located, "
-            f"not falsely explained and their signal first {result.outside_scored}/{len(result.outside)}; false "
+    text = (f"withheld effect ranked first {result.ranked_first}/{len(result.rows)}; out-of-library effects right "
+            f"(located, not falsely explained and their signal first, or explained with the equivalence named) "
+            f"{result.outside_scored}/{len(result.outside)}; false "
             f"alarms {result.false_alarms}/{len(result.null)} (Wald test alone {result.false_alarms_test})")
     return text + (f"; wrote {written}" if written is not None else "")
