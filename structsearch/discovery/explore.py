@@ -15,11 +15,12 @@ structures it extends), and judged against its parent by :func:`.adoption.move_t
 
 An improving move may add reasons against admissibility (a correlation, a term the t-test accepts at zero): the
 first terms of a structure grown from the intercept alone seldom make it admissible one at a time. Only the hard
-reasons (not identifiable, no convergence) reject it. When the search ends on a structure that is not
-admissible, it is *repaired* (a discovery, ``simplify``): the moves that remove or simplify (drop a term, replace
-one, change or remove a state) are fitted and the one with the fewest reasons against it, then the fewest
-parameters, then the lowest held-out MSE, is adopted while it removes a reason, until the structure is admissible
-or ``max_steps`` steps (the search's and the repairs' together) are taken.
+reasons (not identifiable, no convergence) reject it. When the best adopted structure is not admissible, it is
+*repaired* (a discovery, ``simplify``): the moves that remove or simplify (drop a term, replace one, change or
+remove a state) are fitted in full, and of those that remove a reason (or a parameter within one standard error)
+the one within one standard error of it, then with the fewest reasons, the fewest parameters, the lowest held-out
+MSE, is adopted, until the structure is admissible or ``max_steps`` steps (the search's and the repairs'
+together) are taken.
 
 The structure the search ends with is chosen afterwards over every structure it fitted
 (:func:`.final_choice.select_final`): for a discovery, the ranking's choice among every admissible structure

@@ -17,6 +17,7 @@ from typing import Sequence
 from ..engine.ties import is_tie, sort_by
 from ..grid_search.admissibility import HARD_REASONS, Reason
 from .adoption import DEFAULT_ALPHA, move_test
+from .moves import structure_key
 from .search_nodes import Node, SetAside, Status, Stop
 
 CONFIRMED = (Status.START, Status.IMPROVES, Status.SIMPLIFIES, Status.REPAIRS)
@@ -90,14 +91,20 @@ def select_final(fitted: Sequence[Node], confirmed: Sequence[Node], alpha: float
 def set_aside(final: Node, fitted: Sequence[Node], confirmed: Sequence[Node], alpha: float,
               admissible_first: bool) -> tuple[SetAside, ...]:
     """Every structure of ``fitted`` (screened ones too) whose held-out MSE is lower than the final one's beyond
-    rounding, lowest first, with the reason the final choice left it and what that costs."""
+    rounding, lowest first, with the reason the final choice left it and what that costs. A structure reached
+    twice (screened in one step, fitted in full by a repair) is listed once, as fitted in full."""
     adopted = {id(n) for n in confirmed}
+    seen = {structure_key(final.candidate)}
     out = []
-    for n in by_mse(n for n in fitted if n is not final and lower(n.mse, final.mse)):
+    for n in by_mse((n for n in fitted if lower(n.mse, final.mse)), lambda n: (n.screened,)):
+        key = structure_key(n.candidate)
+        if key in seen:
+            continue
+        seen.add(key)
         test = move_test(n.result, final.result, alpha, 1)   # the final structure against this one
         out.append(SetAside(n, _why(n, final, adopted, admissible_first), -test.gain, test.gain_se,
                             final.mse - n.mse))
-    return tuple(out)
+    return tuple(sorted(out, key=lambda a: a.node.mse))
 
 
 def _why(n: Node, final: Node, adopted: set, admissible_first: bool) -> str:
