@@ -131,6 +131,7 @@ CAMPAIGNS = {
     "few maneuvers": dict(seed=11, scale=0.05),
     "one lift state withheld": dict(seed=1, scale=0.1, withhold=("second_separation_state",)),
     "transport": dict(seed=5, scale=0.1, aircraft="transport"),
+    "seed 3, 15 maneuvers": dict(seed=3, scale=0.3),   # one that reaches the floor: the stop reason says so
 }
 MAX_STEPS = 8
 
@@ -150,5 +151,5 @@ def test_discover_from_the_intercept_ends_on_the_best_admissible_structure_it_fi
     # the truth (the thesis' final lift model on the Citation's full truth), where the data make it admissible:
     # the discovered structure is not worse than it beyond one standard error
     truth = next(c for c in found.comparison if c.role == "thesis final")
-    if name in ("seed 3", "few maneuvers") and truth.admissible:
+    if name in ("seed 3", "few maneuvers", "seed 3, 15 maneuvers") and truth.admissible:
         assert truth.within_noise, (found.final.name, truth.excess, truth.excess_se)
