@@ -110,7 +110,7 @@ def set_aside(final: Node, fitted: Sequence[Node], confirmed: Sequence[Node], al
 def _why(n: Node, final: Node, adopted: set, admissible_first: bool) -> str:
     if n.screened:
         return ("screened only: fitted for its scores, not in full (the step's shortlist left it), so its "
-                "admissibility was not judged")
+                + ("admissibility was not judged" if admissible_first else "test was not taken: not adopted"))
     if admissible_first and not n.admissible:
         return "not admissible: " + "; ".join(n.reasons)
     if admissible_first or id(n) in adopted:
