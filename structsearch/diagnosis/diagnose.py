@@ -37,6 +37,7 @@ from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
 from ..discovery.adoption import DEFAULT_ALPHA, TEST_NAME
 from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, Status, explore
+from ..discovery.final_choice import stopped_text
 from ..discovery.moves import MOVE_KINDS, structure_key
 from ..discovery.search_start import start_search
 from ..fitting.comparison import MIN_MANEUVERS, relative_excess, within_noise as one_se_rule
@@ -240,9 +241,12 @@ def diagnose_search(fitter: Fitter, baseline: Candidate, *, max_rounds: int = DE
     block = _unexplained(rounds[0].mse.validation, final_fit, flexible[0], library_free, val, flexible[1],
                          flexible[2], x_val_final, explained, seed, first.base)
     sl = _state_level(fitter, fits, ctx) if states and len(fits) > 1 else None
+    # the stop reason is worded now that the floor is known: "at the floor" only where the final structure is
+    ex = dataclasses.replace(ex, stopped=stopped_text(ex.stop, explained, " and ".join(ex.stopped_at), max_rounds))
     search_doc = {"stopped": ex.stopped, "structures_fitted": ex.n_fitted, "steps": len(ex.steps), "beam": beam,
                   "alpha": alpha, "test": TEST_NAME, "terms": start.library.to_dict(),
-                  "lift_models": sorted(ctx.lifts)}
+                  "lift_models": sorted(ctx.lifts), "final_rule": ex.final_rule,
+                  "set_aside": [a.to_dict() for a in ex.set_aside]}
     return Diagnosis(baseline.coefficient, baseline.name, floor.mse, floor.source,
                      min(f.mse for f in floors if not f.library_free), explained, final_excess, final_excess_se,
                      tuple(rounds), final_fit.candidate.name, float(np.mean(final_fit.residual ** 2)), block,

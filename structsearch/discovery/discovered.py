@@ -1,6 +1,7 @@
-"""What ``discover`` returns: the path of adopted moves from a start structure to the structure the search
-reaches, the final structure (with the spec file it is written to), and a comparison with the grids' rank-1
-candidate and the thesis' final model. ``to_dict()`` is ``discover.json`` (docs/interfaces.md, "discover").
+"""What ``discover`` returns: the path of moves from a start structure to the final structure (with the spec
+file it is written to), the better structures the final choice set aside and why, and a comparison with the
+grids' rank-1 candidate and the thesis' final model. ``to_dict()`` is ``discover.json`` (docs/interfaces.md,
+"discover").
 """
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import numpy as np
 
 from ..fitting.fitter import Fitter
 from .adoption import move_test
-from .explore import Exploration
+from .explore import CONFIRMED, Exploration
 from .judge import judge_for
 
 
@@ -37,7 +38,8 @@ class PathStep:
     where: Mapping[str, str] | None
     # why it was adopted: "improves" (its test passed, or it stands for a move within one SE whose test did),
     # "simplifies" (fewer parameters within one SE), "repairs" (removes a reason against admissibility),
-    # "look-ahead" (the first of two moves whose second passed)
+    # "look-ahead" (the first of two moves whose second passed), "selected" (the final structure, not adopted by
+    # the steps: the final choice over every structure fitted took it)
     verdict: str = "improves"
 
     @property
@@ -92,6 +94,36 @@ class ComparisonRow:
 
 
 @dataclass(frozen=True)
+class SetAsideRow:
+    """A structure the search fitted with a lower held-out MSE than the final one, set aside by the final choice:
+    why (``reason``) and what it costs (the final structure's relative ``excess`` over it, with ``excess_se``, and
+    ``mse_cost``, the difference of the held-out MSEs). ``admissible`` is None for a structure only screened."""
+
+    name: str
+    move: str | None
+    status: str
+    screened: bool
+    n_params: int
+    mse: float | None
+    mse_validation: float | None
+    admissible: bool | None
+    reasons: tuple[str, ...]
+    reason: str
+    excess: float | None
+    excess_se: float | None
+    mse_cost: float | None
+
+    @classmethod
+    def of(cls, aside) -> "SetAsideRow":
+        """The row of a :class:`~.search_nodes.SetAside`."""
+        d = aside.to_dict()
+        return cls(**{**d, "status": str(d["status"]), "reasons": tuple(d["reasons"])})
+
+    def to_dict(self) -> dict:
+        return {**dataclasses.asdict(self), "reasons": list(self.reasons)}
+
+
+@dataclass(frozen=True)
 class StepLine:
     index: int
     tried: int
@@ -123,6 +155,11 @@ class Discovery:
     # diagnosis layer made for it (discovery does not import the layer above it)
     diagnosis: Any = field(repr=False)
     seconds: float = field(default=float("nan"), compare=False)
+    # the better structures the final choice set aside (lowest held-out MSE first), and its rule
+    set_aside: tuple[SetAsideRow, ...] = ()
+    final_rule: str = ""
+    # the search itself, every structure it fitted (not written: what a caller checks the final choice against)
+    exploration: Exploration | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict:
         """``discover.json``."""
@@ -132,7 +169,8 @@ class Discovery:
                 "comparison": [c.to_dict() for c in self.comparison], "steps": [s.to_dict() for s in self.steps],
                 "stopped": self.stopped, "structures_fitted": self.structures_fitted,
                 "noise_floor": self.noise_floor, "at_floor": self.explained,
-                "terms": dict((self.diagnosis.search or {}).get("terms", {})), "seconds": self.seconds}
+                "terms": dict((self.diagnosis.search or {}).get("terms", {})), "seconds": self.seconds,
+                "final_rule": self.final_rule, "set_aside": [a.to_dict() for a in self.set_aside]}
 
 
 # The grid each coefficient's rank-1 candidate comes from.
@@ -174,7 +212,8 @@ def build_discovery(fitter: Fitter, diagnosis, exploration: Exploration, seconds
                              node.result.validation.mse, _cv(node.result),
                              node.test.to_dict() if node.test is not None else None,
                              row.shrink if row is not None else None,
-                             dict(row.acts_in) if row is not None and row.acts_in else None, node.status))
+                             dict(row.acts_in) if row is not None and row.acts_in else None,
+                             node.status if node.status in CONFIRMED or node is not exploration.final else "selected"))
     final_node = exploration.final
     final = FinalStructure(final_node.candidate.name, None, final_node.candidate.to_dict(),
                            final_node.result.validation.mse, _cv(final_node.result), final_node.admissible,
@@ -197,4 +236,5 @@ def build_discovery(fitter: Fitter, diagnosis, exploration: Exploration, seconds
     start = exploration.start
     return Discovery(coef, start.candidate.to_dict(), start.result.validation.mse, _cv(start.result), tuple(path),
                      final, tuple(rows), steps, exploration.stopped, exploration.n_fitted, diagnosis.noise_floor,
-                     diagnosis.explained, diagnosis, seconds)
+                     diagnosis.explained, diagnosis, seconds, tuple(map(SetAsideRow.of, exploration.set_aside)),
+                     exploration.final_rule, exploration)

@@ -15,17 +15,20 @@ structures it extends), and judged against its parent by :func:`.adoption.move_t
 
 An improving move may add reasons against admissibility (a correlation, a term the t-test accepts at zero): the
 first terms of a structure grown from the intercept alone seldom make it admissible one at a time. Only the hard
-reasons (not identifiable, no convergence) reject it. When the search ends on a structure that is not
-admissible, it is *repaired* (a discovery, ``simplify``): the moves that remove or simplify (drop a term, replace
-one, change or remove a state) are fitted and the one with the fewest reasons against it, then the fewest
-parameters, then the lowest held-out MSE, is adopted while it removes a reason, until the structure is admissible
-or ``max_steps`` steps (the search's and the repairs' together) are taken.
+reasons (not identifiable, no convergence) reject it. When the best adopted structure is not admissible, it is
+*repaired* (a discovery, ``simplify``): the moves that remove or simplify (drop a term, replace one, change or
+remove a state) are fitted in full, and of those that remove a reason (or a parameter within one standard error)
+the one within one standard error of it, then with the fewest reasons, the fewest parameters, the lowest held-out
+MSE, is adopted, until the structure is admissible or ``max_steps`` steps (the search's and the repairs'
+together) are taken.
 
-The structure the search ends with is chosen as the ranking chooses (:func:`choose`): admissible structures
-first, then the fewest parameters within one standard error of the best.
+The structure the search ends with is chosen afterwards over every structure it fitted
+(:func:`.final_choice.select_final`): for a discovery, the ranking's choice among every admissible structure
+fitted in full (the best adopted structure repaired first when it is not admissible); for a diagnosis, among the
+adopted ones. The structures with a lower held-out MSE that the choice leaves are recorded with the reason.
 
 The search stops when no move passes, when ``stop`` says a structure is good enough (the diagnosis: at the
-floor) or after ``max_steps`` steps. It does no I/O but the fitter's cache.
+floor) or after ``max_steps`` steps (:class:`.search_nodes.Stop`). It does no I/O but the fitter's cache.
 """
 from __future__ import annotations
 
@@ -35,20 +38,20 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 
-from ..engine.ties import is_tie, sort_by
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.fitter import Fitter
-from ..grid_search.admissibility import HARD_REASONS, Reason
 from .adoption import DEFAULT_ALPHA, move_test
+from .final_choice import (CONFIRMED, NESTED_KINDS, by_mse as _by_mse, choose, hard as _hard, lower as _lower,
+                           lowest_mse as _lowest_mse, preference as _preference, select_final, set_aside)
 from .moves import MOVE_KINDS, Move, generate, structure_key
-from .search_nodes import Exploration, Node, Status, Step
+from .search_nodes import Exploration, Node, Status, Step, Stop
 from .terms import TermLibrary
 
-
+__all__ = ["explore", "choose", "donors", "adds_state", "Exploration", "Node", "Status", "Step", "Stop",
+           "CONFIRMED", "NESTED_KINDS", "REPAIR_KINDS"]
 
 STATUSES = tuple(Status)
-CONFIRMED = (Status.START, Status.IMPROVES, Status.SIMPLIFIES, Status.REPAIRS)
 # the moves that may repair admissibility: they remove or simplify, never add
 REPAIR_KINDS = ("drop", "replace", "state kind", "remove state")
 DEFAULT_BEAM = 3
@@ -62,11 +65,6 @@ Judge = Callable[[CandidateResult, Candidate], Sequence[str]]
 def donors(nodes: Sequence[Node]) -> list[tuple[Candidate, CandidateResult]]:
     """The fitted structures of ``nodes`` as warm-start donors of a fitter."""
     return [(n.candidate, n.result) for n in nodes]
-
-
-def _hard(n: Node) -> set[Reason]:
-    """The kinds of hard reasons against ``n`` (:data:`~structsearch.grid_search.admissibility.HARD_REASONS`)."""
-    return {kind for kind in map(Reason.of, n.reasons) if kind in HARD_REASONS}
 
 
 def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool = True) -> Node:
@@ -102,22 +100,9 @@ def _verdict(child: Node, anchor: Node, n_moves: int, alpha: float, judged: bool
     return dataclasses.replace(child, status=status, anchor=anchor, test=test)
 
 
-NESTED_KINDS = ("effect", "add", "state kind", "add state")
-
-
 def adds_state(parent: Candidate, child: Candidate) -> bool:
     """Whether ``child`` has a separation state of its own that ``parent`` lacks."""
     return bool(set(dict(child.states)) - set(dict(parent.states)))
-
-
-def _preference(n: Node) -> int:
-    """How a move explains a gap, simplest first: the library's whole effect, its share at one state, a move that
-    only adds to its parent (it keeps what the parent explained), any other move; the start last but one."""
-    if n.move is None:
-        return 4
-    if n.move.effect:
-        return 0 if not n.move.at_one_state else 1
-    return 2 if n.move.kind in NESTED_KINDS else 3
 
 
 def _nested_first(improved: list[Node], tried: list[Node], alpha: float) -> list[Node]:
@@ -220,11 +205,11 @@ def explore(start: Candidate, fitter: Fitter, library: TermLibrary, *,
     run.visited.add(structure_key(start))
     run.n_fitted = 1
     current, confirmed, steps = [root], [root], []   # confirmed: every adopted structure
-    stopped = "max steps"
+    stopped = Stop.MAX_STEPS
     if stop is not None and stop(root):
-        return Exploration(root, root, (), "good enough at the start", 1, time.perf_counter() - t0)
+        return Exploration(root, root, (), Stop.START.value, 1, time.perf_counter() - t0, Stop.START)
     for index in range(1, max_steps + 1):
-        step, n_tried, ahead = _search_step(run, current, index, beam, simplify, at_floor)
+        step, n_tried, why = _search_step(run, current, index, beam, simplify, at_floor)
         steps.append(step)
         nxt = list(step.beam)
         confirmed += [n for n in nxt if n.status in CONFIRMED]
@@ -235,23 +220,39 @@ def explore(start: Candidate, fitter: Fitter, library: TermLibrary, *,
             f"{'kept ' + nxt[0].status + ' ' + nxt[0].move.name if nxt else 'no move passes'}; best so far "
             f"{top.candidate.name} (held-out MSE {top.mse:.4g}), {time.perf_counter() - t0:.0f} s")
         if not nxt:
-            stopped = "no move passes the test" + (
-                "; at the floor of its own residual, so no look-ahead" if ahead and at_floor is not None else "")
+            stopped = why
             break
         if best is not None and stop is not None and stop(best):
-            stopped = "good enough"
+            stopped = Stop.GOOD_ENOUGH
             break
         current = nxt
-    final = choose(confirmed, alpha, admissible_first=simplify)
-    if simplify and not final.admissible:
-        final = _repair(run, final, confirmed, steps, max_steps, say, t0)
-    return Exploration(root, final, tuple(steps), stopped, run.n_fitted, time.perf_counter() - t0)
+    return _finish(run, root, confirmed, steps, stopped, max_steps, simplify, t0)
+
+
+def _finish(run: _Search, root: Node, confirmed: list[Node], steps: list[Step], stopped: Stop, max_steps: int,
+            simplify: bool, t0: float) -> Exploration:
+    """The search's end: with ``simplify`` (a discovery) the best adopted structure repaired while it is not
+    admissible, then the final structure chosen over every structure fitted (:mod:`.final_choice`), with the
+    better ones it sets aside."""
+    top = choose(confirmed, run.alpha)   # the best adopted structure, admissible or not
+    stopped_at = steps[-1].expanded if steps else (root.candidate.name,)
+    if simplify and not top.admissible:
+        # the best structure the steps reached is repaired, not the admissible one that is left after it: a
+        # structure of fewer reasons chosen before the repair may be far worse (the intercept and the elevator
+        # chosen over two identified lift states whose first term was still correlated)
+        confirmed = confirmed + _repair(run, top, steps, max_steps, run.fitter.say, t0)
+    interim = Exploration(root, root, tuple(steps), stopped.value, run.n_fitted, 0.0, stopped)
+    fitted = interim.fitted(full=True)
+    final, rule = select_final(fitted, confirmed, run.alpha, admissible_first=simplify)
+    aside = set_aside(final, interim.fitted(full=False), confirmed, run.alpha, simplify)
+    return Exploration(root, final, tuple(steps), stopped.value, run.n_fitted, time.perf_counter() - t0, stopped,
+                       aside, rule, stopped_at)
 
 
 def _search_step(run: _Search, current: list[Node], index: int, beam: int, simplify: bool,
-                 at_floor: Callable[[Node], bool] | None) -> tuple[Step, int, list[Node]]:
+                 at_floor: Callable[[Node], bool] | None) -> tuple[Step, int, Stop | None]:
     """One step from the beam ``current``: every new child screened, the shortlist fitted in full and judged; the
-    step (its beam: what the next step expands), how many children it tried and the look-aheads it had."""
+    step (its beam: what the next step expands), how many children it tried and, when it keeps none, why."""
     t_step = time.perf_counter()
     pending: list[tuple[Node, Move, Candidate]] = []
     n_moves: dict[int, int] = {}
@@ -266,16 +267,20 @@ def _search_step(run: _Search, current: list[Node], index: int, beam: int, simpl
         tried = [improved[0] if t.candidate is improved[0].candidate else t for t in tried]
     simpler = _by_mse((n for n in tried if n.status == Status.SIMPLIFIES), lambda n: (len(n.reasons), n.n_params))
     ahead = _by_mse(n for n in tried if n.status == Status.LOOK_AHEAD)
+    adopted = [n for n in current if n.status in CONFIRMED]
+    why = None
     if improved:
         nxt = improved[:beam]
     elif simpler and simplify:
         nxt = simpler[:1]
-    elif ahead and any(n.status in CONFIRMED for n in current) and not (
-            at_floor is not None and all(at_floor(n) for n in current if n.status in CONFIRMED)):
+    elif ahead and adopted and not (at_floor is not None and all(at_floor(n) for n in adopted)):
         # a change of lift model first: it is what the other terms of a drag or pitch model build on
         nxt = _by_mse(ahead, lambda n: (n.move.kind != "lift",))[:beam]
     else:
         nxt = []
+        # the gate is named only where it decided: look-aheads there were, from adopted structures it closed
+        why = (Stop.OWN_FLOOR if ahead and adopted else
+               Stop.LOOK_AHEAD_LED_NOWHERE if len(adopted) < len(current) else Stop.NO_MOVE)
     # only the chosen look-aheads and simplifications keep that status: the others are rejected for the record
     chosen = {id(n) for n in nxt}
     tried = [n if n.status not in (Status.LOOK_AHEAD, Status.SIMPLIFIES) or id(n) in chosen
@@ -283,7 +288,7 @@ def _search_step(run: _Search, current: list[Node], index: int, beam: int, simpl
     nxt = [next(t for t in tried if t.candidate is n.candidate) for n in nxt]
     step = Step(index, tuple(n.candidate.name for n in current), tuple(tried), tuple(nxt),
                 time.perf_counter() - t_step)
-    return step, len(pending), ahead
+    return step, len(pending), why
 
 
 def _judged_children(run: _Search, current: list[Node], pending, n_moves: dict[int, int], index: int,
@@ -311,14 +316,13 @@ def _judged_children(run: _Search, current: list[Node], pending, n_moves: dict[i
             for n in prelim]
 
 
-def _repair(run: _Search, final: Node, confirmed: list[Node], steps: list[Step], max_steps: int, say,
-            t0: float) -> Node:
-    """The search's end repaired while it is not admissible (repairs count in the steps' budget): the structure
-    then chosen among every adopted and repaired one."""
+def _repair(run: _Search, final: Node, steps: list[Step], max_steps: int, say, t0: float) -> list[Node]:
+    """``final`` repaired while it is not admissible (repairs count in the steps' budget): the repairs adopted."""
     repairs = []
     for index in range(len(steps) + 1, max_steps + 1):
         t_step = time.perf_counter()
-        step, fitted = _repair_step(run, final, index)
+        known = {structure_key(n.candidate): n.result for s in steps for n in s.tried if not n.screened}
+        step, fitted = _repair_step(run, final, index, known)
         run.n_fitted += fitted
         steps.append(dataclasses.replace(step, seconds=time.perf_counter() - t_step))
         if not step.beam:
@@ -329,61 +333,43 @@ def _repair(run: _Search, final: Node, confirmed: list[Node], steps: list[Step],
             f"({len(final.reasons)} reasons against it), {time.perf_counter() - t0:.0f} s")
         if final.admissible:
             break
-    return choose(confirmed + repairs, run.alpha, admissible_first=True)
+    return repairs
 
 
-def _repair_step(run: _Search, current: Node, index: int) -> tuple[Step, int]:
-    """One repair of a structure that is not admissible: every removing or simplifying move fitted in full; the
-    child with the fewest reasons against it (then the fewest parameters, the lowest held-out MSE) is kept if it
-    has fewer than ``current`` and no new hard reason."""
-    pending, _ = run.new_moves(current, REPAIR_KINDS)
-    fulls = run.fitter.fit([c for _, c in pending], donors([current]))
+def _repair_step(run: _Search, current: Node, index: int, known: dict) -> tuple[Step, int]:
+    """One repair of a structure that is not admissible: every removing or simplifying move fitted in full; of the
+    children with fewer reasons than ``current`` (or as many, fewer parameters and within one standard error of it)
+    and no new hard reason, those within one standard error of it
+    when there are any (a repair that removes a reason by undoing the structure's gain, a state dropped whole,
+    leaves the search where it started), then the fewest reasons, the fewest parameters, the lowest held-out MSE.
+    A child the search fitted in full (``known``) is judged on that fit; one it only screened is fitted in full now
+    (its admissibility was never judged): the repairs of a structure are mostly its own step's children."""
+    # a structure on the way to ``current`` is no repair of it: the search would go back where it came from
+    behind = {structure_key(n.candidate) for n in current.path()}
+    moves = {structure_key(c): (m, c) for m, c in generate(current.candidate, run.library, run.lift_candidates,
+                                                          REPAIR_KINDS) if structure_key(c) not in behind}
+    fresh = [key for key in moves if key not in known]
+    run.visited.update(fresh)
+    fulls = dict(zip(fresh, run.fitter.fit([moves[k][1] for k in fresh], donors([current]))))
     tried = []
-    for (move, child), result in zip(pending, fulls):
+    for key, (move, child) in moves.items():
+        result = fulls[key] if key in fulls else known[key]
         n = run.node(child, result, move=move, parent=current, step=index)
         status = Status.FAILED if result.failed else Status.REJECTED
         tried.append(dataclasses.replace(n, status=status, anchor=current,
-                                         test=move_test(current.result, result, run.alpha, max(len(pending), 1))))
+                                         test=move_test(current.result, result, run.alpha, max(len(moves), 1))))
+    # a reason lists every term the t-test accepts at zero: dropping one of them within one standard error leaves
+    # as many reasons, and is a repair too (fewer parameters, not worse)
     fewer = [n for n in tried if n.status != Status.FAILED and not (_hard(n) - _hard(current))
-             and len(n.reasons) < len(current.reasons)]
-    best = _by_mse(fewer, lambda n: (len(n.reasons), n.n_params))[0] if fewer else None
+             and (len(n.reasons) < len(current.reasons) or (len(n.reasons) == len(current.reasons)
+                                                             and n.n_params < current.n_params
+                                                             and n.test.within_one_se))]
+    keeps_fit = [n for n in fewer if n.test.within_one_se]
+    best = _by_mse(keeps_fit or fewer, lambda n: (len(n.reasons), n.n_params))[0] if fewer else None
     if best is not None:
         kept = dataclasses.replace(best, status=Status.REPAIRS)
         tried = [kept if n is best else n for n in tried]
         beam = (kept,)
     else:
         beam = ()
-    return Step(index, (current.candidate.name,), tuple(tried), beam, 0.0), len(pending)
-
-
-def _by_mse(nodes, prefix=lambda n: ()) -> list[Node]:
-    """Nodes by ``prefix``, then held-out MSE; MSEs equal up to rounding (two moves that reach one structure:
-    drop a term, or replace it by one the structure has) ordered by fewer parameters, then structure name, on
-    every machine."""
-    return sort_by(nodes, lambda n: n.mse, lambda n: (n.n_params, n.candidate.name), prefix)
-
-
-def _lower(a: float, b: float) -> bool:
-    """``a`` below ``b`` by more than rounding (equal fits are equal on every machine)."""
-    return a < b and not is_tie(a, b)
-
-
-def _lowest_mse(nodes: Sequence[Node]) -> Node:
-    """The node of lowest held-out MSE, ties as :func:`_by_mse` orders them."""
-    return _by_mse(nodes)[0]
-
-
-def choose(confirmed: Sequence[Node], alpha: float = DEFAULT_ALPHA, admissible_first: bool = False) -> Node:
-    """The structure the search ends with: of every adopted one (each branch of the beam), the fewest parameters
-    within one standard error of the lowest held-out MSE (the ranking's one-standard-error rule), then the move that
-    names the effect (:func:`_preference`), then the lower MSE. With ``admissible_first`` (a discovery), among the
-    admissible structures when there are any, as the ranking ranks admissible candidates first; when none is,
-    among those with the fewest reasons against them."""
-    pool = list(confirmed)
-    if admissible_first:   # adopted structures never failed: the reasons alone decide
-        fewest = min(len(n.reasons) for n in pool)
-        pool = [n for n in pool if len(n.reasons) == fewest]
-    best = _lowest_mse(pool)
-    near = [n for n in pool if n is best or move_test(best.result, n.result, alpha, 1).within_one_se]
-    return _by_mse(near, lambda n: (n.n_params, _preference(n)))[0]
-
+    return Step(index, (current.candidate.name,), tuple(tried), beam, 0.0), len(fresh)

@@ -1,5 +1,6 @@
 """What a structure search records: each structure it fitted (:class:`Node`, with its verdict, a
-:class:`Status`), each step (:class:`Step`) and the whole search (:class:`Exploration`)."""
+:class:`Status`), each step (:class:`Step`), why it stopped (:class:`Stop`), the better structures its final
+choice set aside (:class:`SetAside`) and the whole search (:class:`Exploration`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -63,6 +64,41 @@ class Node:
         return out[::-1]
 
 
+class Stop(StrEnum):
+    """Why a search's steps ended (what the step found, not yet how the final structure compares with the floor:
+    :func:`structsearch.discovery.final_choice.stopped_text` words it)."""
+
+    START = "good enough at the start"
+    GOOD_ENOUGH = "good enough"
+    NO_MOVE = "no move passes the test"                  # and no look-ahead was left to take
+    LOOK_AHEAD_LED_NOWHERE = "no move passes the test, alone or after a look-ahead"
+    OWN_FLOOR = "no move passes the test; no look-ahead from a structure at the floor of its own residual"
+    MAX_STEPS = "step budget reached"
+
+
+@dataclass(frozen=True)
+class SetAside:
+    """A structure the search fitted with a lower held-out MSE than the final one, and why the final choice set it
+    aside; ``excess`` (with ``excess_se``) is the final structure's per-maneuver relative excess of out-of-sample
+    MSE over it, ``mse_cost`` the difference of the held-out MSEs: what the choice costs."""
+
+    node: "Node"
+    reason: str
+    excess: float
+    excess_se: float
+    mse_cost: float
+
+    def to_dict(self) -> dict:
+        def num(x):
+            return float(x) if x is not None and x == x and abs(x) != float("inf") else None
+        n = self.node
+        return {"name": n.candidate.name, "move": n.move.name if n.move is not None else None, "status": n.status,
+                "screened": n.screened, "n_params": n.n_params, "mse": num(n.mse),
+                "mse_validation": num(n.result.validation.mse), "admissible": None if n.screened else n.admissible,
+                "reasons": list(n.reasons), "reason": self.reason, "excess": num(self.excess),
+                "excess_se": num(self.excess_se), "mse_cost": num(self.mse_cost)}
+
+
 @dataclass(frozen=True)
 class Step:
     index: int
@@ -77,9 +113,20 @@ class Exploration:
     start: Node
     final: Node
     steps: tuple[Step, ...]
-    stopped: str                  # why the search ended
+    stopped: str                  # why the search ended (Stop's words, or stopped_text's once the floor is known)
     n_fitted: int
     seconds: float
+    stop: Stop = Stop.MAX_STEPS
+    # the structures the final choice set aside though their held-out MSE is lower, lowest first
+    set_aside: tuple[SetAside, ...] = ()
+    final_rule: str = ""          # how the final structure was chosen among the structures fitted
+    stopped_at: tuple[str, ...] = ()   # the structures the last step of the search (not a repair) expanded
+
+    def fitted(self, full: bool = True) -> list[Node]:
+        """Every structure the search fitted (the start first): only those fitted in full (statistics and
+        admissibility judged) with ``full``; failed fits left out."""
+        nodes = [self.start] + [n for s in self.steps for n in s.tried]
+        return [n for n in nodes if not n.result.failed and not (full and n.screened)]
 
     @property
     def path(self) -> list[Node]:

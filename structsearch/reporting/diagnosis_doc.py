@@ -123,6 +123,13 @@ def _round_lines(doc: Diagnosis) -> list[str]:
     lines += ["", f"**Explained**: {'yes' if doc.explained else 'no'} (the final model's per-maneuver excess over "
               f"the floor: {_pct(doc.final_excess_over_floor)} +- {_pct(doc.final_excess_se)}). "
               f"Final model: {doc.final_model}" + _terms(doc) + ".", ""]
+    aside = (doc.search or {}).get("set_aside") or []
+    if aside:   # what the final choice left, so that no better structure the search fitted goes unsaid
+        a = aside[0]
+        lines += [f"The search stopped: {doc.search.get('stopped')}. It fitted {len(aside)} structures of lower "
+                  f"held-out MSE than the final one (search.set_aside in diagnosis.json); the lowest, {a['name']} "
+                  f"(held-out MSE {_num(a['mse'], '.4g')}, the final's excess {_pct(a['excess'])}), was set aside: "
+                  f"{a['reason']}.", ""]
     return lines + equivalence_lines(doc)
 
 

@@ -17,6 +17,8 @@ from ..discovery.spec_file import spec_text
 from ..fitting.candidates import Candidate
 from .diagnosis_doc import public
 
+# the set-aside structures discover.md lists (discover.json holds them all)
+SET_ASIDE_SHOWN = 8
 PATH_COLUMNS = ("step", "move", "kind", "effect", "structure", "mse_validation", "mse_cv", "p_value", "threshold",
                 "shrink", "phase", "alpha_band", "verdict")
 
@@ -111,6 +113,7 @@ def markdown(found: Discovery, command: str = "") -> str:
                   + (f" (from the lift model {f.structure['lift']})" if f.structure.get("lift") else ""), ""]
     if f.spec:
         lines += [f"Written as a model spec: `{f.spec}` (`structsearch fit --model {f.spec}`).", ""]
+    lines += set_aside_lines(found)
     lines += ["## Against the grid and the thesis", ""]
     body = [[c.role, c.name, c.n_params, _g(c.mse_validation), _g(c.mse_cv), "yes" if c.admissible else "no",
              _g(c.excess, "+.1%"), _g(c.excess_se, ".1%"),
@@ -131,6 +134,25 @@ def markdown(found: Discovery, command: str = "") -> str:
             lines += [f"Terms against {c.name}: only discovered {sorted(mine - theirs) or '-'}; only in {c.name} "
                       f"{sorted(theirs - mine) or '-'}.", ""]
     return "\n".join(lines)
+
+
+def set_aside_lines(found: Discovery) -> list[str]:
+    """How the final structure was chosen, and the structures with a lower held-out MSE it was chosen over: why
+    each was set aside and what that costs (the final structure's excess over it)."""
+    lines = [f"Chosen as {found.final_rule}." if found.final_rule else "", ""]
+    if not found.set_aside:
+        return lines + ["No structure the search fitted has a lower held-out MSE.", ""]
+    shown = found.set_aside[:SET_ASIDE_SHOWN]
+    body = [[a.name, a.n_params, _g(a.mse), _g(a.excess, "+.1%"), _g(a.excess_se, ".1%"), a.reason]
+            for a in shown]
+    lines += [f"## Better structures set aside ({len(found.set_aside)})", "",
+              tabulate(body, headers=["structure", "parameters", "held-out MSE", "final's excess", "se", "why set "
+                                      "aside"], tablefmt="github"), "",
+              "Held-out MSE: cross-validation, else validation (what the search compares); the final's excess: its "
+              "per-maneuver relative excess of out-of-sample MSE over the structure (what setting it aside costs)"
+              + (f"; {len(found.set_aside) - len(shown)} more in discover.json" if len(found.set_aside) > len(shown)
+                 else "") + ".", ""]
+    return lines
 
 
 def write_discovery(found: Discovery, out: Path, command: str = "") -> Discovery:
@@ -155,6 +177,10 @@ def discovery_console_lines(found: Discovery, out: Path) -> list[str]:
     for i, (p, c) in enumerate(zip(found.path, closed_shares(found)), 1):
         lines.append(f"  {i}. {p.move} ({'' if p.verdict == 'improves' else p.verdict + ', '}"
                      f"p {_g(p.p_value, '.2g')}, closes {_g(c, '.0%')} of the start's gap)")
+    if found.set_aside:
+        a = found.set_aside[0]
+        lines.append(f"  set aside {len(found.set_aside)} structures of lower held-out MSE; the lowest {a.name} "
+                     f"({_g(a.mse)}, final's excess {_g(a.excess, '+.1%')}): {a.reason}")
     for c in found.comparison[1:]:
         lines.append(f"  against {c.role} {c.name}: excess {_g(c.excess, '+.1%')} +- {_g(c.excess_se, '.1%')}, "
                      f"within noise: {noise_verdict(c, 'n/a')}")
