@@ -17,8 +17,12 @@ def data_dir(campaign_on_disk):
 def test_discover_writes_the_path_and_a_spec_that_fit_accepts(data_dir, run_cli, tmp_path):
     out = tmp_path / "o"
     proc = run_cli("discover", "--data", data_dir, "--coefficient", "CD", "--from", "CD-I", "--out", out,
-                   "--max-steps", "2", "--starts", "1", "--jobs", "1")
+                   "--max-steps", "2", "--starts", "1", "--jobs", "1", "--trace", tmp_path / "trace.json")
     assert proc.returncode == 0, proc.stderr
+    # every step's fits are tasks in the trace, a call per step; bench --trace reads it (every parent in it)
+    from structsearch.experiments.trace_bench import read_trace
+    trace = read_trace(tmp_path / "trace.json")
+    assert sum(e["kind"] == "call" for e in trace) >= 2 and any(e["kind"] != "call" for e in trace)
     doc = json.loads((out / "discover.json").read_text())
     assert doc["coefficient"] == "CD" and doc["start"]["name"] == "CD-I"
     assert len(doc["steps"]) <= 2 and doc["structures_fitted"] >= len(doc["path"]) + 1

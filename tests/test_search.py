@@ -362,10 +362,14 @@ def test_cli_fit_search_and_dask(tiny, tmp_path):
         assert (tmp_path / "s" / f"lift.{ext}").stat().st_size > 100
     pytest.importorskip("distributed")
     proc = run_cli("search", "--data", data, "--grid", "lift", "--out", str(tmp_path / "d"), "--jobs", "2",
-                   "--backend", "dask", "--quiet")
+                   "--backend", "dask", "--quiet", "--trace", str(tmp_path / "trace.json"))
     assert proc.returncode == 0, proc.stderr
     dask_rows = list(csv.DictReader((tmp_path / "d" / "ranking.csv").open()))
     assert [(r["model"], r["mse_validation"]) for r in dask_rows] == [(r["model"], r["mse_validation"]) for r in rows]
+    # the same tasks on the dask workers: starts, statistics and folds, recorded with the worker that ran each
+    events = json.loads((tmp_path / "trace.json").read_text())["traceEvents"]
+    tasks = [e for e in events if e["cat"] != "call"]
+    assert {"start", "fit"} <= {e["cat"] for e in tasks} and len({e["pid"] for e in tasks}) == 2
 
 
 @pytest.mark.slow

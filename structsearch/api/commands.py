@@ -13,6 +13,7 @@ from ..data.campaign import Campaign, read_campaign
 from ..data.atomic import write_json
 from ..data.errors import DeclarationError
 from ..fitting.options import check_box_names
+from ..fitting.pools import warm_workers
 from ..grid_search.admissibility import MAX_CORRELATION
 from .results import FitOutcome, PreprocessOutcome, Ranking, StudyOutcome
 from .settings import FlightTestPlan, Settings, command_fitter, dask_client, fit_options
@@ -39,6 +40,7 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
     _check_samples(band_samples)
     from ..fitting.specs import resolve_candidate
     candidate = resolve_candidate(model)   # a misspelled name is answered before the campaign is read
+    warm_workers(settings.backend, settings.processes)
     campaign = as_campaign(campaign, settings.segment)
     options = fit_options("fit", settings, campaign)
     progress = settings.progress
@@ -129,6 +131,7 @@ def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, setting
     lift block (``search --joint-lift``). ``scheduler``: a dask scheduler's address (``backend="dask"``)."""
     from ..grid_search.pipeline import search as run_search
     candidates = search_candidates(grid)   # a misspelled grid is answered before the campaign is read
+    warm_workers(settings.backend, settings.processes)
     campaign = as_campaign(campaign, settings.segment)
     options = fit_options("search", settings, campaign, cv_method=cv_method)
     check_box_names(options.parameter_boxes, candidates)

@@ -5,8 +5,10 @@ It computes what :func:`.candidate_fit.fit_staged` computes, start for start: th
 the same order (:func:`.candidate_fit.start_points`), the best is chosen the same way (the first of the lowest
 cost, in start order), the statistics are those of that optimum and the folds refit from it. Only where the
 solves run differs. The declared start is solved at once, before the candidates the fit may start from are
-fitted (every fit of the search tries it); the other starts wait for what they are made from. The candidates
-that start from this one wait only for its estimates, not for its folds.
+fitted (every full fit tries it), and so are the quasi-random starts of a fit that climbs its stage first (seeded
+points of the box: the stage does not move them); the other starts wait for what they are made from. Once the
+best start is known, the statistics and the folds run beside each other (both start from that optimum), and the
+candidates that start from this one go ahead: they wait for its estimates, not for its statistics or folds.
 
 A candidate with a lift model or without separation parameters (a linear fit, or one that reads its states)
 is one task; so is any fit whose starts cannot be planned apart (a declaration the data reject): it is then
@@ -22,6 +24,7 @@ import numpy as np
 
 from ..data.errors import StructSearchError
 from ..engine.snls import best_of
+from .folds import plan_folds
 from .candidate_fit import (StartSpec, fit_from, fit_staged, fold_residual, solve_start, stage_of, staged_spec,
                             start_points, with_folds)
 from .candidate_result import CandidateResult
@@ -84,6 +87,9 @@ class CandidateJob:
         self.solving: dict[bytes, str] = {}
         self.keys: list[bytes] | None = None
         self.work = 0.0
+        self.result: CandidateResult | None = None
+        self.parts: list = []
+        self.finished = False
 
     def _task(self, what: str, fn, args, then, parents, urgency: float = 0.0) -> Task:
         """A task of this candidate; ``then(result, name)`` on the driver once it has run."""
@@ -130,7 +136,16 @@ class CandidateJob:
         tasks = [self._task(f"stage start {k}", _solve, (candidate, self.ctx.options, p),
                             lambda out, _, k=k: self._stage_done(k, out, model), parents) for k, p in enumerate(points)]
         self.stage_tasks = tuple(t.name for t in tasks)
-        return tasks
+        return tasks + self._quasi_random(parents)
+
+    def _quasi_random(self, parents) -> list[Task]:
+        """The quasi-random starts of a fit without a warm start: seeded points of the box, whatever the stage gives,
+        so they need not wait for it."""
+        try:
+            points = start_points(self.c, self.ctx.train, self.ctx.options, StartSpec(None, None))[1:]
+        except PLANNING_ERRORS:
+            return []
+        return self._solve_tasks([p for p in points if p.tobytes() not in self.solving], parents)
 
     def _stage_done(self, k: int, out, model) -> list[Task]:
         self.stage_outcomes[k], seconds = out
@@ -173,7 +188,7 @@ class CandidateJob:
             return []
         return self._select()
 
-    # ----- the fit's statistics, then its folds --------------------------------------------------------------
+    # ----- the fit's statistics beside its folds --------------------------------------------------------------
     def _select(self) -> list[Task]:
         parents = tuple(self.solving[k] for k in self.keys)
         try:
@@ -181,39 +196,52 @@ class CandidateJob:
         except PLANNING_ERRORS:
             return [self._whole_task(parents)]   # no start fitted: the whole fit says why, as a serial run does
         fit = self._task("fit", _fit, (self.c, self.ctx.options, self.spec, solved), self._fitted, parents)
-        # the optimum is the estimate (the statistics that follow do not move it): the candidates that start from
-        # this one need not wait for them; its training MSE is the optimum's cost per sample
-        best = solved.best
-        params = dict(zip(self._names(), np.concatenate([best.theta, best.coef])))
+        # the optimum is the estimate (the statistics that follow do not move it): the folds refit from it, and the
+        # candidates that start from this one need not wait for the statistics either; its training MSE is the
+        # optimum's cost per sample
+        best, model = solved.best, self._model()
+        params = dict(zip(model.nonlinear_names + model.linear_names, np.concatenate([best.theta, best.coef])))
+        folds = self._fold_tasks(model, params, parents)
         fitted = Fitted(params, 2.0 * best.cost / len(self.ctx.train[self.c.coefficient]))
-        return [fit] + self.ctx.estimated(self.i, fitted, parents)
+        return [fit] + folds + self.ctx.estimated(self.i, fitted, parents)
 
-    def _names(self) -> tuple[str, ...]:
-        """The candidate's parameter names, nonlinear then linear (as its fit reports them)."""
+    def _model(self):
         from .models import build_model
-        model = build_model(self.c.with_bounds(self.ctx.options.parameter_boxes))
-        return tuple(model.nonlinear_names) + tuple(model.linear_names)
+        return build_model(self.c.with_bounds(self.ctx.options.parameter_boxes))
+
+    def _fold_tasks(self, model, params, parents) -> list[Task]:
+        """The refitted folds, which :func:`.candidate_fit.fit_from` leaves apart (the same rule decides)."""
+        o = self.ctx.options
+        plan = plan_folds(self.ctx.train, o.cv_folds, o.cv_fold_size, o.cv_block_convective_times)
+        if not (plan.folds and model.nonlinear_names and o.cv_method == "refit"):
+            return []
+        self.plan, self.parts = plan, [None] * plan.n_folds
+        return [self._task(f"fold {k}", _fold, (self.c, o, params, plan, k),
+                           lambda out, _, k=k: self._fold_done(k, out), parents, urgency=0.5)
+                for k in range(plan.n_folds)]
 
     def _estimated_whole(self, result: CandidateResult, name: str) -> list[Task]:
         return self.ctx.estimated(self.i, Fitted.of(result), (name,)) + self.ctx.finished(self.i, result)
 
     def _fitted(self, out, name: str) -> list[Task]:
-        result, plan = out
-        ready: list[Task] = []
-        if plan is None:
-            return ready + self.ctx.finished(self.i, result if not self.work else _plus(result, self.work))
-        self.result, self.plan, self.parts = result, plan, [None] * plan.n_folds
-        params = result.estimates.params
-        return ready + [self._task(f"fold {k}", _fold, (self.c, self.ctx.options, params, plan, k),
-                                   lambda out, _, k=k: self._fold_done(k, out), (name,), urgency=0.5)
-                        for k in range(plan.n_folds)]
+        self.result, apart = out
+        if apart is None:   # no folds left apart (or a failed fit: its folds are not scored)
+            self.parts = []
+        return self._finish()
 
     def _fold_done(self, k: int, out) -> list[Task]:
         rows, values, seconds = out
         self.parts[k] = (rows, values)
         self.work += seconds
-        if any(p is None for p in self.parts):
+        return self._finish()
+
+    def _finish(self) -> list[Task]:
+        """The candidate's record, once its statistics and every fold are in (once)."""
+        if self.result is None or self.finished or any(p is None for p in self.parts):
             return []
+        self.finished = True
+        if not self.parts:
+            return self.ctx.finished(self.i, _plus(self.result, self.work))
         return self.ctx.finished(self.i, with_folds(self.result, self.ctx.train, self.plan, self.parts, self.work))
 
 

@@ -75,3 +75,20 @@ def task_pool(backend: str, n_jobs: int) -> Iterator[object]:
     from joblib.executor import get_memmapping_executor
     yield ExecutorPool(get_memmapping_executor(n_jobs, timeout=300, env=worker_environment(n_jobs)), n_jobs,
                        wrap=in_worker)
+
+
+def _ready() -> int:
+    """A worker's first task: import what every fitting task runs on."""
+    from . import candidate_job  # noqa: F401
+    return os.getpid()
+
+
+def warm_workers(backend: str, n_jobs: int) -> None:
+    """Start the local worker processes now, without waiting for them: their interpreters import the package while
+    the command reads its campaign, instead of after (the pool the command's first fit asks for is this one)."""
+    if backend not in ("loky", "multiprocessing") or n_jobs <= 1:
+        return
+    from joblib.executor import get_memmapping_executor
+    executor = get_memmapping_executor(n_jobs, timeout=300, env=worker_environment(n_jobs))
+    for _ in range(n_jobs):
+        executor.submit(_ready)
