@@ -167,6 +167,10 @@ class CandidateJob:
         except PLANNING_ERRORS:
             return [self._whole_task(parents)]
         self.spec, self.keys = spec, [p.tobytes() for p in points]
+        if len(points) == 1 and self.keys[0] not in self.solving:
+            # one start (a screening): nothing to spread, so the solve and its statistics share one task and one
+            # bound problem
+            return [self._task("fit", _fit, (self.c, self.ctx.options, spec, None), self._fitted_alone, parents)]
         tasks = self._solve_tasks([p for p in points if p.tobytes() not in self.solving], parents)
         if tasks or any(k not in self.outcomes for k in self.keys):
             return tasks   # the last start to finish makes the fit ready (one may be running already)
@@ -222,6 +226,16 @@ class CandidateJob:
 
     def _estimated_whole(self, result: CandidateResult, name: str) -> list[Task]:
         return self.ctx.estimated(self.i, Fitted.of(result), (name,)) + self.ctx.finished(self.i, result)
+
+    def _fitted_alone(self, out, name: str) -> list[Task]:
+        """A fit of one start, solved and scored in one task: its estimates, then its folds."""
+        self.result, apart = out
+        ready = self.ctx.estimated(self.i, Fitted.of(self.result), (name,))
+        folds = [] if apart is None or self.result.failed else \
+            self._fold_tasks(self._model(), self.result.estimates.params, (name,))
+        if not folds:
+            self.parts = []
+        return ready + (folds or self._finish())
 
     def _fitted(self, out, name: str) -> list[Task]:
         self.result, apart = out
