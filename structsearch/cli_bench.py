@@ -57,7 +57,7 @@ def _reading_bench(args) -> int:
 def _trace_bench(args) -> int:
     """``bench --trace FILE``: the recorded task graph's work, critical path and predicted walls."""
     import json
-    from .data.atomic import write_json, write_text
+    from .data.atomic import write_text
     from .experiments.trace_bench import analyse, markdown, read_trace
     out = Path(args.out)
     fig = {"file": str(args.trace), **analyse(read_trace(args.trace))}
@@ -65,7 +65,7 @@ def _trace_bench(args) -> int:
     doc = json.loads(bench_json.read_text(encoding="utf-8")) if bench_json.exists() else {}
     doc["trace"] = fig   # the other benchmarks' figures stay as they were
     out.mkdir(parents=True, exist_ok=True)
-    write_json(bench_json, doc, indent=1)
+    write_text(bench_json, json.dumps(doc, indent=2))   # as the other benchmarks write it
     write_text(out / "trace_bench.md", markdown(fig, f"structsearch bench --trace {args.trace} --out {out}"))
     p = fig["predicted_wall_s"]
     print(f"{fig['tasks']} tasks: work {fig['work_s']:.1f} s, critical path {fig['critical_path_s']:.1f} s, "

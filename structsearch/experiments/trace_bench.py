@@ -56,8 +56,9 @@ def read_trace(path: str | Path) -> list[dict]:
     return out
 
 
-def _topological(events: list[dict]) -> list[dict]:
-    """The events, every one after the tasks it waited for (Kahn; ties in recorded start order)."""
+def _graph(events: list[dict]):
+    """The events by name, how many parents each waits for, each one's children, and the ready heap of those that
+    wait for none (keyed by recorded start: the order the run started them)."""
     by_name = {e["name"]: e for e in events}
     waiting = {e["name"]: len(e["parents"]) for e in events}
     children = defaultdict(list)
@@ -66,6 +67,12 @@ def _topological(events: list[dict]) -> list[dict]:
             children[p].append(e["name"])
     ready = [(e["ts"], e["name"]) for e in events if not e["parents"]]
     heapq.heapify(ready)
+    return by_name, waiting, children, ready
+
+
+def _topological(events: list[dict]) -> list[dict]:
+    """The events, every one after the tasks it waited for (Kahn; ties in recorded start order)."""
+    by_name, waiting, children, ready = _graph(events)
     out = []
     while ready:
         _, name = heapq.heappop(ready)
@@ -98,14 +105,7 @@ def critical_path(events: list[dict]) -> tuple[float, list[str]]:
 
 def list_schedule(events: list[dict], workers: int) -> float:
     """The wall of a list schedule of the recorded graph on ``workers`` workers (module docstring)."""
-    by_name = {e["name"]: e for e in events}
-    waiting = {e["name"]: len(e["parents"]) for e in events}
-    children = defaultdict(list)
-    for e in events:
-        for p in e["parents"]:
-            children[p].append(e["name"])
-    ready = [(e["ts"], e["name"]) for e in events if not e["parents"]]
-    heapq.heapify(ready)
+    by_name, waiting, children, ready = _graph(events)
     running: list[tuple[float, str]] = []
     now = 0.0
     while ready or running:
