@@ -16,6 +16,7 @@ import argparse  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from .cli_grids import _grids  # noqa: E402
 from .cli_options import _bounds, _jobs  # noqa: E402
 
 
@@ -267,7 +268,7 @@ def _compare(args) -> int:
 
 HANDLERS = {"bench": _bench, "simulate": _simulate, "preprocess": _preprocess, "study": _study, "fit": _fit,
             "search": _search, "diagnose": _diagnose, "discover": _discover, "report": _report, "demo": _demo,
-            "compare": _compare}
+            "compare": _compare, "grids": _grids}
 
 
 def build_parser() -> argparse.ArgumentParser:

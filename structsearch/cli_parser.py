@@ -66,7 +66,20 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     _add_report(sub, handlers["report"])
     _add_demo(sub, handlers["demo"])
     _add_compare(sub, handlers["compare"])
+    _add_grids(sub, handlers["grids"])
     return parser
+
+
+def _add_grids(sub, handler: Callable) -> None:
+    """The ``grids`` command."""
+    g = sub.add_parser("grids", help="list the shipped grids and their candidates with their equations",
+                       description="Lists every shipped grid (separation, lift, drag, pitch) and each candidate's "
+                                   "equation; with NAME, that grid (or grid spec file, or one candidate) with its "
+                                   "separation states' equations and what its helper functions stand for. Example: "
+                                   "structsearch grids lift")
+    g.add_argument("name", nargs="?", default=None,
+                   help="a grid (separation, lift, drag, pitch), a grid spec file or a candidate name (CL-VI)")
+    g.set_defaults(func=handler)
 
 
 def _add_bench(sub, handler: Callable) -> None:
