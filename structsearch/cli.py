@@ -120,8 +120,12 @@ def _fit(args) -> int:
     summary, out = res.result, Path(args.out)
     write_json(out / "fit.json", res.to_dict())
     from .reporting.documents import bands_table, covariance_sentence, held_out_phrase
+    from .reporting.equations import equations
     from .reporting.profile_doc import profile_table
-    write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + covariance_sentence(summary.estimates.covariance_record())
+    model = ("## The model\n\n```\n" + "\n".join(equations(res.candidate)) + "\n```\n\nWith the estimates:\n\n```\n"
+             + "\n".join(equations(res.candidate, summary.estimates.params)) + "\n```\n\n")
+    write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + model
+               + covariance_sentence(summary.estimates.covariance_record())
                + "\n" + parameter_table(summary.estimates, "md")
                + ("\n\n" + bands_table(res.bands) if res.bands is not None else "")
                + ("\n\n" + profile_table(res.profile) if res.profile is not None else ""))

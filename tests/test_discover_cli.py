@@ -44,7 +44,9 @@ def test_discover_writes_the_path_and_a_spec_that_fit_accepts(data_dir, run_cli,
     assert final["mse_validation"] == pytest.approx(previous)
     assert isinstance(final["admissible"], bool) and final["admissible"] == (not final["reasons"])
     # the files next to it: the Markdown, one CSV row per adopted move, the spec file the JSON names
-    assert (out / "discover.md").read_text().startswith("# Structure discovery for CD")
+    text = (out / "discover.md").read_text()
+    assert text.startswith("# Structure discovery for CD")
+    assert "```\nCD = " in text   # the final structure as an equation
     with open(out / "path.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert [r["move"] for r in rows] == [p["move"] for p in doc["path"]]

@@ -163,6 +163,10 @@ def test_fit_profile_writes_the_fields(campaign_on_disk, run_cli, tmp_path):
             assert (p[f"reason_{side}"] is not None) >= p[f"open_{side}"]
     text = (out / "fit.md").read_text()
     assert "## Profile intervals of the nonlinear parameters" in text and "95% Wald" in text
+    # the model as an equation, in its parameters' names and with the estimates in their place
+    assert "X = 0.5*(1 - tanh(a1*(alpha - a_star)))" in text
+    a1, a_star = doc["params"]["a1"], doc["params"]["a_star"]
+    assert f"X = 0.5*(1 - tanh({a1:.4g}*(alpha - {a_star:.4g})))" in text
     # the numbers are the fit's own: the Wald interval is estimate +- t(dof) * stderr of the same fit.json, and the
     # profile bounds are those the Python API computes on the same campaign
     from scipy import stats

@@ -15,6 +15,7 @@ from ..data.atomic import write_json, write_text
 from ..discovery.discovered import Discovery
 from ..discovery.spec_file import spec_text
 from ..fitting.candidates import Candidate
+from .equations import equations
 from .diagnosis_doc import public
 
 # the set-aside structures discover.md lists (discover.json holds them all)
@@ -108,6 +109,7 @@ def markdown(found: Discovery, command: str = "") -> str:
               + ("; at the floor" if found.explained else "; above the floor") + ".", ""]
     lines += [tabulate([[n, e] for n, e in f.structure["regressors"].items()], headers=["parameter", "term"],
                        tablefmt="github"), ""]
+    lines += ["```", *equations(Candidate.from_dict(f.structure)), "```", ""]
     if f.structure.get("states"):
         lines += ["States: " + ", ".join(f"X{'_' + s if s else ''}: {k}" for s, k in f.structure["states"].items())
                   + (f" (from the lift model {f.structure['lift']})" if f.structure.get("lift") else ""), ""]

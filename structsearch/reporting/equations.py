@@ -13,6 +13,7 @@ The regressors are written as they are declared (the text a grid or spec file gi
 from __future__ import annotations
 
 import re
+from typing import Mapping
 
 from ..engine.separation import SeparationState
 from ..fitting.candidates import Candidate
@@ -69,11 +70,19 @@ def helpers_used(c: Candidate) -> list[str]:
     return [meaning for helper, meaning in HELPER_MEANINGS.items() if re.search(rf"\b{helper}\(", texts)]
 
 
-def equations(c: Candidate) -> list[str]:
+def equations(c: Candidate, values: Mapping[str, float] | None = None) -> list[str]:
     """Every line that states ``c``: its model equation, its states' equations (a drag or pitch candidate's are
-    its lift model's, with that model's fitted parameters) and the helpers it calls."""
+    its lift model's, with that model's fitted parameters) and the helpers it calls. With ``values`` (estimates
+    by parameter name), each parameter that has one is written as its value (4 significant digits)."""
     lines = [model_equation(c)]
     source = f"  (a state of the lift model {c.lift}, its parameters fixed at that model's fit)" if c.lift else ""
     lines += [state_equation(n, k) + source for n, k in c.states]
-    lines += [f"where {m}" for m in helpers_used(c)]
-    return lines
+    if values:
+        lines = [_with_values(line, values) for line in lines]
+    return lines + [f"where {m}" for m in helpers_used(c)]
+
+
+def _with_values(line: str, values: Mapping[str, float]) -> str:
+    for name in sorted(values, key=len, reverse=True):   # a1_ss before a1
+        line = re.sub(rf"(?<![\w.]){re.escape(name)}(?![\w(])", f"{float(values[name]):.4g}", line)
+    return line.replace("+ -", "- ").replace("- -", "+ ")
