@@ -218,6 +218,7 @@ def test_cli_diagnose(campaign, tmp_path):
         assert {"name", "shrink", "mse_validation_after", "p_value"} <= set(e) or "error" in e
     md = (tmp_path / "o" / "diagnosis.md").read_text()
     assert md.startswith("# Diagnosis of CD") and "## At the state level" in md
+    assert "```\nCD = " in md   # the final model as an equation
     bad = run_cli("diagnose", "--data", str(tmp_path / "c"), "--model", "CD-XI", "--coefficient", "CL",
                   "--out", str(tmp_path / "o"))
     assert bad.returncode == 2 and "models CD, not CL" in bad.stderr

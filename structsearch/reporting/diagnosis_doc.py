@@ -9,6 +9,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from tabulate import tabulate
 
+from ..fitting.candidates import Candidate
+from .equations import equations
 from ..discovery.adoption import DEFAULT_ALPHA
 from ..data.atomic import json_ready, write_json, write_text
 from ..diagnosis.results import Diagnosis
@@ -123,6 +125,8 @@ def _round_lines(doc: Diagnosis) -> list[str]:
     lines += ["", f"**Explained**: {'yes' if doc.explained else 'no'} (the final model's per-maneuver excess over "
               f"the floor: {_pct(doc.final_excess_over_floor)} +- {_pct(doc.final_excess_se)}). "
               f"Final model: {doc.final_model}" + _terms(doc) + ".", ""]
+    if doc.final_structure:
+        lines += ["```", *equations(Candidate.from_dict(doc.final_structure)), "```", ""]
     aside = (doc.search or {}).get("set_aside") or []
     if aside:   # what the final choice left, so that no better structure the search fitted goes unsaid
         a = aside[0]
