@@ -136,7 +136,8 @@ def _synopsis():
 
 
 # required by the command unless another mode is chosen (diagnose --benchmark): checked when it runs
-REQUIRED_UNLESS_MODE = {("diagnose", "--data"), ("diagnose", "--model")}
+# (bench --trace FILE chooses its mode with a value: written bare on its own synopsis line)
+REQUIRED_UNLESS_MODE = {("diagnose", "--data"), ("diagnose", "--model"), ("bench", "--trace")}
 
 
 def test_the_readme_synopsis_brackets_exactly_the_optional_options():
