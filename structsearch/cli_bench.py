@@ -54,6 +54,22 @@ def _reading_bench(args) -> int:
     return 0
 
 
+def _bench_doc(path: Path) -> dict:
+    """The figures ``bench.json`` holds already (none when it does not exist); one clear error if it is not one."""
+    import json
+    from .data.errors import DataError
+    if not path.exists():
+        return {}
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise DataError(f"not readable as the benchmarks' JSON ({type(exc).__name__}: {exc})", source=str(path)) \
+            from None
+    if not isinstance(doc, dict):
+        raise DataError("not the benchmarks' JSON (an object of figures)", source=str(path))
+    return doc
+
+
 def _trace_bench(args) -> int:
     """``bench --trace FILE``: the recorded task graph's work, critical path and predicted walls."""
     import json
@@ -62,7 +78,7 @@ def _trace_bench(args) -> int:
     out = Path(args.out)
     fig = {"file": str(args.trace), **analyse(read_trace(args.trace))}
     bench_json = out / "bench.json"
-    doc = json.loads(bench_json.read_text(encoding="utf-8")) if bench_json.exists() else {}
+    doc = _bench_doc(bench_json)
     doc["trace"] = fig   # the other benchmarks' figures stay as they were
     out.mkdir(parents=True, exist_ok=True)
     write_text(bench_json, json.dumps(doc, indent=2))   # as the other benchmarks write it

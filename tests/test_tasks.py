@@ -57,6 +57,7 @@ def test_bench_trace_writes_its_figures_beside_the_other_benchmarks(tmp_path):
     ([_event("A", 0, 1), _event("A", 1, 1)], "a second task named 'A'"),
     ([_event("A", 0, 1, ["Z"])], "waits for 'Z', which is not in the trace"),
     ([_event("A", 0, -1)], "negative duration"),
+    ([{**_event("A", 0, 1), "args": {"parents": "B"}}], "args.parents is not a list"),
 ])
 def test_a_bad_trace_is_one_clear_error_naming_the_file(tmp_path, events, why):
     path = tmp_path / "bad.json"
@@ -64,6 +65,17 @@ def test_a_bad_trace_is_one_clear_error_naming_the_file(tmp_path, events, why):
     with pytest.raises(DataError, match=why) as err:
         read_trace(path)
     assert "bad.json" in str(err.value)
+
+
+def test_bench_trace_refuses_a_bench_json_it_cannot_extend(tmp_path):
+    path = tmp_path / "t.json"
+    path.write_text(json.dumps(DIAMOND))
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "bench.json").write_text("[1, 2")
+    proc = run_cli("bench", "--trace", path, "--out", tmp_path / "out")
+    errors = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert proc.returncode == 2 and len(errors) == 1 and "bench.json" in errors[0], proc.stderr
+    assert (tmp_path / "out" / "bench.json").read_text() == "[1, 2"   # left as it was
 
 
 def test_a_trace_that_is_not_json_is_refused(tmp_path):

@@ -99,18 +99,26 @@ def command_fitter(command: str, campaign: Campaign, settings: Settings, out: st
                 write_json(Path(settings.trace), trace.to_chrome())
 
 
+def _current_dask_client():
+    """The dask client the caller opened, or None."""
+    try:
+        from dask.distributed import get_client
+        return get_client()
+    except (ImportError, ValueError):
+        return None
+
+
 @contextmanager
 def _dask_client(settings: Settings):
     """The dask client a command's tasks run on: the caller's, else a local cluster closed afterwards."""
     if settings.backend != "dask":
         yield None
         return
-    try:
-        from dask.distributed import get_client
-        yield get_client()
+    # looked up before the command runs: an error inside the command must not be taken for "no client"
+    existing = _current_dask_client()
+    if existing is not None:
+        yield existing
         return
-    except (ImportError, ValueError):
-        pass
     client = dask_client(None, settings.processes)
     try:
         yield client

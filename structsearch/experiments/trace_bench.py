@@ -39,9 +39,14 @@ def read_trace(path: str | Path) -> list[dict]:
             continue
         try:
             name, ts, dur = str(e["name"]), float(e["ts"]), float(e["dur"])
-            parents = [str(p) for p in (e.get("args") or {}).get("parents", [])]
+            args = e.get("args") or {}
+            listed = args.get("parents", []) if isinstance(args, dict) else None
+            if not isinstance(listed, list):
+                raise TypeError("parents")
+            parents = [str(p) for p in listed]
         except (KeyError, TypeError, ValueError):
-            raise DataError(f"event {k} lacks a name, ts or dur", source=source) from None
+            raise DataError(f"event {k} lacks a name, ts or dur, or its args.parents is not a list of names",
+                            source=source) from None
         if name in names:
             raise DataError(f"event {k}: a second task named {name!r}", source=source)
         if dur < 0:

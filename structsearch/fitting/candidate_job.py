@@ -16,6 +16,7 @@ fitted as a whole, by the same function as a serial run, and fails or succeeds t
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Callable, Mapping
@@ -261,5 +262,4 @@ class CandidateJob:
 
 def _plus(result: CandidateResult, seconds: float) -> CandidateResult:
     """``result`` with the seconds its starts took on other tasks added to its own."""
-    import dataclasses
     return dataclasses.replace(result, seconds=result.seconds + seconds)
