@@ -677,9 +677,9 @@ def test_a_fit_starts_from_the_contained_structures_optimum_with_the_added_time_
     start = nested_start(uq, {"tau2_ss": 0.3, "a1_ss": 50.0, "a_star_ss": 0.2, "tau2_w": 0.1, "a1_w": 12.0,
                               "a_star_w": 0.33})
     assert start["tau1_ss"] == 0.0 and start["tau2_ss"] == 0.3 and start["a_star_w"] == 0.33
-    from structsearch.fitting.staging import Fitted
-    good = Fitted({"tau2_ss": 0.3, "tau2_w": 0.2}, 1.0)
-    worse = Fitted({"tau2_ss": 0.9, "tau2_w": 0.9}, 2.0)
+    from structsearch.fitting.staging import DonorEstimate
+    good = DonorEstimate({"tau2_ss": 0.3, "tau2_w": 0.2}, 1.0)
+    worse = DonorEstimate({"tau2_ss": 0.9, "tau2_w": 0.9}, 2.0)
     got = best_contained(uq, [(sep["X_ss/X_w S/Q"], worse), (qq, good), (uu, good)])
     assert got["tau2_ss"] == 0.3 and got["tau1_ss"] == 0.0    # U/U is not contained in U/Q: not a donor
 

@@ -8,7 +8,7 @@ import pytest
 from conftest import stated_result
 
 from structsearch.fitting.candidate_result import R2Summary, SplitScores
-from structsearch.fitting.staging import Fitted
+from structsearch.fitting.staging import DonorEstimate
 from structsearch.fitting.candidates import Candidate
 from structsearch.fitting.options import FitOptions
 from structsearch.fitting.candidate_fit import fit_candidate, fit_staged
@@ -40,10 +40,10 @@ def test_regressors_order_candidates_with_the_same_parameters():
     assert not feeds(lift["CL-IV"], lift["CL-III"])
 
 
-def _result(c: Candidate, params: dict, mse: float) -> Fitted:
+def _result(c: Candidate, params: dict, mse: float) -> DonorEstimate:
     """What a warm start reads of a fit (from a candidate's record, as the scheduler makes it)."""
     scores = SplitScores(mse, (mse,), (100,), R2Summary(0.9, 0.9, 0.9))
-    return Fitted.of(stated_result(c.name, c.grid, c.coefficient, None, 0.0, names=tuple(params),
+    return DonorEstimate.of(stated_result(c.name, c.grid, c.coefficient, None, 0.0, names=tuple(params),
                                    params=dict(params), train=scores, validation=scores))
 
 

@@ -11,7 +11,7 @@ from structsearch.experiments.trace_bench import analyse, critical_path, list_sc
 from structsearch.fitting.candidate_fit import fit_staged
 from structsearch.fitting.options import FitOptions
 from structsearch.fitting.specs import load_grid
-from structsearch.fitting.staging import Fitted, best_contained, warm_start
+from structsearch.fitting.staging import DonorEstimate, best_contained, warm_start
 from structsearch.fitting.trace import Trace
 
 
@@ -122,7 +122,7 @@ def test_the_tasks_fit_what_a_serial_staged_fit_does(traced):
     results = out[2][0]
     train, validation = campaign.split("train"), campaign.split("validation")
     _same(results[3], fit_staged(candidates[3], train, validation, None, FitOptions()))
-    fitted = [(c, Fitted.of(r)) for c, r in zip(candidates[:2], results[:2])]
+    fitted = [(c, DonorEstimate.of(r)) for c, r in zip(candidates[:2], results[:2])]
     warm, nested = warm_start(candidates[2], fitted), best_contained(candidates[2], fitted)
     assert warm is not None
     _same(results[2], fit_staged(candidates[2], train, validation, None, FitOptions(), start=warm, nested=nested))

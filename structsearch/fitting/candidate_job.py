@@ -32,7 +32,7 @@ from .candidate_result import CandidateResult
 from .candidates import Candidate
 from .options import FitOptions
 from .shared_data import resolve_splits
-from .staging import STAGE_STARTS, Fitted
+from .staging import STAGE_STARTS, DonorEstimate
 from .task_graph import Task
 
 PLANNING_ERRORS = (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError)
@@ -64,7 +64,7 @@ def _whole(splits, c: Candidate, lift, options: FitOptions, warm, nested):
 class JobContext:
     """What every candidate job of a call shares: the splits' handle for the workers, the training maneuvers for
     planning on the driver, the options and lift models, how tasks are named, the first tasks' parents, and the
-    runner's callbacks: ``estimated(i, fitted, tasks)`` once a fit's estimates exist (a :class:`.staging.Fitted`,
+    runner's callbacks: ``estimated(i, fitted, tasks)`` once a fit's estimates exist (a :class:`.staging.DonorEstimate`,
     made by ``tasks``: its dependants may start), ``finished(i, result)`` once it is scored; each returns the tasks
     it makes ready."""
 
@@ -207,7 +207,7 @@ class CandidateJob:
         best, model = solved.best, self._model()
         params = dict(zip(model.nonlinear_names + model.linear_names, np.concatenate([best.theta, best.coef])))
         folds = self._fold_tasks(model, params, parents)
-        fitted = Fitted(params, 2.0 * best.cost / len(self.ctx.train[self.c.coefficient]))
+        fitted = DonorEstimate(params, 2.0 * best.cost / len(self.ctx.train[self.c.coefficient]))
         return [fit] + folds + self.ctx.estimated(self.i, fitted, parents)
 
     def _model(self):
@@ -226,12 +226,12 @@ class CandidateJob:
                 for k in range(plan.n_folds)]
 
     def _estimated_whole(self, result: CandidateResult, name: str) -> list[Task]:
-        return self.ctx.estimated(self.i, Fitted.of(result), (name,)) + self.ctx.finished(self.i, result)
+        return self.ctx.estimated(self.i, DonorEstimate.of(result), (name,)) + self.ctx.finished(self.i, result)
 
     def _fitted_alone(self, out, name: str) -> list[Task]:
         """A fit of one start, solved and scored in one task: its estimates, then its folds."""
         self.result, apart = out
-        ready = self.ctx.estimated(self.i, Fitted.of(self.result), (name,))
+        ready = self.ctx.estimated(self.i, DonorEstimate.of(self.result), (name,))
         folds = [] if apart is None or self.result.failed else \
             self._fold_tasks(self._model(), self.result.estimates.params, (name,))
         if not folds:

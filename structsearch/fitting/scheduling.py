@@ -13,7 +13,7 @@ from .candidate_job import CandidateJob, JobContext
 from .candidate_result import CandidateResult
 from .candidates import Candidate
 from .options import FitOptions
-from .staging import Fitted, best_contained, warm_start
+from .staging import DonorEstimate, best_contained, warm_start
 from .task_graph import Task, run_tasks
 from .trace import Trace
 
@@ -53,8 +53,8 @@ def _weights(plan: CallPlan, dependants: dict[int, list[int]]) -> dict[int, int]
 def fit_as_tasks(plan: CallPlan, splits, train, options: FitOptions, lifts: Mapping, pool,
                  trace: Trace | None, done: Callable[[int, CandidateResult, bool], None]) -> None:
     """Fit ``plan.todo`` as tasks on ``pool``; ``done(i, result, warm)`` once candidate ``i`` is scored."""
-    estimated = {i: Fitted.of(r) for i, r in plan.known.items()}
-    before = [(c, Fitted.of(r)) for c, r in plan.fitted_before]
+    estimated = {i: DonorEstimate.of(r) for i, r in plan.known.items()}
+    before = [(c, DonorEstimate.of(r)) for c, r in plan.fitted_before]
     task_of: dict[int, tuple[str, ...]] = {}
     dependants = _dependants(plan)
     waiting = {i: {j for j in plan.needs[i] if j not in estimated} for i in plan.todo}
@@ -69,7 +69,7 @@ def fit_as_tasks(plan: CallPlan, splits, train, options: FitOptions, lifts: Mapp
         parents = tuple(name for j in plan.needs[i] for name in task_of.get(j, ()))
         return jobs[i].begin(warm, best_contained(plan.candidates[i], fitted), parents)
 
-    def on_estimated(i: int, fitted: Fitted, tasks: tuple[str, ...]) -> list[Task]:
+    def on_estimated(i: int, fitted: DonorEstimate, tasks: tuple[str, ...]) -> list[Task]:
         estimated[i], task_of[i] = fitted, tasks
         ready = []
         for k in dependants[i]:

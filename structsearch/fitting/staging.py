@@ -40,7 +40,7 @@ KIND_ORDER = {"S": 0, "Q": 1, "U": 2}
 
 
 @dataclass(frozen=True)
-class Fitted:
+class DonorEstimate:
     """What a warm start reads of a fitted candidate: its estimates and training MSE (a fit whose statistics are
     still being computed has both already: the optimum of its best start)."""
 
@@ -49,7 +49,7 @@ class Fitted:
     failed: bool = False
 
     @classmethod
-    def of(cls, result: CandidateResult) -> "Fitted":
+    def of(cls, result: CandidateResult) -> "DonorEstimate":
         if result.failed:
             return cls({}, float("nan"), True)
         return cls(dict(result.estimates.params), result.mse_train)
@@ -91,7 +91,7 @@ def may_donate(d: Candidate, c: Candidate) -> bool:
         and set(d.state_parameters) <= set(c.state_parameters)
 
 
-def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, Fitted]]) -> dict[str, float] | None:
+def warm_start(c: Candidate, fitted: Sequence[tuple[Candidate, DonorEstimate]]) -> dict[str, float] | None:
     """Estimates of ``c``'s separation parameters from the fitted candidate that shares most of them (of
     the same coefficient, without a lift model; the lowest training MSE among equals), for those it has;
     None when no fitted candidate shares all of its own separation parameters with ``c``."""
@@ -140,7 +140,7 @@ def nested_start(c: Candidate, inner_params: Mapping[str, float]) -> dict[str, f
     return out
 
 
-def best_contained(c: Candidate, fitted: Sequence[tuple[Candidate, Fitted]]) -> dict[str, float] | None:
+def best_contained(c: Candidate, fitted: Sequence[tuple[Candidate, DonorEstimate]]) -> dict[str, float] | None:
     """The nested start (:func:`nested_start`) from the fitted structure contained in ``c`` with the lowest training
     MSE: a fit that also starts there never ends above it (issue 30: U/Q ended above the Q/Q it contains)."""
     if not _stageable(c):
