@@ -170,6 +170,7 @@ class Regressor:
     constants: tuple[str, ...]
     states: tuple[str, ...]
     derivatives: Mapping[str, sp.Expr] = field(default_factory=dict)
+    text: str = ""      # as declared (how equations write it); "": declared as a sympy expression
 
     @property
     def argnames(self) -> tuple[str, ...]:
@@ -250,4 +251,5 @@ def declare(name: str, text: str | sp.Expr, *, states: Iterable[str],
     return Regressor(name=name, expr=expr,
                      columns=tuple(c for c in columns if c in names),
                      constants=tuple(c for c in constants if c in names),
-                     states=used_states, derivatives=derivs)
+                     states=used_states, derivatives=derivs,
+                     text="" if isinstance(text, sp.Expr) else str(text).strip())

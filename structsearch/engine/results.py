@@ -17,6 +17,7 @@ from .scores import ManeuverScores
 if TYPE_CHECKING:
     import pandas
 
+    from .equations import Equations
     from .summary import FitSummary
 
 _ESTIMATE_FIELDS = frozenset(f.name for f in dataclasses.fields(ParameterEstimates))
@@ -60,13 +61,15 @@ class FitResult:
     # m x p matrix again. The factor is None when it could not be formed; neither is serialised
     covariance_basis: np.ndarray | None
     jacobian_inverse_factor: np.ndarray | None
+    # the model as equations (what summary() opens with); None: a problem fitted without a declared model
+    equations: Equations | None
 
     def __init__(self, model: str, coefficient: str | None, estimates: ParameterEstimates, residuals: np.ndarray,
                  segment_names: Sequence[str], segments: ManeuverScores, total_sst: float = float("nan"),
                  nfev: int = 0, njev: int = 0, message: str = "", converged: bool = True, n_starts: int = 1,
                  n_reached_best: int = 1, start: np.ndarray | None = None,
                  covariance_basis: np.ndarray | None = None, jacobian_inverse_factor: np.ndarray | None = None,
-                 **estimate_changes: Any):
+                 equations: Equations | None = None, **estimate_changes: Any):
         unknown = set(estimate_changes) - _ESTIMATE_FIELDS
         if unknown:
             raise TypeError(f"FitResult() got an unexpected keyword argument {sorted(unknown)[0]!r}")
@@ -78,7 +81,7 @@ class FitResult:
                             ("message", message), ("converged", converged), ("n_starts", n_starts),
                             ("n_reached_best", n_reached_best), ("start", start),
                             ("covariance_basis", covariance_basis),
-                            ("jacobian_inverse_factor", jacobian_inverse_factor)):
+                            ("jacobian_inverse_factor", jacobian_inverse_factor), ("equations", equations)):
             object.__setattr__(self, name, value)
 
     @property
@@ -192,7 +195,7 @@ class FitResult:
             ("starts reaching the best cost", f"{self.n_reached_best} of {self.n_starts}"),
             *covariance_head(self.estimates),
         )
-        return FitSummary(self.estimates, head)
+        return FitSummary(self.estimates, head, self.equations)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready dict (no arrays of samples)."""

@@ -13,14 +13,17 @@ start values and bounds may only name the model's nonlinear parameters.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Mapping, Sequence
 
 import numpy as np
+import sympy as sp
 
 from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
+from .equations import Equations, write_equations
 from .fit import fit_problem
 from .identifiability import SATURATION, collinear_with, join_names
 from .regressors import X_FLOOR, Regressor, declare
@@ -188,11 +191,21 @@ class StallModel:
         ``solved``: the solves from every start of :meth:`start_points` (with the same arguments), run
         elsewhere (:meth:`solve_from`, one task each): only the statistics are computed here."""
         problem, y, theta0, lower, upper, also = self._prepared(data, start, declared_too, more_starts)
-        return fit_problem(problem, y, boundaries=data.bounds, segment_names=data.names, start=theta0,
-                           lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
-                           covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev, also=also,
-                           model=self.name, coefficient=self.coefficient, source=data.source,
-                           flights=data.flights, starts=solved)
+        result = fit_problem(problem, y, boundaries=data.bounds, segment_names=data.names, start=theta0,
+                             lower=lower, upper=upper, n_starts=n_starts, seed=seed, n_jobs=n_jobs,
+                             covariance=covariance, max_lag=max_lag, tol=tol, max_nfev=max_nfev, also=also,
+                             model=self.name, coefficient=self.coefficient, source=data.source,
+                             flights=data.flights, starts=solved)
+        return dataclasses.replace(result, equations=self.equations())
+
+    def equations(self) -> Equations:
+        """The model as equations (:mod:`.equations`): the coefficient as its parameters times their regressors,
+        each state's equation (a state whose parameters are all fixed says so), the helpers it calls."""
+        regressors = [(r.name, r.text or sp.sstr(r.expr)) for r in self.regressors]
+        states = [(s.name, s.kind) for s in self.states]
+        fixed = all(p in self.fixed for s in self.states for p in s.parameters) and bool(self.states)
+        return write_equations(self.coefficient, regressors, states,
+                               state_note="  (its parameters fixed, not estimated here)" if fixed else "")
 
     def start_points(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
                      seed: int = 0, declared_too: bool = False,

@@ -135,11 +135,12 @@ def covariance_line(kind: str, max_lag, bandwidth) -> str:
 
 @dataclass(frozen=True, eq=False)
 class FitSummary:
-    """One summary of a fit: a head of (label, value) lines, the parameters with tests and flags, the strong
-    correlations and why a parameter is not identifiable. ``str()`` is the text; notebooks show the HTML."""
+    """One summary of a fit: the model as equations (where the fit knows its model), a head of (label, value)
+    lines, the parameters with tests and flags, the strong correlations and why a parameter is not identifiable. ``str()`` is the text; notebooks show the HTML."""
 
     fit: Any
     head: tuple[tuple[str, str], ...] = ()  # (label, value) lines; a label may repeat
+    equations: Any = None                   # the model's equations.Equations (None: a fit without a model)
 
     def render(self, fmt: str = "text") -> str:
         if fmt not in FORMATS:
@@ -148,7 +149,9 @@ class FitSummary:
             return parameter_table(self.fit, "csv", floatfmt=".6g")
         from tabulate import tabulate
         tablefmt = TABLEFMT.get(fmt, "simple")
-        parts = [tabulate([list(line) for line in self.head], tablefmt=tablefmt)] if self.head else []
+        parts = [self.equations.render(fmt)] if self.equations is not None and self.equations.text else []
+        if self.head:
+            parts.append(tabulate([list(line) for line in self.head], tablefmt=tablefmt))
         parts.append(parameter_table(self.fit, fmt, floatfmt=".6g").rstrip("\n"))
         if self.fit.high_correlations:
             corr = [[a, b, f"{c:+.3f}"] for a, b, c in self.fit.high_correlations]

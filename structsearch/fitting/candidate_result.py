@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from ..data.atomic import json_ready
+from ..engine.equations import Equations
 from ..engine.estimates import ParameterEstimates, WaldTest
 from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores, R2Summary
@@ -27,7 +28,7 @@ if TYPE_CHECKING:
 # 7: the parameters' estimates and covariance as one object (ParameterEstimates.to_dict); 8: the ranking's
 # fields as one placement; 9: the optimizer's account as one report; 10: a fit that did not converge withholds
 # its statistics (``ParameterEstimates.withheld``)
-JSON_LAYOUT = 10
+JSON_LAYOUT = 11
 
 
 def _nan_if_none(v) -> float:
@@ -143,6 +144,7 @@ class CandidateResult:
     cv_scheme: str = ""                 # how they were formed: .folds.SCHEMES ("": a result that does not say)
     cv_note: str = ""                   # in words, or why there is no cross-validation (cv None)
     placement: Placement | None = None  # its place in a ranking (None: not ranked)
+    equations: Equations | None = None  # the structure as equations (what summary() opens with)
 
     def __post_init__(self):
         rows = _rows(self.centred_correlation) if len(self.centred_correlation) else ()
@@ -162,7 +164,7 @@ class CandidateResult:
                                              result.n_starts, result.n_reached_best),
                    aic=result.aic, bic=result.bic,
                    train=train, validation=validation, cv=cv, cv_folds=cv_folds, cv_method=cv_method,
-                   cv_scheme=cv_scheme, cv_note=cv_note)
+                   cv_scheme=cv_scheme, cv_note=cv_note, equations=result.equations)
 
     @classmethod
     def failure(cls, *, name: str, grid: str, coefficient: str, lift: str | None, error: str,
@@ -231,7 +233,7 @@ class CandidateResult:
         p = self.placement
         if p is not None and p.rank is not None:
             head.append(("rank", f"{p.rank}" + ("" if p.admissible else " (not admissible)")))
-        return FitSummary(e, tuple(head))
+        return FitSummary(e, tuple(head), self.equations)
 
     # ----- scores ------------------------------------------------------------------------
     @property
@@ -262,6 +264,8 @@ class CandidateResult:
         doc["centred_correlation"] = [list(row) for row in self.centred_correlation]
         doc["placement"] = None if self.placement is None else self.placement.to_json()
         doc["optimizer"] = self.optimizer.to_json()
+        doc["equations"] = None if self.equations is None else {"text": list(self.equations.text),
+                                                                 "latex": list(self.equations.latex)}
         return json_ready(doc)
 
     @classmethod
@@ -280,4 +284,6 @@ class CandidateResult:
         values["optimizer"] = OptimizerReport(**values.get("optimizer", {}))
         if values.get("placement") is not None:
             values["placement"] = Placement.from_json(values["placement"])
+        if values.get("equations") is not None:
+            values["equations"] = Equations(tuple(values["equations"]["text"]), tuple(values["equations"]["latex"]))
         return cls(**values)
