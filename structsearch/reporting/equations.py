@@ -73,7 +73,8 @@ def helpers_used(c: Candidate) -> list[str]:
 def equations(c: Candidate, values: Mapping[str, float] | None = None) -> list[str]:
     """Every line that states ``c``: its model equation, its states' equations (a drag or pitch candidate's are
     its lift model's, with that model's fitted parameters) and the helpers it calls. With ``values`` (estimates
-    by parameter name), each parameter that has one is written as its value (4 significant digits)."""
+    by parameter name), each parameter that has one is written as its value (4 significant digits; a text value, such
+    as "(0.12 ± 0.01)", as it is)."""
     lines = [model_equation(c)]
     source = f"  (a state of the lift model {c.lift}, its parameters fixed at that model's fit)" if c.lift else ""
     lines += [state_equation(n, k) + source for n, k in c.states]
@@ -82,7 +83,11 @@ def equations(c: Candidate, values: Mapping[str, float] | None = None) -> list[s
     return lines + [f"where {m}" for m in helpers_used(c)]
 
 
-def _with_values(line: str, values: Mapping[str, float]) -> str:
+def _with_values(line: str, values: Mapping[str, float | str]) -> str:
+    """``line`` with each parameter written as its value: a number at 4 significant digits, a text (an estimate
+    with its uncertainty, as the report writes it) as it is."""
     for name in sorted(values, key=len, reverse=True):   # a1_ss before a1
-        line = re.sub(rf"(?<![\w.]){re.escape(name)}(?![\w(])", f"{float(values[name]):.4g}", line)
+        value = values[name]
+        text = value if isinstance(value, str) else f"{float(value):.4g}"
+        line = re.sub(rf"(?<![\w.]){re.escape(name)}(?![\w(])", lambda _m, t=text: t, line)
     return line.replace("+ -", "- ").replace("- -", "+ ")
