@@ -88,6 +88,9 @@ def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis 
         if diagnosis is not None and coef == diagnosed:
             parts.append("<ul class='gap'>" + "".join(f"<li>{html.escape(t)}</li>" for t in gap_story(diagnosis))
                          + "</ul>")
+        elif diagnosis is not None:   # one diagnosis per report: say where the others' gap stories come from
+            parts.append(f"<p class='source'>Gap story: not diagnosed in this report (structsearch report "
+                         f"--diagnose {coef}, or structsearch diagnose --model {html.escape(c.name)}).</p>")
         parts.append("</div>")
     return "".join(parts) + "</section>"
 

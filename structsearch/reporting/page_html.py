@@ -185,6 +185,14 @@ def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, st
     if diagnosis is not None:
         parts.append(f"<h2 id='diagnosis'>Diagnosis of {html.escape(diagnosis['baseline'])}</h2>"
                      + diagnosis_html(diagnosis))
+    parts += _comparison_html(vi, story, study, study_tables, rankings)
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def _comparison_html(vi, story, study: Path, study_tables, rankings) -> list[str]:
+    """The sections after the diagnosis: the Van Ingen comparison, the study's tables, the search's rankings."""
+    parts = []
     if vi is not None or story:
         parts.append("<h2 id='van-ingen'>Against Van Ingen's structures</h2>")
     if vi is not None:
@@ -195,7 +203,8 @@ def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, st
                      + ". An estimate on its bound means the structure fits these data best at the edge of its "
                        "physical range: a sign that it misses something the data contain.</p>")
     if story:
-        parts.append("<ul>" + "".join(f"<li>{_fold(line)}</li>" for line in story) + "</ul>"
+        parts.append("<h3>From Van Ingen's models to structures at the floor</h3><ul>"
+                     + "".join(f"<li>{_fold(line)}</li>" for line in story) + "</ul>"
                      "<p>Details: story.md (made by <code>structsearch demo</code>).</p>")
     if any(t for _, t in study_tables):
         parts.append("<h2 id='study'>The thesis' comparison tables (structsearch study)</h2><p>Markdown, LaTeX "
@@ -208,5 +217,4 @@ def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, st
         parts.append("<h2 id='rankings'>Search rankings (first ten of each grid)</h2><p>The columns that decide "
                      "the ranking; every column is in each grid's CSV.</p>")
         parts += [f"<h3>{grid}</h3>{t}" for grid, t in rankings if t]
-    parts.append("</body></html>")
-    return "\n".join(parts)
+    return parts
