@@ -102,9 +102,13 @@ def test_numbers_round_to_their_uncertainty():
 
 
 def test_no_doubled_words_or_minus_zero_in_figure_titles():
-    from structsearch.reporting.figures import after_move, gap_change_words
+    from structsearch.reporting.figures import after_move, gap_change_words, gap_titles
     assert after_move("add Cm_K21_ss = K2(X_ss, 1)") == "after add Cm_K21_ss = K2(X_ss, 1)"
     assert after_move("Cm_K21_ss") == "after adding Cm_K21_ss"
+    g = {"baseline": "Cm-X", "model": "Cm-X + add Cm_KS_ss = KS(X_ss)", "mse_before": 1.5e-4, "mse_after": 1.4e-4}
+    for title in gap_titles(g, "add Cm_KS_ss = KS(X_ss)") + gap_titles({**g, "model": "Cm-Y"}, "Cm_KS_ss"):
+        assert not re.search(r"\b(\w+) \1\b", title) and "adding add" not in title
+        assert title.count("add") <= 1
     before = np.array([[1.0, 2.0], [np.nan, 4.0]])
     for after in (before * (1 - 1e-4), before * (1 + 1e-4), before):
         words = gap_change_words(before, after)

@@ -189,6 +189,13 @@ def after_move(move: str) -> str:
     return f"after {move}" if move.lower().startswith(verbs) else f"after adding {move}"
 
 
+def gap_titles(g: dict, move: str) -> tuple[str, str]:
+    """The before and after panels' titles of the gap breakdown: the model after the move is named once (its name,
+    "Cm-X + add ...", already says the move: "after adding add ..." read twice)."""
+    after = f"after: {g['model']}" if move in g["model"] else f"{after_move(move)}: {g['model']}"
+    return f"before: {g['baseline']} (MSE {g['mse_before']:.3g})", f"{after} (MSE {g['mse_after']:.3g})"
+
+
 def gap_change_words(before: np.ndarray, after: np.ndarray) -> str:
     """The third panel's title: how much the move changes the cells, saying so when the two maps look alike."""
     change = after - before

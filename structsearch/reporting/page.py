@@ -215,8 +215,7 @@ def _diagnosis_figures(emit: Emit, campaign: Campaign, fits: ReportFits, ms: Mod
                        if diagnosis["gap_explained_by_baseline"] or not np.isfinite(closes)
                        else f"the move closes {share(closes)} of the baseline's gap")
             emit(fg.gap(g["before"], g["after"], g["maneuvers"], g["bands"],
-                        (f"before: {g['baseline']} (MSE {g['mse_before']:.3g})",
-                         f"{fg.after_move(best)}: {g['model']} (MSE {g['mse_after']:.3g})")),
+                        fg.gap_titles(g, best)),
                  "gap_breakdown.png", "Where the model misses the data",
                  f"Validation MSE of {diagnose_coefficient} per maneuver and alpha band ({rd.ALPHA_BAND} rad) before "
                  f"and after the best effect of the library, {best}, and the change (right; blue where the cell's MSE "

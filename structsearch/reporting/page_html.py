@@ -17,7 +17,7 @@ from .tables import render_table
 
 STYLE = """body{font-family:sans-serif;max-width:1100px;margin:1em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;font-size:12px;margin:0.5em 0 1.5em;max-width:100%;table-layout:auto}
-td,th{border:1px solid #ccc;padding:2px 6px;overflow-wrap:anywhere;word-break:break-word;vertical-align:top}
+td,th{border:1px solid #ccc;padding:2px 6px;vertical-align:top}td{overflow-wrap:anywhere}th{hyphens:auto}
 td.reason{max-width:28em}details summary{cursor:pointer;color:#0645ad}
 figure{margin:1.5em 0}img{max-width:100%}figcaption{font-size:13px;color:#444}.note{color:#8a5a00}
 h1{margin:0.2em 0}.summary td,.summary th{font-size:14px;padding:3px 10px}.summary .name{font-weight:bold}
@@ -159,7 +159,7 @@ def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, st
                 for grid in ("separation", "lift", "drag", "pitch")]
     if any(t for _, t in rankings):
         sections.append(("rankings", "Search rankings"))
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>structsearch report: "
+    parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>structsearch report: "
              f"{html.escape(campaign.name)}</title><style>{STYLE}</style></head><body>",
              f"<h1>{html.escape(campaign.name)}: identified models</h1>",
              summary_html(fits.answers),
