@@ -165,3 +165,23 @@ def test_a_refined_spec_round_trips_and_a_tampered_one_is_refused(tmp_path):
     (tmp_path / "search_manifest.json").unlink()   # no manifest: the file is still parsed, never evaluated
     with pytest.raises(StructSearchError, match="refined_pitch.toml"):
         load_refined(tmp_path)
+
+
+@pytest.mark.slow
+def test_a_report_after_a_search_opens_with_its_winners(tmp_path):
+    """End to end: simulate, search every grid, report; the first screen names each grid's rank-1 structure (on a
+    small campaign they are refined ones and not the thesis' finals) and the refined ones resolve as themselves."""
+    import csv
+    from test_report_cli import run_cli
+    data, out = tmp_path / "c", tmp_path / "out"
+    assert run_cli("simulate", "--out", str(data), "--seed", "3", "--scale", "0.05").returncode == 0
+    proc = run_cli("search", "--data", str(data), "--grid", "all", "--starts", "1", "--out", str(out), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    winners = {r["grid"]: r["model"] for r in csv.DictReader((out / "ranking.csv").open()) if r["rank"] == "1"}
+    proc = run_cli("report", "--data", str(data), "--out", str(out), "--starts", "1", "--diagnose", "none",
+                   "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    first = visible_text((out / "report.html").read_text())[:1000]
+    for grid in ("lift", "drag", "pitch"):
+        assert winners[grid] in first, (grid, winners[grid], first)
+    assert "the report shows the final structures" not in proc.stdout
