@@ -2,7 +2,8 @@
 
 The models are the winners of the user's search (:mod:`.choice`); the Van
 Ingen structures (CL-I, CD-I, Cm-I) are fitted beside them for comparison.
-The page opens with the answer (:mod:`.answer`); :mod:`.page_html` writes it. This module only chooses and draws: :func:`structsearch.api.report`
+The page opens with the answer (:mod:`.answer`); :mod:`.page_html` writes it.
+This module only draws: :func:`structsearch.api.report`
 fits (through the runner's cache, so after ``structsearch demo`` it refits
 nothing already fitted) and hands the fits to :func:`build`.
 """
