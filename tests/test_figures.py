@@ -34,7 +34,9 @@ def small(tmp_path_factory):
 @pytest.fixture(scope="module")
 def report_run(small, tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
-    proc = run_cli("report", "--data", str(small.directory), "--out", str(out), "--starts", "2", "--quiet")
+    # the thesis' final structures named (no search ranking: the report would run the search first)
+    proc = run_cli("report", "--data", str(small.directory), "--out", str(out), "--starts", "2", "--quiet",
+                   *(arg for name in FINAL_MODEL_NAMES.values() for arg in ("--model", name)))
     return proc, out
 
 
@@ -70,8 +72,8 @@ def test_html_is_self_contained_with_captions(report_run):
     assert all(base64.b64decode(i)[:8] == b"\x89PNG\r\n\x1a\n" for i in images)
     assert page.count("<figcaption>") == len(FIGURES)
     assert "http://" not in page and "https://" not in page
-    # no ranking.csv in the output directory: the final structures, and the page says so
-    assert "CL-VI" in page and "Cm-XXXIIIr" in page and "final structures" in page
+    # the final structures named on the command line, and the page says so
+    assert "CL-VI" in page and "Cm-XXXIIIr" in page and "named on the command line" in page
     assert "<table>" in page
     # the static curves carry their bands, and the captions say which (issue 29)
     assert page.count("95 % confidence band (where the true static curve lies") == 2
@@ -147,16 +149,29 @@ def test_core_imports_without_matplotlib():
 
 
 def test_report_models_come_from_the_ranking_or_the_command_line(tmp_path):
-    from structsearch.reporting.page import chosen_models
-    names, notes = chosen_models(tmp_path)
-    assert names == FINAL_MODEL_NAMES and "final structures" in notes[0]
+    """Issue 43: a refined winner is shown as itself (read back from refined_<grid>.toml), never swapped for the
+    thesis' final structures; a drag or pitch winner on another lift model keeps it."""
+    from structsearch.reporting.choice import chosen_models
+    from structsearch.reporting.refined import write_refined
+    from structsearch.grid_search.refinement import _refined
+    from structsearch.fitting.specs import find_candidate
+    choice = chosen_models(tmp_path)
+    assert choice.names == FINAL_MODEL_NAMES and "final structures" in choice.notes[0]
     (tmp_path / "ranking.csv").write_text("grid,model,rank\nlift,CL-VI,1\ndrag,CD-IX,1\npitch,Cm-XXXIr-auto,1\n"
                                           "pitch,Cm-XXXI,2\n")
-    names, notes = chosen_models(tmp_path)
-    assert names == {"CL": "CL-VI", "CD": "CD-IX", "Cm": "Cm-XXXIIIr"}
-    assert "Cm-XXXIr-auto" in notes[0]
-    names, _ = chosen_models(tmp_path, ("Cm-XXXI",))
-    assert names == {"CL": "CL-VI", "CD": "CD-IXr", "Cm": "Cm-XXXI"}
+    with pytest.raises(Exception, match="refined_<grid>.toml"):
+        chosen_models(tmp_path)
+    refined = _refined(find_candidate("Cm-XXXI"), ["Cm_qstar"], "r-auto")
+    write_refined(tmp_path, {"pitch": [refined]})
+    choice = chosen_models(tmp_path)
+    assert {k: c.name for k, c in choice.winners.items()} == {"CL": "CL-VI", "CD": "CD-IX", "Cm": "Cm-XXXIr-auto"}
+    assert choice.winners["Cm"] == refined and choice.shown == choice.winners
+    assert chosen_models(tmp_path, ("Cm-XXXI",)).names == {"CL": "CL-VI", "CD": "CD-IX", "Cm": "Cm-XXXI"}
+    (tmp_path / "ranking.csv").write_text("grid,model,rank\nlift,CL-II,1\ndrag,CD-IX,1\npitch,Cm-XXXIr-auto,1\n")
+    choice = chosen_models(tmp_path)
+    assert choice.winners["CL"].name == "CL-II" and choice.shown["CL"].name == "CL-VI"
+    assert choice.winners["CD"].name == "CD-IX" and choice.lifts["Cm"].name == "CL-VI"
+    assert any("takes its separation states from CL-VI" in n for n in choice.notes)
 
 
 def test_a_ranking_without_its_columns_is_one_clear_error(small, tmp_path):

@@ -172,7 +172,7 @@ def test_report_renders_for_a_campaign_without_x_cg(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "x_cg" not in (data / "campaign.toml").read_text() and "x_cg" not in (data / "m01.csv").open().readline()
     proc = run_cli("report", "--data", str(data), "--out", str(tmp_path / "r"), "--diagnose", "none",
-                   "--starts", "1")
+                   "--starts", "1", "--model", "Cm-XXXIIIr")
     assert proc.returncode == 0, proc.stderr
     page = (tmp_path / "r" / "report.html").read_text()
     assert "Cm-XXXIIIr needs x_cg, which the campaign does not have" in page

@@ -1,5 +1,6 @@
 """Structure search: grids from rules, runner (parallel, cached, resumable), ranking, refinement, CLI."""
 import csv
+import re
 import dataclasses
 import json
 
@@ -385,7 +386,14 @@ def test_cli_demo_small(tmp_path):
     assert "the Van Ingen model CL-I" in proc.stdout and "misses the flight data" in proc.stdout
     assert "the Van Ingen model Cm-I" in (tmp_path / "story.md").read_text()
     page = (tmp_path / "report.html").read_text()
-    assert page.index("From Van Ingen's models to structures at the floor") < page.index("<h2>Figures</h2>")
+    assert "From Van Ingen's models to structures at the floor" in page
+    # issue 43: the first screen is the answer, the search's winner of each coefficient with its validation R^2
+    from test_report_page import visible_text
+    first = visible_text(page)[:1000]
+    winners = {r["grid"]: r["model"] for r in csv.DictReader((tmp_path / "ranking.csv").open()) if r["rank"] == "1"}
+    for grid in ("lift", "drag", "pitch"):
+        assert winners[grid] in first
+    assert first.count("validation R^2") >= 1 and re.search(r"CL-\S+ \d\.\d+", first)
 
 
 def test_unknown_model_name_is_one_line_error(tiny):

@@ -173,7 +173,18 @@ def write_search_tables(ranking: Ranking, campaign: Campaign, out: Path) -> list
     """``ranking.csv`` and each grid's tables (with the thesis-estimator refits of the final models)."""
     from ..reporting.tables import write_tables
     from ..thesis_study.thesis_estimator import thesis_estimator_fits
-    return write_tables(ranking.grids, out, thesis_estimator_fits(ranking.grids, campaign))
+    return write_tables(ranking.grids, out, thesis_estimator_fits(ranking.grids, campaign), refined_structures(ranking))
+
+
+def refined_structures(ranking: Ranking) -> dict[str, list]:
+    """Per grid the structures its refinements reached that are no declared candidate (their "-auto" names are
+    in ``ranking.csv``; the report reads them back from ``refined_<grid>.toml``)."""
+    out: dict[str, list] = {}
+    for grid, done in ranking.refinements.items():
+        seen = out.setdefault(grid, [])
+        for r in done:
+            seen += [c for c, _ in r.steps if c.name not in r.reached and c not in seen]
+    return {g: cs for g, cs in out.items() if cs}
 
 
 def diagnose(campaign: Campaign | str | os.PathLike, model: str, *, settings: Settings = Settings(),

@@ -1,5 +1,8 @@
-"""``report``: the fits a campaign report shows (the identified and the Van Ingen model sets, a diagnosis and its
-best effect), then the page (:func:`structsearch.reporting.page.build`, which fits nothing)."""
+"""``report``: the fits a campaign report shows (the structures the user's search ranked first, fitted as a
+consistent set for the figures and each on its own lift model for the answer; the Van Ingen model set; a
+diagnosis and its best effect), then the page (:func:`structsearch.reporting.page.build`, which fits nothing).
+With neither a search ranking in the output directory nor ``models``, the report runs the search first (with its
+own settings) so that what it shows is the winners on this campaign, never the thesis' structures by default."""
 from __future__ import annotations
 
 import os
@@ -9,26 +12,29 @@ from pathlib import Path
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..fitting.fitter import Fitter
+from ..fitting.lift_fit import LiftFit
 from ..fitting.options import check_box_names
-from .commands import as_campaign, search_candidates
+from .commands import as_campaign, search, search_candidates
 from .settings import Settings, command_fitter, fit_options
 from .results import ReportOutcome
 
 
-def fit_report_models(fitter: Fitter, out: Path, *, diagnose: str | None = "Cm", models: tuple[str, ...] = ()):
+def fit_report_models(fitter: Fitter, out: Path, *, diagnose: str | None = "Cm", models: tuple[str, ...] = (),
+                      searched: str | None = None):
     """The :class:`~structsearch.reporting.page.ReportFits` of a report in ``out`` (the search's winners in
     ``out/ranking.csv`` or ``models``; fitted with ``fitter``)."""
     from ..diagnosis.diagnose import diagnose as run_diagnosis
     from ..flight.reference import VAN_INGEN_MODEL_NAMES
-    from ..reporting.page import ReportFits, applicable_models, best_effect, chosen_models
+    from ..reporting.page import ReportFits, best_effect
+    from ..reporting.choice import chosen_models
     from ..thesis_study.model_set import fit_model_set, fit_with_effect
     say, campaign = fitter.say, fitter.campaign
     quiet = fitter.quiet()
-    names, notes = chosen_models(out, models)
-    names, more = applicable_models(names, campaign)
-    notes += more
-    say(f"report: fitting {', '.join(names.values())} and the Van Ingen structures")
-    identified = fit_model_set("identified", names, quiet)
+    choice = chosen_models(out, models, searched, campaign)
+    notes = list(choice.notes)
+    say(f"report: fitting {', '.join(c.name for c in choice.shown.values())} and the Van Ingen structures")
+    identified = fit_model_set("identified", choice.shown, quiet)
+    answers = answer_fits(quiet, choice, identified)
     try:
         van_ingen = fit_model_set("Van Ingen", VAN_INGEN_MODEL_NAMES, quiet)
     except (DeclarationError, DataError) as exc:  # e.g. a column the campaign lacks
@@ -36,13 +42,35 @@ def fit_report_models(fitter: Fitter, out: Path, *, diagnose: str | None = "Cm",
         notes.append(f"The Van Ingen comparison is left out: {exc}")
     diagnosis = effect = None
     if diagnose:
-        say(f"report: diagnosing {names[diagnose]}")
+        say(f"report: diagnosing {choice.shown[diagnose].name}")
         # the report's own options (not the diagnose command's): its cache serves the baseline fitted above
         diagnosis = run_diagnosis(quiet, identified.candidates[diagnose], max_rounds=1, states=False)
         best = best_effect(diagnosis)
         if best is not None:
             effect = (best, *fit_with_effect(identified, diagnose, best, quiet))
-    return ReportFits(names, tuple(notes), identified, van_ingen, diagnose, diagnosis, effect)
+    return ReportFits(choice.names, tuple(notes), identified, van_ingen, diagnose, diagnosis, effect,
+                      answers=answers, source=choice.source)
+
+
+def answer_fits(fitter: Fitter, choice, identified) -> dict:
+    """Each coefficient's winner with its fit and the lift fit whose states it reads: (candidate, result, lift)
+    (lift None for the lift winner). A winner the figures' set holds is not fitted again."""
+    out = {}
+    for coef, c in choice.winners.items():
+        if identified.candidates[coef] == c:
+            out[coef] = (c, identified.summaries[coef], None if coef == "CL" else identified.lift)
+            continue
+        if coef == "CL":
+            result, lift = fitter.fit_one(c), None
+        else:
+            lift_c = choice.lifts[coef]
+            lift = (identified.lift if identified.candidates["CL"] == lift_c
+                    else LiftFit(lift_c, fitter.fit_one(lift_c)))
+            result = fitter.with_lifts({lift_c.name: lift}).fit_one(c)
+        if result.failed:
+            raise DeclarationError(f"report: fitting {c.name} failed: {result.error}")
+        out[coef] = (c, result, lift)
+    return out
 
 
 def report(campaign: Campaign | str | os.PathLike, out: str | os.PathLike = "results", *,
@@ -50,6 +78,7 @@ def report(campaign: Campaign | str | os.PathLike, out: str | os.PathLike = "res
            story: list[str] | None = None) -> ReportOutcome:
     """Figures and one self-contained HTML page for a campaign, as ``structsearch report`` writes them in
     ``out`` (``diagnose=None``: no gap breakdown); fits are cached under ``settings.cache`` (default ``out``).
+    Without ``out/ranking.csv`` and ``models``, the search runs first (writing its ranking to ``out``).
     Needs matplotlib."""
     from ..reporting.page import build, require_figures
     started = time.perf_counter()
@@ -58,7 +87,11 @@ def report(campaign: Campaign | str | os.PathLike, out: str | os.PathLike = "res
     check_box_names(options.parameter_boxes, search_candidates("all"))
     require_figures()
     out = Path(out)
+    searched = None
+    if not models and not (out / "ranking.csv").exists():
+        search(campaign, "all", settings=settings, out=out)
+        searched = f"ranked first by the search this report ran (its settings; ranking in {out / 'ranking.csv'})"
     with command_fitter("report", campaign, settings, out) as fitter:
-        fits = fit_report_models(fitter, out, diagnose=diagnose, models=tuple(models))
+        fits = fit_report_models(fitter, out, diagnose=diagnose, models=tuple(models), searched=searched)
     res = build(campaign, out, fits, options=options, story=story)
     return ReportOutcome(res["html"], res["figures"], res["notes"], time.perf_counter() - started)

@@ -1,7 +1,8 @@
-"""A structure written as a model spec file (``model_specs/`` format) that ``fit`` and ``search`` accept."""
+"""Structures written as a model spec file (``model_specs/`` format) that ``fit`` and ``search`` accept."""
 from __future__ import annotations
 
 import json
+from typing import Sequence
 
 from ..fitting.candidates import Candidate
 
@@ -16,7 +17,24 @@ def spec_text(c: Candidate, note: str = "") -> str:
              f"prefix = {_q(c.coefficient + '-')}"]
     if c.lift:
         lines.append(f"lift = {_q(c.lift)}")
-    lines += ["", "[[entry]]", f"name = {_q(c.name)}"]
+    return "\n".join(lines + [""] + _entry_lines(c)) + "\n"
+
+
+def grid_text(candidates: Sequence[Candidate], note: str) -> str:
+    """Candidates of one grid (one coefficient) as a grid file of one entry each, in order: what
+    :func:`structsearch.fitting.specs.load_grid` reads back into the same candidates."""
+    first = candidates[0]
+    if any(c.coefficient != first.coefficient or c.grid != first.grid for c in candidates):
+        raise ValueError("grid_text: the candidates of one grid file share their grid and coefficient")
+    lines = [f"# {note}", f"name = {_q(first.grid)}", f"coefficient = {_q(first.coefficient)}",
+             f"prefix = {_q(first.coefficient + '-')}"]
+    for c in candidates:
+        lines += [""] + _entry_lines(c)
+    return "\n".join(lines) + "\n"
+
+
+def _entry_lines(c: Candidate) -> list[str]:
+    lines = ["[[entry]]", f"name = {_q(c.name)}"]
     if c.note:
         lines.append(f"note = {_q(c.note)}")
     if c.lift:
@@ -26,4 +44,4 @@ def spec_text(c: Candidate, note: str = "") -> str:
         lines.append("states = { " + ", ".join(f"{_q(n)} = {_q(k)}" for n, k in c.states) + " }")
         if c.bounds:
             lines.append("bounds = { " + ", ".join(f"{_q(n)} = [{lo!r}, {hi!r}]" for n, (lo, hi) in c.bounds) + " }")
-    return "\n".join(lines) + "\n"
+    return lines

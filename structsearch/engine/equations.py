@@ -101,10 +101,13 @@ def helpers_used(texts: Sequence[str]) -> list[str]:
     return [meaning for helper, meaning in HELPER_MEANINGS.items() if re.search(rf"\b{helper}\(", joined)]
 
 
-def with_values(line: str, values: Mapping[str, float]) -> str:
-    """``line`` with each parameter that has a value in ``values`` written as it (4 significant digits)."""
+def with_values(line: str, values: Mapping[str, float | str]) -> str:
+    """``line`` with each parameter that has a value in ``values`` written as it: a number at 4 significant
+    digits, a text (an estimate with its uncertainty, as the report writes it: "(0.12 ± 0.01)") as it is."""
     for name in sorted(values, key=len, reverse=True):   # a1_ss before a1
-        line = re.sub(rf"(?<![\w.]){re.escape(name)}(?![\w(])", f"{float(values[name]):.4g}", line)
+        value = values[name]
+        text = value if isinstance(value, str) else f"{float(value):.4g}"
+        line = re.sub(rf"(?<![\w.]){re.escape(name)}(?![\w(])", lambda _m, t=text: t, line)
     return line.replace("+ -", "- ").replace("- -", "+ ")
 
 
@@ -149,7 +152,7 @@ def latex_state(name: str, kind: str) -> str:
 
 
 def write_equations(coefficient: str, regressors: Sequence[tuple[str, str]], states: Sequence[tuple[str, str]],
-                    *, state_note: str = "", values: Mapping[str, float] | None = None) -> Equations:
+                    *, state_note: str = "", values: Mapping[str, float | str] | None = None) -> Equations:
     """The :class:`Equations` of a model of ``coefficient`` with ``regressors`` ((name, text) pairs) and
     ``states`` ((name, kind) pairs); ``state_note`` follows each state's text line (where its parameters come
     from); with ``values`` each parameter that has one is written as its value in the text lines."""

@@ -28,10 +28,11 @@ def _state_note(c: Candidate) -> str:
     return f"  (a state of the lift model {c.lift}, its parameters fixed at that model's fit)" if c.lift else ""
 
 
-def equations(c: Candidate, values: Mapping[str, float] | None = None) -> list[str]:
+def equations(c: Candidate, values: Mapping[str, float | str] | None = None) -> list[str]:
     """Every line that states ``c``: its model equation, its states' equations (a drag or pitch candidate's are
     its lift model's, with that model's fitted parameters) and the helpers it calls. With ``values`` (estimates
-    by parameter name), each parameter that has one is written as its value (4 significant digits)."""
+    by parameter name), each parameter that has one is written as its value (4 significant digits; a text value, such
+    as "(0.12 ± 0.01)", as it is)."""
     return list(write_equations(c.coefficient, c.regressors, c.states, state_note=_state_note(c),
                                 values=values).text)
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..data.errors import StructSearchError
 from ..data.atomic import write_bytes
+from .numbers import share
 
 try:
     import matplotlib
@@ -181,6 +182,20 @@ def correlations(summaries: dict):
 LITTLE_CHANGE = 0.05
 
 
+def after_move(move: str) -> str:
+    """ "after <move>" in words: a move's label starts with its verb ("add Cm_K21_ss = ..."), an effect's name
+    does not ("after adding Cm_K21_ss"), so that no title reads "after adding add"."""
+    verbs = ("add ", "drop ", "replace ", "make ", "remove ")
+    return f"after {move}" if move.lower().startswith(verbs) else f"after adding {move}"
+
+
+def gap_titles(g: dict, move: str) -> tuple[str, str]:
+    """The before and after panels' titles of the gap breakdown: the model after the move is named once (its name,
+    "Cm-X + add ...", already says the move: "after adding add ..." read twice)."""
+    after = f"after: {g['model']}" if move in g["model"] else f"{after_move(move)}: {g['model']}"
+    return f"before: {g['baseline']} (MSE {g['mse_before']:.3g})", f"{after} (MSE {g['mse_after']:.3g})"
+
+
 def gap_change_words(before: np.ndarray, after: np.ndarray) -> str:
     """The third panel's title: how much the move changes the cells, saying so when the two maps look alike."""
     change = after - before
@@ -190,7 +205,7 @@ def gap_change_words(before: np.ndarray, after: np.ndarray) -> str:
         return "change (after - before): none to show"
     largest = float(np.max(np.abs(change[finite])) / scale)
     total = float(np.nansum(change) / np.nansum(before)) if np.nansum(before) > 0 else np.nan
-    words = f"change (after - before): MSE summed over cells {total:+.0%}"
+    words = f"change (after - before): MSE summed over cells {share(total, signed=True)}"
     if largest < LITTLE_CHANGE:
         words += f";\nlittle changes (every cell by < {LITTLE_CHANGE:.0%} of the largest): the two maps look alike"
     return words

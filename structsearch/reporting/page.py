@@ -1,19 +1,16 @@
 """``structsearch report``: PNG figures and one self-contained HTML page for a campaign.
 
-The models are the winners of a search written to the output directory
-(``ranking.csv``) when their names resolve, else the thesis' final structures;
-the Van Ingen structures (CL-I, CD-I, Cm-I) are fitted beside them for
-comparison. This module only chooses and draws: :func:`structsearch.api.report`
+The models are the winners of the user's search (:mod:`.choice`); the Van
+Ingen structures (CL-I, CD-I, Cm-I) are fitted beside them for comparison.
+The page opens with the answer (:mod:`.answer`); :mod:`.page_html` writes it.
+This module only draws: :func:`structsearch.api.report`
 fits (through the runner's cache, so after ``structsearch demo`` it refits
 nothing already fitted) and hands the fits to :func:`build`.
 """
 from __future__ import annotations
 
-import base64
-import csv
-import html
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -21,22 +18,19 @@ import numpy as np
 
 from . import figures as fg
 from . import figure_data as rd
-from ..data.manifest import check_set
 from ..data.campaign import Campaign
-from ..data.errors import DataError, DeclarationError
+from ..data.errors import DataError
 from ..data.atomic import write_text
-from .tables import parameter_table, render_table
+from .numbers import share
+from .page_html import render_html
 from .diagnosis_doc import unexplained_sentence
-from ..diagnosis.results import Diagnosis
-from ..flight.reference import FINAL_MODEL_NAMES, VAN_INGEN_MODEL_NAMES
+from ..flight.reference import VAN_INGEN_MODEL_NAMES
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.bands import static_bands
 from ..fitting.options import FitOptions
 from ..thesis_study.model_set import ModelSet
-from ..fitting.specs import find_candidate
 
-GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
 # What draws a figure onto the page: emit(figure, file, title, caption) saves it and lists it.
 Emit = Callable[[Any, str, str, str], None]
 
@@ -46,73 +40,6 @@ class Figure:
     file: str
     title: str
     caption: str
-
-
-def chosen_models(out: Path, overrides: tuple[str, ...] = ()) -> tuple[dict[str, str], list[str]]:
-    """Rank-1 lift, drag and pitch models of ``out/ranking.csv`` where they resolve, else the final ones;
-    ``overrides`` (model names) replace the model of their coefficient."""
-    names, notes = dict(FINAL_MODEL_NAMES), []
-    if overrides:
-        names.update({find_candidate(n).coefficient: find_candidate(n).name for n in overrides})
-        return names, [f"Models chosen on the command line: {', '.join(overrides)}."]
-    path = out / "ranking.csv"
-    if not path.exists():
-        notes.append(f"No {path}: the thesis' final structures are shown (run a search to rank your own).")
-        return names, notes
-    check_set(out, "search", "ranking.csv")
-    with path.open(newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
-        missing = [c for c in ("grid", "model", "rank") if c not in (reader.fieldnames or ())]
-        if missing:
-            raise DataError("a search ranking needs this column", source=str(path), column=missing[0], row=1)
-        firsts = {row["grid"]: row["model"] for row in reader if row["rank"] == "1"}
-    for coef, grid in GRIDS.items():
-        if grid not in firsts:
-            continue
-        try:
-            find_candidate(firsts[grid])
-            names[coef] = firsts[grid]
-        except DeclarationError:
-            notes.append(f"The {grid} winner {firsts[grid]} is an automatic refinement that is not in the shipped "
-                         f"grids; the report shows {names[coef]} instead.")
-    lifts = {find_candidate(names[c]).lift for c in ("CD", "Cm")}
-    if lifts != {names["CL"]}:
-        notes.append(f"The drag and pitch winners take their states from {', '.join(sorted(lifts))}, not from the "
-                     f"lift winner {names['CL']}; the report shows the final structures.")
-        names = dict(FINAL_MODEL_NAMES)
-    return names, notes
-
-
-def missing_columns(candidate, campaign: Campaign) -> list[str]:
-    """Data columns a candidate's regressors read that the campaign lacks (x_cg, for one)."""
-    from ..engine.regressors import symbol_names
-    have = set(campaign.data.columns) | set(campaign.data.constants)
-    used = {n for _, text in candidate.regressors for n in symbol_names(text)}
-    states = {n for n in used if n == "X" or n.startswith("X_")}
-    return sorted(used - states - have)
-
-
-def applicable_models(names: dict[str, str], campaign: Campaign) -> tuple[dict[str, str], list[str]]:
-    """``names`` with every model that needs a column the campaign lacks replaced by the first structure of
-    its grid that needs none (and takes its states from the same lift model), with a note each."""
-    from ..fitting.specs import load_grid
-    out, notes = dict(names), []
-    for coef, name in names.items():
-        missing = missing_columns(find_candidate(name), campaign)
-        if not missing:
-            continue
-        grid = load_grid(GRIDS[coef], load_grid("lift")) if coef != "CL" else load_grid("lift")
-        lift = find_candidate(names["CL"]).name if coef != "CL" else None
-        substitute = next((c.name for c in grid.candidates
-                           if not missing_columns(c, campaign) and (lift is None or c.lift == lift)), None)
-        if substitute is None:
-            raise DataError(f"no {GRIDS[coef]} structure can be shown: {name} needs column {missing[0]} and every "
-                            "other one needs a column the campaign lacks too", source=str(campaign.directory),
-                            column=missing[0])
-        out[coef] = substitute
-        notes.append(f"{name} needs {', '.join(missing)}, which the campaign does not have; the report shows "
-                     f"{substitute}, the first {GRIDS[coef]} structure that does not.")
-    return out, notes
 
 
 def best_effect(diagnosis) -> str | None:
@@ -134,6 +61,9 @@ class ReportFits:
     diagnosis_coefficient: str | None = None
     diagnosis: Any = None                      # the diagnosis (dict or typed) of diagnosis_coefficient's model
     effect: tuple[str, Candidate, CandidateResult] | None = None  # (best effect, model with it, its fit)
+    # per coefficient the structure the page answers with: (candidate, its fit, the LiftFit whose states it reads)
+    answers: Mapping[str, tuple] = field(default_factory=dict)
+    source: str = ""                           # where the answers come from, in words
 
 
 def require_figures() -> None:
@@ -163,10 +93,20 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
     hyst = _dynamic_figures(emit, campaign, names, ms, train, val, ref, options)
     diagnosis = _diagnosis_figures(emit, campaign, fits, ms)
     _replay_figure(emit, campaign, ms, hyst, notes)
-    page = render_html(campaign, out, names, ms, vi, written, notes, diagnosis, story)
+    fits = fits if fits.answers else _with_answers(fits)
+    page = render_html(campaign, out, fits, ms, vi, written, notes, diagnosis, story)
     write_text(out / "report.html", page)
     return {"html": out / "report.html", "figures": [fig_dir / f.file for f in written], "notes": notes,
             "seconds": time.perf_counter() - t0}
+
+
+def _with_answers(fits: ReportFits) -> ReportFits:
+    """``fits`` answering with the figures' set (a caller that fitted no separate answers)."""
+    import dataclasses
+    ms = fits.identified
+    answers = {coef: (ms.candidates[coef], ms.summaries[coef], None if coef == "CL" else ms.lift)
+               for coef in ("CL", "CD", "Cm")}
+    return dataclasses.replace(fits, answers=answers, source=fits.source or "shown in the figures")
 
 
 def _static_figures(emit: Emit, campaign: Campaign, names: Mapping[str, str], ms: ModelSet, vi: ModelSet | None,
@@ -274,10 +214,9 @@ def _diagnosis_figures(emit: Emit, campaign: Campaign, fits: ReportFits, ms: Mod
             closes = fits.diagnosis.closes(0, row)
             verdict = ("the baseline is at the noise floor, so little changes"
                        if diagnosis["gap_explained_by_baseline"] or not np.isfinite(closes)
-                       else f"the move closes {closes:.0%} of the baseline's gap")
+                       else f"the move closes {share(closes)} of the baseline's gap")
             emit(fg.gap(g["before"], g["after"], g["maneuvers"], g["bands"],
-                        (f"before: {g['baseline']} (MSE {g['mse_before']:.3g})",
-                         f"after adding {best}: {g['model']} (MSE {g['mse_after']:.3g})")),
+                        fg.gap_titles(g, best)),
                  "gap_breakdown.png", "Where the model misses the data",
                  f"Validation MSE of {diagnose_coefficient} per maneuver and alpha band ({rd.ALPHA_BAND} rad) before "
                  f"and after the best effect of the library, {best}, and the change (right; blue where the cell's MSE "
@@ -307,43 +246,6 @@ def _replay_figure(emit: Emit, campaign: Campaign, ms: ModelSet, hyst: dict, not
         notes.append(f"No forward simulation: {exc}")
 
 
-def _or_nan(x):
-    return float("nan") if x is None else x
-
-
-def _image(path: Path) -> str:
-    return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode("ascii")
-
-
-# The study's tables the page shows (stem -> title).
-STUDY_TABLES = {"legacy_vs_snls": "The legacy estimator against SNLS (Table 7)",
-                "final_vs_van_ingen": "Final models against Van Ingen's refitted (Tables 17, 11.1)",
-                "final_vs_van_ingen_published": "Final lift model against Van Ingen's as published",
-                "dynamic_stalls": "CL-VI with and without the dynamic stalls (Tables 10.1-10.3)",
-                "separation_matrix": "Separation kinds, training MSE (Table 8)",
-                "derived": "Derived quantities", "collinearity": "Collinearity of the lift regressors",
-                "joint_vs_sequential": "The final models fitted jointly against sequentially (MSE)",
-                "joint_vs_sequential_parameters": "Their parameters and standard deviations, joint and sequential"}
-
-
-def _ranking_table(out: Path, grid: str, top: int = 10) -> str | None:
-    path = out / f"{grid}.csv"
-    if not path.exists():
-        return None
-    with path.open(newline="", encoding="utf-8") as fh:
-        rows = [r for r in csv.reader(fh) if r and not r[0].startswith("# command:")]
-    if len(rows) < 2:
-        return None
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in rows[0])
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(v)}</td>" for v in r) + "</tr>" for r in rows[1:top + 1])
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
-
-
-STYLE = """body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
-table{border-collapse:collapse;font-size:12px;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:2px 6px}
-figure{margin:1.5em 0}img{max-width:100%}figcaption{font-size:13px;color:#444}.note{color:#8a5a00}"""
-
-
 # share of the corrected points on one side of a comparison curve beyond which the figure says why
 OFFSET_SHARE = 0.9
 
@@ -365,60 +267,3 @@ def offset_note(coef: str, alpha, static_vi, points, model: str, van_ingen: str)
             f"{model}'s terms. In trimmed flight delta_e follows alpha,\nso {van_ingen}'s elevator term carries "
             f"part of its alpha slope and its delta_e = 0 curve is offset:\nthe offset is in the condition "
             f"drawn, not in the fit to the flown data (its validation MSE is in the ranking).")
-
-
-def render_html(campaign: Campaign, out: Path, names, ms, vi, written, notes, diagnosis, story=None) -> str:
-    d = campaign.data
-    n_val = sum(m.split == "validation" for m in campaign.maneuvers)
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>structsearch report: "
-             f"{html.escape(campaign.name)}</title><style>{STYLE}</style></head><body>",
-             f"<h1>{html.escape(campaign.name)}</h1>",
-             f"<p>{len(campaign.maneuvers)} maneuvers ({n_val} validation), {d.n_samples} samples. Models: "
-             + ", ".join(f"{c} {html.escape(n)}" for c, n in names.items()) + ".</p>"]
-    if story:
-        parts.append("<h2>From Van Ingen's models to structures at the floor</h2><ul>"
-                     + "".join(f"<li>{html.escape(line)}</li>" for line in story) + "</ul>"
-                     "<p>Details: story.md (made by <code>structsearch demo</code>).</p>")
-    parts += [f"<p class='note'>{html.escape(n)}</p>" for n in notes]
-    parts.append("<h2>Figures</h2>")
-    for f in written:
-        parts.append(f"<figure><h3>{html.escape(f.title)}</h3><img src='{_image(out / 'figures' / f.file)}' "
-                     f"alt='{html.escape(f.title)}'><figcaption>{html.escape(f.caption)}</figcaption></figure>")
-    parts.append("<h2>Identified parameters</h2>")
-    for coef in rd.COEFFICIENTS:
-        s = ms.summaries[coef]
-        parts.append(f"<h3>{html.escape(s.name)}</h3><p>MSE training {s.mse_train:.4g}, validation "
-                     f"{s.mse_validation:.4g}</p>" + parameter_table(s.estimates, "html"))
-    if vi is not None:
-        parts.append("<h3>Van Ingen structures, refitted on this campaign</h3><p>"
-                     + "; ".join(f"{html.escape(s.name)}: MSE validation {s.mse_validation:.4g}"
-                                 + (f" (at a bound: {html.escape(', '.join(s.estimates.at_bound))})" if s.estimates.at_bound else "")
-                                 for s in vi.summaries.values())
-                     + ". An estimate on its bound means the structure fits these data best at the edge of its "
-                       "physical range: a sign that it misses something the data contain.</p>")
-    if diagnosis is not None:
-        parts.append(f"<h2>Diagnosis of {html.escape(diagnosis['baseline'])}</h2>"
-                     f"<p>Validation MSE {diagnosis['mse']['validation']:.4g}, noise floor "
-                     f"{diagnosis['noise_floor']:.4g}; final model {html.escape(diagnosis['final_model'])}; explained: "
-                     f"{'yes' if diagnosis['explained'] else 'no'}. {html.escape(unexplained_sentence(diagnosis))}</p>")
-        typed = Diagnosis.from_dict(diagnosis)
-        rows = [[e["name"], typed.closes(0, row), _or_nan(e.get("p_value")),
-                 (e.get("acts_in") or {}).get("phase", "-"), e.get("error", "")]
-                for e, row in zip(diagnosis["effects"], typed.effects)]
-        parts.append(render_table(rows, ["effect", "closes (of the baseline's gap)", "p-value", "acts most in (phase)",
-                                         "error"], "html", floatfmt=".3g"))
-    study = out / "study"
-    study_tables = [(stem, _ranking_table(study, stem, top=40)) for stem in STUDY_TABLES]
-    if any(t for _, t in study_tables):
-        parts.append("<h2>The thesis' comparison tables (structsearch study)</h2><p>Markdown, LaTeX and CSV of "
-                     "each in study/.</p>")
-        parts += [f"<h3>{html.escape(STUDY_TABLES[stem])}</h3>{t}" for stem, t in study_tables if t]
-        if (study / "r2_boxes.png").exists():
-            parts.append(f"<figure><h3>Per-maneuver R^2 (thesis Fig. 12)</h3><img src='{_image(study / 'r2_boxes.png')}' "
-                         "alt='R^2 box plots'></figure>")
-    tables = [(grid, _ranking_table(out, grid)) for grid in ("separation", "lift", "drag", "pitch")]
-    if any(t for _, t in tables):
-        parts.append("<h2>Search rankings (first ten of each grid)</h2>")
-        parts += [f"<h3>{grid}</h3>{t}" for grid, t in tables if t]
-    parts.append("</body></html>")
-    return "\n".join(parts)

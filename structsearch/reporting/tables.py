@@ -12,6 +12,7 @@ import csv
 import io
 import math
 from pathlib import Path
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -23,6 +24,7 @@ from ..engine.summary import (CSV_DIGITS, FORMATS, PARAMETER_HEADERS, TABLEFMT, 
                               csv_value, parameter_flags, parameter_rows, parameter_table, render_table)
 from ..engine.summary import with_newline as _with_newline
 from ..fitting.candidate_result import CandidateResult, Placement
+from ..fitting.candidates import Candidate
 from ..grid_search.ranking import gap_reference
 
 
@@ -156,13 +158,17 @@ THESIS_STDERR_HEADERS = ["model", "parameter", "thesis estimate", "estimate", "t
 
 
 def write_tables(ranked_by_grid: dict[str, list[CandidateResult]], out: Path,
-                 thesis_fits: dict[str, list[CandidateResult]] | None = None) -> list[Path]:
+                 thesis_fits: dict[str, list[CandidateResult]] | None = None,
+                 refined: Mapping[str, Sequence[Candidate]] | None = None) -> list[Path]:
     """``ranking.csv`` plus, per grid, the ranking (thesis Tables 8, 9, 10, 20) and the best candidate's
-    parameters (Tables 11, 13, 15) and correlation matrix (Tables 12, 14, 16) in md/tex/csv; and, given
-    the final models fitted with the thesis' covariance estimator, ``thesis_stderr``."""
+    parameters (Tables 11, 13, 15) and correlation matrix (Tables 12, 14, 16) in md/tex/csv; given
+    the final models fitted with the thesis' covariance estimator, ``thesis_stderr``; and the structures the
+    refinement reached (grid -> candidates), as ``refined_<grid>.toml`` (:mod:`structsearch.reporting.refined`)."""
+    from .refined import write_refined
     out = Path(out)
     begin_set(out, "search")   # a run killed among these files leaves them marked incomplete
     written = [write_text(out / "ranking.csv", ranking_csv(ranked_by_grid))]
+    written += write_refined(out, refined or {})
     for grid, ranked in ranked_by_grid.items():
         safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in grid)
         best = next((s for s in ranked if not s.failed), None)

@@ -48,9 +48,11 @@ class ModelSet:
                                  None if coef == "CL" else self.lift)
 
 
-def fit_model_set(label: str, names: Mapping[str, str], fitter: Fitter) -> ModelSet:
-    """Fit the named lift, drag and pitch structures (with ``fitter``: cached, on its workers)."""
-    cands = {coef: find_candidate(names[coef]) for coef in COEFFICIENTS}
+def fit_model_set(label: str, names: Mapping[str, str | Candidate], fitter: Fitter) -> ModelSet:
+    """Fit the lift, drag and pitch structures (named, or candidates such as a search's refined ones; with
+    ``fitter``: cached, on its workers)."""
+    cands = {coef: names[coef] if isinstance(names[coef], Candidate) else find_candidate(names[coef])
+             for coef in COEFFICIENTS}
     for coef in ("CD", "Cm"):
         if cands[coef].lift != cands["CL"].name:
             raise DeclarationError(f"{cands[coef].name} takes its separation states from {cands[coef].lift}, "

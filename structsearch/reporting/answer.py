@@ -1,0 +1,101 @@
+"""The report's first screen: per coefficient, the structure the user's search ranked first, written as an
+equation with its estimates and standard deviations, its fit on the validation maneuvers and, for the diagnosed
+coefficient, the gap story in three lines; then the table of contents (issue 43: the page opened with the
+thesis' Van Ingen argument and named the fitted models in one line)."""
+from __future__ import annotations
+
+import html
+from typing import Mapping, Sequence
+
+from ..diagnosis.results import Diagnosis
+from ..diagnosis.story import unexplained_sentence
+from .equations import equations
+from .numbers import estimate_text, share, sig
+
+COEF_WORDS = {"CL": "Lift, C_L", "CD": "Drag, C_D", "Cm": "Pitching moment, C_m"}
+
+
+def valued_equations(c, result, lift) -> list[str]:
+    """``c``'s equations with every parameter written as "(estimate ± std. dev.)" (a drag or pitch structure's
+    states with its lift model's estimates)."""
+    texts: dict[str, str] = {}
+    lift_result = getattr(lift, "result", None)
+    if lift is not None and lift_result is None:   # a joint lift read as its estimates: no std. devs. here
+        texts.update({n: f"{v:.4g}" for n, v in lift.params.items()})
+    for fit in ([lift_result] if lift_result is not None else []) + [result]:
+        e = fit.estimates
+        texts.update({n: f"({estimate_text(e.params[n], e.stderr.get(n))})" for n in e.names})
+    return equations(c, texts)
+
+
+def fit_line(result) -> str:
+    """The fit on the validation maneuvers and the held-out MSE the ranking compares, in one line."""
+    r2 = result.validation.r2
+    held = ("cross-validation" if result.cv is not None else "validation")
+    return (f"Validation R^2 {sig(r2.pooled, 4)} (pooled over the validation maneuvers; per maneuver mean "
+            f"{sig(r2.mean, 3)}, worst {sig(r2.min, 3)}); held-out MSE {sig(result.comparison.mse, 4)} ({held}), "
+            f"validation MSE {sig(result.mse_validation, 4)}; {result.n_params} parameters.")
+
+
+def _top(doc: Diagnosis, dimension: str):
+    rows = [w for w in doc.where if w.dimension == dimension]
+    return max(rows, key=lambda w: w.share) if rows else None
+
+
+def gap_story(doc: Diagnosis) -> list[str]:
+    """Where the model misses, which effect closes how much, what is left: three lines."""
+    m, floor = doc.mse.validation, doc.noise_floor
+    if doc.gap_explained_by_baseline:
+        where = (f"Where it misses: nowhere beyond the noise: validation MSE {sig(m, 3)} against a noise floor of "
+                 f"{sig(floor, 3)} (within one standard error of it).")
+    else:
+        bins = [b for b in (_top(doc, "phase"), _top(doc, "alpha_band")) if b is not None]
+        spots = " and ".join(f"{share(b.share)} in the {b.dimension.replace('_', ' ')} {b.bin}" for b in bins)
+        where = (f"Where it misses: validation MSE {sig(m, 3)}, {share(m / floor - 1)} above the noise floor "
+                 f"{sig(floor, 3)}" + (f"; of the gap, {spots}." if spots else "."))
+    best = doc.best_effect
+    if best is None:
+        effect = "Which effect: every effect of the library failed to fit (diagnosis table below)."
+    elif doc.gap_explained_by_baseline:
+        effect = (f"Which effect: the best, {best.name}, changes the validation MSE to {sig(best.mse_validation_after, 3)}; "
+                  "there is no gap for it to close.")
+    else:
+        effect = (f"Which effect: {best.name} closes {share(doc.closes(0, best))} of the gap"
+                  + (f" (p = {best.p_value:.2g})" if best.p_value is not None else "") + ".")
+        second = [e for e in doc.effects if not e.failed and e is not best][:1]
+        if second:
+            effect += f" Next best: {second[0].name}, {share(doc.closes(0, second[0]))}."
+    left = unexplained_sentence(doc)
+    rest = (f"What is left: {left}" if left else
+            f"What is left: {doc.final_model} is at the noise floor." if doc.explained else
+            f"What is left: the gap beyond {doc.final_model} is not attributed.")
+    return [where, effect, rest]
+
+
+def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis | None,
+                diagnosed: str | None) -> str:
+    """The first section of the page (module docstring)."""
+    parts = ["<section id='answer'><h2>The identified models</h2>",
+             f"<p class='source'>Each coefficient's structure {html.escape(source)}; estimates ± one standard "
+             "deviation, rounded to it.</p>"]
+    for coef, (c, result, lift) in answers.items():
+        lines = valued_equations(c, result, lift)
+        parts.append(f"<div class='model'><h3>{html.escape(COEF_WORDS.get(coef, coef))}: "
+                     f"<span class='name'>{html.escape(c.name)}</span>"
+                     + (f" <small>(states of {html.escape(lift.name)})</small>" if lift is not None else "")
+                     + f"</h3><p class='fit'>{html.escape(fit_line(result))}</p>"
+                     f"<pre class='eq'>{html.escape(chr(10).join(lines))}</pre>")
+        if diagnosis is not None and coef == diagnosed:
+            parts.append("<ul class='gap'>" + "".join(f"<li>{html.escape(t)}</li>" for t in gap_story(diagnosis))
+                         + "</ul>")
+        elif diagnosis is not None:   # one diagnosis per report: say where the others' gap stories come from
+            parts.append(f"<p class='source'>Gap story: not diagnosed in this report (structsearch report "
+                         f"--diagnose {coef}, or structsearch diagnose --model {html.escape(c.name)}).</p>")
+        parts.append("</div>")
+    return "".join(parts) + "</section>"
+
+
+def contents_html(sections: Sequence[tuple[str, str]]) -> str:
+    """The table of contents: (anchor, title) of each section."""
+    items = "".join(f"<li><a href='#{html.escape(a)}'>{html.escape(t)}</a></li>" for a, t in sections)
+    return f"<nav id='contents'><h2>Contents</h2><ol>{items}</ol></nav>"
