@@ -340,6 +340,10 @@ def test_cli_fit_search_and_dask(tiny, tmp_path):
     doc = json.loads((tmp_path / "fit" / "fit.json").read_text())
     assert doc["model"] == "CD-IXr" and set(doc["mse"]) == {"train", "validation"}
     assert doc["params"].keys() == doc["stderr"].keys()
+    # the structure as equations: every parameter and what it multiplies, the lift model's states
+    text = doc["equations"]["text"]
+    assert text[0].startswith("CD = CD0 + ") and all(name in text[0] for name in doc["params"])
+    assert any(line.startswith("X_w = ") for line in text) and doc["equations"]["latex"][0].startswith("C_D = ")
     # the static curve's bands (issue 29): an alpha grid over the flown range, the conditions, CD's band
     static = doc["bands"]["static"]
     assert doc["bands"]["level"] == 0.95 and len(static["alpha"]) == len(static["CD"]["estimate"]) > 10

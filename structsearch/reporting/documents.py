@@ -32,6 +32,8 @@ def fit_document(fit: CandidateResult, lift: LiftFit | None, bands=None) -> dict
         "cross_validation": {"scheme": fit.cv_scheme or None, "folds": fit.cv_folds,
                              "mse": fit.cv.mse if fit.cv is not None else None, "note": fit.cv_note},
     }
+    if fit.equations is not None:   # the structure as equations: what each parameter multiplies
+        doc["equations"] = {"text": list(fit.equations.text), "latex": list(fit.equations.latex)}
     if bands is not None:
         doc["bands"] = bands.to_dict()
     return doc
