@@ -173,19 +173,20 @@ def test_interrupted_search_resumes(tiny, tmp_path):
     context = dict(lifts={"CL-VI": LiftFit(lift["CL-VI"], lift_fit[0]), "CL-I": LiftFit(lift["CL-I"], lift_fit[1])})
     seen = []
 
-    def stop_after_five(message):
-        seen.append(message)
+    def stop_after_five(finished, of, what):   # the meter: told after each candidate fitted
+        seen.append(what)
         if len(seen) == 5:
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run(grid.candidates[:12], tiny, tmp_path, progress=stop_after_five, **context)
+        run(grid.candidates[:12], tiny, tmp_path, meter=stop_after_five, **context)
     cached = list((tmp_path / "cache" / "pitch").glob("*.json"))
     assert len(cached) == 5
-    messages = []
-    resumed = run(grid.candidates[:12], tiny, tmp_path, progress=messages.append, **context)
-    assert messages[0] == "5 of 12 candidates from the cache"
-    assert sum(m.startswith("[") for m in messages) == 7
+    messages, counted = [], []
+    resumed = run(grid.candidates[:12], tiny, tmp_path, progress=messages.append,
+                  meter=lambda finished, of, what: counted.append((finished, of)), **context)
+    assert messages == ["5 of 12 candidates from the cache"]   # a line per candidate no more: the meter counts
+    assert counted == [(k, 7) for k in range(1, 8)]
     fresh = run(grid.candidates[:12], tiny, tmp_path / "fresh", **context)
     assert [r.estimates.params for r in resumed] == [r.estimates.params for r in fresh]
 

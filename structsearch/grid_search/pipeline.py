@@ -159,7 +159,10 @@ def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ran
         known.update({structure_key(c): (c, r) for c, r in new})
         extra += new
         steps = " -> ".join([start.name] + [c.name for c, _ in done.steps]) or start.name
+        # the first refusal and a count: every refused move would make a line of hundreds of characters
+        stopped = (f"{done.refused[0]}; {len(done.refused) - 1} more moves refused" if len(done.refused) > 1
+                   else done.stopped)
         fitter.say(f"grid {grid.name}: refined {steps}"
-                   + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {done.stopped}")
+                   + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {stopped}")
         done_all.append(done)
     return extra, done_all
