@@ -2,6 +2,7 @@
 import csv
 import dataclasses
 import json
+import re
 
 import numpy as np
 import pytest
@@ -375,8 +376,18 @@ def test_cli_fit_search_and_dask(tiny, tmp_path):
 
 @pytest.mark.slow
 def test_cli_demo_small(tmp_path):
-    proc = run_cli("demo", "--out", str(tmp_path), "--scale", "0.05", "--quiet")
+    from test_story_console import console_verdicts
+    proc = run_cli("demo", "--out", str(tmp_path), "--scale", "0.05")
     assert proc.returncode == 0, proc.stderr
+    # issue 43: stderr is a pipe here, not a terminal: no bar, no line per candidate; the summaries stay
+    assert "\r" not in proc.stderr and not re.search(r"^\[\d+/\d+\] ", proc.stderr, re.M)
+    assert "grid pitch: " in proc.stderr and len(proc.stderr.splitlines()) < 80
+    # the story's console lines: short, and a round's verdict is story.json's
+    assert max(len(line) for line in proc.stdout.splitlines()) <= 160
+    story = json.loads((tmp_path / "story.json").read_text())
+    said = console_verdicts(proc.stdout.splitlines())
+    assert said == {(coef, i + 1): r["adopted"] for coef, d in story["diagnoses"].items()
+                    for i, r in enumerate(d["rounds"])}
     for grid in ("separation", "lift", "drag", "pitch"):
         assert f"{grid}: " in proc.stdout
     assert (tmp_path / "ranking.csv").exists() and (tmp_path / "campaign" / "campaign.toml").exists()
