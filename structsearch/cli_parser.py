@@ -226,7 +226,7 @@ def _add_search(sub, handler: Callable) -> None:
     r.add_argument("--trace", metavar="FILE", default=None,
                    help="write every task (start, end, worker, the tasks it waited for) to FILE as Chrome "
                         "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
-    r.add_argument("--quiet", action="store_true", help="no progress lines")
+    r.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
     _admissibility_options(r)
     r.set_defaults(func=handler)
 
@@ -250,7 +250,7 @@ def _add_diagnose(sub, handler: Callable) -> None:
                    help="write every task (start, end, worker, the tasks it waited for) to FILE as Chrome "
                         "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     _structure_search_options(g)
-    g.add_argument("--quiet", action="store_true", help="no progress lines")
+    g.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
     g.set_defaults(func=handler)
 
 
@@ -271,7 +271,7 @@ def _add_discover(sub, handler: Callable) -> None:
                    help="write every task (start, end, worker, the tasks it waited for) to FILE as Chrome "
                         "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     _structure_search_options(d)
-    d.add_argument("--quiet", action="store_true", help="no progress lines")
+    d.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
     d.set_defaults(func=handler)
 
 
@@ -284,7 +284,7 @@ def _add_report(sub, handler: Callable) -> None:
                    help="coefficient whose gap breakdown is shown (default Cm; none: skip the diagnosis)")
     p.add_argument("--model", action="append", metavar="NAME",
                    help="use this lift, drag or pitch structure instead of the search's winner (repeatable)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
     p.set_defaults(func=handler)
 
 
@@ -295,7 +295,8 @@ def _add_demo(sub, handler: Callable) -> None:
     d.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default: all cores)")
     d.add_argument("--starts", type=_count, default=4, help="starts per nonlinear fit (default 4)")
     d.add_argument("--scale", type=_fraction, default=1.0, help="fraction of the campaign to fly (quick looks)")
-    d.add_argument("--quiet", action="store_true", help="no progress lines (the story's lines are still printed)")
+    d.add_argument("--quiet", action="store_true",
+                   help="no progress on stderr, lines or bar (the story's lines are still printed)")
     _admissibility_options(d)
     d.set_defaults(func=handler)
 
