@@ -205,15 +205,18 @@ def _print_winners(result) -> None:
             f", validation MSE {best.mse_validation:.4g}" if best.cv is not None else "")
         parts = [f"{grid}: {best.name} ({best.n_params} parameters, {scores})"]
         n_admissible = sum(bool(s.placement.admissible) for s in ok)
-        parts.append(f"{n_admissible} of {len(ok)} fitted admissible" if best.placement.admissible else
-                     f"NOT admissible: none of the {len(ok)} fitted is")
-        if runner_up is not None:
-            parts.append(f"next {runner_up.name} ({runner_up.n_params} parameters, "
-                         f"{runner_up.comparison.mse / best.comparison.mse - 1:+.1%})")
+        parts.append(f"{n_admissible} of {len(ok)} admissible" if best.placement.admissible else
+                     f"NOT admissible (none of {len(ok)} is)")
+        # the warnings before the runner-up and the time: a line cut at the console's width loses those last
+        if failed:
+            parts.append(f"{failed} failed")
         not_converged = [s.name for s in ok if not s.optimizer.converged]
         if not_converged:
             parts.append(f"optimizer did not converge for {_named(not_converged)}")
-        parts.append(f"{failed} failed, {result.seconds[grid]:.1f} s")
+        if runner_up is not None:
+            parts.append(f"next {runner_up.name} ({runner_up.n_params} parameters, "
+                         f"{runner_up.comparison.mse / best.comparison.mse - 1:+.1%})")
+        parts.append(f"{result.seconds[grid]:.1f} s")
         print(_clip("; ".join(parts)))
         for s in passed_over(ranked)[:3]:
             print(_clip(f"  passed over {s.name} ({_held_out(s)} MSE "

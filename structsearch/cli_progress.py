@@ -9,6 +9,7 @@ all: a bar's carriage returns are noise there, and the lines alone say what happ
 """
 from __future__ import annotations
 
+import os
 import sys
 from typing import TextIO
 
@@ -66,7 +67,18 @@ def _is_terminal(stream) -> bool:
         return False
 
 
+def _size(stream) -> dict:
+    """The terminal's size for tqdm; 80 x 24 where it says 0 x 0 (a pseudo-terminal nobody sized: tqdm would
+    draw nothing); tqdm's own guess for a stream without a descriptor."""
+    try:
+        size = os.get_terminal_size(stream.fileno())
+    except (AttributeError, OSError, ValueError):
+        return {}
+    return {"ncols": size.columns or 80, "nrows": size.lines or 24}
+
+
 def _new_bar(stream: TextIO, total: int, desc: str, delay: float):
     from tqdm import tqdm   # here: `structsearch --help` and a piped run import no tqdm
     # leave=False: a finished call's bar is erased, so the summary lines stay together on the screen
-    return tqdm(total=total, desc=desc, unit="fit", file=stream, leave=False, delay=delay, mininterval=0.2)
+    return tqdm(total=total, desc=desc, unit="fit", file=stream, leave=False, delay=delay, mininterval=0.2,
+                **_size(stream))

@@ -90,3 +90,19 @@ def test_the_command_line_passes_the_bar_to_the_fitter_as_its_meter(tty, tiny, t
     assert "grid lift: 6 candidates" in err and not PER_CANDIDATE.search(err)
     assert ("\r" in err) == tty and (re.search(r"\d+/\d+ \[", err) is not None) == tty
     assert "lift: CL-" in capsys.readouterr().out
+
+
+def test_a_pseudo_terminal_nobody_sized_still_gets_a_bar():
+    """A pseudo-terminal of 0 x 0 (script(1), some CI runners) made tqdm draw nothing: it is taken for 80 x 24."""
+    import os
+    pty = pytest.importorskip("pty")
+    master, slave = pty.openpty()
+    with open(slave, "w", encoding="utf-8", closefd=True) as stream:
+        assert stream.isatty() and os.get_terminal_size(slave).columns == 0
+        progress = TerminalProgress(stream, delay=0)
+        for k in range(1, 4):
+            progress.meter(k, 3, f"drag CD-{k}")
+        stream.flush()
+        drawn = os.read(master, 65536).decode("utf-8", "replace")
+    os.close(master)
+    assert "drag:" in drawn and "/3 [" in drawn

@@ -160,7 +160,8 @@ def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ran
         extra += new
         steps = " -> ".join([start.name] + [c.name for c, _ in done.steps]) or start.name
         # the first refusal and a count: every refused move would make a line of hundreds of characters
-        stopped = (f"{done.refused[0]}; {len(done.refused) - 1} more moves refused" if len(done.refused) > 1
+        more = len(done.refused) - 1
+        stopped = (f"{done.refused[0]}; {more} more move{'s' if more > 1 else ''} refused" if more > 0
                    else done.stopped)
         fitter.say(f"grid {grid.name}: refined {steps}"
                    + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {stopped}")
