@@ -1,6 +1,7 @@
 """The main path of structsearch in Python, as a notebook would run it (``python examples/tutorial.py``).
 
-What it shows, on half of the default simulated campaign (24 maneuvers, 19 of them for training; about 4.5 minutes on two cores):
+What it shows, on half of the default simulated campaign (24 maneuvers, 19 of them for training; 2 to 5 minutes
+on two cores):
 
 1. simulate a flight-test campaign (``structsearch simulate --scale 0.5``);
 2. fit the thesis' final lift and drag structures, CL-VI and CD-IXr (``structsearch fit``), and read the drag
