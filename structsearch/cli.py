@@ -20,15 +20,15 @@ from .cli_grids import _grids  # noqa: E402
 from .cli_options import _bounds, _jobs  # noqa: E402
 
 
-def stderr_progress(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
-
-
 def _progress(args, prefix: str = ""):
-    """The stderr progress callback of a command (None with --quiet)."""
+    """The command's progress on stderr (lines, and a bar on a terminal: :mod:`.cli_progress`), None with
+    --quiet; one per run, closed by :func:`main` (a bar an interrupted run left open is erased)."""
     if getattr(args, "quiet", False):
         return None
-    return (lambda m: print(f"{prefix}{m}", file=sys.stderr, flush=True)) if prefix else stderr_progress
+    if getattr(args, "progress_sink", None) is None:
+        from .cli_progress import TerminalProgress
+        args.progress_sink = TerminalProgress(prefix=prefix)
+    return args.progress_sink
 
 
 def _settings(args, prefix: str = "", progress: bool = True):
@@ -36,11 +36,12 @@ def _settings(args, prefix: str = "", progress: bool = True):
     their defaults."""
     from .api.settings import Settings
     from .cli_options import DEFAULT_COVARIANCE
+    sink = _progress(args, prefix) if progress else None
     return Settings(starts=getattr(args, "starts", None), seed=getattr(args, "seed", 0),
                     covariance=getattr(args, "covariance", DEFAULT_COVARIANCE), bounds=_bounds(args),
                     jobs=getattr(args, "jobs", 0) or 0, backend=getattr(args, "backend", "loky") or "loky",
                     segment=getattr(args, "segment", None), cache=getattr(args, "cache", None) or None,
-                    progress=_progress(args, prefix) if progress else None, trace=getattr(args, "trace", None))
+                    progress=sink, meter=sink.meter if sink is not None else None, trace=getattr(args, "trace", None))
 
 
 def raise_error(message: str):
@@ -177,6 +178,19 @@ def _held_out(s) -> str:
             f"{'one-step ' if s.cv_method == 'one-step' else ''}CV")
 
 
+# a console line at most (a terminal's width, roughly twice): the tables and story.md hold the long texts
+CONSOLE_WIDTH = 160
+
+
+def _clip(line: str) -> str:
+    return line if len(line) <= CONSOLE_WIDTH else line[:CONSOLE_WIDTH - 4].rsplit(" ", 1)[0] + " ..."
+
+
+def _named(names: list[str], shown: int = 3) -> str:
+    """Names listed, or the first few and how many more (a long list would make a line of hundreds)."""
+    return ", ".join(names) if len(names) <= shown else f"{', '.join(names[:shown])} and {len(names) - shown} more"
+
+
 def _print_winners(result) -> None:
     from .grid_search.ranking import passed_over
     for grid, ranked in result.grids.items():
@@ -186,28 +200,37 @@ def _print_winners(result) -> None:
             print(f"{grid}: every candidate failed")
             continue
         best, runner_up = ok[0], (ok[1] if len(ok) > 1 else None)
-        margin = ""
-        if runner_up is not None:
-            margin = (f"; next {runner_up.name} ({runner_up.n_params} parameters, {_held_out(best)} MSE "
-                      f"{runner_up.comparison.mse / best.comparison.mse - 1:+.1%})")
-        not_converged = [s.name for s in ok if not s.optimizer.converged]
-        warning = (f"; optimizer did not converge for {', '.join(not_converged)}" if not_converged else "")
+        # without cross-validation the held-out MSE is the validation MSE: said once
+        scores = f"{_held_out(best)} MSE {best.comparison.mse:.4g}" + (
+            f", validation MSE {best.mse_validation:.4g}" if best.cv is not None else "")
+        parts = [f"{grid}: {best.name} ({best.n_params} parameters, {scores})"]
         n_admissible = sum(bool(s.placement.admissible) for s in ok)
-        status = "" if best.placement.admissible else " (NOT admissible: no candidate is)"
-        print(f"{grid}: {best.name}{status} ({best.n_params} parameters, {_held_out(best)} MSE "
-              f"{best.comparison.mse:.4g}, validation MSE {best.mse_validation:.4g}){margin}; {len(ok)} fitted "
-              f"({n_admissible} admissible), {failed} failed"
-              f"{warning}, {result.seconds[grid]:.1f} s")
+        parts.append(f"{n_admissible} of {len(ok)} admissible" if best.placement.admissible else
+                     f"NOT admissible (none of {len(ok)} is)")
+        # the warnings before the runner-up and the time: a line cut at the console's width loses those last
+        if failed:
+            parts.append(f"{failed} failed")
+        not_converged = [s.name for s in ok if not s.optimizer.converged]
+        if not_converged:
+            parts.append(f"optimizer did not converge for {_named(not_converged)}")
+        if runner_up is not None:
+            parts.append(f"next {runner_up.name} ({runner_up.n_params} parameters, "
+                         f"{runner_up.comparison.mse / best.comparison.mse - 1:+.1%})")
+        parts.append(f"{result.seconds[grid]:.1f} s")
+        print(_clip("; ".join(parts)))
         for s in passed_over(ranked)[:3]:
-            print(f"  passed over {s.name} ({_held_out(s)} MSE {s.comparison.mse / best.comparison.mse - 1:+.1%}): "
-                  f"{'; '.join(s.placement.reasons)}")
+            print(_clip(f"  passed over {s.name} ({_held_out(s)} MSE "
+                        f"{s.comparison.mse / best.comparison.mse - 1:+.1%}): {'; '.join(s.placement.reasons)}"))
 
 
 def _demo(args) -> int:
     from .workflows import demo
+    sink = _progress(args)
+    # stdout's lines go through the sink too: on a terminal they must not land on a line the bar is drawn on
+    say = (lambda m: sink.write(m, sys.stdout)) if sink is not None else (lambda m: print(m, flush=True))
     res = demo(args.out, jobs=_jobs(args), starts=args.starts, scale=args.scale,
-               max_correlation=args.max_correlation, say=lambda m: print(m, flush=True), winners=_print_winners,
-               progress=_progress(args))
+               max_correlation=args.max_correlation, say=say, winners=_print_winners,
+               progress=sink, meter=sink.meter if sink is not None else None)
     if res.report is not None:
         _print_report(res.report)
     return 0
@@ -287,6 +310,14 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt
 
 
+def _run(args) -> int:
+    try:
+        return args.func(args)
+    finally:
+        if getattr(args, "progress_sink", None) is not None:
+            args.progress_sink.close()
+
+
 RESUMABLE = ("search", "fit", "diagnose", "discover", "report", "demo", "study")
 
 
@@ -297,7 +328,7 @@ def main(argv: list[str] | None = None) -> int:
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, _terminate)
     try:
-        return args.func(args)
+        return _run(args)
     except KeyboardInterrupt:
         again = (" the fits finished so far are cached: run the same command again to resume"
                  if args.command in RESUMABLE else "")

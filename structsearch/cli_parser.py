@@ -5,6 +5,7 @@ import argparse
 from typing import Callable, Mapping
 
 from ._version import __version__
+from .cli_help import command_parser, top_level
 from .cli_options import (COVARIANCE_KINDS, CV_METHODS, DEFAULT_COVARIANCE, MAX_CORRELATION, PROFILE_CAMPAIGNS,
                           SEGMENT_CHOICES, _Parser, _angle_degrees, _bound, _count, _cutoff, _fraction, _non_negative,
                           _non_negative_float, _seed_range)
@@ -19,9 +20,6 @@ def _benchmark_parts(text: str) -> str:
     if bad or not parts:
         raise argparse.ArgumentTypeError(f"{text!r}: parts are {', '.join(BENCHMARK_PARTS)}, comma-separated")
     return ",".join(parts)
-
-
-DESCRIPTION = "Command line: ``structsearch <command>`` (also ``python -m structsearch``)."
 
 
 def _admissibility_options(p) -> None:
@@ -52,9 +50,9 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
 
 def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     """The parser; each command's ``func`` default is ``handlers[command]``."""
-    parser = _Parser(prog="structsearch", description=DESCRIPTION)
+    parser = _Parser(prog="structsearch", **top_level())
     parser.add_argument("--version", action="version", version=f"structsearch {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, title="commands", metavar="<command>")
     _add_bench(sub, handlers["bench"])
     _add_simulate(sub, handlers["simulate"])
     _add_preprocess(sub, handlers["preprocess"])
@@ -72,11 +70,7 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
 
 def _add_grids(sub, handler: Callable) -> None:
     """The ``grids`` command."""
-    g = sub.add_parser("grids", help="list the shipped grids and their candidates with their equations",
-                       description="Lists every shipped grid (separation, lift, drag, pitch) and each candidate's "
-                                   "equation; with NAME, that grid (or grid spec file, or one candidate) with its "
-                                   "separation states' equations and what its helper functions stand for. Example: "
-                                   "structsearch grids lift")
+    g = command_parser(sub, "grids")
     g.add_argument("name", nargs="?", default=None,
                    help="a grid (separation, lift, drag, pitch), a grid spec file or a candidate name (CL-VI)")
     g.set_defaults(func=handler)
@@ -84,7 +78,7 @@ def _add_grids(sub, handler: Callable) -> None:
 
 def _add_bench(sub, handler: Callable) -> None:
     """The ``bench`` command."""
-    b = sub.add_parser("bench", help="measure speed, robustness and memory of the SNLS engine")
+    b = command_parser(sub, "bench")
     b.add_argument("--out", default="results", help="output directory (default: results)")
     b.add_argument("--samples", type=_count, default=250_000, help="samples in the benchmark campaign")
     b.add_argument("--repeats", type=_count, default=3, help="repeats of every single-start timing (every method alike)")
@@ -129,8 +123,7 @@ def _add_bench(sub, handler: Callable) -> None:
 
 def _add_simulate(sub, handler: Callable) -> None:
     """The ``simulate`` command."""
-    s = sub.add_parser("simulate", help="simulate a flight-test campaign (thesis Table 4) of the Citation II or the "
-                                        "twin-jet transport")
+    s = command_parser(sub, "simulate")
     s.add_argument("--aircraft", choices=AIRCRAFT_NAMES, default="citation",
                    help="citation (the thesis' Citation II, default) or transport (a twin-jet transport with one "
                         "separation state, no stall strips and no recorded cg: README)")
@@ -160,8 +153,7 @@ def _add_simulate(sub, handler: Callable) -> None:
 
 def _add_preprocess(sub, handler: Callable) -> None:
     """The ``preprocess`` command."""
-    pp = sub.add_parser("preprocess", help="turn a raw flight-test campaign (docs/interfaces.md 5.2) into a standard one: "
-                                           "spectra, pre-filter, flight-path reconstruction, coefficients")
+    pp = command_parser(sub, "preprocess")
     pp.add_argument("--raw", required=True, help="raw campaign directory (format = \"raw\")")
     pp.add_argument("--out", required=True, help="standard campaign directory to write, with preprocess.md")
     pp.add_argument("--cutoffs", choices=("table5", "spectra"), default="table5",
@@ -181,8 +173,7 @@ def _add_preprocess(sub, handler: Callable) -> None:
 
 def _add_study(sub, handler: Callable) -> None:
     """The ``study`` command."""
-    st = sub.add_parser("study", help="the thesis' comparison tables on a campaign: final models against Van Ingen's, "
-                                      "the dynamic-stall study, the separation matrix, derived quantities")
+    st = command_parser(sub, "study")
     st.add_argument("--data", required=True, help="campaign directory")
     st.add_argument("--out", required=True, help="directory for the tables (Markdown, LaTeX, CSV) and box plots")
     st.add_argument("--cache", help="the search's output directory whose cache to reuse (default: --out)")
@@ -194,7 +185,7 @@ def _add_study(sub, handler: Callable) -> None:
 
 def _add_fit(sub, handler: Callable) -> None:
     """The ``fit`` command."""
-    f = sub.add_parser("fit", help="fit one model structure to a campaign")
+    f = command_parser(sub, "fit")
     _campaign_options(f)
     which = f.add_mutually_exclusive_group(required=True)
     which.add_argument("--model", help="candidate name (CL-VI, CD-IXr, Cm-XXXIII, ...) or spec file")
@@ -216,7 +207,7 @@ def _add_fit(sub, handler: Callable) -> None:
 
 def _add_search(sub, handler: Callable) -> None:
     """The ``search`` command."""
-    r = sub.add_parser("search", help="fit and rank every candidate of a grid")
+    r = command_parser(sub, "search")
     _campaign_options(r)
     r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all, or a grid spec file")
     r.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
@@ -235,14 +226,14 @@ def _add_search(sub, handler: Callable) -> None:
     r.add_argument("--trace", metavar="FILE", default=None,
                    help="write every task (start, end, worker, the tasks it waited for) to FILE as Chrome "
                         "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
-    r.add_argument("--quiet", action="store_true", help="no progress lines")
+    r.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
     _admissibility_options(r)
     r.set_defaults(func=handler)
 
 
 def _add_diagnose(sub, handler: Callable) -> None:
     """The ``diagnose`` command."""
-    g = sub.add_parser("diagnose", help="where the model misses the data, which effect causes it, how far it shrinks")
+    g = command_parser(sub, "diagnose")
     _campaign_options(g, starts=2, data_required=False)
     g.add_argument("--model", help="baseline candidate name or spec file")
     g.add_argument("--coefficient", choices=("CL", "CD", "Cm"), help="check that the baseline models this")
@@ -259,13 +250,13 @@ def _add_diagnose(sub, handler: Callable) -> None:
                    help="write every task (start, end, worker, the tasks it waited for) to FILE as Chrome "
                         "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     _structure_search_options(g)
-    g.add_argument("--quiet", action="store_true", help="no progress lines")
+    g.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
     g.set_defaults(func=handler)
 
 
 def _add_discover(sub, handler: Callable) -> None:
     """The ``discover`` command."""
-    d = sub.add_parser("discover", help="search model structures over moves from a minimal or named structure")
+    d = command_parser(sub, "discover")
     _campaign_options(d, starts=2)
     d.add_argument("--coefficient", choices=("CL", "CD", "Cm"), required=True, help="the coefficient to model")
     d.add_argument("--from", dest="start", default="minimal",
@@ -280,43 +271,39 @@ def _add_discover(sub, handler: Callable) -> None:
                    help="write every task (start, end, worker, the tasks it waited for) to FILE as Chrome "
                         "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     _structure_search_options(d)
-    d.add_argument("--quiet", action="store_true", help="no progress lines")
+    d.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
     d.set_defaults(func=handler)
 
 
 def _add_report(sub, handler: Callable) -> None:
     """The ``report`` command."""
-    p = sub.add_parser("report", help="figures and one self-contained HTML page for a campaign")
+    p = command_parser(sub, "report")
     _campaign_options(p)  # the search's defaults, so that its cached fits are reused
     p.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes for the fits (default 0: all cores)")
     p.add_argument("--diagnose", choices=("CL", "CD", "Cm", "none"), default="Cm",
                    help="coefficient whose gap breakdown is shown (default Cm; none: skip the diagnosis)")
     p.add_argument("--model", action="append", metavar="NAME",
                    help="use this lift, drag or pitch structure instead of the search's winner (repeatable)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
     p.set_defaults(func=handler)
 
 
 def _add_demo(sub, handler: Callable) -> None:
     """The ``demo`` command."""
-    d = sub.add_parser("demo", help="simulate the default campaign, search every grid, write all tables and the report")
+    d = command_parser(sub, "demo")
     d.add_argument("--out", default="results", help="output directory (default: results)")
     d.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default: all cores)")
     d.add_argument("--starts", type=_count, default=4, help="starts per nonlinear fit (default 4)")
     d.add_argument("--scale", type=_fraction, default=1.0, help="fraction of the campaign to fly (quick looks)")
-    d.add_argument("--quiet", action="store_true", help="no progress lines (the story's lines are still printed)")
+    d.add_argument("--quiet", action="store_true",
+                   help="no progress on stderr, lines or bar (the story's lines are still printed)")
     _admissibility_options(d)
     d.set_defaults(func=handler)
 
 
 def _add_compare(sub, handler: Callable) -> None:
     """The ``compare`` command."""
-    c = sub.add_parser("compare", help="compare two output directories as answers: decisions equal, numbers within "
-                                       "tolerances (the same command on two machines)",
-                       description="Compares every CSV and JSON file of FIRST with the same file of SECOND: rankings, "
-                                   "admissible sets, structures, moves and verdicts must be equal, numbers within "
-                                   "--rtol. Exit 0: the same answers; 1: they differ (listed). Example: structsearch "
-                                   "compare results/ other-machine/results/")
+    c = command_parser(sub, "compare")
     c.add_argument("first", help="an output directory (e.g. of `demo --out A`)")
     c.add_argument("second", help="the output directory of the same command elsewhere")
     c.add_argument("--rtol", type=_non_negative_float, default=1e-3,

@@ -12,6 +12,7 @@ from .api.commands import write_search_tables
 from .api.results import Ranking, ReportOutcome
 from .data.campaign import Campaign
 from .diagnosis.story import Story
+from .fitting.fitter import Meter
 from .grid_search.admissibility import MAX_CORRELATION
 
 Lines = Callable[[str], None]
@@ -72,11 +73,13 @@ def demo_campaign(out: Path, scale: float, say: Lines) -> Campaign:
 
 def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: float = 1.0,
          max_correlation: float = MAX_CORRELATION, say: Lines | None = None,
-         winners: Callable[[Ranking], None] | None = None, progress: Lines | None = None) -> DemoOutcome:
+         winners: Callable[[Ranking], None] | None = None, progress: Lines | None = None,
+         meter: Meter | None = None) -> DemoOutcome:
     """``structsearch demo``: every artefact in ``out``. ``winners`` is called with the search's ranking when it
-    is done (the command prints each grid's winner there)."""
+    is done (the command prints each grid's winner there); ``meter`` is told of every candidate fitted (the
+    command's progress bar)."""
     from .api.settings import Settings, command_fitter
-    from .diagnosis.story import van_ingen_story
+    from .diagnosis.story import console_lines, van_ingen_story
     from .reporting import figures
     from .reporting.diagnosis_doc import write_story
     from .reporting.study_doc import write as write_study
@@ -87,7 +90,7 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
     t0 = time.perf_counter()
     campaign = demo_campaign(out, scale, say)
     t_sim = time.perf_counter() - t0
-    settings = Settings(starts=starts, jobs=jobs, progress=progress)
+    settings = Settings(starts=starts, jobs=jobs, progress=progress, meter=meter)
     n_jobs = settings.processes
     with command_fitter("demo", campaign, settings, out) as fitter:
         result = search(fitter, "all", max_correlation=max_correlation)
@@ -102,13 +105,13 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
     say(f"tables and ranking.csv in {out}")
     t1 = time.perf_counter()
     # the story's diagnoses use the diagnose command's defaults (2 starts), not the search's --starts
-    with command_fitter("diagnose", campaign, Settings(jobs=jobs, progress=progress), out) as fitter:
+    with command_fitter("diagnose", campaign, Settings(jobs=jobs, progress=progress, meter=meter), out) as fitter:
         story = van_ingen_story(fitter)
     _, story_md = write_story(story, out, f"structsearch demo --out {out}"
                               + (f" --scale {scale:g}" if scale != 1.0 else ""))
     t_story = time.perf_counter() - t1
     say(f"the story, Van Ingen's simulator model against the flight data ({t_story:.0f} s; {story_md}):")
-    for line in story.lines:
+    for line in console_lines(story):   # short, a line a round (story.md has the story's long lines)
         say(f"  {line}")
     t2 = time.perf_counter()
     with command_fitter("study", campaign, settings, out) as fitter:

@@ -3,6 +3,7 @@ import csv
 import re
 import dataclasses
 import json
+import re
 
 import numpy as np
 import pytest
@@ -174,19 +175,20 @@ def test_interrupted_search_resumes(tiny, tmp_path):
     context = dict(lifts={"CL-VI": LiftFit(lift["CL-VI"], lift_fit[0]), "CL-I": LiftFit(lift["CL-I"], lift_fit[1])})
     seen = []
 
-    def stop_after_five(message):
-        seen.append(message)
+    def stop_after_five(finished, of, what):   # the meter: told after each candidate fitted
+        seen.append(what)
         if len(seen) == 5:
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run(grid.candidates[:12], tiny, tmp_path, progress=stop_after_five, **context)
+        run(grid.candidates[:12], tiny, tmp_path, meter=stop_after_five, **context)
     cached = list((tmp_path / "cache" / "pitch").glob("*.json"))
     assert len(cached) == 5
-    messages = []
-    resumed = run(grid.candidates[:12], tiny, tmp_path, progress=messages.append, **context)
-    assert messages[0] == "5 of 12 candidates from the cache"
-    assert sum(m.startswith("[") for m in messages) == 7
+    messages, counted = [], []
+    resumed = run(grid.candidates[:12], tiny, tmp_path, progress=messages.append,
+                  meter=lambda finished, of, what: counted.append((finished, of)), **context)
+    assert messages == ["5 of 12 candidates from the cache"]   # a line per candidate no more: the meter counts
+    assert counted == [(k, 7) for k in range(1, 8)]
     fresh = run(grid.candidates[:12], tiny, tmp_path / "fresh", **context)
     assert [r.estimates.params for r in resumed] == [r.estimates.params for r in fresh]
 
@@ -379,8 +381,18 @@ def test_cli_fit_search_and_dask(tiny, tmp_path):
 
 @pytest.mark.slow
 def test_cli_demo_small(tmp_path):
-    proc = run_cli("demo", "--out", str(tmp_path), "--scale", "0.05", "--quiet")
+    from test_story_console import console_verdicts
+    proc = run_cli("demo", "--out", str(tmp_path), "--scale", "0.05")
     assert proc.returncode == 0, proc.stderr
+    # issue 43: stderr is a pipe here, not a terminal: no bar, no line per candidate; the summaries stay
+    assert "\r" not in proc.stderr and not re.search(r"^\[\d+/\d+\] ", proc.stderr, re.M)
+    assert "grid pitch: " in proc.stderr and len(proc.stderr.splitlines()) < 80
+    # the story's console lines: short, and a round's verdict is story.json's
+    assert max(len(line) for line in proc.stdout.splitlines()) <= 160
+    story = json.loads((tmp_path / "story.json").read_text())
+    said = console_verdicts(proc.stdout.splitlines())
+    assert said == {(coef, i + 1): r["adopted"] for coef, d in story["diagnoses"].items()
+                    for i, r in enumerate(d["rounds"])}
     for grid in ("separation", "lift", "drag", "pitch"):
         assert f"{grid}: " in proc.stdout
     assert (tmp_path / "ranking.csv").exists() and (tmp_path / "campaign" / "campaign.toml").exists()

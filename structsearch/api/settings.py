@@ -15,7 +15,7 @@ from ..data.campaign import Campaign
 from ..data.errors import DeclarationError
 from ..engine.statistics import DEFAULT_COVARIANCE
 from ..data.atomic import write_json
-from ..fitting.fitter import Fitter, RunConfig
+from ..fitting.fitter import Fitter, Meter, RunConfig
 from ..fitting.trace import Trace
 from ..fitting.options import FitOptions, command_options
 
@@ -29,7 +29,8 @@ class Settings:
     ``covariance``, ``bounds`` (``--bound NAME=LO:HI``: a mapping or pairs, the last box of a name winning),
     ``jobs`` worker processes (0: every core) of ``backend``, ``segment`` ("cycles" fits a periodic record's
     cycles as maneuvers), ``cache`` (the directory whose ``cache/`` holds the fits; default the command's
-    ``out``, else a temporary directory), ``progress`` (receives the lines the command writes to stderr) and
+    ``out``, else a temporary directory), ``progress`` (receives the lines the command writes to stderr), ``meter``
+    (told ``(finished, of, what)`` after each candidate a fit call fitted: the command line's progress bar) and
     ``trace`` (a file the command writes its tasks to, as Chrome trace-event JSON: ``--trace FILE``)."""
 
     starts: int | None = None
@@ -42,6 +43,7 @@ class Settings:
     cache: str | os.PathLike | None = None
     progress: Progress = None
     trace: str | os.PathLike | None = None
+    meter: Meter | None = None
 
     @property
     def processes(self) -> int:
@@ -85,7 +87,7 @@ def command_fitter(command: str, campaign: Campaign, settings: Settings, out: st
                    **option_changes) -> Iterator[Fitter]:
     """The fitter of ``command``: its options (:func:`fit_options`, with ``option_changes``), its cache
     (``settings.cache``, else ``out``, else a temporary directory), workers (on ``backend="dask"``, the client the
-    caller opened, else a local cluster of ``jobs`` workers) and progress; with ``settings.trace``, every task
+    caller opened, else a local cluster of ``jobs`` workers), progress and meter; with ``settings.trace``, every task
     it ran is written there when it ends (also when it fails: the trace shows how far it got)."""
     options = fit_options(command, settings, campaign, **option_changes)
     trace = Trace() if settings.trace is not None else None
@@ -93,7 +95,7 @@ def command_fitter(command: str, campaign: Campaign, settings: Settings, out: st
             _dask_client(settings) as _:
         try:
             yield Fitter(RunConfig(campaign, where, options, settings.processes, settings.backend, settings.progress,
-                                   trace))
+                                   trace, settings.meter))
         finally:
             if trace is not None:
                 write_json(Path(settings.trace), trace.to_chrome())

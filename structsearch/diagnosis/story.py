@@ -137,6 +137,76 @@ def story_lines(docs: Mapping[str, Diagnosis]) -> list[str]:
     return lines
 
 
+# The console's lines (structsearch demo) are read on a terminal: one a round, none longer than this; the story's
+# own lines (story.md, the report) name every reason and term, up to a thousand characters.
+CONSOLE_WIDTH = 160
+
+
+def console_lines(story: Story) -> list[str]:
+    """What ``structsearch demo`` prints of the story: per coefficient where its Van Ingen model starts, one line a
+    round with the verdict story.md's table gives it (adopted or not, and why) and where it ends; long texts are
+    cut at :data:`CONSOLE_WIDTH` (story.md holds them whole)."""
+    lines = []
+    for coef, doc in story.diagnoses.items():
+        mse, floor = doc.mse.validation, doc.noise_floor
+        lines.append(f"{coef}: the Van Ingen model {doc.baseline} misses the flight data by {_above(mse, floor)} "
+                     f"above the noise floor (validation MSE {mse:.3g} against {floor:.3g})")
+        if doc.baseline_reasons:
+            lines.append(f"  {doc.baseline} as fitted here is NOT admissible: {len(doc.baseline_reasons)} reasons, "
+                         "listed in story.md")
+        lines += [f"  {coef} round {i + 1}: {round_verdict(doc, i)}" for i in range(len(doc.rounds))]
+        lines.append(f"  {coef} ends at {doc.final_model}: {_end_words(doc)}")
+    return [_clip(line) for line in lines]
+
+
+def round_verdict(doc: Diagnosis, i: int) -> str:
+    """Round ``i``'s verdict in words: the move adopted (story.md's "adopted" column), or why none was."""
+    r = doc.rounds[i]
+    if r.adopted:
+        e = r.effect(r.adopted)
+        return f"adopted {r.adopted}" + (f" ({e.verdict}): {_move_figures(doc, i, e)}" if e is not None else "")
+    if r.explained_before:
+        return "at the floor: nothing to adopt"
+    best = r.best
+    if best is None:
+        return "nothing adopted: every move's fit failed"
+    return f"nothing adopted; best move {best.name} ({_move_figures(doc, i, best)}) {_not_adopted(best)}"
+
+
+def _not_adopted(e) -> str:
+    """Why the best move of a round that adopts nothing was not adopted, from its verdict and test."""
+    p, threshold = (e.test or {}).get("p_value"), (e.test or {}).get("threshold")
+    if e.verdict == "look-ahead":
+        return "was a look-ahead: neither it nor a move after it passed its test"
+    if e.verdict in ("improves", "simplifies"):
+        return ("passed its test, but the final choice kept this round's structure (within one standard error, "
+                "fewer parameters)")
+    if p is not None and threshold is not None and p > threshold:
+        return f"did not pass its test (p above {threshold:.2g})"
+    return "was rejected (its test and reasons: story.json)"
+
+
+def _move_figures(doc: Diagnosis, i: int, e) -> str:
+    share = doc.closes(i, e)
+    p = (e.test or {}).get("p_value")
+    closes = "closes n/a" if not np.isfinite(share) else f"closes {share:.0%}" if share >= 0 else f"costs {-share:.0%}"
+    return f"{closes} of the gap, p {'n/a' if p is None else format(p, '.2g')}"
+
+
+def _end_words(doc: Diagnosis) -> str:
+    text = "at the floor" if doc.explained else f"still {_above(doc.final_mse, doc.noise_floor)} above the floor"
+    u = doc.unexplained
+    if not doc.explained and u.signals and u.share is not None:
+        text += f"; what remains is not in the library ({u.share:.0%} of the gap) and follows {u.signals[0].name}"
+    return text
+
+
+def _clip(line: str, width: int = CONSOLE_WIDTH) -> str:
+    if len(line) <= width:
+        return line
+    return line[:width - 4].rsplit(" ", 1)[0] + " ..."
+
+
 def unexplained_sentence(doc: Diagnosis | Mapping) -> str:
     """What the library cannot explain, in words (empty when the final model is at the floor). ``doc`` is a
     diagnosis or its ``to_dict()``."""

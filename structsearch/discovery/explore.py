@@ -215,10 +215,11 @@ def explore(start: Candidate, fitter: Fitter, library: TermLibrary, *,
         confirmed += [n for n in nxt if n.status in CONFIRMED]
         adopted_now = [n for n in nxt if n.status in CONFIRMED]
         best = _lowest_mse(adopted_now) if adopted_now else None
-        top = _lowest_mse(confirmed)
+        # progress only, no verdict: what a step carries on is not yet what the search adopts (the final choice
+        # comes at the end; a look-ahead may lead nowhere), and a line that named it contradicted the documents
         say(f"step {index}: {n_tried} structures tried ({run.n_fitted} in all), "
-            f"{'kept ' + nxt[0].status + ' ' + nxt[0].move.name if nxt else 'no move passes'}; best so far "
-            f"{top.candidate.name} (held-out MSE {top.mse:.4g}), {time.perf_counter() - t0:.0f} s")
+            f"{f'{len(nxt)} carried to the next step' if nxt else 'none carried on: the search stops'}, "
+            f"{time.perf_counter() - t0:.0f} s")
         if not nxt:
             stopped = why
             break

@@ -21,6 +21,9 @@ from .options import FitOptions
 from .trace import Trace
 
 Progress = Callable[[str], None]
+# (finished, of, what): told after each candidate a fit call fitted ("drag CD-IXr"); the command line draws a bar
+# from it on a terminal, in place of a line per candidate (a search fits hundreds)
+Meter = Callable[[int, int, str], None]
 
 
 def _silent(message: str) -> None:
@@ -32,8 +35,9 @@ class RunConfig:
     """Where and how a command fits: ``campaign`` (split into training and validation maneuvers by its
     manifest), ``options`` (starts, seed, covariance, cross-validation, boxes), ``cache_dir`` (whose ``cache/``
     holds every fit, keyed by what it depends on), ``n_jobs`` worker processes of ``backend`` (joblib's, or
-    "dask" on a client the caller opened), ``progress`` (the lines a command prints to stderr) and ``trace`` (where
-    every task is recorded, for ``--trace``; None: nowhere)."""
+    "dask" on a client the caller opened), ``progress`` (the lines a command prints to stderr), ``meter`` (told of
+    each candidate fitted: :data:`Meter`; None: nobody) and ``trace`` (where every task is recorded, for
+    ``--trace``; None: nowhere)."""
 
     campaign: Campaign
     cache_dir: Path
@@ -42,6 +46,7 @@ class RunConfig:
     backend: str = "loky"
     progress: Progress = _silent
     trace: Trace | None = None
+    meter: Meter | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "cache_dir", Path(self.cache_dir))
@@ -89,7 +94,7 @@ class Fitter:
         c = self.config
         return run(list(candidates), c.campaign, c.cache_dir, lifts=dict(self.lifts), options=c.options,
                    n_jobs=c.n_jobs, backend=c.backend, progress=c.progress, fitted_before=list(donors),
-                   trace=c.trace)
+                   trace=c.trace, meter=c.meter)
 
     def fit_one(self, candidate: Candidate,
                 donors: Iterable[tuple[Candidate, CandidateResult]] = ()) -> CandidateResult:
@@ -109,7 +114,8 @@ class Fitter:
         return self._with(progress=progress)
 
     def quiet(self) -> "Fitter":
-        """This fitter without progress lines."""
+        """This fitter without progress lines (its meter still counts the candidates: a structure search that
+        says one line a step is long, and the bar is all a terminal shows of it)."""
         return self._with(progress=_silent)
 
     def serial(self) -> "Fitter":

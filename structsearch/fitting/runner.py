@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import time
 from contextlib import ExitStack
 from functools import lru_cache
 from pathlib import Path
@@ -117,8 +116,8 @@ def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None,
 def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts: dict[str, LiftFit] | None = None,
         options: FitOptions = FitOptions(), n_jobs: int = 1,
         backend: str = "loky", progress: Callable[[str], None] | None = None,
-        fitted_before: Sequence[tuple[Candidate, CandidateResult]] = (), trace: Trace | None = None
-        ) -> list[CandidateResult]:
+        fitted_before: Sequence[tuple[Candidate, CandidateResult]] = (), trace: Trace | None = None,
+        meter: Callable[[int, int, str], None] | None = None) -> list[CandidateResult]:
     """Fit candidates (cached, in parallel), staged (:mod:`.staging`): a candidate starts from the
     estimates of a candidate nested in it, fitted before it in this grid (an earlier wave) or in
     ``fitted_before`` (earlier grids of the same search). A candidate that is one of ``fitted_before``
@@ -126,7 +125,8 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     written by an earlier run serves first, as for every candidate). Each candidate's starts, statistics and
     folds are tasks of their own (:mod:`.scheduling`), on any backend; a candidate's donors are fixed (those of
     earlier waves), so the results do not depend on the backend, the number of jobs or the order tasks finish
-    in. Results come in the order of ``candidates``; ``trace`` records every task."""
+    in. Results come in the order of ``candidates``; ``trace`` records every task; ``meter(finished, of, what)`` is
+    told of each candidate fitted (``progress`` only of what is worth a line: the cache, a failure)."""
     say = progress or (lambda msg: None)
     train, validation = campaign.split("train"), campaign.split("validation")
     data_key = campaign_fingerprint(campaign)
@@ -161,16 +161,17 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     todo = [i for i in range(len(candidates)) if results[i] is None]
     if not todo:
         return results
-    t0, finished = time.perf_counter(), [0]
+    finished = [0]
 
     def done(i, summary, warm):
         if not summary.failed or summary.error.startswith(CACHED_FAILURES):
             write_cached(*paths[i], summary)
         results[i] = summary
         finished[0] += 1
-        status = "failed: " + summary.error if summary.failed else f"{summary.seconds:.1f} s"
-        say(f"[{finished[0]}/{len(todo)}] {candidates[i].grid} {candidates[i].name}{' (warm start)' if warm else ''}: "
-            f"{status} ({time.perf_counter() - t0:.0f} s elapsed)")
+        if summary.failed:
+            say(f"{candidates[i].grid} {candidates[i].name}: failed: {summary.error}")
+        if meter is not None:
+            meter(finished[0], len(todo), f"{candidates[i].grid} {candidates[i].name}")
 
     plan = CallPlan(candidates, todo, needs, {i: r for i, r in enumerate(results) if r is not None},
                     list(fitted_before))

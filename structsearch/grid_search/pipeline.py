@@ -159,7 +159,11 @@ def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ran
         known.update({structure_key(c): (c, r) for c, r in new})
         extra += new
         steps = " -> ".join([start.name] + [c.name for c, _ in done.steps]) or start.name
+        # the first refusal and a count: every refused move would make a line of hundreds of characters
+        more = len(done.refused) - 1
+        stopped = (f"{done.refused[0]}; {more} more move{'s' if more > 1 else ''} refused" if more > 0
+                   else done.stopped)
         fitter.say(f"grid {grid.name}: refined {steps}"
-                   + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {done.stopped}")
+                   + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {stopped}")
         done_all.append(done)
     return extra, done_all

@@ -58,6 +58,7 @@ class Refinement:
     steps: tuple[tuple[Candidate, CandidateResult], ...]
     stopped: str
     reached: tuple[str, ...] = ()      # existing candidates a step turned out to be
+    refused: tuple[str, ...] = ()      # why each move of the last step was refused (``stopped`` joins them)
 
 
 @dataclass(frozen=True)
@@ -230,7 +231,7 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
     known = known or {}
     steps, reached = [], []
     current, current_summary, dropped, kinds = c, summary, [], {}
-    stopped = "nothing left to drop"
+    stopped, refused_all = "nothing left to drop", ()
     if summary.estimates.withheld:   # no t-test, interval or bound to judge a move by
         return Refinement(c.name, (), f"{summary.estimates.withheld}: no statistics to refine by")
     for step in range(1, MAX_STEPS + 1):
@@ -246,7 +247,7 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
                 break
             refused.append(why)
         if taken is None:
-            stopped = "; ".join(refused) + "; not taken"
+            stopped, refused_all = "; ".join(refused) + "; not taken", tuple(refused)
             break
         current, current_summary, dropped, kinds, was_known = taken
         steps.append((current, current_summary))
@@ -254,4 +255,4 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
             reached.append(current.name)
     else:
         stopped = f"stopped after {MAX_STEPS} steps"
-    return Refinement(c.name, tuple(steps), stopped, tuple(reached))
+    return Refinement(c.name, tuple(steps), stopped, tuple(reached), refused_all)
