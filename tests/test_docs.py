@@ -142,6 +142,7 @@ def run_page(page: Path, workdir: Path, small_campaign_dir, include_slow: bool, 
         if block.lang == "toml":
             tomllib.loads(block.body)
             if block.file:
+                (workdir / block.file).parent.mkdir(parents=True, exist_ok=True)
                 (workdir / block.file).write_text(block.body + "\n")
         elif block.lang in RUN_PYTHON:
             with contextlib.redirect_stdout(io.StringIO()):
