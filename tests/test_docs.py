@@ -181,6 +181,15 @@ def test_the_readme_is_short_and_names_no_issue():
     assert ISSUE.findall(readme) == []
 
 
+def test_the_readme_links_to_files_that_exist():
+    """The README is not part of the site (strict mode does not see it): its relative links are checked here."""
+    readme = (ROOT / "README.md").read_text()
+    targets = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", readme)
+    assert len(targets) > 20
+    missing = [t for t in targets if not t.startswith(("http://", "https://")) and not (ROOT / t).exists()]
+    assert missing == []
+
+
 @pytest.mark.parametrize("page", PAGES, ids=_ids(PAGES))
 def test_no_page_narrates_issues(page):
     """The changelog (CHANGELOG.md at the root, included in the site) is where history lives."""
