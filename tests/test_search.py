@@ -138,7 +138,7 @@ def tiny(campaign_on_disk):
 def test_the_same_seed_gives_byte_identical_artefacts(tiny, tmp_path):
     """Issue 31: running the demo rewrote tracked artefacts. The demo's search (every grid, its tables, the
     thesis-estimator refits) run twice from empty caches on the same campaign writes the same bytes; what may
-    move between runs is wall-clock time alone (README, section "Reproducibility")."""
+    move between runs is wall-clock time alone (docs/reproducibility.md)."""
     import structsearch as ss
     for name in ("a", "b"):
         ss.search(tiny, "all", out=tmp_path / name, settings=ss.Settings(jobs=2))
