@@ -116,11 +116,12 @@ def test_a_name_far_from_every_shipped_one_gets_no_guess(tmp_path, capsys):
 
 
 def _synopsis():
-    """(command, option, bracketed) for every option of the README's "Command line" synopsis."""
+    """(command, option, bracketed) for every option of the synopsis of the command-line reference
+    (docs/reference/cli.md, section "Synopsis")."""
     import re
     from pathlib import Path
-    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
-    block = readme.split("## Command line", 1)[1].split("\n\n", 2)[1]
+    page = (Path(__file__).resolve().parent.parent / "docs" / "reference" / "cli.md").read_text()
+    block = page.split("## Synopsis", 1)[1].split("```text\n", 1)[1].split("```", 1)[0]
     entries, command = [], None
     for line in block.splitlines():
         text = line.strip()
@@ -140,9 +141,9 @@ def _synopsis():
 REQUIRED_UNLESS_MODE = {("diagnose", "--data"), ("diagnose", "--model"), ("bench", "--trace")}
 
 
-def test_the_readme_synopsis_brackets_exactly_the_optional_options():
+def test_the_synopsis_brackets_exactly_the_optional_options():
     """Issue 31: the synopsis wrote `--out DIR` as required where it has a default. An option is bracketed in
-    the README exactly when the parser does not require it (flags that choose a mode, such as `bench
+    the synopsis exactly when the parser does not require it (flags that choose a mode, such as `bench
     --discovery`, are written bare)."""
     parser = build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))

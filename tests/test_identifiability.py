@@ -44,7 +44,7 @@ def test_dynamic_stalls_decorrelate_tau1_and_tau2(fits):
 def test_the_study_table_reports_the_decorrelation(campaign):
     """Issue 16 (replacing issue 3's strict xfail on |rho| < 0.3): the study's Tables 10.1-10.3 counterpart,
     on the same maneuvers, shows the dynamic stalls cutting |rho(tau1_ss, tau2_ss)| by at least 0.3; the
-    thesis' 0.06 is not what this simulated plan gives (README)."""
+    thesis' 0.06 is not what this simulated plan gives (docs/guide/study.md)."""
     from structsearch.fitting.options import FitOptions
     from structsearch.thesis_study.dynamic_stalls import dynamic_stall_study
     study = dynamic_stall_study(campaign, options=FitOptions(n_starts=2))

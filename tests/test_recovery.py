@@ -17,7 +17,7 @@ def test_final_lift_model_recovered_from_random_start(noise_free_lift, seed):
     for name, truth in FINAL_LIFT.items():
         assert result.params[name] == pytest.approx(truth, rel=1e-6), name
     assert result.rss < 1e-18
-    # several of the 8 Sobol starts reach the optimum (about 58 % each, README): a multistart that keeps
+    # several of the 8 Sobol starts reach the optimum (about 60 % each, docs/guide/speed.md): a multistart that keeps
     # only one lucky start would fail here
     assert result.n_reached_best >= 2, result.n_reached_best
 

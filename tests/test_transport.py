@@ -139,7 +139,7 @@ regressors = { CL0 = "1", CL_KL_ss = "K_L(X_ss)", CL_KL_w = "K_L(X_w)", CL_qstar
 @pytest.mark.slow
 def test_transport_searches_rank_an_admissible_one_state_structure_first(transport, tmp_path):
     """Issue 12 acceptance on the transport, on the two structures of each grid that matter (the whole grids:
-    README, results/transport): the one-state separation and lift structures (after refinement where a term
+    docs/guide/second-aircraft.md, results/transport): the one-state separation and lift structures (after refinement where a term
     is not significant) rank first and are admissible; the two-state ones are listed with their reasons; no
     standard deviation is 0."""
     from conftest import fitter_for

@@ -1,0 +1,239 @@
+"""The documentation: the site builds without a warning, the README stays short, and every code block of
+README.md and docs/**/*.md runs.
+
+Code blocks are read by their language tag:
+
+* ``python``: executed, the page's blocks in order in one namespace and one working directory;
+* ``console`` (commands after ``$ ``, other lines are output) and ``bash``: every command must be a
+  ``structsearch`` command (``.venv/bin/structsearch`` too) and runs as ``python -m structsearch ...`` in the
+  page's working directory;
+* ``toml``: parsed; with ``<!-- file: NAME -->`` right before the fence it is also written to NAME in the
+  page's working directory, where later blocks use it (a grid spec is then searched, a term library loaded);
+* ``text``, ``csv``, ``json``: listings, not run (``json`` is parsed when it is a whole document).
+
+An HTML comment on the line before a fence marks a block: ``<!-- test: slow -->`` runs it only in the slow set
+(with the rest of its page, in order), ``<!-- test: skip (REASON) -->`` never runs it (an installation, the test
+command itself) and must give a reason. A block without a known tag fails the test, so none is skipped silently.
+
+Examples use the small campaign ``structsearch simulate --out camp --scale 0.05``; it is flown once per test
+module and copied where a page asks for it (the same command and seed give the same campaign bit for bit).
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGES = [ROOT / "README.md"] + sorted((ROOT / "docs").rglob("*.md"))
+SMALL_CAMPAIGN = "structsearch simulate --out camp --scale 0.05"
+
+RUN_PYTHON = {"python"}
+RUN_SHELL = {"console", "bash"}
+LISTINGS = {"text", "csv", "json", "toml"}
+
+FENCE = re.compile(r"^(?P<indent>[ ]*)```(?P<lang>[\w-]*)[^\n]*\n(?P<body>.*?)^(?P=indent)```[ ]*$", re.M | re.S)
+MARKER = re.compile(r"<!--\s*(test|file):\s*(.*?)\s*-->\s*$")
+ISSUE = re.compile(r"\bissues? #?\d+|\(#\d+\)", re.I)
+
+
+@dataclass
+class Block:
+    page: Path
+    line: int
+    lang: str
+    body: str
+    marker: str = ""        # "slow", "skip (...)" or ""
+    file: str = ""          # <!-- file: NAME -->
+
+    @property
+    def where(self) -> str:
+        return f"{self.page.relative_to(ROOT)}:{self.line}"
+
+
+def blocks(page: Path) -> list[Block]:
+    text = page.read_text()
+    found = []
+    for match in FENCE.finditer(text):
+        start = text.count("\n", 0, match.start())
+        block = Block(page, start + 1, match["lang"], "\n".join(line[len(match["indent"]):]
+                                                               for line in match["body"].splitlines()))
+        lines = text.splitlines()[:start]
+        while lines and not lines[-1].strip():
+            lines.pop()
+        while lines and MARKER.search(lines[-1].strip()):     # the comments right before the fence
+            marker = MARKER.search(lines.pop().strip())
+            if marker[1] == "test":
+                block.marker = marker[2]
+            else:
+                block.file = marker[2]
+        found.append(block)
+    return found
+
+
+def commands(block: Block) -> list[str]:
+    """The commands of a shell block: ``$ `` lines of a console block (continued by a trailing backslash),
+    every line of a bash block that is not a comment."""
+    lines, out = block.body.splitlines(), []
+    pending = None
+    for line in lines:
+        if pending is not None:
+            pending += " " + line.strip()
+        elif block.lang == "console" and line.startswith("$ "):
+            pending = line[2:].strip()
+        elif block.lang == "bash" and line.strip() and not line.lstrip().startswith("#"):
+            pending = line.strip()
+        else:
+            continue
+        if pending.endswith("\\"):
+            pending = pending[:-1].rstrip()
+            continue
+        out.append(pending)
+        pending = None
+    return out
+
+
+def pages_with(predicate) -> list[Path]:
+    return [page for page in PAGES if any(predicate(b) for b in blocks(page))]
+
+
+def _ids(pages):
+    return [str(p.relative_to(ROOT)) for p in pages]
+
+
+@pytest.fixture(scope="module")
+def small_campaign(tmp_path_factory):
+    where = tmp_path_factory.mktemp("campaign")
+    _structsearch(shlex.split(SMALL_CAMPAIGN)[1:], where)
+    return where / "camp"
+
+
+def _env():
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
+    return env
+
+
+def _structsearch(argv: list[str], cwd: Path, where: str = "") -> None:
+    proc = subprocess.run([sys.executable, "-m", "structsearch", *argv], cwd=cwd, env=_env(),
+                          capture_output=True, text=True, timeout=3600)
+    assert proc.returncode == 0, f"{where}: structsearch {' '.join(argv)} failed:\n{proc.stdout[-2000:]}{proc.stderr}"
+
+
+def run_page(page: Path, workdir: Path, small_campaign_dir, include_slow: bool, monkeypatch) -> int:
+    """Run the page's blocks in order in ``workdir``; return how many ran."""
+    namespace: dict = {"__name__": "__docs__"}
+    monkeypatch.chdir(workdir)
+    ran = 0
+    for block in blocks(page):
+        if block.marker.startswith("skip") or (block.marker == "slow" and not include_slow):
+            continue
+        if block.lang == "toml":
+            tomllib.loads(block.body)
+            if block.file:
+                (workdir / block.file).parent.mkdir(parents=True, exist_ok=True)
+                (workdir / block.file).write_text(block.body + "\n")
+        elif block.lang in RUN_PYTHON:
+            with contextlib.redirect_stdout(io.StringIO()):
+                try:
+                    exec(compile(block.body, block.where, "exec"), namespace)
+                except Exception as error:      # noqa: BLE001 - name the block that failed
+                    raise AssertionError(f"{block.where}: the python block failed: {error!r}") from error
+        elif block.lang in RUN_SHELL:
+            for command in commands(block):
+                argv = shlex.split(command)
+                if command == SMALL_CAMPAIGN and not (workdir / "camp").exists():
+                    shutil.copytree(small_campaign_dir(), workdir / "camp")
+                else:
+                    _structsearch(argv[1:], workdir, block.where)
+        else:
+            continue
+        ran += 1
+    return ran
+
+
+# ---------------------------------------------------------------- the site and the pages' text
+
+def test_the_site_builds_strictly_without_a_warning(tmp_path):
+    env = dict(os.environ, NO_MKDOCS_2_WARNING="1")
+    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(tmp_path / "site")],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    output = proc.stdout + proc.stderr
+    assert proc.returncode == 0, output
+    assert "WARNING" not in output, output
+    assert (tmp_path / "site" / "reference" / "api" / "index.html").exists()
+
+
+def test_the_readme_is_short_and_names_no_issue():
+    readme = (ROOT / "README.md").read_text()
+    assert len(readme.splitlines()) < 200
+    assert ISSUE.findall(readme) == []
+
+
+def test_the_readme_links_to_files_that_exist():
+    """The README is not part of the site (strict mode does not see it): its relative links are checked here."""
+    readme = (ROOT / "README.md").read_text()
+    targets = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", readme)
+    assert len(targets) > 20
+    missing = [t for t in targets if not t.startswith(("http://", "https://")) and not (ROOT / t).exists()]
+    assert missing == []
+
+
+@pytest.mark.parametrize("page", PAGES, ids=_ids(PAGES))
+def test_no_page_narrates_issues(page):
+    """The changelog (CHANGELOG.md at the root, included in the site) is where history lives."""
+    assert ISSUE.findall(page.read_text()) == [], page
+
+
+@pytest.mark.parametrize("page", PAGES, ids=_ids(PAGES))
+def test_every_block_has_a_known_tag_and_markers_are_well_formed(page):
+    for block in blocks(page):
+        assert block.lang in RUN_PYTHON | RUN_SHELL | LISTINGS, f"{block.where}: a block tagged {block.lang!r}"
+        assert block.marker in ("", "slow") or re.fullmatch(r"skip \(.+\)", block.marker), block.where
+        if block.lang == "json" and block.body.lstrip().startswith("{") and "..." not in block.body:
+            json.loads(block.body)
+        if block.lang in RUN_SHELL and not block.marker.startswith("skip"):
+            assert commands(block), f"{block.where}: a shell block without a command"
+            for command in commands(block):
+                assert shlex.split(command)[0] in ("structsearch", ".venv/bin/structsearch"), \
+                    f"{block.where}: only structsearch commands run ({command!r}); mark the block skip with a reason"
+
+
+def test_markers_are_found():
+    readme = blocks(ROOT / "README.md")
+    assert any(b.marker == "slow" for b in readme) and any(b.marker.startswith("skip") for b in readme)
+    assert any(b.lang == "python" and not b.marker for b in readme)
+
+
+# ---------------------------------------------------------------- the code runs
+
+def _runs(block: Block) -> bool:
+    return block.lang in RUN_PYTHON | RUN_SHELL or bool(block.file)
+
+
+FAST = pages_with(lambda b: _runs(b) and not b.marker)
+SLOW = pages_with(lambda b: _runs(b) and b.marker == "slow")
+
+
+@pytest.mark.parametrize("page", FAST, ids=_ids(FAST))
+def test_the_code_of_a_page_runs(page, tmp_path, request, monkeypatch):
+    """Every block not marked slow, in order, in one directory (the fast set)."""
+    assert run_page(page, tmp_path, lambda: request.getfixturevalue("small_campaign"), False, monkeypatch) > 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", SLOW, ids=_ids(SLOW))
+def test_the_code_of_a_page_runs_in_full(page, tmp_path, request, monkeypatch):
+    """Every block of the page, the slow ones too, in order, in one directory."""
+    assert run_page(page, tmp_path, lambda: request.getfixturevalue("small_campaign"), True, monkeypatch) > 0
