@@ -215,12 +215,22 @@ def _print_winners(result) -> None:
             parts.append(f"optimizer did not converge for {_named(not_converged)}")
         if runner_up is not None:
             parts.append(f"next {runner_up.name} ({runner_up.n_params} parameters, "
-                         f"{runner_up.comparison.mse / best.comparison.mse - 1:+.1%})")
+                         f"{_change(runner_up.comparison.mse / best.comparison.mse - 1)})")
         parts.append(f"{result.seconds[grid]:.1f} s")
         print(_clip("; ".join(parts)))
         for s in passed_over(ranked)[:3]:
             print(_clip(f"  passed over {s.name} ({_held_out(s)} MSE "
-                        f"{s.comparison.mse / best.comparison.mse - 1:+.1%}): {'; '.join(s.placement.reasons)}"))
+                        f"{_change(s.comparison.mse / best.comparison.mse - 1)}): {'; '.join(s.placement.reasons)}"))
+
+
+def _change(x: float) -> str:
+    """A relative change as a signed percentage that never reads "-0.0%": below 0.1% at two significant
+    digits (a structure passed over for a change this small is why the line is printed)."""
+    if x != x:   # NaN: a held-out MSE that could not be computed
+        return "n/a"
+    if x == 0:
+        return "0%"
+    return f"{100 * x:+.2g}%" if abs(x) < 1e-3 else f"{x:+.1%}"
 
 
 def _demo(args) -> int:

@@ -57,3 +57,9 @@ def test_a_command_help_prints_the_example_as_written(name, capsys):
     with pytest.raises(SystemExit), contextlib.redirect_stdout(io.StringIO()) as out:
         build_parser().parse_args([name, "--help"])
     assert f"\nexamples:\n  structsearch {name}" in out.getvalue()
+
+
+def test_a_relative_change_on_the_console_never_reads_minus_zero():
+    from structsearch.cli import _change
+    assert [_change(x) for x in (0.0, -0.00012, 0.0004, -0.001, 0.107, float("nan"))] == \
+        ["0%", "-0.012%", "+0.04%", "-0.1%", "+10.7%", "n/a"]
