@@ -1,6 +1,5 @@
 """Structure search: grids from rules, runner (parallel, cached, resumable), ranking, refinement, CLI."""
 import csv
-import re
 import dataclasses
 import json
 import re
@@ -244,7 +243,6 @@ def test_a_declared_candidate_whose_truth_has_one_zero_term_is_refined_and_the_r
     refined structure is admissible and ranked first."""
     import dataclasses
     from structsearch.fitting.models import build_model
-    from structsearch.fitting.specs import resolve_candidate
     from structsearch.flight.synthetic import with_coefficient
     spec = tmp_path / "grid.toml"
     spec.write_text('name = "z"\ncoefficient = "CL"\nprefix = "Z-"\n'
