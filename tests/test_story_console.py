@@ -94,3 +94,13 @@ def test_console_lines_are_short_where_the_story_lines_are_long():
     assert max(map(len, lines)) <= CONSOLE_WIDTH
     assert "CD-I as fitted here is NOT admissible: 12 reasons, listed in story.md" in "\n".join(lines)
     assert console_verdicts(lines) == {("CD", 1): None}
+
+
+def test_a_refinement_progress_line_is_cut_at_the_console_width():
+    from structsearch.grid_search.pipeline import PROGRESS_WIDTH, _clipped
+    long = ("grid pitch: refined Cm-XXXIX -> Cm-XXXIXr-auto -> Cm-XXXIII -> Cm-XXXIIIr (= Cm-XXXIII, Cm-XXXIIIr); "
+            "stopped: dropping Cm_Xde_ss (|rho(Cm_Xde_ss, Cm_1mX_ssCL)| = 0.80 > 0.8) raises the held-out MSE by 6.8%")
+    cut = _clipped(long)
+    assert len(long) > PROGRESS_WIDTH >= len(cut) and cut.endswith(" ...") and long.startswith(cut[:-4])
+    assert _clipped("grid lift: refined CL-VI; stopped: nothing left to drop") == \
+        "grid lift: refined CL-VI; stopped: nothing left to drop"

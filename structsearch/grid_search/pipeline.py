@@ -163,7 +163,16 @@ def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ran
         more = len(done.refused) - 1
         stopped = (f"{done.refused[0]}; {more} more move{'s' if more > 1 else ''} refused" if more > 0
                    else done.stopped)
-        fitter.say(f"grid {grid.name}: refined {steps}"
-                   + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {stopped}")
+        fitter.say(_clipped(f"grid {grid.name}: refined {steps}"
+                            + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {stopped}"))
         done_all.append(done)
     return extra, done_all
+
+
+# A progress line is read on a terminal; the refinement's whole record is in the grid's tables and
+# refined_<grid>.toml, so a long chain with a long reason is cut here rather than wrapped over three lines.
+PROGRESS_WIDTH = 160
+
+
+def _clipped(line: str) -> str:
+    return line if len(line) <= PROGRESS_WIDTH else line[:PROGRESS_WIDTH - 4].rsplit(" ", 1)[0] + " ..."
