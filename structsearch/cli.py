@@ -178,12 +178,9 @@ def _held_out(s) -> str:
             f"{'one-step ' if s.cv_method == 'one-step' else ''}CV")
 
 
-# a console line at most (a terminal's width, roughly twice): the tables and story.md hold the long texts
-CONSOLE_WIDTH = 160
-
-
 def _clip(line: str) -> str:
-    return line if len(line) <= CONSOLE_WIDTH else line[:CONSOLE_WIDTH - 4].rsplit(" ", 1)[0] + " ..."
+    from .fitting.fitter import console_line   # imported late: the command line's start stays light
+    return console_line(line)
 
 
 def _named(names: list[str], shown: int = 3) -> str:

@@ -5,7 +5,8 @@ import dataclasses
 import re
 
 from structsearch.diagnosis.results import Diagnosis, EffectRow, Round, TrainValidation, Unexplained
-from structsearch.diagnosis.story import CONSOLE_WIDTH, Story, console_lines, story_lines
+from structsearch.diagnosis.story import Story, console_lines, story_lines
+from structsearch.fitting.fitter import CONSOLE_WIDTH
 from structsearch.reporting.diagnosis_doc import story_markdown
 
 
@@ -97,7 +98,8 @@ def test_console_lines_are_short_where_the_story_lines_are_long():
 
 
 def test_a_refinement_progress_line_is_cut_at_the_console_width():
-    from structsearch.grid_search.pipeline import PROGRESS_WIDTH, _clipped
+    from structsearch.fitting.fitter import CONSOLE_WIDTH as PROGRESS_WIDTH
+    from structsearch.fitting.fitter import console_line as _clipped
     long = ("grid pitch: refined Cm-XXXIX -> Cm-XXXIXr-auto -> Cm-XXXIII -> Cm-XXXIIIr (= Cm-XXXIII, Cm-XXXIIIr); "
             "stopped: dropping Cm_Xde_ss (|rho(Cm_Xde_ss, Cm_1mX_ssCL)| = 0.80 > 0.8) raises the held-out MSE by 6.8%")
     cut = _clipped(long)

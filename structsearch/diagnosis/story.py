@@ -17,7 +17,7 @@ from .results import Diagnosis
 from ..flight.reference import VAN_INGEN_MODEL_NAMES
 from ..discovery.explore import DEFAULT_MAX_STEPS
 from ..discovery.moves import MOVE_KINDS
-from ..fitting.fitter import Fitter
+from ..fitting.fitter import Fitter, console_line
 from ..fitting.specs import find_candidate
 
 # The name the drag and pitch searches know the lift structure found for C_L by.
@@ -137,9 +137,8 @@ def story_lines(docs: Mapping[str, Diagnosis]) -> list[str]:
     return lines
 
 
-# The console's lines (structsearch demo) are read on a terminal: one a round, none longer than this; the story's
-# own lines (story.md, the report) name every reason and term, up to a thousand characters.
-CONSOLE_WIDTH = 160
+# The console's lines (structsearch demo) are read on a terminal: one a round, none longer than fitter.CONSOLE_WIDTH;
+# the story's own lines (story.md, the report) name every reason and term, up to a thousand characters.
 
 
 def console_lines(story: Story) -> list[str]:
@@ -156,7 +155,7 @@ def console_lines(story: Story) -> list[str]:
                          "listed in story.md")
         lines += [f"  {coef} round {i + 1}: {round_verdict(doc, i)}" for i in range(len(doc.rounds))]
         lines.append(f"  {coef} ends at {doc.final_model}: {_end_words(doc)}")
-    return [_clip(line) for line in lines]
+    return [console_line(line) for line in lines]
 
 
 def round_verdict(doc: Diagnosis, i: int) -> str:
@@ -201,10 +200,6 @@ def _end_words(doc: Diagnosis) -> str:
     return text
 
 
-def _clip(line: str, width: int = CONSOLE_WIDTH) -> str:
-    if len(line) <= width:
-        return line
-    return line[:width - 4].rsplit(" ", 1)[0] + " ..."
 
 
 def unexplained_sentence(doc: Diagnosis | Mapping) -> str:

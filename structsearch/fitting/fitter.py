@@ -26,6 +26,15 @@ Progress = Callable[[str], None]
 Meter = Callable[[int, int, str], None]
 
 
+# A console line at most (a terminal's width, roughly twice): the tables, story.md and the JSON hold long texts whole.
+CONSOLE_WIDTH = 160
+
+
+def console_line(line: str, width: int = CONSOLE_WIDTH) -> str:
+    """``line`` cut at ``width`` characters on a word boundary, " ..." saying so."""
+    return line if len(line) <= width else line[:width - 4].rsplit(" ", 1)[0] + " ..."
+
+
 def _silent(message: str) -> None:
     """Progress that goes nowhere (a run nobody watches)."""
 

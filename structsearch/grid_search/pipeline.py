@@ -11,7 +11,7 @@ from .admissibility import FIXABLE_REASONS, AdmissibilityRules, MAX_CORRELATION,
 from .ranking import rank
 from .ranking import near_best
 from .refinement import Refinement, refine, structure_key
-from ..fitting.fitter import Fitter
+from ..fitting.fitter import Fitter, console_line
 from ..fitting.lift_fit import LiftFit
 from ..fitting.candidates import Candidate, Grid
 from ..fitting.specs import load_grid
@@ -163,16 +163,8 @@ def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ran
         more = len(done.refused) - 1
         stopped = (f"{done.refused[0]}; {more} more move{'s' if more > 1 else ''} refused" if more > 0
                    else done.stopped)
-        fitter.say(_clipped(f"grid {grid.name}: refined {steps}"
-                            + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {stopped}"))
+        # cut: the refinement's whole record is in the grid's tables and refined_<grid>.toml
+        fitter.say(console_line(f"grid {grid.name}: refined {steps}"
+                                + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {stopped}"))
         done_all.append(done)
     return extra, done_all
-
-
-# A progress line is read on a terminal; the refinement's whole record is in the grid's tables and
-# refined_<grid>.toml, so a long chain with a long reason is cut here rather than wrapped over three lines.
-PROGRESS_WIDTH = 160
-
-
-def _clipped(line: str) -> str:
-    return line if len(line) <= PROGRESS_WIDTH else line[:PROGRESS_WIDTH - 4].rsplit(" ", 1)[0] + " ..."
