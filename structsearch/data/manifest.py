@@ -33,17 +33,30 @@ def finish_set(out: Path, name: str, paths: Iterable[Path]) -> None:
     write_json(manifest_path(out, name), {"set": name, "complete": True, "files": dict(sorted(files.items()))})
 
 
+def listed_files(out: Path, name: str) -> set[str] | None:
+    """The files the manifest of set ``name`` in ``out`` lists (None: no manifest, as for outputs written by hand
+    or before manifests existed)."""
+    path = manifest_path(out, name)
+    if not path.exists():
+        return None
+    return set(_read(path, name)[1])
+
+
+def _read(path: Path, name: str) -> tuple[bool, dict]:
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        return bool(doc["complete"]), dict(doc["files"])
+    except (OSError, ValueError, KeyError, TypeError):
+        raise DataError(f"the {name} manifest is unreadable: run the {name} again", source=str(path)) from None
+
+
 def check_set(out: Path, name: str, file: str) -> None:
     """Raise a DataError when ``out/file`` is part of an interrupted run of set ``name``, or not the file its run
     wrote. Outputs without a manifest (written by hand, or before manifests existed) pass."""
     path = manifest_path(out, name)
     if not path.exists():
         return
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-        complete, files = bool(doc["complete"]), dict(doc["files"])
-    except (OSError, ValueError, KeyError, TypeError):
-        raise DataError(f"the {name} manifest is unreadable: run the {name} again", source=str(path)) from None
+    complete, files = _read(path, name)
     target = Path(out) / file
     if not complete:
         raise DataError(f"written by a {name} that did not finish: run the {name} again to complete its files",

@@ -8,13 +8,12 @@ evaluated), so a tampered file that still parses declares nothing beyond the reg
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Iterable, Mapping
 
 from ..data.atomic import write_text
 from ..data.errors import DataError, DeclarationError
-from ..data.manifest import check_set, manifest_path
+from ..data.manifest import check_set, listed_files
 from ..discovery.spec_file import grid_text
 from ..fitting.candidates import Candidate
 
@@ -52,7 +51,7 @@ def load_refined(out: Path) -> dict[str, Candidate]:
     the one the last search wrote, or that does not parse as a grid, raises an error naming it."""
     from ..fitting.specs import load_grid
     out = Path(out)
-    listed = _listed(out)
+    listed = listed_files(out, "search")
     found: dict[str, Candidate] = {}
     for path in sorted(out.glob(PATTERN)):
         if listed is not None and path.name not in listed:
@@ -71,13 +70,3 @@ def load_refined(out: Path) -> dict[str, Candidate]:
             found[c.name] = c
     return found
 
-
-def _listed(out: Path) -> set[str] | None:
-    """The files the search manifest lists (None: no manifest, as for outputs written before manifests)."""
-    path = manifest_path(out, "search")
-    if not path.exists():
-        return None
-    try:
-        return set(json.loads(path.read_text(encoding="utf-8"))["files"])
-    except (OSError, ValueError, KeyError, TypeError):
-        raise DataError("the search manifest is unreadable: run the search again", source=str(path)) from None
