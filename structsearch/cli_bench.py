@@ -134,7 +134,8 @@ def _bench(args) -> int:
         naive = f"{s['search_over_naive']:.2f}x the naive fan-out, " if "search_over_naive" in s else ""
         print("search --grid all: " + ", ".join(f"{g} {t:.1f} s" for g, t in s["by_grid_s"].items())
               + f"; total {s['search_s']:.1f} s on {s['n_jobs']} processes = {naive}"
-              f"{s['search_over_critical_path']:.2f}x its critical path")
+              f"{s['search_over_critical_path']:.2f}x its chain of whole candidates (an upper bound of the critical "
+              "path; bench --trace measures the path itself)")
     if "staged" in fig:
         st = fig["staged"]
         print(f"default fit reached the best admissible solution of {st['random_starts']} random starts on "

@@ -140,7 +140,11 @@ def critical_path(grids) -> dict:
     lift grid's candidate of that name) for a drag or pitch candidate. A candidate the search serves
     from an earlier grid's twin (:func:`~structsearch.fitting.runner.same_model_fitted`) takes that
     twin's chain. Refinement steps are not on it (they follow a grid's ranking). Returns the longest
-    chain's seconds and its candidates, first fitted first."""
+    chain's seconds and its candidates, first fitted first.
+
+    A candidate's recorded seconds are the work of all its tasks (starts, statistics, folds), which run
+    side by side on several workers, so this chain is an upper bound of the critical path, not the path
+    itself: ``structsearch bench --trace FILE`` measures the task-level path from a trace."""
     from ..fitting.staging import may_donate, waves
     from ..fitting.runner import same_model_fitted
     earlier: list[tuple[Candidate, tuple[float, tuple[str, ...]]]] = []
