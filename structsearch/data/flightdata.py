@@ -195,10 +195,13 @@ def derivative(values: np.ndarray, t: np.ndarray, period: float | None = None) -
 # a periodic record shorter than its period may miss this many sample steps at its end (one: the step from the
 # last sample back to the first, one period on; a little more for a record whose steps vary)
 PERIOD_GAP_STEPS = 1.5
+# and a period spans at least this many sample steps
+MIN_PERIOD_STEPS = 4
 
 
 def check_period(t: np.ndarray, period: float, source: str, column: str = TIME) -> None:
-    """A DataError unless ``period`` [s] fits a periodic record with time stamps ``t``: positive and finite, and,
+    """A DataError unless ``period`` [s] fits a periodic record with time stamps ``t``: positive and finite, at
+    least :data:`MIN_PERIOD_STEPS` median sample steps, and,
     where the record is shorter than one period, covering it but for the step back to its first sample (at most
     :data:`PERIOD_GAP_STEPS` median steps). A record longer than its period is several cycles: the states start
     at the state one period later, on the record's own samples."""
@@ -207,6 +210,10 @@ def check_period(t: np.ndarray, period: float, source: str, column: str = TIME) 
                         source=source, column=column)
     t = np.asarray(t, float)
     step = float(np.median(np.diff(t)))
+    if period < MIN_PERIOD_STEPS * step:
+        raise DataError(f"the period of a periodic maneuver, {period:.4g} s, is shorter than {MIN_PERIOD_STEPS} of "
+                        f"its sample steps ({step:.4g} s): its samples cannot follow a cycle (a frequency in Hz, not "
+                        "rad/s or rpm?)", source=source, column=column)
     gap = float(t[0] + period - t[-1])
     if gap > PERIOD_GAP_STEPS * step:
         raise DataError(f"a periodic maneuver must cover its period: its samples span {t[-1] - t[0]:.6g} s of the "
