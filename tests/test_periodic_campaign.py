@@ -139,3 +139,13 @@ def test_cycles_cut_from_a_periodic_record_are_each_periodic(tmp_path):
     for sl, period in zip(campaign.data.segment_slices(), campaign.data.periods):
         t = campaign.data["t"][sl]
         assert period == pytest.approx(t[-1] - t[0] + PERIOD / 400)
+
+
+def test_marking_a_record_periodic_changes_its_cache_key(tmp_path):
+    """A fit cached for a record read as not periodic is not the fit of the same samples read as periodic."""
+    from structsearch.fitting.runner import fingerprint
+    import dataclasses
+    periodic = read_campaign(_campaign(tmp_path / "p", time=True, entry="periodic = true\n")).data
+    plain = dataclasses.replace(periodic, periods=None)   # the same columns, not periodic
+    assert fingerprint(periodic) != fingerprint(plain)
+    assert fingerprint(plain) == fingerprint(dataclasses.replace(plain))
