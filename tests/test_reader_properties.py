@@ -105,3 +105,42 @@ def test_the_uncorrupted_campaign_reads(tmp_path):
     (tmp_path / "m.csv").write_text("\n".join(_valid_lines()) + "\n")
     (tmp_path / "campaign.toml").write_text(MANIFEST.format(S="30.0", cbar="2.013"))
     assert read_campaign(tmp_path).data.n_samples == N
+
+
+# a [[maneuver]] entry's periodic keys (docs/interfaces.md 7.5): TOML values, valid or not
+periodic_value = st.sampled_from(["true", "false", '"yes"', "1", "nan"])
+frequency_value = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32).map(lambda v: repr(float(v))),
+                            st.floats(0.2, 2.0).map(repr),
+                            st.sampled_from(['"1.2"', "0", "-3", "true", "[1.0]", "1e999"]))
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.one_of(st.none(), periodic_value), st.one_of(st.none(), frequency_value), st.booleans())
+def test_periodic_keys_read_or_are_one_error_naming_the_key(tmp_path_factory, periodic, frequency, with_time):
+    """Any ``periodic`` and ``frequency`` on a maneuver with or without its time column: it reads, periodic with
+    period 1/frequency (or, without a frequency, its duration and one step), or raises one project error naming
+    the manifest's entry and the key (the file and ``t`` where the time column is missing without a frequency, or
+    ``frequency`` where the record does not cover the period it gives)."""
+    directory = tmp_path_factory.mktemp("p")
+    lines = _valid_lines()
+    if not with_time:
+        lines = [",".join(line.split(",")[1:]) for line in lines]
+    (directory / "m.csv").write_text("\n".join(lines) + "\n")
+    entry = "".join(f"{key} = {value}\n" for key, value in (("periodic", periodic), ("frequency", frequency))
+                    if value is not None)
+    text = 'name = "p"\n[aircraft]\nS = 30.0\ncbar = 2.013\nb = 15.75\n' + \
+        '[[maneuver]]\nid = "m"\nfile = "m.csv"\nkind = "quasi-steady"\nsplit = "train"\n' + entry
+    (directory / "campaign.toml").write_text(text)
+    try:
+        data = read_campaign(directory).data
+    except StructSearchError as exc:
+        message = str(exc)
+        assert "campaign.toml" in message or "m.csv" in message, message
+        assert any(f"'{key}'" in message for key in ("periodic", "frequency", "t")) or "TOML" in message, message
+        return
+    assert with_time or frequency is not None
+    if frequency is None and periodic != "true":
+        assert data.periods is None
+    else:
+        expected = 1 / float(frequency) if frequency is not None else 3.0
+        assert data.periods == pytest.approx((expected,))

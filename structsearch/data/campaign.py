@@ -24,7 +24,7 @@ from . import records
 from .tables import LINE_KEY, read_mat, read_table as _read_table  # noqa: F401  (read_mat: the reader of .mat files)
 from .campaign_checks import (AIRCRAFT_KEYS, ANGLES, MANEUVER_KEYS, RAW_ANGLES, RAW_REQUIRED, REQUIRED,
                               RESERVED_KEYS, _check_top_level, _close_match, _flight, _parse_aircraft, _parse_cutoffs,
-                              validate_maneuver)
+                              _periodic, validate_maneuver)
 
 KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugoid", "other")
 SPLITS = ("train", "validation")
@@ -42,6 +42,10 @@ class Maneuver:
     flight: str | None = None
     # the record (maneuver file) a cycle was cut from (structsearch.data.records); "" for a whole record
     record: str = ""
+    # a periodic maneuver (docs/interfaces.md 7.5): its separation states start at their periodic solution; the
+    # period is 1/frequency [Hz], else the record is one cycle (records.period)
+    periodic: bool = False
+    frequency: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,7 +131,9 @@ def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
         if e["split"] not in SPLITS:
             raise DataError(f"unknown split {e['split']!r}; expected one of {', '.join(SPLITS)}",
                             source=where, column="split")
-        maneuvers.append(Maneuver(e["id"], e["file"], e["kind"], e["split"], _flight(e, where)))
+        periodic, frequency = _periodic(e, where)
+        maneuvers.append(Maneuver(e["id"], e["file"], e["kind"], e["split"], _flight(e, where), "", periodic,
+                                  frequency))
     return str(doc.get("name", "")), parsed, maneuvers
 
 
@@ -165,7 +171,7 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     segments, pieces = [], []
     for i, m in enumerate(maneuvers):
         path = directory / m.file
-        columns = _read_table(path)
+        columns = records.with_cycle_time(_read_table(path), m.id, m.frequency, str(path))
         validate_maneuver(columns, path, required, angles, cbar=aircraft["cbar"], rule=rules.for_kind(m.kind))
         for piece, cut in _pieces(m, columns, path, doc["maneuver"][i], segment, rules, aircraft["cbar"],
                                   f"{toml} [[maneuver]] #{i + 1}", derive_alpha_dot=fmt != "raw"):
@@ -182,10 +188,12 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     # keep only the columns every maneuver has: optional columns must be all-or-nothing
     common = set.intersection(*(set(s) for s in segments))
     _same_columns_everywhere(maneuvers, segments, common, directory)
+    periods = [records.period(m.periodic, m.frequency, s["t"], str(directory / m.file), m.id)
+               for m, s in zip(maneuvers, segments)]
     data = from_segments([{k: s[k] for k in sorted(common)} for s in segments],
                          names=[m.id for m in maneuvers], source=str(directory),
                          constants=scalar_constants(aircraft), derive_alpha_dot=fmt != "raw",
-                         flights=[m.flight for m in maneuvers])
+                         flights=[m.flight for m in maneuvers], periods=periods)
     if fmt == "raw":
         extra["format"] = "raw"
     return Campaign(name, aircraft, tuple(maneuvers), data, directory, extra, cutoffs, rules)
@@ -258,7 +266,8 @@ def _pieces(m: Maneuver, columns: dict, path: Path, entry: dict, segment: str | 
         columns["alpha_dot"] = np.gradient(np.asarray(columns["alpha"], float), np.asarray(columns["t"], float),
                                            edge_order=2)
     line_of = None if lines is None else (lambda row: f", line {int(lines[row])}")
-    return [(replace(m, id=piece_id, record=m.id), piece) for piece_id, piece in
+    # a cycle of a periodic record is one period from its first sample to the sample after its last (records.period)
+    return [(replace(m, id=piece_id, record=m.id, frequency=None), piece) for piece_id, piece in
             records.cut_record(columns, m.id, str(path), rules.for_kind(m.kind), cbar, line_of)]
 
 
@@ -308,6 +317,10 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
                 lines.append(f"flight = {_toml_value(m.flight)}")
             if m.record:
                 lines.append(f"record = {_toml_value(m.record)}")
+            if m.periodic:
+                lines.append("periodic = true")
+            if m.frequency is not None:
+                lines.append(f"frequency = {_toml_value(m.frequency)}")
             frame = pd.DataFrame({k: v[sl] for k, v in campaign.data.columns.items()})
             ordered = [c for c in ("t",) + REQUIRED[1:] if c in frame] + sorted(
                 c for c in frame if c not in REQUIRED)
@@ -350,5 +363,7 @@ def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[
     data = from_segments(list(segments), names=[m.id for m in maneuvers], source=name,
                          constants=scalar_constants(aircraft),
                          derive_alpha_dot=(extra or {}).get("format") != "raw",  # raw: recorded channels only
-                         flights=[m.flight for m in maneuvers])
+                         flights=[m.flight for m in maneuvers],
+                         periods=[records.period(m.periodic, m.frequency, s["t"], f"{name}:{m.id}", m.id)
+                                  for m, s in zip(maneuvers, segments)])
     return Campaign(name, dict(aircraft), tuple(maneuvers), data, None, dict(extra or {}))

@@ -36,7 +36,7 @@ RESERVED_KEYS = ("name", "format", "aircraft", "maneuver", "cutoffs", "min_conve
 
 
 # The keys a [[maneuver]] entry may hold (docs/interfaces.md 1, 6.4, 6.9): any other is a typo, refused.
-MANEUVER_KEYS = ("id", "file", "kind", "split", "flight", "record", "segment")
+MANEUVER_KEYS = ("id", "file", "kind", "split", "flight", "record", "segment", "periodic", "frequency")
 
 
 def _close_match(key: str, known) -> str:
@@ -67,6 +67,25 @@ def _flight(entry: dict, where: str) -> str | None:
         raise DataError(f"maneuver {entry['id']!r}: flight must be a non-empty string of printable characters "
                         f"naming the flight it was flown on, not {value!r}{hint}", source=where, column="flight")
     return value
+
+
+def _periodic(entry: dict, where: str) -> tuple[bool, float | None]:
+    """A maneuver's optional ``periodic`` (true or false) and ``frequency`` (Hz, positive and finite; it makes the
+    maneuver periodic, so ``periodic = false`` beside it is a contradiction)."""
+    periodic = entry.get("periodic")
+    if periodic is not None and not isinstance(periodic, bool):
+        raise DataError(f"maneuver {entry['id']!r}: periodic must be true or false, not {periodic!r}", source=where,
+                        column="periodic")
+    if "frequency" not in entry:
+        return bool(periodic), None
+    frequency = entry["frequency"]
+    if not (_number(frequency) and frequency > 0):
+        raise DataError(f"maneuver {entry['id']!r}: frequency must be a positive finite number of cycles per "
+                        f"second (Hz), not {frequency!r}", source=where, column="frequency")
+    if periodic is False:
+        raise DataError(f"maneuver {entry['id']!r}: a frequency makes the maneuver periodic; remove periodic = false "
+                        "or the frequency", source=where, column="frequency")
+    return True, float(frequency)
 
 
 def _number(v) -> bool:
@@ -128,7 +147,9 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
             close = [c for c in names if c.lower() == col.lower()]
             spaced = [c for c in names if c.strip() == col]
             hint = (f" (found {close[0]!r}: column names are case-sensitive)" if close else
-                    f" (found {spaced[0]!r}: remove the spaces around the column name)" if spaced else "")
+                    f" (found {spaced[0]!r}: remove the spaces around the column name)" if spaced else
+                    " (a phase-averaged cycle without time stamps: give its frequency in Hz in its [[maneuver]] "
+                    "entry)" if col == "t" else "")
             raise DataError(f"required column is missing{hint}", source=source, column=col)
     n = len(columns["t"])
     if n < MIN_SAMPLES:

@@ -27,7 +27,7 @@ def segmented(campaign: Campaign, segment: str | None) -> Campaign:
             continue
         where = str(campaign.directory / m.file) if campaign.directory is not None else f"{campaign.name}:{m.id}"
         for piece_id, piece in cut_record(columns, m.id, where, campaign.length_rules.for_kind(m.kind), cbar):
-            maneuvers.append(replace(m, id=piece_id, record=m.id))
+            maneuvers.append(replace(m, id=piece_id, record=m.id, frequency=None))
             pieces.append(piece)
     out = make_campaign(campaign.name, campaign.aircraft, maneuvers, pieces, campaign.extra)
     return replace(out, directory=campaign.directory, cutoffs_hz=dict(campaign.cutoffs_hz),

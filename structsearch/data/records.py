@@ -40,6 +40,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .errors import DataError
+from .flightdata import TIME, check_period
+from .tables import LINE_KEY
 
 # the rule (module docstring): at least this many convective times cbar/V and this many samples per maneuver
 MIN_CONVECTIVE_TIMES = 30.0
@@ -147,6 +149,33 @@ def wants_cycles(asked: str | None, entry_key: str | None, has_column: bool) -> 
     else its [[maneuver]] ``segment`` key; else whether its file names the cycles (a ``cycle`` column)."""
     choice = asked or entry_key
     return choice == "cycles" if choice is not None else has_column
+
+
+# ----- periodic records (docs/interfaces.md 7.5) ----------------------------------------------------------
+def with_cycle_time(columns: dict[str, np.ndarray], maneuver: str, frequency: float | None,
+                    source: str) -> dict[str, np.ndarray]:
+    """A maneuver file's columns with a time column: its own, or, for a phase-averaged cycle that has none and
+    whose [[maneuver]] gives its ``frequency``, t = k / (n f) for sample k of n (uniform over one period, the
+    first sample at t = 0). Without either, the columns as they are (the check of required columns names t)."""
+    if TIME in columns or frequency is None:
+        return columns
+    n = len(next((v for k, v in columns.items() if k != LINE_KEY), ()))
+    if n == 0:
+        raise DataError(f"maneuver {maneuver!r}: the file has no samples", source=source)
+    return {TIME: np.arange(n, dtype=float) / (n * frequency), **columns}
+
+
+def period(periodic: bool, frequency: float | None, t: np.ndarray, source: str, maneuver: str) -> float | None:
+    """A maneuver's period [s]: None when it is not periodic; 1/frequency when the manifest gives one; else the
+    record is one cycle, its period its duration and one median sample step (from the last sample back to the
+    first). An error naming the file, the maneuver and the key when a record shorter than its period does not
+    cover it (:func:`~.flightdata.check_period`)."""
+    if not periodic:
+        return None
+    t = np.asarray(t, float)
+    value = 1.0 / frequency if frequency is not None else float(t[-1] - t[0] + np.median(np.diff(t)))
+    check_period(t, value, f"{source} (maneuver {maneuver!r})", "frequency" if frequency is not None else TIME)
+    return value
 
 
 # ----- cycles ------------------------------------------------------------------------------------------

@@ -9,8 +9,9 @@ tau2*alpha_dot)) and unsteady ``U`` (first-order lag of the quasi-steady value).
 The lag is discretised exactly for an input that is linear between samples
 (first-order hold), on any strictly increasing time grid. Every maneuver starts
 in equilibrium with its first sample, X(t0) = X0(alpha0 - tau2*alpha_dot0), so a
-state never runs across a maneuver boundary. Sensitivities dX/dtheta are
-propagated through the same recursion, which is linear in the state.
+state never runs across a maneuver boundary; a periodic maneuver (a pitching airfoil's
+cycle) starts at its periodic solution instead (:func:`first_order_lag`). Sensitivities
+dX/dtheta are propagated through the same recursion, which is linear in the state.
 """
 from __future__ import annotations
 
@@ -203,14 +204,81 @@ def _instant_lag(t, u, du, bounds):
 
 
 def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
-                    bounds: np.ndarray, step: float | None | bool = False):
-    """tau1 dX/dt + X = u on every maneuver, each starting at X = u(t0).
+                    bounds: np.ndarray, step: float | None | bool = False, periods=None):
+    """tau1 dX/dt + X = u on every maneuver, each starting at X = u(t0), or a periodic one at its periodic solution.
 
     ``du`` (n, p) holds du/dtheta for the parameters inside u; returns ``X`` (n,),
     ``dX`` (n, p) = dX/dtheta and ``dX_dtau1`` (n,); with ``du`` None, only ``X`` (the others None). ``step`` may pass in the
-    result of :func:`common_step` for this grid (it is found here otherwise).
+    result of :func:`common_step` for this grid (it is found here otherwise). ``periods``: per maneuver its period
+    T [s] where it is periodic, NaN (or None) where not (None: no maneuver is periodic); see
+    :func:`_periodic_start`.
     """
     bounds = np.asarray(bounds, dtype=np.int64)
+    periodic = _periodic_segments(periods, len(bounds) - 1)
+    out = _lag_from_equilibrium(t, u, du, tau1, bounds, step)
+    for i, period in periodic:
+        _periodic_start(t, u, du, tau1, int(bounds[i]), int(bounds[i + 1]), period, *out)
+    return out
+
+
+def _periodic_segments(periods, n_segments: int) -> list[tuple[int, float]]:
+    """(maneuver index, period) of every periodic maneuver."""
+    if periods is None:
+        return []
+    periods = np.asarray(periods, dtype=float)
+    if periods.shape != (n_segments,):
+        raise ValueError(f"{periods.shape[0] if periods.ndim else 'no'} periods for {n_segments} maneuvers")
+    return [(int(i), float(periods[i])) for i in np.flatnonzero(np.isfinite(periods))]
+
+
+def _periodic_start(t, u, du, tau1, s, e, period, x, dx, dtau) -> None:
+    """Move the state of maneuver ``s:e`` (and its sensitivities), computed from X(t0) = u0, in place to its
+    periodic solution: the start X(t0) = X(t0 + T).
+
+    Why this is exact: the lag is linear, so X = Y + c P_k with Y the solution from Y(t0) = u0 and P_k =
+    exp(-(t_k - t0)/tau1) the free response. One period maps a start X0 to Phi X0 + r with Phi = exp(-T/tau1)
+    (the product of every step's a over the period); X0 = r / (1 - Phi) is the periodic start, so c = X0 - u0 =
+    (Y(t0 + T) - u0) / (1 - Phi). The input at t0 + T is the record's own, linear between samples (first-order
+    hold), when the record runs past one period; a record of one cycle (t0 + T after its last sample) wraps:
+    u(t0 + T) = u(t0). Y(t0 + T) is one step of the same discretisation from the last sample at or before t0 + T.
+    The sensitivities differentiate c: dc/dtheta through Y(t0 + T) and u0, dc/dtau1 also through Phi, and
+    dP_k/dtau1 = P_k (t_k - t0) / tau1^2.
+    """
+    ts = t[s:e]
+    t_end = ts[0] + period
+    j = s + int(np.searchsorted(ts, t_end, side="right")) - 1
+    h = float(t_end - t[j])
+    if j == e - 1:   # one cycle: the input wraps to the first sample
+        w, nxt = 1.0, s
+    else:
+        w, nxt = h / float(t[j + 1] - t[j]), j + 1
+    u_end = (1.0 - w) * u[j] + w * u[nxt]
+    du_end = None if du is None else (1.0 - w) * du[j] + w * du[nxt]
+    if tau1 < INSTANT_LAG:   # X = u: the start is the input one period later, dX/dtau1 its limit
+        x[s] = u_end
+        if du is not None:
+            dx[s] = du_end
+            dtau[s] = -(u_end - u[j]) / h if h > 0 else dtau[j]
+        return
+    if h > 0:
+        a, b0, b1, da, db0, db1 = (float(v[0]) for v in _lag_coefficients(np.array([h]), tau1))
+    else:   # t0 + T is the last sample itself
+        a, b0, b1, da, db0, db1 = 1.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    one_minus_phi = -np.expm1(-period / tau1)
+    c = (a * x[j] + b0 * u[j] + b1 * u_end - u[s]) / one_minus_phi
+    elapsed = ts - ts[0]
+    free = np.exp(-elapsed / tau1)
+    if du is not None:
+        dc = (a * dx[j] + b0 * du[j] + b1 * du_end - du[s]) / one_minus_phi
+        dphi = np.exp(-period / tau1) * period / tau1 ** 2
+        dc_dtau = (da * x[j] + a * dtau[j] + db0 * u[j] + db1 * u_end) / one_minus_phi + c * dphi / one_minus_phi
+        dx[s:e] += free[:, None] * dc[None, :]
+        dtau[s:e] += free * (dc_dtau + c * elapsed / tau1 ** 2)
+    x[s:e] += c * free
+
+
+def _lag_from_equilibrium(t, u, du, tau1, bounds, step):
+    """:func:`first_order_lag` with every maneuver starting at X = u(t0)."""
     if tau1 < INSTANT_LAG:
         return _instant_lag(t, u, du, bounds)
     if step is False:
@@ -259,12 +327,14 @@ def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
 
 def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.ndarray,
                    alpha_dot: np.ndarray, t: np.ndarray, bounds: np.ndarray,
-                   step: float | None | bool = False, sensitivities: bool = True):
+                   step: float | None | bool = False, sensitivities: bool = True, periods=None):
     """Value of a separation state and its sensitivities.
 
     ``values`` maps base parameter names (``a1``, ``tau2``...) to numbers. Returns
     ``X`` (n,) and ``dX`` (n, k) with columns in ``state.base_parameters`` order;
-    ``dX`` is None without ``sensitivities`` (a prediction needs X alone).
+    ``dX`` is None without ``sensitivities`` (a prediction needs X alone). ``periods``: each maneuver's period
+    where it is periodic (NaN where not; :func:`first_order_lag`): an unsteady state starts there at its
+    periodic solution.
     """
     a1, a_star = values["a1"], values["a_star"]
     tau2 = values.get("tau2", 0.0)
@@ -273,7 +343,7 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
     if not sensitivities:
         if state.kind != "U":
             return x0, None
-        return first_order_lag(t, x0, None, values["tau1"], bounds, step)[0], None
+        return first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0], None
     slope = -2.0 * x0 * (1.0 - x0)  # dX0 / d(a1 (alpha_eff - a_star))
     inner = ("tau2", "a1", "a_star") if state.kind != "S" else ("a1", "a_star")
     du = np.empty((len(alpha), len(inner)), order="F")
@@ -283,7 +353,7 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
         du[:, 0] = slope * (-a1 * alpha_dot)
     if state.kind != "U":
         return x0, du  # S and Q: columns already in state.base_parameters order
-    x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step)
+    x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step, periods)
     out = np.empty((len(alpha), 4), order="F")
     out[:, 0] = dtau1
     out[:, 1:] = dx  # U order: tau1, tau2, a1, a_star

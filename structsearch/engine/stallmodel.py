@@ -320,13 +320,13 @@ class StallProblem(BoundProblem):
                     if len(fixed) >= FIXED_STATES_KEPT:  # a loop over fixed values must not hoard samples
                         fixed.pop(next(iter(fixed)), None)
                     x = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step,
-                                       False)[0]
+                                       False, d.period_array)[0]
                     x.setflags(write=False)  # shared by every model bound to this data
                     fixed[memo_key] = x
                 out[s.symbol] = (index, x, None)
                 continue
             x, dx = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step,
-                                   sensitivities)
+                                   sensitivities, d.period_array)
             out[s.symbol] = (index, x, dx)
         self.__dict__["_last_states"] = (key, sensitivities, out)  # frozen dataclass: a cache, not a field
         return out

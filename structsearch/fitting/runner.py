@@ -35,7 +35,8 @@ from .shared_data import shared_splits
 
 
 def fingerprint(data: FlightData) -> str:
-    """Hash of everything a fit reads from the data: columns, maneuver boundaries and names, constants, flights."""
+    """Hash of everything a fit reads from the data: columns, maneuver boundaries and names, constants, flights,
+    periods."""
     h = hashlib.sha256()
     for name in sorted(data.columns):
         h.update(name.encode())
@@ -44,6 +45,8 @@ def fingerprint(data: FlightData) -> str:
     h.update(json.dumps([list(data.names), sorted((k, float(v)) for k, v in data.constants.items())]).encode())
     if data.flights is not None:  # a by-flight covariance reads them; data without flights keep their keys
         h.update(json.dumps(list(data.flights)).encode())
+    if data.periods is not None:  # periodic states start elsewhere; data without periodic maneuvers keep their keys
+        h.update(json.dumps(["periods", list(data.periods)]).encode())
     return h.hexdigest()[:16]
 
 
