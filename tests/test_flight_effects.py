@@ -211,6 +211,7 @@ def test_json_round_trip_and_fit_document():
     assert "flight effects" in str(r.summary())
 
 
+@pytest.mark.slow
 def test_on_a_simulated_campaign_with_flight_errors_the_cg_offsets_are_named_confounded(simulated_campaign):
     """The simulator flies each loading at one cg, so the x_cg effect cannot be told from Cm_xcgCL (named), while
     the intercept effect is estimated for every flight."""
