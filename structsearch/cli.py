@@ -41,7 +41,8 @@ def _settings(args, prefix: str = "", progress: bool = True):
                     covariance=getattr(args, "covariance", DEFAULT_COVARIANCE), bounds=_bounds(args),
                     jobs=getattr(args, "jobs", 0) or 0, backend=getattr(args, "backend", "loky") or "loky",
                     segment=getattr(args, "segment", None), cache=getattr(args, "cache", None) or None,
-                    progress=sink, meter=sink.meter if sink is not None else None, trace=getattr(args, "trace", None))
+                    progress=sink, meter=sink.meter if sink is not None else None, trace=getattr(args, "trace", None),
+                    flight_effects=tuple(getattr(args, "flight_effects", None) or ()))
 
 
 def raise_error(message: str):
@@ -119,6 +120,8 @@ def _fit(args) -> int:
     res = fit(args.data, args.model, settings=_settings(args, progress=False), band_samples=args.band_samples,
               profile=args.profile)
     summary, out = res.result, Path(args.out)
+    for warning in summary.warnings + (summary.flight_effects.warnings if summary.flight_effects else ()):
+        print(f"warning: {warning}", file=sys.stderr)
     write_json(out / "fit.json", res.to_dict())
     from .reporting.documents import bands_table, covariance_sentence, held_out_phrase
     from .reporting.equations import equations
@@ -128,6 +131,8 @@ def _fit(args) -> int:
     write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + model
                + covariance_sentence(summary.estimates.covariance_record())
                + "\n" + parameter_table(summary.estimates, "md")
+               + ("\n\n```\n" + "\n".join(summary.flight_effects.lines()) + "\n```"
+                  if summary.flight_effects is not None else "")
                + ("\n\n" + bands_table(res.bands) if res.bands is not None else "")
                + ("\n\n" + profile_table(res.profile) if res.profile is not None else ""))
     not_converged = ("" if summary.optimizer.converged

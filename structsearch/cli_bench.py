@@ -13,13 +13,15 @@ def _calibration(args) -> int:
     from .experiments.calibration_doc import calibration_dict, calibration_markdown
     say = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=_jobs(args), progress=say, seeds=args.seeds,
-              profile_campaigns=args.profile_campaigns, flight_errors=args.flight_errors)
+              profile_campaigns=args.profile_campaigns, flight_errors=args.flight_errors,
+              flight_effects=tuple(args.flight_effects))
     out = Path(args.out)
     command = (f"structsearch bench --calibration --campaigns {args.campaigns} --scale {args.scale}"
                if args.seeds is None else
                f"structsearch bench --calibration --seeds {args.seeds[0]}:{args.seeds[-1] + 1} --scale {args.scale}") \
         + (f" --profile-campaigns {args.profile_campaigns}" if args.profile_campaigns != PROFILE_CAMPAIGNS else "") \
-        + (" --flight-errors" if args.flight_errors else "")
+        + (" --flight-errors" if args.flight_errors else "") \
+        + (f" --flight-effects {','.join(args.flight_effects)}" if args.flight_effects else "")
     write_text(out / "calibration.md", calibration_markdown(cal, command))
     write_json(out / "calibration.json", calibration_dict(cal), indent=1)
     for k in cal.kinds:

@@ -22,6 +22,16 @@ def _benchmark_parts(text: str) -> str:
     return ",".join(parts)
 
 
+def _flight_effects(text: str) -> tuple[str, ...]:
+    """``--flight-effects x_cg,intercept``: names out of structsearch.fitting.flight_effects.EFFECTS."""
+    from .data.errors import DeclarationError
+    from .fitting.flight_effects import parse_effects
+    try:
+        return parse_effects([t.strip() for t in text.split(",")], "--flight-effects")
+    except DeclarationError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--flight-effects: ")) from None
+
+
 def _admissibility_options(p) -> None:
     p.add_argument("--max-correlation", type=_fraction, default=MAX_CORRELATION,
                    help=f"admissibility: largest |correlation| of two parameters (default {MAX_CORRELATION}; "
@@ -41,6 +51,10 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
     p.add_argument("--covariance", choices=COVARIANCE_KINDS, default=DEFAULT_COVARIANCE,
                    help=f"covariance estimate of every fit (default {DEFAULT_COVARIANCE}: chosen on the calibration's "
                         "tuning seeds, it meets every goal of `bench --calibration` on held-out ones)")
+    p.add_argument("--flight-effects", type=_flight_effects, default=(), metavar="NAME[,NAME]",
+                   help="per-flight nuisance parameters every candidate estimates with its own, reported apart "
+                        "(x_cg: an offset of the recorded cg, for a model reading x_cg; intercept: an offset of the "
+                        "coefficient); the campaign must record each maneuver's flight")
     p.add_argument("--segment", choices=SEGMENT_CHOICES, default=None,
                    help="cycles: cut every record into its cycles (a `cycle` column, else alpha's minima), each a "
                         "maneuver (ids m07.c1, m07.c2, ...; same kind and split); none: keep every record whole, "
@@ -118,6 +132,9 @@ def _add_bench(sub, handler: Callable) -> None:
                    help="--calibration: fly each campaign on flights of about four maneuvers that share a mass, cg, "
                         "engine-model and vane-calibration error (simulate --flights), and calibrate the "
                         "flight-grouped covariance hac-flight beside the others")
+    b.add_argument("--flight-effects", type=_flight_effects, default=(), metavar="NAME[,NAME]",
+                   help="--calibration --flight-errors: the final models estimate these per-flight offsets with "
+                        "their parameters (x_cg, intercept; fit --flight-effects)")
     b.set_defaults(func=handler)
 
 

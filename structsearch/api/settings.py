@@ -44,6 +44,9 @@ class Settings:
     progress: Progress = None
     trace: str | os.PathLike | None = None
     meter: Meter | None = None
+    # per-flight nuisance parameters every candidate estimates (``--flight-effects x_cg,intercept``;
+    # structsearch.fitting.flight_effects)
+    flight_effects: tuple[str, ...] = ()
 
     @property
     def processes(self) -> int:
@@ -63,6 +66,9 @@ def fit_options(command: str, settings: Settings, campaign: Campaign | None = No
     (:func:`structsearch.fitting.folds.fold_size_for`), and blocked folds last at least the campaign's shortest
     maneuver worth fitting (:func:`structsearch.fitting.folds.block_convective_times`)."""
     values = {"seed": settings.seed, "covariance": settings.covariance, "parameter_boxes": settings.boxes()}
+    if settings.flight_effects:
+        from ..fitting.flight_effects import parse_effects
+        values["flight_effects"] = parse_effects(list(settings.flight_effects), "flight effects")
     if settings.starts is not None:
         values["n_starts"] = settings.starts
     if campaign is not None:

@@ -102,7 +102,7 @@ def campaign_flights(scale: float) -> int:
 
 
 def draw(seed: int, scale: float, kinds: Sequence[str], profile: bool = False,
-         flight_errors: bool = False) -> CampaignDraw:
+         flight_errors: bool = False, flight_effects: tuple[str, ...] = ()) -> CampaignDraw:
     """Simulate one campaign and fit the final models with every covariance kind; with ``profile``, also the
     profile intervals of the default covariance's fits (:mod:`.calibration_profile`)."""
     campaign = build_campaign(seed=seed, scale=scale, flights=campaign_flights(scale) if flight_errors else 0)
@@ -113,7 +113,7 @@ def draw(seed: int, scale: float, kinds: Sequence[str], profile: bool = False,
     profiles, profile_seconds = {}, float("nan")
     starts = {coef: dict(TRUTH[coef]) for coef in TRUTH}
     for kind in kinds:
-        options = FitOptions(n_starts=1, covariance=kind, cv_folds=0)
+        options = FitOptions(n_starts=1, covariance=kind, cv_folds=0, flight_effects=flight_effects)
         stderr[kind], gap[kind], dof[kind] = {}, {}, {}
         finals = fit_final_models(train, val, options, starts)
         lift = LiftFit(*finals["CL"])
@@ -131,8 +131,10 @@ def draw(seed: int, scale: float, kinds: Sequence[str], profile: bool = False,
             gap[kind][cand.name] = float("nan") if sat.failed else wald_p_value(sat, names)
         if kind == DEFAULT_COVARIANCE:
             hits, widths = band_coverage(finals, train)
-            joint = joint_draw(train, val, options)
-            default = default_start_draw(train, val, {fit.name: fit.mse_train for _, fit in finals.values()})
+            # the joint fit takes no flight effects: left out with them (its rows would be those of another model)
+            joint = joint_draw(train, val, options) if not flight_effects else joint
+            default = default_start_draw(train, val, {fit.name: fit.mse_train for _, fit in finals.values()},
+                                         flight_effects)
             if profile:
                 from .calibration_profile import profile_draw
                 profiles, profile_seconds = profile_draw(finals, train)
@@ -140,14 +142,15 @@ def draw(seed: int, scale: float, kinds: Sequence[str], profile: bool = False,
                         profiles, profile_seconds)
 
 
-def default_start_draw(train, val, truth_mse: Mapping[str, float]) -> tuple[dict, dict, dict, tuple[str, ...]]:
+def default_start_draw(train, val, truth_mse: Mapping[str, float],
+                       flight_effects: tuple[str, ...] = ()) -> tuple[dict, dict, dict, tuple[str, ...]]:
     """The final models fitted as ``structsearch fit`` fits them (the default start: declared and quasi-random
     starts, staged; drag and pitch on that lift fit), with the default covariance: estimates, standard
     deviations and reference dof per model, and the models whose fit ended above the truth-start one's
     training MSE (another basin)."""
     from ..fitting.candidate_fit import fit_staged
     from ..fitting.specs import find_candidate
-    options = FitOptions(n_starts=4, covariance=DEFAULT_COVARIANCE, cv_folds=0)
+    options = FitOptions(n_starts=4, covariance=DEFAULT_COVARIANCE, cv_folds=0, flight_effects=flight_effects)
     estimates, stderr, dof, other = {}, {}, {}, []
     lift = None
     for coef, name in FINAL_MODEL_NAMES.items():
@@ -294,6 +297,7 @@ class Calibration:
     seconds: float = 0.0
     draws: tuple[CampaignDraw, ...] = field(default=(), repr=False)
     flights: int = 0            # flights per campaign, each with its shared errors (0: no flight-level errors)
+    flight_effects: tuple[str, ...] = ()   # per-flight offsets the final models estimate (fit --flight-effects)
 
     @property
     def band_coverage(self) -> dict[str, float]:
@@ -392,12 +396,14 @@ def held_out(seeds: Sequence[int]) -> bool:
 
 def run(n_campaigns: int = 50, scale: float = 0.1, kinds: Sequence[str] = COVARIANCE_KINDS,
         first_seed: int = HELD_OUT_FIRST, n_jobs: int = 2, progress: Callable[[str], None] | None = None,
-        seeds: Sequence[int] | None = None, profile_campaigns: int = 0, flight_errors: bool = False) -> Calibration:
+        seeds: Sequence[int] | None = None, profile_campaigns: int = 0, flight_errors: bool = False,
+        flight_effects: Sequence[str] = ()) -> Calibration:
     """Simulate seeded campaigns (``seeds``, else ``n_campaigns`` from ``first_seed``: held out by default) and
     calibrate every covariance kind on them; the first ``profile_campaigns`` also calibrate the profile
     intervals of the nonlinear parameters (:mod:`.calibration_profile`). ``flight_errors``: the campaigns are flown
     on flights that share errors (:func:`campaign_flights`); without them the kinds that group by flight are left
-    out (no flight recorded: they would repeat hac-maneuver).
+    out (no flight recorded: they would repeat hac-maneuver). ``flight_effects``: the final models estimate these
+    per-flight offsets with their parameters (:mod:`structsearch.fitting.flight_effects`; needs ``flight_errors``).
     """
     import dataclasses
     import time
@@ -408,10 +414,16 @@ def run(n_campaigns: int = 50, scale: float = 0.1, kinds: Sequence[str] = COVARI
     seeds = list(seeds) if seeds is not None else list(range(first_seed, first_seed + n_campaigns))
     n_campaigns = len(seeds)
     kinds = tuple(k for k in kinds if flight_errors or not KINDS[k].by_flight)
+    flight_effects = tuple(flight_effects)
+    if flight_effects and not flight_errors:
+        from ..data.errors import DeclarationError
+        raise DeclarationError("--flight-effects goes with --flight-errors (without flights no offset can be "
+                               "estimated)")
     draws = []
     for i, d in enumerate(Parallel(n_jobs=n_jobs, return_as="generator")(
-            delayed(draw)(s, scale, tuple(kinds), i < profile_campaigns, flight_errors) for i, s in enumerate(seeds))):
+            delayed(draw)(s, scale, tuple(kinds), i < profile_campaigns, flight_errors, flight_effects)
+            for i, s in enumerate(seeds))):
         draws.append(d)
         say(f"calibration: campaign {i + 1}/{n_campaigns} ({time.perf_counter() - t0:.0f} s)")
     return dataclasses.replace(summarise(draws, scale, time.perf_counter() - t0),
-                               flights=campaign_flights(scale) if flight_errors else 0)
+                               flights=campaign_flights(scale) if flight_errors else 0, flight_effects=flight_effects)

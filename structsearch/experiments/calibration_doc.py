@@ -54,6 +54,7 @@ def calibration_dict(cal: Calibration) -> dict:
         # flight-level errors (bench --calibration --flight-errors): each campaign flown on `flights` flights whose
         # maneuvers share a mass, cg, engine-model and vane-calibration error; keys absent without them
         **({"flight_errors": True, "flights": cal.flights} if cal.flights else {}),
+        **({"flight_effects": list(cal.flight_effects)} if cal.flight_effects else {}),
         "default_start": default_start_dict(cal),
         "joint": [parameter_dict(p) for p in joint_rows(cal.draws)],
         "profile": profile_dict(cal, TRUTH, FINAL_MODEL_NAMES),
@@ -103,7 +104,10 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
            f"NOT held out: they overlap the seeds {TUNING_SEEDS[0]}-{TUNING_SEEDS[-1]} the defaults were chosen on; ")
         + f"scale {cal.scale}: {cal.samples} training samples each, full measurement chain"
         + (f", flown on {cal.flights} flights whose maneuvers share a mass, cg, engine-model and vane-calibration "
-           "error (`--flight-errors`)" if cal.flights else "") + "), "
+           "error (`--flight-errors`)" if cal.flights else "")
+        + (f"; the final models estimate per-flight offsets ({', '.join(cal.flight_effects)}; `--flight-effects`) "
+           "with their parameters, and the joint fit, which takes none, is left out" if cal.flight_effects else "")
+        + "), "
         "the three final models fitted on each; intervals are estimate +- t quantile * reported standard "
         "deviation around the simulator's truth, with each fit's reference degrees of freedom (G - 1 for "
         "hac-maneuver and cluster, G the training maneuvers"

@@ -17,6 +17,10 @@ from .candidate_result import CandidateResult, SplitScores
 from .candidates import Candidate
 from .centred_correlation import centred_correlation
 from .cross_validation import cross_validate, refit_fold
+from .flight_effects import missing_effects_warning
+from .flight_effects_fit import EffectFit, effects_of, prepare
+from .flight_effects_fit import cross_validate as cross_validate_effects
+from .flight_effects_fit import split as split_effects
 from .folds import FoldPlan, plan_folds
 from .lift_context import lift_context
 from .lift_fit import LiftFit
@@ -119,28 +123,42 @@ def fit_from(c: Candidate, train: FlightData, validation: FlightData, lift: Lift
         if isinstance(setup, str):
             return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                            seconds=time.perf_counter() - t0, error=setup), None
+        effects = prepare(c, options, setup.model, setup.train, setup.validation)
+        if effects is not None:   # the effect columns on coded data; its starts and folds solved here
+            setup = dataclasses.replace(setup, model=effects.model, train=effects.train,
+                                        validation=effects.validation)
+            solved, folds_apart = None, False
         model, train = setup.model, setup.train
         # with a lift model the two-step covariance replaces the fit's own: the fit computes the white one
         white = setup.context is not None or options.scores_only
         result = model.fit(train, **_model_starts(model, train, options, spec), solved=solved,
                            covariance="white" if white else options.covariance)
         if setup.context is not None and not options.scores_only:
-            result = with_lift_uncertainty(result, model, setup.measured, lift, setup.context, options.covariance)
+            result = with_lift_uncertainty(result, model, setup.measured, lift, setup.context, options.covariance,
+                                           predicted=train if effects is not None else None)
         plan = plan_folds(train, options.cv_folds, options.cv_fold_size, options.cv_block_convective_times)
         apart = folds_apart and bool(plan.folds) and bool(model.nonlinear_names) and options.cv_method == "refit"
         cv = None
         if plan.folds and not apart:   # scored per unit held out: per maneuver, or per block of a record
-            cv = cross_validate(model, train, result, plan, options.cv_method)
-        return _scored(c, setup, result, plan, options, cv, t0), plan if apart else None
+            cv = (cross_validate(model, train, result, plan, options.cv_method) if effects is None
+                  else cross_validate_effects(effects, result, plan))
+        scored = _scored(c, setup, result, plan, options, cv, t0, effects)
+        return scored, plan if apart else None
     except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                        error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0), None
 
 
 def _scored(c: Candidate, setup: _Setup, result, plan: FoldPlan, options: FitOptions, cv: np.ndarray | None,
-            t0: float) -> CandidateResult:
-    """The candidate's record: its fit scored on both splits, and by its cross-validation's held-out residuals."""
+            t0: float, effects: EffectFit | None = None) -> CandidateResult:
+    """The candidate's record: its fit scored on both splits, and by its cross-validation's held-out residuals;
+    with flight effects, its estimates apart from the flights' offsets."""
     model, train = setup.model, setup.train
+    estimates, flight_effects, correlation_model = result.estimates, None, model
+    if effects is not None:
+        estimates, flight_effects = split_effects(effects, result.estimates, train.n_segments)
+        correlation_model = effects.base_model
+    warning = missing_effects_warning(c.regressors, c.coefficient, train, effects_of(c, options))
     scores = {}
     if cv is not None:
         scores["cv"] = SplitScores.of(ManeuverScores.of(train[c.coefficient], cv, plan.slices()), None)
@@ -150,15 +168,17 @@ def _scored(c: Candidate, setup: _Setup, result, plan: FoldPlan, options: FitOpt
         other = data["CL"] if c.lift and c.coefficient == "CD" else None  # the lift model's output
         scores[split] = SplitScores.of(ManeuverScores.of(y, y - pred, data.segment_slices()),
                                        body_axis_errors(c.coefficient, pred, data, other))
-    return CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
-                                    result=result, train=scores["train"], validation=scores["validation"],
-                                    cv=scores.get("cv"), cv_folds=plan.n_folds,
-                                    # a linear candidate's folds are exact fits whichever method is asked
-                                    cv_method=options.cv_method if model.nonlinear_names and plan.folds
-                                    else "refit", cv_scheme=plan.scheme, cv_note=plan.note,
-                                    seconds=time.perf_counter() - t0,
-                                    centred_correlation=None if options.scores_only else
-                                    centred_correlation(c, model, train, result))
+    record = CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
+                                      result=result, train=scores["train"], validation=scores["validation"],
+                                      cv=scores.get("cv"), cv_folds=plan.n_folds,
+                                      # a linear candidate's folds are exact fits whichever method is asked
+                                      cv_method=options.cv_method if model.nonlinear_names and plan.folds
+                                      and effects is None else "refit", cv_scheme=plan.scheme, cv_note=plan.note,
+                                      seconds=time.perf_counter() - t0,
+                                      centred_correlation=None if options.scores_only else
+                                      centred_correlation(c, correlation_model, train, estimates))
+    return dataclasses.replace(record, estimates=estimates, flight_effects=flight_effects,
+                               warnings=(warning,) if warning else ())
 
 
 def start_points(c: Candidate, train: FlightData, options: FitOptions, spec: StartSpec) -> np.ndarray:

@@ -83,7 +83,9 @@ class CandidateJob:
 
     def __init__(self, index: int, candidate: Candidate, ctx: JobContext, priority: float):
         self.i, self.c, self.ctx, self.priority = index, candidate, ctx, priority
-        self.whole = bool(candidate.lift) or not candidate.state_parameters
+        # a fit with flight effects solves its starts and folds on its coded data itself (candidate_fit.fit_from)
+        self.whole = (bool(candidate.lift) or not candidate.state_parameters
+                      or bool(candidate.flight_effects or ctx.options.flight_effects))
         self.outcomes: dict[bytes, object] = {}
         self.solving: dict[bytes, str] = {}
         self.keys: list[bytes] | None = None

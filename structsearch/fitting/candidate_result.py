@@ -18,6 +18,7 @@ from ..engine.equations import Equations
 from ..engine.estimates import ParameterEstimates, WaldTest
 from ..engine.results import FitResult
 from ..engine.scores import ManeuverScores, R2Summary
+from .flight_effects import FlightEffects
 
 if TYPE_CHECKING:
     import pandas
@@ -27,8 +28,8 @@ if TYPE_CHECKING:
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
 # 7: the parameters' estimates and covariance as one object (ParameterEstimates.to_dict); 8: the ranking's
 # fields as one placement; 9: the optimizer's account as one report; 10: a fit that did not converge withholds
-# its statistics (``ParameterEstimates.withheld``)
-JSON_LAYOUT = 11
+# its statistics (``ParameterEstimates.withheld``); 12: the flight effects and the fit's warnings
+JSON_LAYOUT = 12
 
 
 def _nan_if_none(v) -> float:
@@ -145,6 +146,9 @@ class CandidateResult:
     cv_note: str = ""                   # in words, or why there is no cross-validation (cv None)
     placement: Placement | None = None  # its place in a ranking (None: not ranked)
     equations: Equations | None = None  # the structure as equations (what summary() opens with)
+    # per-flight offsets estimated with it, apart from its parameters (.flight_effects; None: none asked for)
+    flight_effects: FlightEffects | None = None
+    warnings: tuple[str, ...] = ()      # what the fit should have had (flight effects on a campaign with flights)
 
     def __post_init__(self):
         rows = _rows(self.centred_correlation) if len(self.centred_correlation) else ()
@@ -230,6 +234,10 @@ class CandidateResult:
                                f"({o.nfev} evaluations)"),
                  ("starts reaching the best cost", f"{o.n_reached_best} of {o.n_starts}"),
                  *covariance_head(e)]
+        if self.flight_effects is not None:
+            f = self.flight_effects
+            head.append(("flight effects", f"{', '.join(o.effect for o in f.effects) or 'none applies'} over "
+                                           f"{len(f.flights)} flights, {f.coding} (offsets apart: .flight_effects)"))
         p = self.placement
         if p is not None and p.rank is not None:
             head.append(("rank", f"{p.rank}" + ("" if p.admissible else " (not admissible)")))
@@ -266,6 +274,8 @@ class CandidateResult:
         doc["optimizer"] = self.optimizer.to_json()
         doc["equations"] = None if self.equations is None else {"text": list(self.equations.text),
                                                                  "latex": list(self.equations.latex)}
+        doc["flight_effects"] = None if self.flight_effects is None else self.flight_effects.to_dict()
+        doc["warnings"] = list(self.warnings)
         return json_ready(doc)
 
     @classmethod
@@ -286,4 +296,7 @@ class CandidateResult:
             values["placement"] = Placement.from_json(values["placement"])
         if values.get("equations") is not None:
             values["equations"] = Equations(tuple(values["equations"]["text"]), tuple(values["equations"]["latex"]))
+        if values.get("flight_effects") is not None:
+            values["flight_effects"] = FlightEffects.from_dict(values["flight_effects"])
+        values["warnings"] = tuple(values.get("warnings", ()))
         return cls(**values)

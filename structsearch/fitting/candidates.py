@@ -1,6 +1,7 @@
 """Candidate model structures and the grids that hold them (declared in model_specs/ or in code)."""
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 from ..data.errors import DeclarationError
@@ -18,6 +19,8 @@ class Candidate:
     lift: str | None = None
     note: str = ""
     bounds: tuple[tuple[str, tuple[float, float]], ...] = ()
+    # per-flight nuisance parameters estimated with it (.flight_effects.EFFECTS; docs/interfaces.md 7.5)
+    flight_effects: tuple[str, ...] = ()
 
     @property
     def n_linear(self) -> int:
@@ -36,19 +39,20 @@ class Candidate:
         if not mine:
             return self
         merged = {**dict(self.bounds), **mine}
-        return Candidate(self.name, self.grid, self.coefficient, self.regressors, self.states, self.lift,
-                         self.note, tuple(sorted(merged.items())))
+        return dataclasses.replace(self, bounds=tuple(sorted(merged.items())))
 
     def to_dict(self) -> dict:
         return {"name": self.name, "grid": self.grid, "coefficient": self.coefficient,
                 "regressors": dict(self.regressors), "states": dict(self.states), "lift": self.lift,
-                "note": self.note, "bounds": {k: list(v) for k, v in self.bounds}}
+                "note": self.note, "bounds": {k: list(v) for k, v in self.bounds},
+                **({"flight_effects": list(self.flight_effects)} if self.flight_effects else {})}
 
     @classmethod
     def from_dict(cls, d) -> "Candidate":
         """The candidate of :meth:`to_dict` (an exact round trip)."""
         return cls(d["name"], d["grid"], d["coefficient"], tuple(d["regressors"].items()), tuple(d["states"].items()),
-                   d["lift"], d.get("note", ""), tuple((k, tuple(v)) for k, v in d.get("bounds", {}).items()))
+                   d["lift"], d.get("note", ""), tuple((k, tuple(v)) for k, v in d.get("bounds", {}).items()),
+                   flight_effects=tuple(d.get("flight_effects", ())))
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,7 @@
 """Grid expansion: the candidates a grid document declares by blocks and rules, in order."""
 from __future__ import annotations
 
+import dataclasses
 import difflib
 from itertools import product
 from typing import Sequence
@@ -29,7 +30,7 @@ def _blocks(doc: dict, names: Sequence[str], where: str) -> list[tuple[str, str]
 # Every key a grid file and each of its entries may hold: any other is a typo, refused with the close match.
 GRID_KEYS = ("name", "coefficient", "prefix", "lift", "sets", "blocks", "bounds", "entry")
 ENTRY_KEYS = ("name", "lift", "states", "note", "bounds", "from", "drop", "kinds", "prefix", "blocks", "always",
-              "combinations", "regressors")
+              "combinations", "regressors", "flight_effects")
 
 
 def check_keys(table: dict, known: Sequence[str], where: str) -> None:
@@ -109,6 +110,7 @@ def expand(doc: dict, source: str) -> Grid:
     for i, entry in enumerate(doc["entry"]):
         where = f"{source} [[entry]] #{i + 1}"
         check_keys(entry, ENTRY_KEYS, where)
+        first_of_entry = len(candidates)
         lift = entry.get("lift", default_lift)
         states = tuple((k, v) for k, v in entry.get("states", {}).items())
         note = entry.get("note", "")
@@ -139,6 +141,7 @@ def expand(doc: dict, source: str) -> Grid:
             regs = _blocks(doc, entry.get("blocks", []), where)
             regs += [(k, str(v)) for k, v in entry.get("regressors", {}).items()]
             add(entry.get("name"), regs, states, lift, note, where, bounds)
+        _with_flight_effects(candidates, first_of_entry, entry, where)
         unused = [k for k, _ in own_bounds if k not in used_bounds]
         if unused:
             raise DeclarationError(f"{where}: bounds for {unused[0]!r}, which no candidate of this entry has as a "
@@ -149,6 +152,17 @@ def expand(doc: dict, source: str) -> Grid:
         raise DeclarationError(f"{source} [bounds]: bounds for {unused[0]!r}, which no candidate of the grid has as "
                                "a separation parameter")
     return Grid(name, coefficient, tuple(candidates), source)
+
+
+def _with_flight_effects(candidates: list[Candidate], first: int, entry: dict, where: str) -> None:
+    """The entry's ``flight_effects`` (docs/interfaces.md 7.5) on the candidates it declared (from ``first``)."""
+    from .flight_effects import check_declared, parse_effects
+    effects = parse_effects(entry.get("flight_effects"), where)
+    if not effects:
+        return
+    for i in range(first, len(candidates)):
+        check_declared(effects, candidates[i].regressors, f"{where} ({candidates[i].name})")
+        candidates[i] = dataclasses.replace(candidates[i], flight_effects=effects)
 
 
 def _bounds(table, where: str) -> tuple[tuple[str, tuple[float, float]], ...]:

@@ -61,16 +61,18 @@ def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lif
 
 
 def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightData, lift: "LiftFit",
-                          context: "LiftContext", kind: str | None = None) -> FitResult:
+                          context: "LiftContext", kind: str | None = None,
+                          predicted: FlightData | None = None) -> FitResult:
     """``result`` of ``model`` (a drag or pitch candidate with the lift states fixed) with the two-step
     covariance of ``kind`` (default: the one ``result`` has). ``train`` is the training data as measured;
     ``context`` the lift model's :class:`~structsearch.fitting.lift_context.LiftContext` (its Jacobian,
     residual and covariance basis on ``train``, and the training data with C_L replaced by its output, as
     the fit saw it). The two-step covariance replaces the fit's own, so the fit may as well have
-    computed the white one only (which is kept).
+    computed the white one only (which is kept). ``predicted``: the data the fit saw when they differ from the
+    context's training data (the same with the flight-effect codes added, :mod:`.flight_effects`).
     """
     kind = result.covariance_kind if kind is None else kind
-    predicted = context.train
+    predicted = context.train if predicted is None else predicted
     jac1, residual1, basis1 = context.jacobian, context.residual, context.basis
     jac2, _ = model.jacobian(predicted, result.params)
     # the fit's own basis and factor when it kept them (the same Jacobian: it was fitted on ``predicted``)

@@ -45,6 +45,9 @@ class FitOptions:
     # the white one, conditional on the lift model, and it has no centred correlations: no statistic of it is
     # reported or judged; the structures a search keeps are fitted again in full.
     scores_only: bool = False
+    # --flight-effects: per-flight nuisance parameters every candidate of the fit estimates (.flight_effects; a
+    # candidate's own spec entry may declare them too)
+    flight_effects: tuple[str, ...] = ()
 
     def __post_init__(self):
         if self.cv_method not in CV_METHODS:
@@ -64,6 +67,8 @@ class FitOptions:
             key["cv_block_convective_times"] = self.cv_block_convective_times
         if self.scores_only:
             key["scores_only"] = True
+        if self.flight_effects:
+            key["flight_effects"] = list(self.flight_effects)
         return key
 
 

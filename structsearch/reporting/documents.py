@@ -36,6 +36,9 @@ def fit_document(fit: CandidateResult, lift: LiftFit | None, bands=None) -> dict
         doc["equations"] = {"text": list(fit.equations.text), "latex": list(fit.equations.latex)}
     if bands is not None:
         doc["bands"] = bands.to_dict()
+    # per-flight offsets, apart from the parameters above (docs/interfaces.md 7.5); null: none estimated
+    doc["flight_effects"] = None if fit.flight_effects is None else fit.flight_effects.to_dict()
+    doc["warnings"] = list(fit.warnings)
     return doc
 
 
