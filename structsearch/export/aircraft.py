@@ -15,7 +15,7 @@ import re
 
 from .card import ExportedModel
 from .jsbsim_files import SYSTEM_NAME, _document
-from .xml_functions import element, prop, value
+from .xml_functions import element
 
 ENGINE = "structsearch_turbine"
 
