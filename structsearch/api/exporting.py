@@ -221,6 +221,21 @@ def _finite(v) -> float | None:
     return None if v is None or not math.isfinite(float(v)) else float(v)
 
 
+def _with_residual_sd(f: Fitted, fitted: Sequence[Fitted], campaign: Campaign) -> Fitted:
+    """``f`` with its residual standard deviation on the training maneuvers computed from its estimates where its
+    fit did not record one (the lift model a drag or pitch fit directory carries)."""
+    if f.residual_sd is not None:
+        return f
+    import dataclasses
+    train = campaign.split("train")
+    if f.candidate.coefficient not in train:
+        return f
+    residual = train[f.candidate.coefficient] - _predictor(fitted, None)(train)[f.candidate.coefficient]
+    return dataclasses.replace(f, residual_sd=float(np.sqrt(np.mean(residual ** 2))),
+                               note=f.note + "; its residual standard deviation is recomputed on the training "
+                                             "maneuvers from these estimates")
+
+
 def _predictor(fitted: Sequence[Fitted], model: ExportedModel):
     """structsearch's own prediction of the fit: each coefficient by :func:`predict_candidate` (drag and pitch
     reading the lift model's output and states) and each state by the engine."""
@@ -234,7 +249,7 @@ def _predictor(fitted: Sequence[Fitted], model: ExportedModel):
             out[f.candidate.coefficient] = predict_candidate(f.candidate, {**lift.params, **f.params}, data,
                                                              None if f is lift else lift_at)
         t, alpha, alpha_dot = data["t"], data["alpha"], data["alpha_dot"]
-        for s in model.states:
+        for s in (model.states if model is not None else ()):
             out[s.symbol] = evaluate_state(SeparationState(s.name, s.kind), s.base(), alpha, alpha_dot, t,
                                            data.bounds, sensitivities=False)[0]
         return out
@@ -270,6 +285,7 @@ def export(*, fit_dir: str | os.PathLike | None = None, campaign: Campaign | str
         the_campaign = as_campaign(campaign, settings.segment)
         fitted = fitted_from_data(the_campaign, candidates, settings)
         data = campaign_record(the_campaign)
+    fitted = [_with_residual_sd(f, fitted, the_campaign) for f in fitted]
     model = exported_model(fitted, the_campaign, data)
     written = write_export(model, fmt, Path(out))
     report = None

@@ -133,7 +133,7 @@ def _node(expr: sp.Expr, symbols: Symbols, where: str) -> ET.Element:
     def fail(why: str):
         raise DeclarationError(f"{where}: cannot be written as a JSBSim function: {why}")
 
-    if expr.is_Number or isinstance(expr, sp.NumberSymbol):
+    if expr.is_Number or (not expr.args and expr.is_number):      # 2, 1/2, pi, E, the imaginary unit
         number = complex(expr)
         if number.imag != 0 or not math.isfinite(number.real):
             fail(f"the number {expr} is not a finite real number")
