@@ -217,3 +217,25 @@ def test_the_command_line_exports_a_fit_directory_and_refuses_bad_requests(campa
              "different lift models")):
         bad = run_cli("export", *argv)
         assert bad.returncode == 2 and words in bad.stderr and bad.stderr.count("\n") == 1, (argv, bad.stderr)
+
+
+def test_a_joint_fit_directory_exports_with_its_joint_covariance(campaign_on_disk, tmp_path):
+    """fit --joint's fit.json: every coefficient's parameters, the shared states, the joint covariance's blocks."""
+    _jsbsim()
+    from structsearch.api import Settings, export, fit_joint
+    from structsearch.data.atomic import write_json
+    campaign = campaign_on_disk(0, 0.05)
+    joint = fit_joint(campaign, DEMO, settings=Settings(starts=1, jobs=1))
+    write_json(tmp_path / "fit" / "fit.json", joint.to_dict())
+    res = export(fit_dir=tmp_path / "fit", fmt="jsbsim", out=tmp_path / "sim", check=True)
+    assert res.check.passed
+    for c in res.model.coefficients:
+        entry = next(e for e in joint.coefficients if e.coefficient == c.coefficient)
+        assert c.params == {p: entry.params[p] for p, _ in c.terms}
+        assert c.residual_sd == pytest.approx(entry.train.mse ** 0.5)
+        own = [p for p, _ in c.terms]
+        assert set(own) <= set(c.covariance_names)
+        i = c.covariance_names.index(own[0])
+        assert c.covariance[i][i] ** 0.5 == pytest.approx(entry.stderr[own[0]])
+    shared = {p for s in res.model.states for p in s.params}
+    assert shared == set(joint.shared)
