@@ -116,7 +116,7 @@ COMMANDS: dict[str, CommandHelp] = {
         ("structsearch compare results/ other-machine/results/",
          "structsearch compare run1 run2 --rtol 1e-2 --json diff.json")),
     "export": CommandHelp(
-        "hand a fitted model to a simulator (JSBSim files or a model card)",
+        "hand a fitted model to JSBSim, or write it as a model card",
         "Exports a fitted model (a fit directory, or structures fitted here on --data) for C_L, C_D and C_m: "
         "--format json writes model.json (equations, parameters and covariance, separation states, the alpha and "
         "Mach range, the data fitted on); --format jsbsim writes JSBSim's aerodynamics.xml, the states' system "

@@ -22,6 +22,7 @@ from ..engine.separation import SeparationState, evaluate_state
 from ..export.card import (CoefficientModel, ExportedModel, StateModel, aircraft_record, ordered, validity)
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftAt
+from .results import campaign_record
 from .settings import Settings, command_fitter
 
 
@@ -47,15 +48,6 @@ class ExportOutcome:
     model: ExportedModel
     written: tuple[Path, ...]
     check: object | None = None      # structsearch.export.check.CheckReport
-
-
-def campaign_record(campaign: Campaign) -> dict:
-    """The data a fit was fitted on, as fit.json's ``data``: the campaign's directory, name and digest (the data,
-    the split and the aircraft: :func:`structsearch.fitting.runner.campaign_fingerprint`) and its maneuvers."""
-    from ..fitting.runner import campaign_fingerprint
-    return {"source": str(Path(campaign.directory).resolve()) if campaign.directory else None,
-            "name": campaign.name, "digest": campaign_fingerprint(campaign),
-            "maneuvers": {s: [m.id for m in campaign.maneuvers if m.split == s] for s in ("train", "validation")}}
 
 
 # ----- where the model comes from --------------------------------------------------------------------------
