@@ -19,7 +19,7 @@ _EXPORTS = {
     "fit": "api", "fit_joint": "api", "search": "api", "diagnose": "api", "discover": "api", "simulate": "api", "preprocess": "api", "study": "api",
     "report": "api", "compare_outputs": "api", "OutputComparison": "api",
     "FitOutcome": "api", "Ranking": "api", "PreprocessOutcome": "api", "StudyOutcome": "api",
-    "ReportOutcome": "api", "Settings": "api", "FlightTestPlan": "api",
+    "ReportOutcome": "api", "Settings": "api", "FlightTestPlan": "api", "export": "api", "ExportOutcome": "api",
     "demo": "workflows", "DemoOutcome": "workflows",
     "SeparableModel": "engine.separable",
     "StallModel": "engine.stallmodel",
@@ -38,14 +38,14 @@ _EXPORTS = {
     "FitError": "data.errors",
 }
 # a literal list, as type checkers read it (tests/test_api.py checks it against _EXPORTS)
-__all__ = ["Campaign", "CandidateResult", "DataError", "DeclarationError", "DemoOutcome", "FitError",
+__all__ = ["Campaign", "CandidateResult", "DataError", "DeclarationError", "DemoOutcome", "ExportOutcome", "FitError",
            "FitOptions", "FitOutcome", "FitResult", "FlightData", "FlightTestPlan", "LiftFit", "OutputComparison", "PreprocessOutcome", "Ranking",
            "ReportOutcome", "SeparableModel", "Settings", "StallModel", "StructSearchError", "StudyOutcome", "compare_outputs", "demo",
-           "diagnose", "discover", "fit", "fit_joint", "fit_report", "preprocess", "read_campaign", "report", "search", "simulate",
+           "diagnose", "discover", "export", "fit", "fit_joint", "fit_report", "preprocess", "read_campaign", "report", "search", "simulate",
            "study", "write_campaign", "__version__"]
 
 if TYPE_CHECKING:
-    from .api import (FitOutcome, FlightTestPlan, OutputComparison, Settings, PreprocessOutcome, compare_outputs, Ranking, ReportOutcome, StudyOutcome, diagnose, discover, fit,
+    from .api import (ExportOutcome, export, FitOutcome, FlightTestPlan, OutputComparison, Settings, PreprocessOutcome, compare_outputs, Ranking, ReportOutcome, StudyOutcome, diagnose, discover, fit,
                       fit_joint, preprocess, report, search, simulate, study)
     from .data.campaign import Campaign, read_campaign, write_campaign
     from .data.errors import DataError, DeclarationError, FitError, StructSearchError

@@ -305,9 +305,25 @@ def _compare(args) -> int:
     return 0 if found.same else 1
 
 
+def _export(args) -> int:
+    from .api.exporting import export
+    settings = _settings(args, progress=False)
+    res = export(fit_dir=args.fit, campaign=args.data, models=args.model, fmt=args.format, out=args.out,
+                 check=args.check, settings=settings)
+    names = ", ".join(f"{c.coefficient} {c.model}" for c in res.model.coefficients)
+    print(f"exported {names} as {args.format}: {len(res.written)} files in {Path(args.out)}")
+    if res.check is not None:
+        for line in res.check.lines():
+            print(_clip(line))
+        print(f"check: {'passed' if res.check.passed else 'targets NOT met'} (wrote {Path(args.out) / 'check.json'})")
+        return 0 if res.check.passed else 1
+    return 0
+
+
 HANDLERS = {"bench": _bench, "simulate": _simulate, "preprocess": _preprocess, "study": _study, "fit": _fit,
             "search": _search, "diagnose": _diagnose, "discover": _discover, "report": _report, "demo": _demo,
-            "compare": _compare, "grids": _grids}
+            "compare": _compare, "grids": _grids,
+            "export": _export}
 
 
 def build_parser() -> argparse.ArgumentParser:

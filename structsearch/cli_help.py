@@ -115,6 +115,17 @@ COMMANDS: dict[str, CommandHelp] = {
         "only --json FILE.",
         ("structsearch compare results/ other-machine/results/",
          "structsearch compare run1 run2 --rtol 1e-2 --json diff.json")),
+    "export": CommandHelp(
+        "hand a fitted model to JSBSim, or write it as a model card",
+        "Exports a fitted model (a fit directory, or structures fitted here on --data) for C_L, C_D and C_m: "
+        "--format json writes model.json (equations, parameters and covariance, separation states, the alpha and "
+        "Mach range, the data fitted on); --format jsbsim writes JSBSim's aerodynamics.xml, the states' system "
+        "systems/structsearch_states.xml, an example aircraft with the campaign's geometry and fly_stall.py, which "
+        "trims it and flies a stall. --check drives JSBSim with every maneuver's recorded inputs and writes "
+        "check.json: JSBSim's coefficients against structsearch's prediction. Reads fit.json and its campaign (or "
+        "--data); writes to --out.",
+        ("structsearch export --data camp --model CL-VI,CD-IXr,Cm-XXXIIIr --format jsbsim --out sim --check",
+         "structsearch export --fit results --format json --out card")),
     "grids": CommandHelp(
         "list the shipped grids and their candidates' equations",
         "Lists every shipped grid (separation, lift, drag, pitch) and each candidate's equation; with NAME, "

@@ -79,7 +79,31 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     _add_demo(sub, handlers["demo"])
     _add_compare(sub, handlers["compare"])
     _add_grids(sub, handlers["grids"])
+    _add_export(sub, handlers["export"])
     return parser
+
+
+def _add_export(sub, handler: Callable) -> None:
+    """The ``export`` command."""
+    e = command_parser(sub, "export")
+    source = e.add_mutually_exclusive_group(required=True)
+    source.add_argument("--fit", metavar="DIR", help="a fit directory (the --out of `structsearch fit`, single or "
+                                                     "--joint): its fit.json and the campaign it names")
+    source.add_argument("--data", metavar="DIR", help="a campaign directory: fit --model on it first, as `fit` does")
+    e.add_argument("--model", metavar="NAME[,NAME...]",
+                   help="with --data: the structures to fit and export, comma-separated (CL-VI,CD-IXr,Cm-XXXIIIr); "
+                        "a drag or pitch model brings the lift model it reads")
+    e.add_argument("--format", required=True, choices=("jsbsim", "json"),
+                   help="jsbsim: aerodynamics.xml, systems/structsearch_states.xml, an example aircraft and "
+                        "fly_stall.py; json: model.json, a self-contained model card")
+    e.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    e.add_argument("--check", action="store_true",
+                   help="with --format jsbsim: drive JSBSim with every maneuver's recorded inputs and compare its "
+                        "coefficients with structsearch's prediction (check.json; needs the jsbsim package)")
+    e.add_argument("--starts", type=_count, default=None,
+                   help="with --data: starts per nonlinear fit (default: fit's)")
+    e.add_argument("--seed", type=_non_negative, default=0, help="with --data: seed of the random starts (default 0)")
+    e.set_defaults(func=handler)
 
 
 def _add_grids(sub, handler: Callable) -> None:

@@ -17,9 +17,10 @@ MISSING = "/nonexistent/structsearch-fuzz-campaign"
 VALUES = ("", "-1", "0", "1e400", "nan", "-inf", "abc", "tau2_ss=1:0", "CL-XXX")
 # what each subcommand needs so that only the fuzzed option is wrong
 REQUIRED = {"fit": ["--data", MISSING, "--model", "CL-VI"], "search": ["--data", MISSING, "--grid", "lift"],
-            "diagnose": ["--data", MISSING, "--model", "CL-VI"], "report": ["--data", MISSING]}
+            "diagnose": ["--data", MISSING, "--model", "CL-VI"], "report": ["--data", MISSING],
+            "export": ["--data", MISSING, "--model", "CL-VI", "--format", "json"]}
 # subcommands whose valid options lead straight to reading the (missing) campaign
-STOPS_ON_DATA = {"fit", "search", "diagnose", "report"}
+STOPS_ON_DATA = {"fit", "search", "diagnose", "report", "export"}
 
 
 def _cases():
@@ -138,7 +139,8 @@ def _synopsis():
 
 # required by the command unless another mode is chosen (diagnose --benchmark): checked when it runs
 # (bench --trace FILE chooses its mode with a value: written bare on its own synopsis line)
-REQUIRED_UNLESS_MODE = {("diagnose", "--data"), ("diagnose", "--model"), ("bench", "--trace")}
+# (export --model goes with its --data mode)
+REQUIRED_UNLESS_MODE = {("diagnose", "--data"), ("diagnose", "--model"), ("bench", "--trace"), ("export", "--model")}
 
 
 def test_the_synopsis_brackets_exactly_the_optional_options():

@@ -60,8 +60,9 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
         if progress is not None:
             progress(f"fit: profile intervals of {', '.join(result.estimates.nonlinear_names) or 'no nonlinear parameter'}")
         profiles = profile_candidate(candidate, result, train, lift)
+    from .results import campaign_record
     return FitOutcome(candidate, result, lift, static_bands(candidate, result, train, lift, samples=band_samples,
-                                                            seed=settings.seed), profiles)
+                                                            seed=settings.seed), profiles, campaign_record(campaign))
 
 
 def _lift_model(fitter, candidate):
@@ -111,7 +112,9 @@ def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence
                                                              band_samples, settings.seed))
     elif replay_maneuver is not None:
         raise DeclarationError("--replay-maneuver needs --band-samples and a joint fit of C_L, C_D and C_m")
-    return joint
+    import dataclasses
+    from .results import campaign_record
+    return dataclasses.replace(joint, data=campaign_record(campaign))
 
 
 def search_candidates(grid: str) -> list:

@@ -22,11 +22,19 @@ class FitOutcome:
     lift: LiftFit | None
     bands: Any = None          # structsearch.fitting.bands.StaticBands: the static curve's bands (None: not made)
     profile: Any = None        # structsearch.engine.profile.Profiles: profile intervals (None: not asked for)
+    data: Any = None           # the campaign it was fitted on (:func:`campaign_record`)
 
     def to_dict(self) -> dict:
-        """``fit.json`` (docs/interfaces.md sections 2, 5.4 and 6.3; ``profile`` with ``fit(profile=True)``)."""
-        from ..reporting.documents import fit_document
+        """``fit.json`` (docs/interfaces.md sections 2, 5.4 and 6.3; ``profile`` with ``fit(profile=True)``), with
+        what ``export --fit`` reads (7.6): the ``structure``, every parameter's covariance and the ``data``."""
+        from ..reporting.documents import fit_document, parameter_covariance
         doc = fit_document(self.result, self.lift, self.bands)
+        doc["structure"] = self.candidate.to_dict()
+        if self.lift is not None:
+            doc["lift"]["structure"] = self.lift.candidate.to_dict()
+        doc["parameter_covariance"] = parameter_covariance(self.result.estimates)
+        if self.data is not None:
+            doc["data"] = dict(self.data)
         if self.profile is not None:
             doc["profile"] = self.profile.to_dict()
         return doc
@@ -114,3 +122,12 @@ class ReportOutcome:
     def to_dict(self) -> dict:
         return {"html": str(self.html), "figures": [str(f) for f in self.figures], "notes": list(self.notes),
                 "seconds": self.seconds}
+
+
+def campaign_record(campaign: Campaign) -> dict:
+    """The data a fit was fitted on, as fit.json's ``data``: the campaign's directory, name and digest (the data,
+    the split and the aircraft: :func:`structsearch.fitting.runner.campaign_fingerprint`) and its maneuvers."""
+    from ..fitting.runner import campaign_fingerprint
+    return {"source": str(Path(campaign.directory).resolve()) if campaign.directory else None,
+            "name": campaign.name, "digest": campaign_fingerprint(campaign),
+            "maneuvers": {s: [m.id for m in campaign.maneuvers if m.split == s] for s in ("train", "validation")}}

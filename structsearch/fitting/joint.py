@@ -97,6 +97,7 @@ class JointFit:
     history: tuple[Mapping[str, float], ...] = field(default=(), repr=False)   # weights per iteration
     problem: JointProblem | None = field(default=None, repr=False)           # the settled stacked problem
     replay: object | None = None            # a maneuver's forward replay with its sampled band (flight.replay_bands)
+    data: Mapping | None = None             # the campaign it was fitted on (fit.json's ``data``; export reads it)
 
     @property
     def name(self) -> str:
@@ -120,12 +121,15 @@ class JointFit:
                 "n_starts": r.n_starts, "n_reached_best": r.n_reached_best,
                 "lift": None if self.lift is None else {"model": self.lift.name, "params": dict(self.lift_params)},
                 "covariance": r.estimates.covariance_record(),
+                "parameter_covariance": {"names": list(r.estimates.names),
+                                         "matrix": np.asarray(r.estimates.covariance, float).tolist()},
                 "weights": {c.coefficient: c.weight for c in self.coefficients},
                 "weight_iterations": self.iterations, "weights_settled": self.weights_settled,
                 "coefficients": {c.coefficient: c.to_dict() for c in self.coefficients},
                 **({"bands": {**bands_document(self.bands),
                               **({"replay": self.replay.to_dict()} if self.replay is not None else {})}}
                    if self.bands else {}),
+                **({"data": dict(self.data)} if self.data is not None else {}),
                 "seconds": self.seconds}
 
 

@@ -42,6 +42,12 @@ def fit_document(fit: CandidateResult, lift: LiftFit | None, bands=None) -> dict
     return doc
 
 
+def parameter_covariance(estimates) -> dict:
+    """Every parameter's covariance as fit.json's ``parameter_covariance``: ``names`` and the ``matrix`` in their
+    order (what could not be estimated is null)."""
+    return {"names": list(estimates.names), "matrix": np.asarray(estimates.covariance, float).tolist()}
+
+
 def bands_table(bands, every: int = 6) -> str:
     """The static curve's bands at every ``every``-th grid point, as Markdown (``fit.md``)."""
     from tabulate import tabulate

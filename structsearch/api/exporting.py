@@ -1,0 +1,291 @@
+"""``structsearch export``: a fitted model handed to a simulator (docs/interfaces.md 7.6).
+
+The model comes from a fit directory (its ``fit.json``, single or joint, and the campaign it names) or is fitted
+here as ``fit`` fits it (``--data DIR --model NAME[,NAME...]``; a drag or pitch model brings the lift model it
+reads). :mod:`structsearch.export` renders it; ``check=True`` drives JSBSim with the campaign's maneuvers and
+compares with structsearch's own prediction of the same fit (:func:`structsearch.fitting.models.predict_candidate`).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..data.campaign import Campaign, read_campaign
+from ..data.errors import DataError, DeclarationError
+from ..engine.separation import SeparationState, evaluate_state
+from ..export.card import (CoefficientModel, ExportedModel, StateModel, aircraft_record, ordered, validity)
+from ..fitting.candidates import Candidate
+from ..fitting.lift_fit import LiftAt
+from .results import campaign_record
+from .settings import Settings, command_fitter
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """One fitted structure as an export reads it: its candidate, every parameter's value (a drag or pitch
+    model's own, its states' come from the lift), standard deviations, covariance (None: not recorded, with
+    ``note``) and residual standard deviation on the training maneuvers."""
+
+    candidate: Candidate
+    params: Mapping[str, float]
+    stderr: Mapping[str, float | None]
+    covariance_names: tuple[str, ...] = ()
+    covariance: np.ndarray | None = None
+    residual_sd: float | None = None
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class ExportOutcome:
+    """What ``export`` wrote: the model, the files and (``check=True``) the JSBSim check."""
+
+    model: ExportedModel
+    written: tuple[Path, ...]
+    check: object | None = None      # structsearch.export.check.CheckReport
+
+
+# ----- where the model comes from --------------------------------------------------------------------------
+def _model_names(models: str | Sequence[str]) -> list[Candidate]:
+    from ..fitting.specs import resolve_candidate
+    names = [n.strip() for n in (models.split(",") if isinstance(models, str) else models) if n.strip()]
+    if not names:
+        raise DeclarationError("--model: name at least one model (CL-VI or CL-VI,CD-IXr,Cm-XXXIIIr)")
+    candidates = [resolve_candidate(n) for n in names]
+    coefficients = [c.coefficient for c in candidates]
+    for c in candidates:
+        if coefficients.count(c.coefficient) > 1:
+            raise DeclarationError(f"--model: two models of {c.coefficient} ({', '.join(names)})")
+    return candidates
+
+
+def _lift_of(candidates: Sequence[Candidate]) -> Candidate:
+    """The lift structure of an export: the one named, else the one drag and pitch read (the same for both)."""
+    from ..fitting.specs import load_grid
+    named = [c for c in candidates if c.coefficient == "CL"]
+    read = {c.lift for c in candidates if c.lift}
+    if len(read) > 1:
+        raise DeclarationError(f"--model: the drag and pitch models read different lift models ({', '.join(sorted(read))}); "
+                               "an export has one lift model")
+    if named and read and named[0].name not in read:
+        raise DeclarationError(f"--model: {next(c.name for c in candidates if c.lift)} reads the lift model "
+                               f"{read.pop()}, not {named[0].name}")
+    return named[0] if named else load_grid("lift")[read.pop()]
+
+
+def _from_result(candidate: Candidate, result) -> Fitted:
+    e = result.estimates
+    return Fitted(candidate, dict(e.params), dict(e.stderr), tuple(e.names), np.asarray(e.covariance, float),
+                  math.sqrt(result.mse_train) if np.isfinite(result.mse_train) else None)
+
+
+def fitted_from_data(campaign: Campaign, candidates: Sequence[Candidate], settings: Settings) -> list[Fitted]:
+    """Fit the lift model and then the drag and pitch models on the training maneuvers, as ``fit`` does."""
+    from ..fitting.lift_fit import LiftFit
+    from ..fitting.options import check_box_names
+    from .settings import fit_options
+    lift = _lift_of(candidates)
+    others = [c for c in candidates if c.coefficient != "CL"]
+    check_box_names(fit_options("fit", settings, campaign).parameter_boxes, [lift, *others])
+    with command_fitter("fit", campaign, settings) as fitter:
+        lift_result = fitter.fit_one(lift)
+        if lift_result.failed:
+            raise DeclarationError(f"fitting {lift.name} failed: {lift_result.error}")
+        out = [_from_result(lift, lift_result)]
+        with_lift = fitter.with_lifts({lift.name: LiftFit(lift, lift_result)})
+        for c in others:
+            result = with_lift.fit_one(c)
+            if result.failed:
+                raise DeclarationError(f"fitting {c.name} failed: {result.error}")
+            out.append(_from_result(c, result))
+    return out
+
+
+def read_fit_directory(directory: str | os.PathLike) -> tuple[list[Fitted], dict]:
+    """The structures of a fit directory's ``fit.json`` (single or joint) and its ``data`` record."""
+    path = Path(directory) / "fit.json"
+    try:
+        doc = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise DataError("no fit.json here: --fit takes the --out directory of `structsearch fit`",
+                        source=str(path)) from None
+    except (OSError, ValueError) as exc:
+        raise DataError(f"unreadable fit.json ({exc})", source=str(path)) from None
+    try:
+        fitted = _joint_fitted(doc) if doc.get("joint") else _single_fitted(doc)
+    except (KeyError, TypeError, AttributeError) as exc:
+        raise DataError(f"fit.json lacks the field {exc} an export reads", source=str(path)) from None
+    if not isinstance(doc.get("data"), dict) or not doc["data"].get("source"):
+        raise DataError("fit.json does not name the campaign it was fitted on (a fit of an older version, or of a "
+                        "campaign in memory): export with --data DIR --model NAME", source=str(path))
+    return fitted, doc["data"]
+
+
+def _candidate(entry: Mapping, name: str) -> Candidate:
+    from ..fitting.specs import resolve_candidate
+    return Candidate.from_dict(entry["structure"]) if entry.get("structure") else resolve_candidate(name)
+
+
+def _single_fitted(doc: Mapping) -> list[Fitted]:
+    c = _candidate(doc, doc["model"])
+    cov = doc.get("parameter_covariance")
+    own = Fitted(c, _floats(doc["params"]), doc.get("stderr", {}), tuple(cov["names"]) if cov else (),
+                 _matrix(cov), _sd(doc.get("mse", {}).get("train")),
+                 "" if cov else "fit.json records no covariance matrix (a fit of an older version)")
+    if c.coefficient == "CL" or not doc.get("lift"):
+        return [own]
+    lift = doc["lift"]
+    lift_c = _candidate(lift, lift["model"])
+    return [Fitted(lift_c, _floats(lift["params"]), {}, note=f"the fit of {c.name} records its lift model's "
+                   "estimates only: fit the lift model for its statistics"), own]
+
+
+def _joint_fitted(doc: Mapping) -> list[Fitted]:
+    from ..fitting.specs import resolve_candidate
+    cov = doc.get("parameter_covariance")
+    names = tuple(cov["names"]) if cov else ()
+    matrix = _matrix(cov)
+    out = []
+    for entry in doc["coefficients"].values():
+        c = resolve_candidate(entry["model"])
+        params = _floats(entry["parameters"])
+        keep = [i for i, n in enumerate(names) if n in params]
+        out.append(Fitted(c, params, entry.get("stderr", {}), tuple(names[i] for i in keep),
+                          None if matrix is None else matrix[np.ix_(keep, keep)], _sd(entry["mse"]["train"]),
+                          "" if cov else "fit.json records no covariance matrix (a fit of an older version)"))
+    return out
+
+
+def _floats(d: Mapping) -> dict[str, float]:
+    return {k: float("nan") if v is None else float(v) for k, v in d.items()}
+
+
+def _matrix(cov) -> np.ndarray | None:
+    if not cov:
+        return None
+    return np.array([[np.nan if v is None else float(v) for v in row] for row in cov["matrix"]], float)
+
+
+def _sd(mse) -> float | None:
+    return math.sqrt(mse) if mse is not None and math.isfinite(mse) and mse >= 0 else None
+
+
+def _campaign_of(data: Mapping, settings: Settings) -> Campaign:
+    """The campaign a fit directory's ``data`` names, checked against its digest."""
+    from ..fitting.runner import campaign_fingerprint
+    source = data["source"]
+    if not Path(source).is_dir():
+        raise DataError("the campaign this fit was fitted on is not there any more", source=source)
+    campaign = read_campaign(source, segment=settings.segment)
+    if data.get("digest") and campaign_fingerprint(campaign) != data["digest"]:
+        raise DataError("the campaign has changed since the fit (its digest differs): fit again", source=source)
+    return campaign
+
+
+# ----- the exported model ------------------------------------------------------------------------------------
+def exported_model(fitted: Sequence[Fitted], campaign: Campaign, data: Mapping) -> ExportedModel:
+    """The :class:`ExportedModel` of ``fitted`` (the lift model first) on ``campaign``."""
+    from ..fitting.models import used_states
+    lift = next(f for f in fitted if f.candidate.coefficient == "CL")
+    states = tuple(StateModel(n, k, {p: lift.params[p] for p in SeparationState(n, k).parameters})
+                   for n, k in lift.candidate.states)
+    coefficients = []
+    for f in fitted:
+        linear = dict(f.candidate.regressors)
+        symbols = tuple(SeparationState(n, k).symbol for n, k in
+                        (f.candidate.states if f.candidate.coefficient == "CL" else used_states(f.candidate).items()))
+        cov = None if f.covariance is None else tuple(tuple(float(v) for v in row) for row in f.covariance)
+        coefficients.append(CoefficientModel(
+            f.candidate.coefficient, f.candidate.name, tuple(linear.items()), {p: f.params[p] for p in linear},
+            {p: _finite(f.stderr.get(p)) for p in f.params}, f.covariance_names, cov, f.note, f.residual_sd,
+            symbols))
+    train = campaign.split("train")
+    return ExportedModel(ordered(coefficients), states, aircraft_record(campaign.aircraft, train),
+                         validity(train), dict(data))
+
+
+def _finite(v) -> float | None:
+    return None if v is None or not math.isfinite(float(v)) else float(v)
+
+
+def _with_residual_sd(f: Fitted, fitted: Sequence[Fitted], campaign: Campaign) -> Fitted:
+    """``f`` with its residual standard deviation on the training maneuvers computed from its estimates where its
+    fit did not record one (the lift model a drag or pitch fit directory carries)."""
+    if f.residual_sd is not None:
+        return f
+    import dataclasses
+    train = campaign.split("train")
+    if f.candidate.coefficient not in train:
+        return f
+    residual = train[f.candidate.coefficient] - _predictor(fitted, None)(train)[f.candidate.coefficient]
+    return dataclasses.replace(f, residual_sd=float(np.sqrt(np.mean(residual ** 2))),
+                               note=f.note + "; its residual standard deviation is recomputed on the training "
+                                             "maneuvers from these estimates")
+
+
+def _predictor(fitted: Sequence[Fitted], model: ExportedModel):
+    """structsearch's own prediction of the fit: each coefficient by :func:`predict_candidate` (drag and pitch
+    reading the lift model's output and states) and each state by the engine."""
+    from ..fitting.models import predict_candidate
+    lift = next(f for f in fitted if f.candidate.coefficient == "CL")
+    lift_at = LiftAt(lift.candidate, dict(lift.params))
+
+    def predict(data) -> dict[str, np.ndarray]:
+        out = {}
+        for f in fitted:
+            out[f.candidate.coefficient] = predict_candidate(f.candidate, {**lift.params, **f.params}, data,
+                                                             None if f is lift else lift_at)
+        t, alpha, alpha_dot = data["t"], data["alpha"], data["alpha_dot"]
+        for s in (model.states if model is not None else ()):
+            out[s.symbol] = evaluate_state(SeparationState(s.name, s.kind), s.base(), alpha, alpha_dot, t,
+                                           data.bounds, sensitivities=False)[0]
+        return out
+    return predict
+
+
+def export(*, fit_dir: str | os.PathLike | None = None, campaign: Campaign | str | os.PathLike | None = None,
+           models: str | Sequence[str] | None = None, fmt: str = "json", out: str | os.PathLike = "export",
+           check: bool = False, settings: Settings = Settings()) -> ExportOutcome:
+    """Export a fitted model as ``structsearch export`` does: from ``fit_dir`` (a fit's --out directory), or
+    ``models`` fitted on ``campaign``; ``fmt`` "json" (model.json) or "jsbsim" (the JSBSim files); ``check``
+    (jsbsim only) also writes check.json, JSBSim against structsearch on every maneuver and on static points."""
+    from ..export.write import FORMATS, write_export
+    if fmt not in FORMATS:
+        raise DeclarationError(f"--format {fmt!r}: one of {', '.join(FORMATS)}")
+    if check and fmt != "jsbsim":
+        raise DeclarationError("--check drives the exported JSBSim files: it goes with --format jsbsim")
+    if (fit_dir is None) == (campaign is None):
+        raise DeclarationError("export takes either --fit DIR or --data DIR --model NAME")
+    if check:
+        from ..export.check import need_jsbsim
+        need_jsbsim()
+    if fit_dir is not None:
+        if models is not None:
+            raise DeclarationError("--model goes with --data (a fit directory names its own models)")
+        fitted, data = read_fit_directory(fit_dir)
+        the_campaign = _campaign_of(data, settings)
+    else:
+        if models is None:
+            raise DeclarationError("--data needs --model NAME[,NAME...]")
+        candidates = _model_names(models)    # a misspelled name is answered before the campaign is read
+        from .commands import as_campaign
+        the_campaign = as_campaign(campaign, settings.segment)
+        fitted = fitted_from_data(the_campaign, candidates, settings)
+        data = campaign_record(the_campaign)
+    fitted = [_with_residual_sd(f, fitted, the_campaign) for f in fitted]
+    model = exported_model(fitted, the_campaign, data)
+    written = write_export(model, fmt, Path(out))
+    report = None
+    if check:
+        from ..data.atomic import write_json
+        from ..export.aircraft import aircraft_name
+        from ..export.check import check as run_check
+        report = run_check(model, Path(out).resolve(), aircraft_name(model), the_campaign.data,
+                           _predictor(fitted, model))
+        written.append(write_json(Path(out) / "check.json", report.to_dict()))
+    return ExportOutcome(model, tuple(written), report)
