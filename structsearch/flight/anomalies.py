@@ -22,7 +22,7 @@ import numpy as np
 
 from ..data.errors import DeclarationError
 from ..data.prefilter import derivative
-from ..engine.separation import first_order_lag, static_separation
+from ..engine.separation import first_order_lag
 from .aero import AeroModel, StateSpec, truth_model
 from .reference import FINAL_LIFT
 
@@ -89,13 +89,13 @@ class Anomaly:
             delay = reattach[spec.symbol] * np.minimum(alpha_dot, 0.0)
         else:
             delay = tau2 * alpha_dot
-        a_star = spec.a_star
+        a_star = None
         if spec.symbol in shift:
             if h is None:
                 raise DeclarationError(f"anomaly {self.name!r}: the separation state {spec.symbol} depends on the "
                                        "altitude; no h given")
-            a_star = a_star + shift[spec.symbol] * (np.asarray(h, float) - H_REF) / 1000.0
-        return static_separation(alpha - delay, spec.a1, a_star)
+            a_star = spec.a_star + shift[spec.symbol] * (np.asarray(h, float) - H_REF) / 1000.0
+        return spec.static(alpha - delay, a_star)
 
 
 # Sizes (each chosen so that the anomaly is clearly visible, see the module docstring; most are larger
