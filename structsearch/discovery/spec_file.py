@@ -44,6 +44,7 @@ def _entry_lines(c: Candidate) -> list[str]:
         lines.append("states = { " + ", ".join(f"{_q(n)} = {_q(k)}" for n, k in c.states) + " }")
         if c.forms:   # a state not named keeps the tanh
             lines.append("x0 = { " + ", ".join(f"{_q(n)} = {_q(f)}" for n, f in c.forms) + " }")
-        if c.bounds:
-            lines.append("bounds = { " + ", ".join(f"{_q(n)} = [{lo!r}, {hi!r}]" for n, (lo, hi) in c.bounds) + " }")
+        own = [(n, box) for n, box in c.bounds if n in c.state_parameters]   # a box of its own parameters only
+        if own:
+            lines.append("bounds = { " + ", ".join(f"{_q(n)} = [{lo!r}, {hi!r}]" for n, (lo, hi) in own) + " }")
     return lines
