@@ -166,7 +166,8 @@ def _spline(alpha, v, k, derivatives):
     t = u - m
     w = ((0.5 - t) ** 2 / 2.0, 0.75 - t * t, (0.5 + t) ** 2 / 2.0)   # weights of c_{m-1}, c_m, c_{m+1}
     index = [np.clip(m + o, 0, k).astype(np.int64) for o in (-1, 0, 1)]
-    x0 = sum(wi * c[ii] for wi, ii in zip(w, index))
+    # the weights sum to 1 up to rounding: clipped so that no value leaves [0, 1] by an ulp
+    x0 = np.clip(sum(wi * c[ii] for wi, ii in zip(w, index)), 0.0, 1.0)
     if not derivatives:
         return x0, None, None
     du = -(0.5 - t) * c[index[0]] - 2.0 * t * c[index[1]] + (0.5 + t) * c[index[2]]
