@@ -57,7 +57,7 @@ class StateSpec:
         its own."""
         values = dict(self.shape) or {"a1": self.a1, "a_star": self.a_star}
         if a_star is not None:
-            values["a_star"] = a_star
+            alpha, values["a_star"] = np.broadcast_arrays(np.asarray(alpha, float), a_star)
         return static_value(self.form, alpha, values)
 
 
