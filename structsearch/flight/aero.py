@@ -56,9 +56,11 @@ class StateSpec:
         """X0(alpha) of its form; ``a_star`` (an array of the samples' alpha*, a tanh or goman state) in place of
         its own."""
         values = dict(self.shape) or {"a1": self.a1, "a_star": self.a_star}
-        if a_star is not None:
-            alpha, values["a_star"] = np.broadcast_arrays(np.asarray(alpha, float), a_star)
-        return static_value(self.form, alpha, values)
+        if a_star is None:
+            return static_value(self.form, alpha, values)
+        alpha, a_star = np.broadcast_arrays(np.asarray(alpha, float), np.asarray(a_star, float))
+        values["a_star"] = a_star.ravel()   # elementwise with the samples
+        return static_value(self.form, alpha.ravel(), values).reshape(alpha.shape)
 
 
 def steady_target(spec: StateSpec, alpha, alpha_dot) -> np.ndarray:
