@@ -14,7 +14,8 @@ def _grids(args) -> int:
             print(f"{grid.name}: {len(grid.candidates)} candidates of {', '.join(sorted(what))} "
                   f"(structsearch grids {grid.name}: their states too)")
             for c in grid.candidates:
-                states = ", ".join(f"X_{n}: {k}" if n else f"X: {k}" for n, k in c.states)
+                states = ", ".join((f"X_{n}: {k}" if n else f"X: {k}") + ("" if c.form_of(n) == "tanh" else
+                                                                         f" {c.form_of(n)}") for n, k in c.states)
                 print(f"  {c.name}: {model_equation(c)}" + (f"  [{states}]" if states and not c.lift else ""))
         return 0
     if name in BUILTIN_GRIDS or name.endswith(".toml"):

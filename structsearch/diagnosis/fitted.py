@@ -9,6 +9,7 @@ import numpy as np
 from ..data.errors import DeclarationError
 from ..data.flightdata import FlightData
 from ..engine.separation import static_separation
+from ..engine.static_forms import static_value
 from ..fitting.candidate_fit import fit_candidate
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
@@ -39,8 +40,8 @@ def state_for_phases(c: Candidate, summary: CandidateResult, lift: LiftFit | Non
     """The separation state that defines flight phases: the model's first state, or a static stall-strip
     curve from the lift fit; without any, the thesis' stall-strip curve."""
     params = summary.estimates.params if not c.lift else (lift.params if lift is not None else {})
-    for name, _ in (c.states or ()):
-        suffix = f"_{name}" if name else ""
-        if f"a1{suffix}" in params and f"a_star{suffix}" in params:
-            return static_separation(data["alpha"], params[f"a1{suffix}"], params[f"a_star{suffix}"])
+    for state in c.separation_states:
+        shape = [p for p in state.base_parameters if p not in ("tau1", "tau2")]
+        if all(state.parameter_name(p) in params for p in shape):
+            return static_value(state.form, data["alpha"], {p: params[state.parameter_name(p)] for p in shape})
     return static_separation(data["alpha"], FINAL_LIFT["a1_ss"], FINAL_LIFT["a_star_ss"])

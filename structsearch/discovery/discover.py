@@ -24,7 +24,7 @@ def minimal(coefficient: str, lift: str | None):
         return Candidate("CL-minimal", "discover", "CL", (("CL0", "1"),), note="the intercept alone")
     lift_c = load_grid("lift")[lift]
     return Candidate(f"{coefficient}-minimal", "discover", coefficient, ((f"{coefficient}0", "1"),), lift_c.states,
-                     lift, "the intercept alone", lift_c.bounds)
+                     lift, "the intercept alone", lift_c.bounds, lift_c.forms)
 
 
 def _start(coefficient: str, start: str, lift_names: list[str]):

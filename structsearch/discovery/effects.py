@@ -52,7 +52,7 @@ def _add_regressors(effect: str, pairs: list[tuple[str, str]]):
         if any(_uses(c, expr) or name in existing for name, expr in pairs):
             raise DeclarationError(f"baseline {c.name} already contains the effect {effect!r}")
         return Candidate(f"{c.name} + {effect}", c.grid, c.coefficient, c.regressors + tuple(pairs), c.states,
-                         c.lift, f"{c.name} with {effect}", c.bounds)
+                         c.lift, f"{c.name} with {effect}", c.bounds, c.forms)
     return apply
 
 
@@ -92,7 +92,7 @@ def _kind_change(name: str, description: str, from_kind: str, to_kind: str, para
         s = target(c)
         states = tuple((n, to_kind if n == s else k) for n, k in c.states)
         return Candidate(f"{c.name} + {name}", c.grid, c.coefficient, c.regressors, states, c.lift,
-                         f"{c.name} with {name}", c.bounds)
+                         f"{c.name} with {name}", c.bounds, c.forms)
 
     def new(base: Candidate, changed: Candidate) -> tuple[str, ...]:
         s = target(base)
@@ -119,7 +119,7 @@ def _second_state() -> Effect:
         bounds = c.bounds + ((f"a_star_{state}", (0.22, 0.45)),)
         return Candidate(f"{c.name} + {name}", c.grid, c.coefficient,
                          c.regressors + ((f"{c.coefficient}_{x}", term),), states, c.lift,
-                         f"{c.name} with {name}", bounds)
+                         f"{c.name} with {name}", bounds, c.forms)
 
     def new(base, changed):
         return (changed.regressors[-1][0],)

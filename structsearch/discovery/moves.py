@@ -10,6 +10,10 @@
   candidate takes its states from its lift model);
 * ``add state`` / ``remove state``: a separation state with its own K term (K_L, 1 - X, (1 - X) C_L), or a state
   removed with every term on it;
+* ``form``: a separation state's static curve X0 replaced (own states only): a tanh by an exponential (goman),
+  two breaks around a plateau (two_break) or a monotone spline of four knots (spline:4), any other form by the
+  tanh (:mod:`structsearch.engine.static_forms`). Not nested (the tanh is no form's special case with some
+  parameters at zero), so the out-of-sample test judges it;
 * ``lift``: a drag or pitch candidate fed another lift model's states and C_L; each of its terms on a state
   is rewritten for every state of the new lift model (1 - X -> 1 - X_ss, 1 - X_w);
 * ``effect``: an entry of the effect library (:mod:`.effects`) as a named composite move. A structural move
@@ -34,7 +38,9 @@ from ..grid_search.refinement import structure_key  # noqa: F401  (what makes tw
 from . import effects as fx
 from .terms import STATE_SYMBOL, TermLibrary, normalise, template_of, uses_state
 
-MOVE_KINDS = ("add", "drop", "replace", "state kind", "add state", "remove state", "lift", "effect")
+MOVE_KINDS = ("add", "drop", "replace", "state kind", "add state", "remove state", "lift", "effect", "form")
+# the static curves a tanh state may take in one move (every other form's move is back to the tanh)
+FORM_STEPS = ("goman", "two_break", "spline:4")
 KIND_STEPS = {"S": ("Q",), "Q": ("S", "U"), "U": ("Q",)}
 # The K term of a coefficient's own new separation state, and the states' default boxes (docs/catalogue.md:
 # the stall strip separates first, then the wing).
@@ -85,27 +91,30 @@ def _unique(name: str, taken: set[str]) -> str:
     return out
 
 
-def child_name(parent: Candidate, label: str, regressors, states, lift) -> str:
+def child_name(parent: Candidate, label: str, regressors, states, lift, forms=()) -> str:
     name = f"{parent.name} + {label}"
     if len(name) <= MAX_NAME:
         return name
-    digest = hashlib.sha1(repr((sorted(e for _, e in regressors), sorted(states), lift)).encode()).hexdigest()[:8]
+    key = (sorted(e for _, e in regressors), sorted(states), lift) + ((sorted(forms),) if forms else ())
+    digest = hashlib.sha1(repr(key).encode()).hexdigest()[:8]
     root = parent.name.split(" + ")[0].split(" [")[0]
     return f"{root} [{digest}]"
 
 
-def _child(parent: Candidate, label: str, regressors, states=None, lift=..., bounds=None) -> Candidate:
+def _child(parent: Candidate, label: str, regressors, states=None, lift=..., bounds=None, forms=None) -> Candidate:
     states = parent.states if states is None else tuple(states)
     lift = parent.lift if lift is ... else lift
     regressors = tuple(regressors)
-    return Candidate(child_name(parent, label, regressors, states, lift), parent.grid or "discover",
+    forms = parent.forms if forms is None else tuple(forms)
+    kept = tuple((n, f) for n, f in forms if n in dict(states) and f != "tanh")
+    return Candidate(child_name(parent, label, regressors, states, lift, kept), parent.grid or "discover",
                      parent.coefficient, regressors, states, lift, f"{parent.name} with {label}",
-                     parent.bounds if bounds is None else tuple(bounds))
+                     parent.bounds if bounds is None else tuple(bounds), kept)
 
 
-def _keep_bounds(bounds, states) -> tuple:
-    """The boxes of the separation parameters of ``states`` (name, kind)."""
-    names = {p for n, k in states for p in SeparationState(n, k).parameters}
+def _keep_bounds(bounds, states, forms=()) -> tuple:
+    """The boxes of the separation parameters of ``states`` (name, kind) with static ``forms`` (name, form)."""
+    names = {p for n, k in states for p in SeparationState(n, k, dict(forms).get(n, "tanh")).parameters}
     return tuple((k, v) for k, v in bounds if k in names)
 
 
@@ -190,14 +199,16 @@ def _state_moves(c: Candidate) -> list[tuple[Move, Candidate]]:
     for i, (s, kind) in enumerate(c.states):
         for to in KIND_STEPS[kind]:
             states = c.states[:i] + ((s, to),) + c.states[i + 1:]
-            before, after = SeparationState(s, kind).parameters, SeparationState(s, to).parameters
+            form = c.form_of(s)
+            before, after = SeparationState(s, kind, form).parameters, SeparationState(s, to, form).parameters
             label = f"{_symbol(s)}: {kind} -> {to}"
             out.append((Move("state kind", label, tuple(p for p in after if p not in before)),
-                        _child(c, label, c.regressors, states, bounds=_keep_bounds(c.bounds, states))))
+                        _child(c, label, c.regressors, states, bounds=_keep_bounds(c.bounds, states, c.forms))))
         rest = tuple(r for r in c.regressors if _symbol(s) not in _symbols(r[1]))
         states = c.states[:i] + c.states[i + 1:]
         label = f"remove state {_symbol(s)}"
-        out.append((Move("remove state", label), _child(c, label, rest, states, bounds=_keep_bounds(c.bounds, states))))
+        out.append((Move("remove state", label),
+                    _child(c, label, rest, states, bounds=_keep_bounds(c.bounds, states, c.forms))))
     taken = {s for s, _ in c.states}
     if "" not in taken:
         fresh = [(s, box) for s, box in NEW_STATES if s not in taken][:1]
@@ -210,6 +221,27 @@ def _state_moves(c: Candidate) -> list[tuple[Move, Candidate]]:
             out.append((Move("add state", label, (name,)),
                         _child(c, label, c.regressors + ((_unique(name, {n for n, _ in c.regressors}), expr),),
                                states, bounds=c.bounds + ((f"a_star_{s}", box),))))
+    return out
+
+
+def _form_moves(c: Candidate) -> list[tuple[Move, Candidate]]:
+    """Each own state's static curve replaced: a tanh by each of :data:`FORM_STEPS`, another form by the tanh. The
+    box of a tanh's alpha* (where its flow breaks: the stall strip before the wing) carries to the new form's
+    angle of the same meaning (goman's alpha*, two_break's first break)."""
+    if c.lift:
+        return []
+    out = []
+    for s, _ in c.states:
+        form = c.form_of(s)
+        for to in (FORM_STEPS if form == "tanh" else ("tanh",)):
+            forms = tuple({**dict(c.forms), s: to}.items())
+            bounds = list(c.bounds)
+            star = dict(c.bounds).get(f"a_star_{s}" if s else "a_star")
+            if to == "two_break" and star is not None:
+                bounds.append((f"a_k1_{s}" if s else "a_k1", star))
+            label = f"{_symbol(s)}: X0 {form} -> {to}"
+            out.append((Move("form", label), _child(c, label, c.regressors, c.states,
+                                                    bounds=_keep_bounds(bounds, c.states, forms), forms=forms)))
     return out
 
 
@@ -234,7 +266,7 @@ def _lift_moves(c: Candidate, lifts: Mapping[str, Candidate]) -> list[tuple[Move
                 if normalise(e) not in {normalise(x) for _, x in regressors}:
                     regressors.append((_unique(n, {x for x, _ in regressors}), e))
         label = f"lift {c.lift} -> {name}"
-        out.append((Move("lift", label), _child(c, label, regressors, lift.states, name, lift.bounds)))
+        out.append((Move("lift", label), _child(c, label, regressors, lift.states, name, lift.bounds, lift.forms)))
     return out
 
 
@@ -242,7 +274,7 @@ def _effect_moves(c: Candidate) -> list[tuple[Move, Candidate]]:
     out = []
     for e in fx.applicable(c):
         changed = e.apply(c)
-        child = _child(c, e.name, changed.regressors, changed.states, changed.lift, changed.bounds)
+        child = _child(c, e.name, changed.regressors, changed.states, changed.lift, changed.bounds, changed.forms)
         out.append((Move("effect", e.name, tuple(e.new_parameters(c, changed)), e.name), child))
     return out
 
@@ -273,6 +305,8 @@ def generate(c: Candidate, library: TermLibrary, lifts: Mapping[str, Candidate] 
         found += [(m, ch) for m, ch in _state_moves(c) if m.kind in kinds]
     if "lift" in kinds:
         found += _lift_moves(c, lifts or {})
+    if "form" in kinds:
+        found += _form_moves(c)
     # the effect library names the structural moves that equal an effect, whichever kinds are asked
     effect_moves = _effect_moves(c)
     by_key: dict[tuple, tuple[Move, Candidate]] = {}

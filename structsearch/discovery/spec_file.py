@@ -42,6 +42,9 @@ def _entry_lines(c: Candidate) -> list[str]:
     lines.append("regressors = { " + ", ".join(f"{_q(n)} = {_q(e)}" for n, e in c.regressors) + " }")
     if c.states and not c.lift:   # a drag or pitch structure takes its states (and boxes) from its lift model
         lines.append("states = { " + ", ".join(f"{_q(n)} = {_q(k)}" for n, k in c.states) + " }")
-        if c.bounds:
-            lines.append("bounds = { " + ", ".join(f"{_q(n)} = [{lo!r}, {hi!r}]" for n, (lo, hi) in c.bounds) + " }")
+        if c.forms:   # a state not named keeps the tanh
+            lines.append("x0 = { " + ", ".join(f"{_q(n)} = {_q(f)}" for n, f in c.forms) + " }")
+        own = [(n, box) for n, box in c.bounds if n in c.state_parameters]   # a box of its own parameters only
+        if own:
+            lines.append("bounds = { " + ", ".join(f"{_q(n)} = [{lo!r}, {hi!r}]" for n, (lo, hi) in own) + " }")
     return lines

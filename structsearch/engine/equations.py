@@ -9,6 +9,9 @@ a separation state ``X_n`` of kind S, Q or U follows :mod:`.separation`:
     U:  tau1 * dX/dt + X = X0(alpha - tau2 * alpha_dot)
     X0(a) = 0.5 * (1 - tanh(a1 * (a - a_star)))
 
+A state of another static form (:mod:`.static_forms`) writes its X0 as a named function of the effective angle and
+its parameters (``X_ss = X0_goman(alpha; a_star_ss, k_e_ss, x_star_ss)``), defined on a "where" line.
+
 Writing a string is not I/O: the engine's summaries carry these lines.
 """
 from __future__ import annotations
@@ -21,6 +24,7 @@ import sympy as sp
 
 from .expressions import parse_expression
 from .separation import SeparationState
+from .static_forms import DEFAULT_FORM, form_parameters
 
 # What each helper of the regressor language stands for (regressors.HELPERS), in words a reader checks.
 HELPER_MEANINGS = {
@@ -30,6 +34,15 @@ HELPER_MEANINGS = {
     "KS": "KS(X) = (5*(1 - sqrt(X))^2 + 4*sqrt(X))/16 * CL (centre-of-pressure shift)",
     "max_half": "max_half(X) = max(1/2, X) (Van Ingen's elevator effectiveness)",
     "pos": "pos(x) = max(x, 0)",
+}
+# What each static form other than the tanh stands for (static_forms), in the base names of its parameters.
+FORM_MEANINGS = {
+    "goman": "X0_goman(a; a_star, k_e, x_star) = x_star*exp(-k_e*(a - a_star)) for a >= a_star, "
+             "1 - (1 - x_star)*exp(k_e*x_star/(1 - x_star)*(a - a_star)) below",
+    "two_break": "X0_two_break(a; k1, a_k1, k2, da_k2, x_mid) = (1 - x_mid)*0.5*(1 - tanh(k1*(a - a_k1))) "
+                 "+ x_mid*0.5*(1 - tanh(k2*(a - a_k1 - da_k2)))",
+    "spline": "X0_spline(a; a_sp, h_sp, r1..rK) = sum_j c_j*N((a - a_sp)/h_sp - j), c_j = 1 (j <= 0), "
+              "r1*...*rj (1 <= j <= K), c_K (j > K), N the centred quadratic B-spline",
 }
 # Regressor texts that are the constant 1: the parameter alone.
 _ONE = {"1", "1.0"}
@@ -86,12 +99,20 @@ def model_equation(coefficient: str, regressors: Sequence[tuple[str, str]]) -> s
     return f"{coefficient} = " + (" + ".join(terms) if terms else "0")
 
 
-def state_equation(name: str, kind: str) -> str:
-    """The equation of separation state ``X_name`` of ``kind`` (S, Q or U) in its own parameters' names."""
-    s = SeparationState(name, kind)
+def _form_key(form: str) -> str:
+    return "spline" if form.startswith("spline:") else form
+
+
+def state_equation(name: str, kind: str, form: str = DEFAULT_FORM) -> str:
+    """The equation of separation state ``X_name`` of ``kind`` (S, Q or U) and static ``form`` in its own
+    parameters' names."""
+    s = SeparationState(name, kind, form)
     p, x = s.parameter_name, s.symbol
     shift = f" - {p('tau2')}*alpha_dot" if kind in ("Q", "U") else ""
-    static = f"0.5*(1 - tanh({p('a1')}*(alpha{shift} - {p('a_star')})))"
+    if form == DEFAULT_FORM:
+        static = f"0.5*(1 - tanh({p('a1')}*(alpha{shift} - {p('a_star')})))"
+    else:
+        static = f"X0_{_form_key(form)}(alpha{shift}; {', '.join(p(b) for b in form_parameters(form))})"
     return f"{p('tau1')}*d{x}/dt + {x} = {static}" if kind == "U" else f"{x} = {static}"
 
 
@@ -143,22 +164,31 @@ def latex_model(coefficient: str, regressors: Sequence[tuple[str, str]]) -> str:
     return f"{_latex_name(coefficient)} = " + (" + ".join(terms) if terms else "0")
 
 
-def latex_state(name: str, kind: str) -> str:
-    s = SeparationState(name, kind)
+def latex_state(name: str, kind: str, form: str = DEFAULT_FORM) -> str:
+    s = SeparationState(name, kind, form)
     p, x = (lambda b: parameter_latex(s.parameter_name(b))), _latex_name(s.symbol)
     shift = rf" - {p('tau2')}\,\dot{{\alpha}}" if kind in ("Q", "U") else ""
-    static = rf"\tfrac{{1}}{{2}}\left(1 - \tanh\left({p('a1')}\left(\alpha{shift} - {p('a_star')}\right)\right)\right)"
+    if form == DEFAULT_FORM:
+        static = rf"\tfrac{{1}}{{2}}\left(1 - \tanh\left({p('a1')}\left(\alpha{shift} - {p('a_star')}\right)\right)\right)"
+    else:
+        args = ", ".join(p(b) for b in form_parameters(form))
+        label = _form_key(form).replace("_", r"\_")
+        static = rf"X_0^{{\mathrm{{{label}}}}}\left(\alpha{shift};\ {args}\right)"
     return rf"{p('tau1')}\,\dot{{{x}}} + {x} = {static}" if kind == "U" else f"{x} = {static}"
 
 
 def write_equations(coefficient: str, regressors: Sequence[tuple[str, str]], states: Sequence[tuple[str, str]],
                     *, state_note: str = "", values: Mapping[str, float | str] | None = None) -> Equations:
     """The :class:`Equations` of a model of ``coefficient`` with ``regressors`` ((name, text) pairs) and
-    ``states`` ((name, kind) pairs); ``state_note`` follows each state's text line (where its parameters come
-    from); with ``values`` each parameter that has one is written as its value in the text lines."""
-    text = [model_equation(coefficient, regressors)] + [state_equation(n, k) + state_note for n, k in states]
+    ``states`` ((name, kind) pairs, or (name, kind, form) for a static form other than the tanh); ``state_note``
+    follows each state's text line (where its parameters come from); with ``values`` each parameter that has one
+    is written as its value in the text lines."""
+    states = [tuple(st) if len(st) == 3 else (st[0], st[1], DEFAULT_FORM) for st in states]
+    text = [model_equation(coefficient, regressors)] + [state_equation(*st) + state_note for st in states]
     if values:
         text = [with_values(line, values) for line in text]
     text += [f"where {m}" for m in helpers_used([t for _, t in regressors])]
-    latex = [latex_model(coefficient, regressors)] + [latex_state(n, k) for n, k in states]
+    forms = dict.fromkeys(_form_key(f) for _, _, f in states if f != DEFAULT_FORM)
+    text += [f"where {FORM_MEANINGS[f]}" for f in forms]
+    latex = [latex_model(coefficient, regressors)] + [latex_state(*st) for st in states]
     return Equations(tuple(text), tuple(latex))

@@ -3,6 +3,9 @@
     X0(a; a1, a_star) = 0.5 * (1 - tanh(a1 * (a - a_star)))
     tau1 * dX/dt + X = X0(alpha - tau2 * alpha_dot)
 
+X0 above is the default static curve (form ``tanh``); a state may take another form of
+:mod:`.static_forms` (``goman``, ``two_break``, ``spline:K``), whose parameters replace a1 and a_star.
+
 Three kinds: steady ``S`` (X = X0(alpha)), quasi-steady ``Q`` (X = X0(alpha -
 tau2*alpha_dot)) and unsteady ``U`` (first-order lag of the quasi-steady value).
 
@@ -23,6 +26,7 @@ from scipy.signal import lfilter
 from scipy.special import expit
 
 from ..data.errors import DeclarationError
+from .static_forms import DEFAULT_FORM, check_form, form_parameters, static_gradient
 
 KINDS = ("S", "Q", "U")
 PARAMETERS_OF_KIND = {
@@ -30,6 +34,8 @@ PARAMETERS_OF_KIND = {
     "Q": ("tau2", "a1", "a_star"),
     "U": ("tau1", "tau2", "a1", "a_star"),
 }
+# the time constants of each kind, before the static curve's parameters
+TIME_PARAMETERS_OF_KIND = {"S": (), "Q": ("tau2",), "U": ("tau1", "tau2")}
 # A step of a uniform grid may differ from the first by this relative amount.
 _UNIFORM_RTOL = 1e-9
 # Largest log-decay inside one block of the time-varying recursion (small blocks keep the
@@ -41,17 +47,24 @@ _BLOCK_DECAY = 50.0
 class SeparationState:
     """One separation state: ``name`` "ss" gives symbol ``X_ss`` and parameters ``tau1_ss``...
 
-    An empty name gives symbol ``X`` and parameters ``tau1, tau2, a1, a_star``.
+    An empty name gives symbol ``X`` and parameters ``tau1, tau2, a1, a_star``. ``form`` is its static curve
+    X0 (:mod:`.static_forms`; "tanh", the default, has a1 and a_star), whose parameters follow the kind's time
+    constants.
     """
 
     name: str
     kind: str
+    form: str = DEFAULT_FORM
 
     def __post_init__(self):
         if self.kind not in KINDS:
             raise DeclarationError(f"separation state {self.symbol!r}: kind {self.kind!r} is not one of {KINDS}")
         if self.name and not self.name.isidentifier():
             raise DeclarationError(f"separation state name {self.name!r} is not an identifier")
+        try:
+            check_form(self.form)
+        except DeclarationError as exc:
+            raise DeclarationError(f"separation state {self.symbol!r}: {exc}") from None
 
     @property
     def symbol(self) -> str:
@@ -59,7 +72,7 @@ class SeparationState:
 
     @property
     def base_parameters(self) -> tuple[str, ...]:
-        return PARAMETERS_OF_KIND[self.kind]
+        return TIME_PARAMETERS_OF_KIND[self.kind] + form_parameters(self.form)
 
     @property
     def parameters(self) -> tuple[str, ...]:
@@ -336,6 +349,8 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
     where it is periodic (NaN where not; :func:`first_order_lag`): an unsteady state starts there at its
     periodic solution.
     """
+    if state.form != DEFAULT_FORM:
+        return _evaluate_form(state, values, alpha, alpha_dot, t, bounds, step, sensitivities)
     a1, a_star = values["a1"], values["a_star"]
     tau2 = values.get("tau2", 0.0)
     effective_alpha = alpha - tau2 * alpha_dot if state.kind != "S" else alpha
@@ -357,4 +372,29 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
     out = np.empty((len(alpha), 4), order="F")
     out[:, 0] = dtau1
     out[:, 1:] = dx  # U order: tau1, tau2, a1, a_star
+    return x, out
+
+
+def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alpha_dot, t, bounds, step,
+                   sensitivities: bool):
+    """:func:`evaluate_state` for a static curve other than the tanh: the chain rule through alpha - tau2 alpha_dot
+    (dX0/dtau2 = -dX0/dalpha alpha_dot), then the same lag."""
+    tau2 = values.get("tau2", 0.0)
+    effective_alpha = alpha - tau2 * alpha_dot if state.kind != "S" else alpha
+    x0, dalpha, grads = static_gradient(state.form, effective_alpha, values, sensitivities)
+    if not sensitivities:
+        if state.kind != "U":
+            return x0, None
+        return first_order_lag(t, x0, None, values["tau1"], bounds, step)[0], None
+    lead = 1 if state.kind != "S" else 0
+    du = np.empty((len(alpha), lead + grads.shape[1]), order="F")
+    if lead:
+        du[:, 0] = -dalpha * alpha_dot
+    du[:, lead:] = grads
+    if state.kind != "U":
+        return x0, du
+    x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step)
+    out = np.empty((len(alpha), 1 + du.shape[1]), order="F")
+    out[:, 0] = dtau1
+    out[:, 1:] = dx
     return x, out

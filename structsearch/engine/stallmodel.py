@@ -50,14 +50,21 @@ class StallModel:
     def declare(cls, name: str, coefficient: str, regressors: Mapping[str, str], *,
                 states: Mapping[str, str] | None = None, start: Mapping[str, float] | None = None,
                 bounds: Mapping[str, tuple[float, float]] | None = None,
-                fixed: Mapping[str, float] | None = None) -> "StallModel":
-        """``states`` maps a state name ("ss", "w", or "" for plain X) to its kind S, Q or U.
+                fixed: Mapping[str, float] | None = None,
+                forms: Mapping[str, str] | None = None) -> "StallModel":
+        """``states`` maps a state name ("ss", "w", or "" for plain X) to its kind S, Q or U; ``forms`` a state
+        name to its static curve (:mod:`.static_forms`; a state not named has the tanh).
 
         ``fixed`` holds separation parameters that are not estimated (a drag or
         pitch model takes its states from the identified lift model); a model
         whose separation parameters are all fixed is fitted by OLS.
         """
-        state_objs = tuple(SeparationState(n, k) for n, k in (states or {}).items())
+        forms = dict(forms or {})
+        stray = [n for n in forms if n not in (states or {})]
+        if stray:
+            raise DeclarationError(f"model {name!r}: a static separation form for {stray[0]!r}, which is not one of "
+                                   f"its states ({', '.join(states or {}) or 'none'})")
+        state_objs = tuple(SeparationState(n, k, forms.get(n, "tanh")) for n, k in (states or {}).items())
         symbols = [s.symbol for s in state_objs]
         if len(set(symbols)) != len(symbols):
             raise DeclarationError(f"model {name!r}: separation state declared twice")
@@ -202,7 +209,7 @@ class StallModel:
         """The model as equations (:mod:`.equations`): the coefficient as its parameters times their regressors,
         each state's equation (a state whose parameters are all fixed says so), the helpers it calls."""
         regressors = [(r.name, r.text or sp.sstr(r.expr)) for r in self.regressors]
-        states = [(s.name, s.kind) for s in self.states]
+        states = [(s.name, s.kind, s.form) for s in self.states]
         fixed = all(p in self.fixed for s in self.states for p in s.parameters) and bool(self.states)
         return write_equations(self.coefficient, regressors, states,
                                state_note="  (its parameters fixed, not estimated here)" if fixed else "")

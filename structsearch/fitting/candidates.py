@@ -9,7 +9,12 @@ from ..data.errors import DeclarationError
 
 @dataclass(frozen=True)
 class Candidate:
-    """One model structure of a grid."""
+    """One model structure of a grid.
+
+    ``forms``: the static separation curve of each state that does not have the default tanh ((state name,
+    form) pairs, :mod:`structsearch.engine.static_forms`); kept in the order of ``states``, without the tanh
+    and without a state the candidate does not have (a move that removes a state drops its form).
+    """
 
     name: str
     grid: str
@@ -19,6 +24,23 @@ class Candidate:
     lift: str | None = None
     note: str = ""
     bounds: tuple[tuple[str, tuple[float, float]], ...] = ()
+    forms: tuple[tuple[str, str], ...] = ()
+
+    def __post_init__(self):
+        given = dict(self.forms)
+        kept = tuple((n, given[n]) for n, _ in self.states if given.get(n, "tanh") != "tanh")
+        if kept != self.forms:
+            object.__setattr__(self, "forms", kept)
+
+    def form_of(self, state: str) -> str:
+        """The static separation form of state ``state`` ("tanh" unless declared otherwise)."""
+        return dict(self.forms).get(state, "tanh")
+
+    @property
+    def separation_states(self):
+        """Its own states as :class:`~structsearch.engine.separation.SeparationState` (kind and form)."""
+        from ..engine.separation import SeparationState
+        return tuple(SeparationState(n, k, self.form_of(n)) for n, k in self.states)
     # per-flight nuisance parameters estimated with it (.flight_effects.EFFECTS; docs/interfaces.md 7.5)
     flight_effects: tuple[str, ...] = ()
 
@@ -29,8 +51,7 @@ class Candidate:
     @property
     def state_parameters(self) -> tuple[str, ...]:
         """The separation parameters of its own states (a drag or pitch candidate's come from its lift)."""
-        from ..engine.separation import SeparationState
-        return tuple(p for n, k in self.states for p in SeparationState(n, k).parameters)
+        return tuple(p for s in self.separation_states for p in s.parameters)
 
     def with_bounds(self, overrides) -> "Candidate":
         """The same candidate with the search boxes in ``overrides`` ((name, (lo, hi)) pairs) that concern
@@ -42,17 +63,24 @@ class Candidate:
         return dataclasses.replace(self, bounds=tuple(sorted(merged.items())))
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "grid": self.grid, "coefficient": self.coefficient,
-                "regressors": dict(self.regressors), "states": dict(self.states), "lift": self.lift,
-                "note": self.note, "bounds": {k: list(v) for k, v in self.bounds},
-                **({"flight_effects": list(self.flight_effects)} if self.flight_effects else {})}
+        """Its fields as JSON; ``x0`` (state -> form) only when a state has a form other than the tanh and
+        ``flight_effects`` only when it has some, so that a structure without either writes what it wrote before
+        they existed."""
+        out = {"name": self.name, "grid": self.grid, "coefficient": self.coefficient,
+               "regressors": dict(self.regressors), "states": dict(self.states), "lift": self.lift,
+               "note": self.note, "bounds": {k: list(v) for k, v in self.bounds}}
+        if self.forms:
+            out["x0"] = dict(self.forms)
+        if self.flight_effects:
+            out["flight_effects"] = list(self.flight_effects)
+        return out
 
     @classmethod
     def from_dict(cls, d) -> "Candidate":
-        """The candidate of :meth:`to_dict` (an exact round trip)."""
+        """The candidate of :meth:`to_dict` (an exact round trip; without ``x0`` every state is a tanh)."""
         return cls(d["name"], d["grid"], d["coefficient"], tuple(d["regressors"].items()), tuple(d["states"].items()),
                    d["lift"], d.get("note", ""), tuple((k, tuple(v)) for k, v in d.get("bounds", {}).items()),
-                   flight_effects=tuple(d.get("flight_effects", ())))
+                   tuple(d.get("x0", {}).items()), flight_effects=tuple(d.get("flight_effects", ())))
 
 
 @dataclass(frozen=True)

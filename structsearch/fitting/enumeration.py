@@ -11,6 +11,7 @@ import numpy as np
 from ..data.errors import DeclarationError
 from ..engine.regressors import parse
 from ..engine.separation import SeparationState
+from ..engine.static_forms import check_form
 from .candidates import Candidate, Grid, from_roman, roman
 
 
@@ -30,7 +31,7 @@ def _blocks(doc: dict, names: Sequence[str], where: str) -> list[tuple[str, str]
 # Every key a grid file and each of its entries may hold: any other is a typo, refused with the close match.
 GRID_KEYS = ("name", "coefficient", "prefix", "lift", "sets", "blocks", "bounds", "entry")
 ENTRY_KEYS = ("name", "lift", "states", "note", "bounds", "from", "drop", "kinds", "prefix", "blocks", "always",
-              "combinations", "regressors", "flight_effects")
+              "combinations", "regressors", "flight_effects", "x0")
 
 
 def check_keys(table: dict, known: Sequence[str], where: str) -> None:
@@ -88,7 +89,7 @@ def expand(doc: dict, source: str) -> Grid:
     candidates: list[Candidate] = []
     used_bounds: set[str] = set()
 
-    def add(cand_name: str | None, regs, states, lift, note, where, bounds=()):
+    def add(cand_name: str | None, regs, states, lift, note, where, bounds=(), forms=()):
         nonlocal counter
         if cand_name is None:
             counter += 1
@@ -102,10 +103,10 @@ def expand(doc: dict, source: str) -> Grid:
         if not regs:
             raise DeclarationError(f"{where}: candidate {cand_name!r} has no regressors")
         _check_expressions(regs, where)
-        own = {p for k, kind in states for p in _state_params(k, kind)}
+        own = {p for k, kind in states for p in _state_params(k, kind, dict(forms).get(k, "tanh"))}
         used_bounds.update(b[0] for b in bounds if b[0] in own)
         candidates.append(Candidate(cand_name, name, coefficient, tuple(regs), tuple(states), lift, note,
-                                    tuple(b for b in bounds if b[0] in own)))
+                                    tuple(b for b in bounds if b[0] in own), tuple(forms)))
 
     for i, entry in enumerate(doc["entry"]):
         where = f"{source} [[entry]] #{i + 1}"
@@ -121,26 +122,31 @@ def expand(doc: dict, source: str) -> Grid:
         used_bounds.clear()
         if "from" in entry:
             base, regs = _derived(entry, candidates, where)
-            add(entry.get("name"), regs, base.states, base.lift, note, where, base.bounds + own_bounds)
+            forms = {**dict(base.forms), **dict(_forms(entry, [n for n, _ in base.states], lift, where))}
+            add(entry.get("name"), regs, base.states, base.lift, note, where, base.bounds + own_bounds,
+                tuple(forms.items()))
         elif "kinds" in entry:
             kinds = entry["kinds"]
             regs = _blocks(doc, entry.get("blocks", []), where)
+            forms = _forms(entry, list(kinds), lift, where)
             for combo in product(*kinds.values()):
                 st = tuple(zip(kinds.keys(), combo))
-                add(entry.get("prefix", prefix) + "/".join(combo), regs, st, lift, note, where, bounds)
+                add(entry.get("prefix", prefix) + "/".join(combo), regs, st, lift, note, where, bounds, forms)
         elif "combinations" in entry:
             combos = entry["combinations"]
             if isinstance(combos, str):
                 if combos not in sets:
                     raise DeclarationError(f"{where}: unknown set {combos!r}")
                 combos = sets[combos]
+            forms = _forms(entry, [n for n, _ in states], lift, where)
             for combo in combos:
                 add(None, _blocks(doc, list(entry.get("always", [])) + list(combo), where), states, lift, note,
-                    where, bounds)
+                    where, bounds, forms)
         else:
             regs = _blocks(doc, entry.get("blocks", []), where)
             regs += [(k, str(v)) for k, v in entry.get("regressors", {}).items()]
-            add(entry.get("name"), regs, states, lift, note, where, bounds)
+            add(entry.get("name"), regs, states, lift, note, where, bounds, _forms(entry, [n for n, _ in states],
+                                                                               lift, where))
         _with_flight_effects(candidates, first_of_entry, entry, where)
         unused = [k for k, _ in own_bounds if k not in used_bounds]
         if unused:
@@ -178,5 +184,29 @@ def _bounds(table, where: str) -> tuple[tuple[str, tuple[float, float]], ...]:
     return tuple(out)
 
 
-def _state_params(state: str, kind: str) -> list[str]:
-    return list(SeparationState(state, kind).parameters)
+def _state_params(state: str, kind: str, form: str = "tanh") -> list[str]:
+    return list(SeparationState(state, kind, form).parameters)
+
+
+def _forms(entry: dict, states: Sequence[str], lift, where: str) -> tuple[tuple[str, str], ...]:
+    """The entry's ``x0`` table (state name -> static separation form) checked against its ``states``: one
+    DeclarationError naming the entry, the state or form and the close match."""
+    table = entry.get("x0", {})
+    if not isinstance(table, dict):
+        raise DeclarationError(f"{where}: x0 is a table from state to form, such as x0 = {{ ss = \"goman\" }}, "
+                               f"not {table!r}")
+    if table and lift:
+        raise DeclarationError(f"{where}: x0: a structure fed the lift model {lift!r} takes its states' forms from "
+                               "that model")
+    out = []
+    for state, form in table.items():
+        if state not in states:
+            close = difflib.get_close_matches(state, list(states), n=1, cutoff=0.5)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise DeclarationError(f"{where}: x0 names the state {state!r}, which the entry does not declare "
+                                   f"(its states: {', '.join(states) or 'none'}){hint}")
+        try:
+            out.append((state, check_form(form)))
+        except DeclarationError as exc:
+            raise DeclarationError(f"{where}: x0 of state {state!r}: {exc}") from None
+    return tuple(out)

@@ -29,11 +29,11 @@ def check_joint(candidates: Sequence[Candidate]) -> tuple[Candidate | None, list
         if lift is not None:
             own = used_states(c)
             theirs = dict(lift.states)
-            missing = [n for n, k in own.items() if theirs.get(n) != k]
+            missing = [n for n, k in own.items() if theirs.get(n) != k or c.form_of(n) != lift.form_of(n)]
             if missing:
                 raise DeclarationError(
                     f"{c.name} uses the state(s) {', '.join('X_' + n if n else 'X' for n in missing)} of its lift "
-                    f"model {c.lift}, which the joint lift structure {lift.name} does not have with the same kind "
+                    f"model {c.lift}, which the joint lift structure {lift.name} does not have with the same kind and form "
                     f"({', '.join(f'{n or chr(88)}: {k}' for n, k in theirs.items()) or 'no state'})")
     shared = set.intersection(*[set(_params_of(c)) for c in candidates])
     if not shared:
@@ -47,7 +47,7 @@ def check_joint(candidates: Sequence[Candidate]) -> tuple[Candidate | None, list
 
 def _params_of(c: Candidate) -> list[str]:
     states = dict(c.states) if c.coefficient == "CL" else used_states(c)
-    return [p for n, k in states.items() for p in SeparationState(n, k).parameters]
+    return [p for n, k in states.items() for p in SeparationState(n, k, c.form_of(n)).parameters]
 
 
 def joint_structures(spec: str) -> list[Candidate]:

@@ -25,7 +25,7 @@ def used_states(c: Candidate) -> dict[str, str]:
     """The states (name -> kind) ``c``'s regressors use: of a drag or pitch candidate, the lift model's states it
     reads (CD-X reads none)."""
     states = dict(c.states)
-    symbols = {SeparationState(n, k).symbol: n for n, k in states.items()}
+    symbols = {SeparationState(n, k, c.form_of(n)).symbol: n for n, k in states.items()}
     used = {s for name, text in c.regressors for s in declare(name, text, states=list(symbols)).states}
     return {symbols[s]: states[symbols[s]] for s in symbols if s in used}
 
@@ -38,13 +38,14 @@ def model_with_lift(c: Candidate, lift_params: Mapping[str, float] | None) -> St
     states = dict(c.states)
     if c.lift:
         states = used_states(c)
-        own = {p for n, k in states.items() for p in SeparationState(n, k).parameters}
+        own = {p for n, k in states.items() for p in SeparationState(n, k, c.form_of(n)).parameters}
         fixed = {k: v for k, v in lift_params.items() if k in own}
     free_bounds = {k: v for k, v in c.bounds if not fixed or k not in fixed}
     free_bounds = {k: v for k, v in free_bounds.items()
-                   if k in {p for n, kd in states.items() for p in SeparationState(n, kd).parameters}}
+                   if k in {p for n, kd in states.items() for p in SeparationState(n, kd, c.form_of(n)).parameters}}
+    forms = {n: f for n, f in c.forms if n in states}
     return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states, fixed=fixed,
-                              bounds=free_bounds)
+                              bounds=free_bounds, forms=forms)
 
 
 def with_lift_prediction(data: FlightData, lift_params: Mapping[str, float], lift_candidate: Candidate) -> FlightData:

@@ -13,7 +13,9 @@ tables, each one of:
   entry's own ``prefix`` (else the grid's) and the kinds joined by "/";
 * a derived candidate: ``from`` another candidate, ``drop`` some regressors.
 
-Any entry may set ``states`` (name -> kind) and ``bounds`` (parameter -> [lo, hi]).
+Any entry may set ``states`` (name -> kind), ``x0`` (state name -> static separation form: "tanh", the
+default, "goman", "two_break" or "spline:K"; :mod:`structsearch.engine.static_forms`) and ``bounds``
+(parameter -> [lo, hi]).
 
 Unnamed candidates take the next number (prefix + Roman numeral); named ones
 whose name is prefix + Roman numeral also advance the count.
@@ -77,7 +79,8 @@ def _with_lift_states(c: Candidate, lift_grid: Grid) -> Candidate:
     if not c.lift:
         return c
     lift = lift_grid[c.lift]
-    return Candidate(c.name, c.grid, c.coefficient, c.regressors, lift.states, c.lift, c.note, lift.bounds)
+    return Candidate(c.name, c.grid, c.coefficient, c.regressors, lift.states, c.lift, c.note, lift.bounds,
+                     lift.forms)
 
 
 def find_candidate(name: str) -> Candidate:

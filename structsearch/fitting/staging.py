@@ -121,7 +121,8 @@ def contains(outer: Candidate, inner: Candidate) -> bool:
     if not _regressors(inner) <= _regressors(outer):
         return False
     kinds = dict(outer.states)
-    return all(n in kinds and KIND_ORDER[k] <= KIND_ORDER[kinds[n]] for n, k in inner.states)
+    return all(n in kinds and KIND_ORDER[k] <= KIND_ORDER[kinds[n]] and inner.form_of(n) == outer.form_of(n)
+               for n, k in inner.states)
 
 
 def nested_start(c: Candidate, inner_params: Mapping[str, float]) -> dict[str, float]:
@@ -130,7 +131,7 @@ def nested_start(c: Candidate, inner_params: Mapping[str, float]) -> dict[str, f
     declared start."""
     out = {}
     for n, k in c.states:
-        state = SeparationState(n, k)
+        state = SeparationState(n, k, c.form_of(n))
         for base in state.base_parameters:
             name = state.parameter_name(base)
             if name in inner_params:
@@ -155,9 +156,9 @@ def best_contained(c: Candidate, fitted: Sequence[tuple[Candidate, DonorEstimate
 def demoted(c: Candidate, highest: str) -> Candidate:
     """``c`` with every state's kind lowered to at most ``highest`` (S or Q)."""
     states = tuple((n, min(k, highest, key=KIND_ORDER.get)) for n, k in c.states)
-    own = {p for n, k in states for p in SeparationState(n, k).parameters}
+    own = {p for n, k in states for p in SeparationState(n, k, c.form_of(n)).parameters}
     return Candidate(f"{c.name} [{highest}]", c.grid, c.coefficient, c.regressors, states, c.lift,
-                     f"stage of {c.name}", tuple(b for b in c.bounds if b[0] in own))
+                     f"stage of {c.name}", tuple(b for b in c.bounds if b[0] in own), c.forms)
 
 
 def stages(c: Candidate) -> list[Candidate]:

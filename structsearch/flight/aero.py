@@ -20,7 +20,8 @@ from ..data.errors import DeclarationError
 from .names import WITHHOLDABLE  # noqa: F401  (re-exported: truth_model's effects)
 from .reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH, final_drag_model, final_lift_model, final_pitch_model
 from ..engine.regressors import compile_expression, parse
-from ..engine.separation import SeparationState, static_separation
+from ..engine.separation import SeparationState
+from ..engine.static_forms import static_value
 from ..engine.stallmodel import StallModel
 from .transport import (TRANSPORT_DRAG, TRANSPORT_LIFT, TRANSPORT_PITCH, TRANSPORT_ZEROED, transport_drag_model,
                         transport_lift_model, transport_pitch_model)
@@ -39,17 +40,32 @@ _ZEROED = {
 
 @dataclass(frozen=True)
 class StateSpec:
+    """One flown separation state: its time constants and its static curve (``form`` with the values of its
+    parameters ``shape``, base name -> value; a1 and a_star are the tanh's, NaN for a form without them)."""
+
     symbol: str
     kind: str
     tau1: float
     tau2: float
     a1: float
     a_star: float
+    form: str = "tanh"
+    shape: tuple[tuple[str, float], ...] = ()
+
+    def static(self, alpha, a_star=None) -> np.ndarray:
+        """X0(alpha) of its form; ``a_star`` (an array of the samples' alpha*, a tanh or goman state) in place of
+        its own."""
+        values = dict(self.shape) or {"a1": self.a1, "a_star": self.a_star}
+        if a_star is None:
+            return static_value(self.form, alpha, values)
+        alpha, a_star = np.broadcast_arrays(np.asarray(alpha, float), np.asarray(a_star, float))
+        values["a_star"] = a_star.ravel()   # elementwise with the samples
+        return static_value(self.form, alpha.ravel(), values).reshape(alpha.shape)
 
 
 def steady_target(spec: StateSpec, alpha, alpha_dot) -> np.ndarray:
     """X0(alpha - tau2 alpha_dot) of one state (tau2 ignored for a steady state): what it relaxes to."""
-    return static_separation(alpha - (spec.tau2 if spec.kind != "S" else 0.0) * alpha_dot, spec.a1, spec.a_star)
+    return spec.static(alpha - (spec.tau2 if spec.kind != "S" else 0.0) * alpha_dot)
 
 
 class AeroModel:
@@ -85,8 +101,9 @@ class AeroModel:
                 missing = [s.parameter_name(p) for p, v in get.items() if v is None]
                 if missing:
                     raise DeclarationError(f"{name}: no value for separation parameter {missing[0]!r}")
+                shape = tuple((p, float(get[p])) for p in s.base_parameters if p not in ("tau1", "tau2"))
                 spec = StateSpec(s.symbol, s.kind, get.get("tau1", 0.0), get.get("tau2", 0.0),
-                                 get["a1"], get["a_star"])
+                                 float(get.get("a1", np.nan)), float(get.get("a_star", np.nan)), s.form, shape)
                 if s.symbol in specs and specs[s.symbol] != spec:
                     raise DeclarationError(f"{name}: separation state {s.symbol} differs between models")
                 specs[s.symbol] = spec
@@ -240,6 +257,6 @@ def _with_kind(model: StallModel, state: str, kind: str) -> StallModel:
     if kind == "U":
         return model
     suffix = f"_{state}" if state else ""
-    states = tuple(SeparationState(s.name, kind) if s.name == state else s for s in model.states)
+    states = tuple(SeparationState(s.name, kind, s.form) if s.name == state else s for s in model.states)
     fixed = {k: v for k, v in model.fixed.items() if k != "tau1" + suffix}
     return StallModel(model.name, model.coefficient, states, model.regressors, model.start, model.bounds, fixed)

@@ -15,6 +15,7 @@ each one (``results/withheld_benchmark.md``).
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from ..data.errors import DeclarationError
 from ..data.prefilter import derivative
-from ..engine.separation import first_order_lag, static_separation
+from ..engine.separation import first_order_lag
 from .aero import AeroModel, StateSpec, truth_model
 from .reference import FINAL_LIFT
 
@@ -53,7 +54,9 @@ class Anomaly:
     expression of the data columns; ``stall_shift`` moves a state's alpha* by a rate [rad per 1000 m]
     with the altitude above ``H_REF``; ``reattachment`` gives states whose separation delay (the
     given one [s], in place of their tau2) acts only while the flow reattaches (alpha_dot < 0) and not
-    at all while it separates; ``vane_lag_s`` lags the alpha vane's reading (measurement chain).
+    at all while it separates; ``vane_lag_s`` lags the alpha vane's reading (measurement chain); ``static_forms``
+    gives states another static separation curve (state symbol, form of :mod:`structsearch.engine.static_forms`,
+    its parameters' values by base name) in place of their tanh.
     """
 
     name: str
@@ -64,16 +67,18 @@ class Anomaly:
     stall_shift: tuple[tuple[str, float], ...] = ()
     reattachment: tuple[tuple[str, float], ...] = ()
     vane_lag_s: float = 0.0
+    static_forms: tuple[tuple[str, str, tuple[tuple[str, float], ...]], ...] = ()
 
     @property
     def flies(self) -> bool:
         """Whether the anomaly changes the truth aerodynamics (else only the measurement chain)."""
-        return bool(self.factors or self.stall_shift or self.reattachment)
+        return bool(self.factors or self.stall_shift or self.reattachment or self.static_forms)
 
     @property
     def states(self) -> tuple[str, ...]:
         """The separation states it acts on (an :class:`~.aero.AeroModel` checks it has them)."""
-        return tuple(dict.fromkeys(s for s, _ in self.stall_shift + self.reattachment))
+        return tuple(dict.fromkeys([s for s, _ in self.stall_shift + self.reattachment]
+                                   + [s for s, _, _ in self.static_forms]))
 
     @property
     def rate_states(self) -> tuple[str, ...]:
@@ -83,19 +88,22 @@ class Anomaly:
     def separation_target(self, spec: StateSpec, alpha, alpha_dot, h) -> np.ndarray:
         """The value state ``spec`` relaxes to: X0(alpha - tau2 alpha_dot) as changed by the anomaly."""
         tau2 = spec.tau2 if spec.kind != "S" else 0.0
+        for symbol, form, values in self.static_forms:
+            if symbol == spec.symbol:
+                spec = dataclasses.replace(spec, form=form, shape=values)
         reattach = dict(self.reattachment)
         shift = dict(self.stall_shift)
         if spec.symbol in reattach:
             delay = reattach[spec.symbol] * np.minimum(alpha_dot, 0.0)
         else:
             delay = tau2 * alpha_dot
-        a_star = spec.a_star
+        a_star = None
         if spec.symbol in shift:
             if h is None:
                 raise DeclarationError(f"anomaly {self.name!r}: the separation state {spec.symbol} depends on the "
                                        "altitude; no h given")
-            a_star = a_star + shift[spec.symbol] * (np.asarray(h, float) - H_REF) / 1000.0
-        return static_separation(alpha - delay, spec.a1, a_star)
+            a_star = spec.a_star + shift[spec.symbol] * (np.asarray(h, float) - H_REF) / 1000.0
+        return spec.static(alpha - delay, a_star)
 
 
 # Sizes (each chosen so that the anomaly is clearly visible, see the module docstring; most are larger
@@ -105,6 +113,9 @@ VANE_LAG_S = 0.4                 # [s] first-order lag of the alpha vane
 COMPRESSIBILITY_GAIN = 1.25      # K_L terms times 1 + gain ((V/V_REF)^2 - 1)
 STALL_SHIFT = {"X_w": -0.025, "X_ss": -0.0125}  # [rad per 1000 m] of alpha* above H_REF
 ELEVATOR_LOSS_GAIN = 0.8         # C_m,de times 1 - gain ((V/V_REF)^2 - 1)
+# The stall strips' static curve in two steps: from 1 to a plateau at the first break, from it to 0 at the second
+# (two_break; the final model's alpha*_ss = 0.196 rad lies between the two breaks)
+TWO_BREAK_SS = (("k1", 100.0), ("a_k1", 0.12), ("k2", 60.0), ("da_k2", 0.15), ("x_mid", 0.55))
 
 _SPEED = f"((V/{V_REF})**2 - 1)"
 
@@ -131,6 +142,11 @@ ANOMALIES = {a.name: a for a in (
             f"The elevator loses effectiveness as the tail twists under load: C_m,de times 1 - "
             f"{ELEVATOR_LOSS_GAIN:g} ((V/{V_REF:g})^2 - 1).",
             "Cm", "V", factors=(("Cm_de", f"1 - {ELEVATOR_LOSS_GAIN!r}*{_SPEED}"),)),
+    Anomaly("two_break_stall",
+            "The stall strips separate in two steps: their static curve X0_ss falls from 1 to a plateau of "
+            f"{dict(TWO_BREAK_SS)['x_mid']:g} at {dict(TWO_BREAK_SS)['a_k1']:g} rad and from it to 0 "
+            f"{dict(TWO_BREAK_SS)['da_k2']:g} rad later (the two_break form), which no tanh follows.",
+            "CL", "alpha", static_forms=(("X_ss", "two_break", TWO_BREAK_SS),)),
 )}
 
 

@@ -23,4 +23,5 @@ WITHHOLDABLE = {
 }
 
 # Effects outside the diagnosis' library (keys of :data:`structsearch.flight.anomalies.ANOMALIES`, in order).
-ANOMALY_NAMES = ("reattachment_delay", "vane_lag", "compressibility", "reynolds_stall", "tail_aeroelastic")
+ANOMALY_NAMES = ("reattachment_delay", "vane_lag", "compressibility", "reynolds_stall", "tail_aeroelastic",
+                 "two_break_stall")

@@ -126,8 +126,12 @@ def _alpha_star_reasons(result: CandidateResult, candidate: Candidate, alpha_ran
         return []
     lo, hi = alpha_range
     out = []
-    for name, kind in candidate.states:
-        p = SeparationState(name, kind).parameter_name("a_star")
+    for state in candidate.separation_states:
+        # the angle where its static curve breaks (the first break of two; a spline's first knot may lie before
+        # the range flown, its knots reach into it)
+        if "a_star" not in state.base_parameters and "a_k1" not in state.base_parameters:
+            continue
+        p = state.parameter_name("a_star" if "a_star" in state.base_parameters else "a_k1")
         v = (result.estimates.params or {}).get(p)
         if v is not None and not lo <= v <= hi:
             out.append(f"{p} = {np.degrees(v):.1f} deg outside the alpha range flown "

@@ -82,8 +82,8 @@ def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] |
     # costs nothing, and its states must stay the lift model's
     orphans = set() if c.lift else set(_orphans(c, drop))
     states = tuple((n, kinds.get(n, k)) for n, k in c.states if SeparationState(n, k).symbol not in orphans)
-    kept = {p for n, k in states for p in SeparationState(n, k).parameters}
-    gone = {p for n, k in c.states for p in SeparationState(n, k).parameters} - kept
+    kept = {p for n, k in states for p in SeparationState(n, k, c.form_of(n)).parameters}
+    gone = {p for s in c.separation_states for p in s.parameters} - kept
     bounds = tuple((name, box) for name, box in c.bounds if name not in gone)
     changes = [f"dropped {', '.join(drop)}"] if drop else []
     if orphans:
@@ -93,13 +93,14 @@ def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] |
     if simpler:
         changes.append(f"the state(s) {', '.join(simpler)} (a time constant at zero)")
     note = f"refined from {c.name}: " + "; ".join(changes)
-    return Candidate(f"{c.name}{suffix}", c.grid, c.coefficient, regs, states, c.lift, note, bounds)
+    return Candidate(f"{c.name}{suffix}", c.grid, c.coefficient, regs, states, c.lift, note, bounds, c.forms)
 
 
 def structure_key(c: Candidate) -> tuple:
-    """What makes two candidates the same model: regressor expressions, states, lift model."""
+    """What makes two candidates the same model: regressor expressions, states (with their static forms), lift
+    model."""
     return (c.coefficient, tuple(sorted(t.replace(" ", "") for _, t in c.regressors)), tuple(sorted(c.states)),
-            c.lift)
+            c.lift) + ((tuple(sorted(c.forms)),) if c.forms else ())
 
 
 def _orphans(c: Candidate, drop: list[str]) -> list[str]:
@@ -177,8 +178,8 @@ def _state_moves(current: Candidate, summary: CandidateResult,
     e = summary.estimates
     unplaced = {} if e.withheld else dict(e.not_identifiable)   # withheld: the optimizer, not the data
     out = []
-    for name, kind in current.states:
-        state = SeparationState(name, kind)
+    for state in current.separation_states:
+        name = state.name
         out += [Move(f"making {state.symbol} {simpler}", kinds=((name, simpler),), why=why)
                 for simpler, why in _simpler_kinds(state, summary)]
         why = [f"{p} at its {e.at_bound[p]} bound" for p in state.parameters if p in e.at_bound]

@@ -24,6 +24,10 @@ def helpers_used(c: Candidate) -> list[str]:
     return _helpers_used([text for _, text in c.regressors])
 
 
+def _states(c: Candidate) -> list[tuple[str, str, str]]:
+    return [(n, k, c.form_of(n)) for n, k in c.states]
+
+
 def _state_note(c: Candidate) -> str:
     return f"  (a state of the lift model {c.lift}, its parameters fixed at that model's fit)" if c.lift else ""
 
@@ -33,10 +37,10 @@ def equations(c: Candidate, values: Mapping[str, float | str] | None = None) -> 
     its lift model's, with that model's fitted parameters) and the helpers it calls. With ``values`` (estimates
     by parameter name), each parameter that has one is written as its value (4 significant digits; a text value, such
     as "(0.12 ± 0.01)", as it is)."""
-    return list(write_equations(c.coefficient, c.regressors, c.states, state_note=_state_note(c),
+    return list(write_equations(c.coefficient, c.regressors, _states(c), state_note=_state_note(c),
                                 values=values).text)
 
 
 def latex_equations(c: Candidate) -> list[str]:
     """``c``'s model and state equations in LaTeX (one equation a line, no delimiters)."""
-    return list(write_equations(c.coefficient, c.regressors, c.states).latex)
+    return list(write_equations(c.coefficient, c.regressors, _states(c)).latex)

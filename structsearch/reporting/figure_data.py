@@ -21,7 +21,6 @@ from ..data.flightdata import FlightData
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..engine.scores import ManeuverScores
-from ..engine.separation import static_separation
 
 from ..thesis_study.model_set import COEFFICIENTS, ModelSet
 
@@ -67,10 +66,18 @@ def separation_curves(ms: ModelSet, alpha: np.ndarray) -> dict[str, dict]:
     """X_0(alpha) of every state and the alpha of each stall stage."""
     out = {}
     for s in ms.aero.states:
-        x0 = static_separation(alpha, s.a1, s.a_star)
-        # X_0 = 1/2 - 1/2 tanh(a1 (alpha - a*)) inverted at each stage's level
-        stages = {label: float(s.a_star + np.arctanh(1 - 2 * level) / s.a1) for label, level in STAGES}
-        out[s.symbol] = {"x0": x0, "a1": s.a1, "a_star": s.a_star, "kind": s.kind, "stages": stages}
+        x0 = s.static(alpha)
+        if s.form == "tanh":
+            # X_0 = 1/2 - 1/2 tanh(a1 (alpha - a*)) inverted at each stage's level
+            stages = {label: float(s.a_star + np.arctanh(1 - 2 * level) / s.a1) for label, level in STAGES}
+        else:   # another form (non-increasing) inverted on a fine grid; NaN for a level it never reaches
+            fine = np.linspace(-0.5, 1.5, 20001)
+            curve = s.static(fine)
+            stages = {label: float(fine[np.argmax(curve <= level)]) if np.any(curve <= level) else float("nan")
+                      for label, level in STAGES}
+        a_star = s.a_star if np.isfinite(s.a_star) else stages["half separated (alpha*)"]
+        out[s.symbol] = {"x0": x0, "a1": s.a1, "a_star": a_star, "kind": s.kind, "stages": stages,
+                         "form": s.form}
     return out
 
 

@@ -50,8 +50,9 @@ def separation(curves: dict, alpha: np.ndarray):
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for i, (symbol, c) in enumerate(curves.items()):
         colour = f"C{i}"
+        shape = f"a1 = {c['a1']:.1f}" if c.get("form", "tanh") == "tanh" else f"X0 {c['form']}"
         ax.plot(alpha, c["x0"], color=colour, lw=2,
-                label=f"{symbol} ({c['kind']}): a1 = {c['a1']:.1f}, alpha* = {c['a_star']:.3f} rad")
+                label=f"{symbol} ({c['kind']}): {shape}, alpha* = {c['a_star']:.3f} rad")
         for (label, a), style in zip(c["stages"].items(), (":", "--", "-.")):
             ax.axvline(a, color=colour, ls=style, lw=1, label=f"{symbol} {label}: {a:.3f} rad")
     ax.set_xlabel("alpha [rad]")

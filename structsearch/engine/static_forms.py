@@ -1,0 +1,185 @@
+"""Static separation curves X0(alpha): the forms a separation state's static characteristic may take.
+
+Every form is non-increasing in alpha, has its values in [0, 1] (1: attached flow) whatever its parameters
+inside their boxes (:mod:`structsearch.data.default_boxes`), and comes with its exact derivatives in alpha and in
+its parameters. Parameter names are base names; a state suffixes them with its name (``k_e_ss``).
+
+``tanh`` (the thesis' curve, the default)::
+
+    X0 = 0.5 (1 - tanh(a1 (alpha - a_star)))
+
+``goman`` (exponential; parameters ``a_star``, ``k_e``, ``x_star``)::
+
+    X0 = x_star exp(-k_e (alpha - a_star))                          alpha >= a_star
+    X0 = 1 - (1 - x_star) exp(k_b (alpha - a_star)),  k_b = k_e x_star / (1 - x_star)   alpha < a_star
+
+  The exponential decay of the separation point beyond the break that Goman and Khrabrov's lag is fitted
+  with in the stall literature (Beddoes-Leishman's two exponentials of Kirchhoff's f), joined at the break so
+  that the value (x_star) and the slope (-k_e x_star) agree: the curve is C1 in alpha and in its parameters;
+  its second derivative jumps at alpha = a_star (the only non-smooth point; a least-squares solver needs C1).
+  Its limit x_star -> 1 is the hard form X0 = 1 before the break, exp(-k_e (alpha - a_star)) beyond, which
+  has a kink; the box of x_star stops short of 1 for that reason.
+
+``two_break`` (two logistic breaks around a plateau; ``k1``, ``a_k1``, ``k2``, ``da_k2``, ``x_mid``)::
+
+    X0 = (1 - x_mid) s(k1, a_k1) + x_mid s(k2, a_k1 + da_k2),   s(k, a) = 0.5 (1 - tanh(k (alpha - a)))
+
+  The flow falls from 1 to the plateau x_mid at the first break a_k1 and from x_mid to 0 at the second,
+  da_k2 >= 0 beyond it (the order is a parameter bound, so the two breaks never swap). Smooth (C-infinity).
+
+``spline:K`` (a monotone quadratic spline with K free knots; ``a_sp``, ``h_sp``, ``r1`` ... ``rK``)::
+
+    X0 = sum_j c_j N((alpha - a_sp) / h_sp - j),  c_j = 1 (j <= 0),  c_j = r1 r2 ... rj (1 <= j <= K),
+    c_j = c_K (j > K)
+
+  N is the centred uniform quadratic B-spline (support [-1.5, 1.5]), so knot j sits at a_sp + j h_sp. With
+  every ratio r_j in [0, 1] the coefficients are non-increasing in [0, 1], hence X0 is too (a B-spline's
+  values are convex combinations of its coefficients and it inherits their monotonicity): the bounds alone
+  guarantee a monotone curve in [0, 1]. X0 = 1 before a_sp - h_sp/2 and c_K (a separated-flow floor) after
+  a_sp + (K + 1/2) h_sp; C1 in alpha and in the parameters, its second derivative jumps at the half-knots.
+"""
+from __future__ import annotations
+
+import difflib
+
+import numpy as np
+from scipy.special import expit
+
+from ..data.default_boxes import MAX_SPLINE_KNOTS
+from ..data.errors import DeclarationError
+
+FORM_NAMES = ("tanh", "goman", "two_break", "spline:K")
+DEFAULT_FORM = "tanh"
+# spline:K takes K free knots, 2 to MAX_SPLINE_KNOTS (each knot is a parameter: more is a table, not a model)
+TANH_PARAMETERS = ("a1", "a_star")
+GOMAN_PARAMETERS = ("a_star", "k_e", "x_star")
+TWO_BREAK_PARAMETERS = ("k1", "a_k1", "k2", "da_k2", "x_mid")
+
+
+def check_form(form) -> str:
+    """``form`` if it is a static separation form ("tanh", "goman", "two_break", "spline:K" with K in
+    2..MAX_SPLINE_KNOTS), else one DeclarationError naming it and the close match."""
+    if isinstance(form, str):
+        if form in ("tanh", "goman", "two_break"):
+            return form
+        if form.startswith("spline:"):
+            k = form[len("spline:"):]
+            if k.isdigit() and 2 <= int(k) <= MAX_SPLINE_KNOTS and str(int(k)) == k:
+                return form
+            raise DeclarationError(f"static separation form {form!r}: K of spline:K is a whole number of knots "
+                                   f"from 2 to {MAX_SPLINE_KNOTS}, not {k!r}")
+    close = difflib.get_close_matches(str(form), ["tanh", "goman", "two_break", "spline:4"], n=1, cutoff=0.5)
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    raise DeclarationError(f"static separation form {form!r} is not one of {', '.join(FORM_NAMES)}{hint}")
+
+
+def spline_knots(form: str) -> int:
+    return int(form.split(":", 1)[1])
+
+
+def form_parameters(form: str) -> tuple[str, ...]:
+    """The base names of the parameters of ``form``, in their order in a state's parameters."""
+    if form == "tanh":
+        return TANH_PARAMETERS
+    if form == "goman":
+        return GOMAN_PARAMETERS
+    if form == "two_break":
+        return TWO_BREAK_PARAMETERS
+    if form.startswith("spline:"):
+        return ("a_sp", "h_sp") + tuple(f"r{j}" for j in range(1, spline_knots(check_form(form)) + 1))
+    return form_parameters(check_form(form))
+
+
+def static_value(form: str, alpha, values) -> np.ndarray:
+    """X0(alpha) of ``form`` with its parameters' ``values`` (base name -> number)."""
+    return static_gradient(form, alpha, values, False)[0]
+
+
+def static_gradient(form: str, alpha, values, derivatives: bool = True):
+    """X0(alpha), dX0/dalpha and dX0/dparameters (n, p), in :func:`form_parameters` order (the last two None
+    without ``derivatives``)."""
+    alpha = np.asarray(alpha, float)
+    shape = alpha.shape
+    if form == "tanh":
+        x0, dalpha, grads = _tanh(alpha.ravel(), values, derivatives)
+    elif form == "goman":
+        x0, dalpha, grads = _goman(alpha.ravel(), values, derivatives)
+    elif form == "two_break":
+        x0, dalpha, grads = _two_break(alpha.ravel(), values, derivatives)
+    else:
+        x0, dalpha, grads = _spline(alpha.ravel(), values, spline_knots(check_form(form)), derivatives)
+    if not derivatives:
+        return x0.reshape(shape), None, None
+    return x0.reshape(shape), dalpha.reshape(shape), grads.reshape(shape + (grads.shape[-1],))
+
+
+def _tanh(alpha, v, derivatives):
+    a1, a_star = v["a1"], v["a_star"]
+    x0 = expit(-2.0 * a1 * (alpha - a_star))
+    if not derivatives:
+        return x0, None, None
+    slope = -2.0 * x0 * (1.0 - x0)
+    return x0, slope * a1, np.column_stack([slope * (alpha - a_star), slope * (-a1)])
+
+
+def _goman(alpha, v, derivatives):
+    a_star, k, xs = v["a_star"], v["k_e"], v["x_star"]
+    d = alpha - a_star
+    above = d >= 0.0
+    kb = k * xs / (1.0 - xs)
+    e_above = np.exp(-k * np.maximum(d, 0.0))        # <= 1: never overflows
+    e_below = np.exp(kb * np.minimum(d, 0.0))
+    x0 = np.where(above, xs * e_above, 1.0 - (1.0 - xs) * e_below)
+    if not derivatives:
+        return x0, None, None
+    e = np.where(above, e_above, e_below)
+    dalpha = -k * xs * e                             # the same expression on both sides: C1 at the break
+    dk = -xs * e * d
+    dxs = np.where(above, e_above, e_below * (1.0 - d * k / (1.0 - xs)))
+    return x0, dalpha, np.column_stack([-dalpha, dk, dxs])
+
+
+def _two_break(alpha, v, derivatives):
+    k1, a_k1, k2, da_k2, xm = v["k1"], v["a_k1"], v["k2"], v["da_k2"], v["x_mid"]
+    d1, d2 = alpha - a_k1, alpha - a_k1 - da_k2
+    s1, s2 = expit(-2.0 * k1 * d1), expit(-2.0 * k2 * d2)
+    x0 = (1.0 - xm) * s1 + xm * s2
+    if not derivatives:
+        return x0, None, None
+    g1, g2 = (1.0 - xm) * (-2.0 * s1 * (1.0 - s1)), xm * (-2.0 * s2 * (1.0 - s2))
+    dalpha = g1 * k1 + g2 * k2
+    grads = np.column_stack([g1 * d1, -g1 * k1 - g2 * k2, g2 * d2, -g2 * k2, s2 - s1])
+    return x0, dalpha, grads
+
+
+def spline_coefficients(ratios: np.ndarray) -> np.ndarray:
+    """c_0 = 1, c_j = r_1 ... r_j (j = 1..K)."""
+    return np.concatenate([[1.0], np.cumprod(ratios)])
+
+
+def _spline(alpha, v, k, derivatives):
+    a0, h = v["a_sp"], v["h_sp"]
+    r = np.array([v[f"r{j}"] for j in range(1, k + 1)], float)
+    c = spline_coefficients(r)
+    u = (alpha - a0) / h
+    m = np.floor(u + 0.5)
+    t = u - m
+    w = ((0.5 - t) ** 2 / 2.0, 0.75 - t * t, (0.5 + t) ** 2 / 2.0)   # weights of c_{m-1}, c_m, c_{m+1}
+    index = [np.clip(m + o, 0, k).astype(np.int64) for o in (-1, 0, 1)]
+    # the weights sum to 1 up to rounding: clipped so that no value leaves [0, 1] by an ulp
+    x0 = np.clip(sum(wi * c[ii] for wi, ii in zip(w, index)), 0.0, 1.0)
+    if not derivatives:
+        return x0, None, None
+    du = -(0.5 - t) * c[index[0]] - 2.0 * t * c[index[1]] + (0.5 + t) * c[index[2]]
+    weights = np.zeros((len(alpha), k + 1))     # dX0/dc_j (the clipped indices add up: c_j = c_0 or c_K)
+    rows = np.arange(len(alpha))
+    for wi, ii in zip(w, index):
+        np.add.at(weights, (rows, ii), wi)
+    # dc_j/dr_i = prod_{l <= j, l != i} r_l for j >= i (a product without r_i: exact at r_i = 0 too)
+    dc = np.zeros((k + 1, k))
+    for i in range(k):
+        others = r.copy()
+        others[i] = 1.0
+        dc[i + 1:, i] = np.cumprod(others)[i:]
+    grads = np.column_stack([du * (-1.0 / h), du * (-u / h), weights @ dc])
+    return x0, du / h, grads
