@@ -131,3 +131,22 @@ def test_a_lag_at_tau1_zero_is_the_input_and_stays_periodic():
     tiny = 1e-6
     x_tiny, _, _ = first_order_lag(t, u, u[:, None].copy(), tiny, bounds, periods=[period])
     assert (x_tiny[0] - x[0]) / tiny == pytest.approx(dtau[0], rel=1e-3)
+
+
+@pytest.mark.parametrize("form", ["goman", "two_break", "spline:4"])
+def test_a_state_of_another_static_form_starts_periodic_too(form):
+    """The periodic start is the lag's, whatever static curve feeds it: a goman, two-break or spline state on one
+    cycle starts where it is one period later."""
+    from structsearch.data.default_boxes import DEFAULT_START
+    period = 0.9
+    t = np.arange(72) * period / 72 + 1.0
+    alpha = 0.2 + 0.12 * np.sin(2 * np.pi * t / period)
+    alpha_dot = 0.12 * 2 * np.pi / period * np.cos(2 * np.pi * t / period)
+    state = SeparationState("", "U", form)
+    values = {p: DEFAULT_START[p] for p in state.base_parameters}
+    values["tau1"] = 0.4
+    x, _ = evaluate_state(state, values, alpha, alpha_dot, t, np.array([0, len(t)]), periods=[period])
+    u = evaluate_state(SeparationState("", "Q", form), {k: v for k, v in values.items() if k != "tau1"},
+                       alpha, alpha_dot, t, np.array([0, len(t)]), sensitivities=False)[0]
+    one_period_later = step_lag(x[-1], u[-1], u[0], t[0] + period - t[-1], values["tau1"])
+    assert abs(one_period_later - x[0]) < 1e-9

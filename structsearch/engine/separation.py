@@ -350,7 +350,7 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
     periodic solution.
     """
     if state.form != DEFAULT_FORM:
-        return _evaluate_form(state, values, alpha, alpha_dot, t, bounds, step, sensitivities)
+        return _evaluate_form(state, values, alpha, alpha_dot, t, bounds, step, sensitivities, periods)
     a1, a_star = values["a1"], values["a_star"]
     tau2 = values.get("tau2", 0.0)
     effective_alpha = alpha - tau2 * alpha_dot if state.kind != "S" else alpha
@@ -376,7 +376,7 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
 
 
 def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alpha_dot, t, bounds, step,
-                   sensitivities: bool):
+                   sensitivities: bool, periods=None):
     """:func:`evaluate_state` for a static curve other than the tanh: the chain rule through alpha - tau2 alpha_dot
     (dX0/dtau2 = -dX0/dalpha alpha_dot), then the same lag."""
     tau2 = values.get("tau2", 0.0)
@@ -385,7 +385,7 @@ def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alph
     if not sensitivities:
         if state.kind != "U":
             return x0, None
-        return first_order_lag(t, x0, None, values["tau1"], bounds, step)[0], None
+        return first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0], None
     lead = 1 if state.kind != "S" else 0
     du = np.empty((len(alpha), lead + grads.shape[1]), order="F")
     if lead:
@@ -393,7 +393,7 @@ def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alph
     du[:, lead:] = grads
     if state.kind != "U":
         return x0, du
-    x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step)
+    x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step, periods)
     out = np.empty((len(alpha), 1 + du.shape[1]), order="F")
     out[:, 0] = dtau1
     out[:, 1:] = dx
