@@ -357,6 +357,44 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
     return results
 
 
+def simulate_nominal(plan: list, model: AeroModel, seed: int = 0, slow_errors: float = 1.0,
+                     proc: Procedures = Procedures()) -> list[dict]:
+    """Fly and measure the nominal maneuvers ``plan`` (:func:`.nominal.nominal_plan`), one loading per flight level
+    and the fuel burning down over them; returns their column dicts in plan order. Their random streams
+    are their own: the stall maneuvers of the same seed are flown and measured as without them."""
+    from .measurement import measure
+    from .nominal import fly_nominal
+    rng = np.random.default_rng([seed, 4])
+    craft = proc.aircraft
+    fuel = np.linspace(*proc.fuel, len(plan))
+    # one flight per flight level, each at its own loading (a single cg would leave C_m's cg term unplaced)
+    levels = sorted({p.flight_level for p in plan})
+    x_cg = {fl: rng.uniform(*proc.flown_cg_range) if proc.flown_cg_range else np.nan for fl in levels}
+    flown = [Flown(*fly_nominal(model, p, rng, craft.empty_mass + craft.crew_mass + fuel[i], x_cg[p.flight_level],
+                                DT, craft))
+             for i, p in enumerate(plan)]
+    error_rng = np.random.default_rng([seed, 5])
+    errors = [reconstruction_error(error_rng, len(f.alpha_ref), slow_errors) for f in flown]
+    traj = fly_batch(model, flown, craft)
+    out = []
+    for i, f in enumerate(flown):
+        duration = len(f.alpha_ref)
+        truth = {name: getattr(traj, name)[:duration, i] for name in
+                 ("V", "alpha", "q", "theta", "h", "de", "thrust", "qbar", "mass", "x_cg", "CL", "CD", "Cm",
+                  "q_dot")}
+        truth["states"] = {sym: traj.X[sym][:duration, i] for sym in ("X_ss", "X_w")}
+        out.append(measure(rng, traj.t[:duration], truth, errors[i], SLOW_ERROR_STALL_GAIN, craft))
+    return out
+
+
+def with_air_data(columns: dict) -> dict:
+    """A maneuver's columns with ``Mach`` and ``qbar`` [Pa] from its recorded airspeed and altitude (ISA), as the
+    air-data computer gives them: what the attached-flow terms of a global model read."""
+    from ..data.reduction import air_data
+    mach, qbar = air_data(columns["V"], columns["h"])
+    return {**columns, "Mach": mach, "qbar": qbar}
+
+
 def _cut(p: PlannedManeuver, columns: dict) -> dict:
     """Pullups and pushovers end where the pilot recovers (pitch attitude limit)."""
     if p.kind not in ("pullup", "pushover"):
@@ -369,7 +407,7 @@ def _cut(p: PlannedManeuver, columns: dict) -> dict:
 
 def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False,
                    slow_errors: float = 1.0, aircraft: str = "citation", anomaly: str | None = None,
-                   raw: bool = False, flights: int = 0):
+                   raw: bool = False, flights: int = 0, nominal: bool = False):
     """The simulated flight-test campaign (thesis Table 4) of ``aircraft`` (``citation`` or ``transport``),
     ready for :func:`write_campaign`.
 
@@ -385,7 +423,12 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     recorded) whose maneuvers share a mass, cg, engine-model and vane-calibration error on top of the per-maneuver
     ones (:data:`.measurement.FLIGHT_ERROR_SD`; the truth columns ``alpha_true``, ``mass_true``, ``x_cg_true`` and
     ``CT_true`` are added, the manifest gets ``flights = N``). 0 (the default): no flights, and the campaign is the
-    one simulated before flights existed, bit for bit."""
+    one simulated before flights existed, bit for bit.
+
+    ``nominal``: nominal (attached-flow) maneuvers across the envelope too (:mod:`.nominal`; ``kind = "nominal"``
+    in the manifest, after the stall maneuvers), flown with the truth's envelope terms (:mod:`.envelope`, zero
+    wherever a stall maneuver flies), and every maneuver carries the air data ``Mach`` and ``qbar``. Citation II
+    only, not with an anomaly, raw channels or flights."""
     from .aero import truth_model
     from .anomalies import anomaly_named
     from ..data.campaign import Maneuver, make_campaign
@@ -399,7 +442,12 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
         if withhold:
             raise DeclarationError(f"anomaly {anomaly!r} cannot be combined with withheld effects "
                                    f"({', '.join(withhold)}): a campaign tests one departure from the final model")
-    model = truth_model(withhold, aircraft, chosen if chosen is not None and chosen.flies else None)
+    if nominal and (chosen is not None or raw or flights):
+        what = "an anomaly" if chosen is not None else "raw channels" if raw else "flights"
+        raise DeclarationError(f"nominal maneuvers cannot be combined with {what}: the global model is fitted "
+                               "on reduced coefficients of one truth, flown without flight-shared errors")
+    model = truth_model(withhold, aircraft, chosen if chosen is not None and chosen.flies else None,
+                        envelope=nominal)
     proc = PROCEDURES[aircraft]
     plan = scaled_plan(thesis_plan(extras), scale)
     if flights and raw:
@@ -413,6 +461,11 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     segments = simulate_campaign(plan, model, seed, slow_errors, proc, chosen, sensor_errors, labels)
     maneuvers = [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split, None if labels is None else labels[i])
                  for i, p in enumerate(plan)]
+    if nominal:
+        from .nominal import nominal_plan
+        extra_plan = nominal_plan(scale)
+        segments = [with_air_data(c) for c in segments + simulate_nominal(extra_plan, model, seed, slow_errors, proc)]
+        maneuvers += [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split) for p in extra_plan]
     extra = {"seed": int(seed), "scale": float(scale), "extras": bool(extras), "truth": model.name,
              "withheld": ",".join(withhold) or "none", "slow_errors": float(slow_errors)}
     if aircraft != "citation":  # campaigns written before the second aircraft carry no such key
@@ -424,7 +477,7 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     if sensor_errors is not None:
         extra.pop("slow_errors")
         extra.update(sensor_errors.manifest(), format="raw")
-    name = f"simulated {proc.aircraft.label} stall campaign (seed {seed}" \
+    name = f"simulated {proc.aircraft.label} stall {'and nominal ' if nominal else ''}campaign (seed {seed}" \
         + (f", anomaly {chosen.name})" if chosen is not None else ")")
     # the aircraft data of docs/interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope
     mass = proc.aircraft.empty_mass + proc.aircraft.crew_mass + float(np.mean(proc.fuel))
