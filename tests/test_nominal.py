@@ -121,16 +121,20 @@ def test_by_kind_refuses_a_campaign_without_nominal_maneuvers(campaign_on_disk):
 
 
 @pytest.mark.slow
-def test_the_global_lift_model_is_within_five_percent_of_the_separate_ones(simulated_campaign, tmp_path):
+def test_the_global_models_are_within_five_percent_of_the_separate_ones(simulated_campaign, tmp_path):
+    """On a laboratory-clean campaign (no slow reconstruction errors: what is left of a validation MSE is the
+    model's), each global model validates within 5 % of the model fitted to each kind alone, on each kind. With
+    the slow errors the comparison is of models within noise of one another at this scale (README: the
+    full-scale figure)."""
     from structsearch.api import Settings
     from structsearch.api.by_kind import fit_by_kind
-    res = fit_by_kind(simulated_campaign(0, 0.25, nominal=True), "CL-G", settings=Settings(starts=2, jobs=1),
-                      out=tmp_path)
-    (cl,) = res.comparisons
-    assert cl.within("nominal") and cl.within("stall"), (cl.ratio("nominal"), cl.ratio("stall"))
-    # a model fitted to one kind alone extrapolates badly to the other: the global model is needed
-    assert cl.fit("nominal").validation_mse["stall"] > 5 * cl.fit("all").validation_mse["stall"]
-    assert cl.fit("stall").validation_mse["nominal"] > cl.fit("all").validation_mse["nominal"]
+    campaign = simulated_campaign(0, 0.1, nominal=True, slow_errors=0.0)
+    res = fit_by_kind(campaign, "CL-G,CD-G,Cm-G", settings=Settings(starts=2, jobs=1), out=tmp_path)
+    for c in res.comparisons:
+        assert c.within("nominal") and c.within("stall"), (c.name, c.ratio("nominal"), c.ratio("stall"))
+        # the attached-flow part knows no stall: the global model is needed there
+        assert c.fit("nominal").validation_mse["stall"] > 5 * c.fit("all").validation_mse["stall"], c.name
+    assert res.passed
 
 
 @pytest.mark.slow
