@@ -48,9 +48,12 @@ def test_the_stall_maneuvers_fly_the_same_with_nominal_ones(simulated_campaign):
 
 def test_the_nominal_maneuvers_span_the_envelope_in_attached_flow():
     from structsearch.flight.aero import truth_model
-    from structsearch.flight.flighttest import simulate_nominal, with_air_data
+    from structsearch.flight.flighttest import PROCEDURES
+    from structsearch.flight.nominal import simulate_nominal, with_air_data
     plan = [p for p in nominal_plan() if p.input == "doublet"]   # the six conditions
-    flown = [with_air_data(c) for c in simulate_nominal(plan, truth_model(envelope=True), seed=3)]
+    citation = PROCEDURES["citation"]
+    flown = [with_air_data(c) for c in simulate_nominal(plan, truth_model(envelope=True), 3, 1.0, citation.aircraft,
+                                                        citation.fuel, citation.flown_cg_range)]
     mach, qbar = np.concatenate([c["Mach"] for c in flown]), np.concatenate([c["qbar"] for c in flown])
     assert mach.min() < 0.3 and mach.max() > 0.5
     assert qbar.min() < 4000 and qbar.max() > 8000

@@ -21,7 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import aircraft as ac
+from ..data.reduction import air_data
 from .aero import AeroModel
+from .flying import DT, SLOW_ERROR_STALL_GAIN, Flown, fly_batch, reconstruction_error
+from .measurement import measure
 from .simulation import Condition, trim
 from .synthetic import smooth_noise
 
@@ -130,3 +133,39 @@ def fly_nominal(model: AeroModel, p: NominalManeuver, rng: np.random.Generator, 
         step = -0.25 if fast else 0.3
         throttle = np.clip(tr.throttle + step * ramp, 0.05, 1.0)
     return cond, tr.alpha, V, alpha_ref, wiggle, throttle, GAINS, tr.de, tr.alpha
+
+
+def simulate_nominal(plan: list[NominalManeuver], model: AeroModel, seed: int = 0, slow_errors: float = 1.0,
+                     aircraft: ac.Aircraft = ac.CITATION, fuel: tuple[float, float] = (1500.0, 450.0),
+                     cg_range: tuple[float, float] | None = None) -> list[dict]:
+    """Fly and measure the nominal maneuvers ``plan`` of ``aircraft`` (its procedures' ``fuel`` at the first and last
+    maneuver and the range each flight's cg is drawn from; None: one cg nobody recorded, NaN), one loading per flight
+    level; returns their column dicts in plan order. Their random streams are their own: the stall maneuvers of the
+    same seed are flown and measured as without them."""
+    rng = np.random.default_rng([seed, 4])
+    fuel = np.linspace(*fuel, len(plan))
+    # one flight per flight level, each at its own loading (a single cg would leave C_m's cg term unplaced)
+    levels = sorted({p.flight_level for p in plan})
+    x_cg = {fl: rng.uniform(*cg_range) if cg_range else np.nan for fl in levels}
+    mass = aircraft.empty_mass + aircraft.crew_mass + fuel
+    flown = [Flown(*fly_nominal(model, p, rng, mass[i], x_cg[p.flight_level], DT, aircraft))
+             for i, p in enumerate(plan)]
+    error_rng = np.random.default_rng([seed, 5])
+    errors = [reconstruction_error(error_rng, len(f.alpha_ref), slow_errors) for f in flown]
+    traj = fly_batch(model, flown, aircraft)
+    out = []
+    for i, f in enumerate(flown):
+        duration = len(f.alpha_ref)
+        truth = {name: getattr(traj, name)[:duration, i] for name in
+                 ("V", "alpha", "q", "theta", "h", "de", "thrust", "qbar", "mass", "x_cg", "CL", "CD", "Cm",
+                  "q_dot")}
+        truth["states"] = {sym: traj.X[sym][:duration, i] for sym in ("X_ss", "X_w")}
+        out.append(measure(rng, traj.t[:duration], truth, errors[i], SLOW_ERROR_STALL_GAIN, aircraft))
+    return out
+
+
+def with_air_data(columns: dict) -> dict:
+    """A maneuver's columns with ``Mach`` and ``qbar`` [Pa] from its recorded airspeed and altitude (ISA), as the
+    air-data computer gives them: what the attached-flow terms of a global model read."""
+    mach, qbar = air_data(columns["V"], columns["h"])
+    return {**columns, "Mach": mach, "qbar": qbar}
