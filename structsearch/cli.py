@@ -60,12 +60,15 @@ def _simulate(args) -> int:
     from .data.campaign import write_campaign
     from .api.settings import FlightTestPlan
     plan = FlightTestPlan(aircraft=args.aircraft, withhold=tuple(args.withhold or ()), anomaly=args.anomaly,
-                          extras=args.extras, raw=args.raw, slow_errors=args.slow_errors, flights=args.flights)
+                          extras=args.extras, raw=args.raw, slow_errors=args.slow_errors, flights=args.flights,
+                          nominal=args.nominal)
     campaign = simulate(plan, seed=args.seed, scale=args.scale)
     out = write_campaign(campaign, Path(args.out), fmt=args.format)
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
     flown = f" on {args.flights} flights" if args.flights else ""
+    n_nominal = sum(m.kind == "nominal" for m in campaign.maneuvers)
+    flown += f", {n_nominal} of them nominal" if n_nominal else ""
     print(f"wrote {out}: {len(campaign.maneuvers)} maneuvers ({n_val} validation){flown}, {d.n_samples} samples; "
           f"truth: {campaign.extra['truth']}")
     return 0
@@ -111,6 +114,8 @@ def _fit(args) -> int:
     from .api import fit
     from .data.atomic import write_json, write_text
     from .reporting.tables import parameter_table
+    if args.by_kind:
+        return _fit_by_kind(args)
     if args.joint:
         if args.profile:
             raise_error("--profile goes with --model (profile intervals of a joint fit are not built)")
@@ -158,6 +163,18 @@ def _fit_joint(args) -> int:
     mses = ", ".join(f"{c.coefficient} {c.train.mse:.4g}/{c.validation.mse:.4g}" for c in res.coefficients)
     print(f"{res.name} (joint): MSE train/validation {mses}; {len(res.shared)} shared separation parameters, "
           f"{len(r.at_bound)} at a bound{not_converged}{unsettled}; wrote {out / 'fit.json'}")
+    return 0
+
+
+def _fit_by_kind(args) -> int:
+    from .api.by_kind import fit_by_kind
+    from .reporting.by_kind_doc import console_table, write
+    if args.joint or args.profile or args.band_samples or args.replay_maneuver is not None:
+        raise_error("--by-kind goes with --model only (not --joint, --profile, --band-samples or --replay-maneuver)")
+    res = fit_by_kind(args.data, args.model, settings=_settings(args), out=args.out)
+    paths = write(res, Path(args.out))
+    print(console_table(res))
+    print(f"wrote {', '.join(str(p) for p in paths)}")
     return 0
 
 

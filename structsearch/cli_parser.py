@@ -189,6 +189,11 @@ def _add_simulate(sub, handler: Callable) -> None:
                         "recorded in campaign.toml) that share a mass, cg, engine-model and vane-calibration error on "
                         "top of the per-maneuver ones; 0, the default: no flights (the campaign of before, bit for "
                         "bit). Not with --raw")
+    s.add_argument("--nominal", action="store_true",
+                   help="add nominal (attached-flow) maneuvers across the envelope: doublets, 3-2-1-1 inputs, speed "
+                        "and altitude changes (kind = \"nominal\"), flown with the truth's Mach and dynamic-pressure "
+                        "terms, and the air data Mach and qbar in every file (Citation II; not with --anomaly, "
+                        "--raw or --flights)")
     s.set_defaults(func=handler)
 
 
@@ -241,6 +246,10 @@ def _add_fit(sub, handler: Callable) -> None:
                    help="also the 95 %% and 68 %% profile intervals of the nonlinear parameters (each held on either "
                         "side of its estimate, the rest refitted; the statistic scaled by the reported over the white "
                         "variance) beside the Wald ones, in fit.json (profile) and fit.md; not with --joint")
+    f.add_argument("--by-kind", action="store_true",
+                   help="fit the global model(s) of --model (comma-separated: CL-G,CD-G,Cm-G) on stall and nominal "
+                        "maneuvers together and each part on its kind alone; by_kind.json and by_kind.md compare their "
+                        "validation MSE on nominal and on stall maneuvers separately")
     f.add_argument("--replay-maneuver", metavar="NAME", default=None,
                    help="the validation maneuver the joint fit's sampled replay flies (default: the deepest)")
     f.set_defaults(func=handler)

@@ -68,10 +68,10 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
 def _lift_model(fitter, candidate):
     """The fitted lift model a drag or pitch candidate names (None for a lift or separation candidate)."""
     from ..fitting.lift_fit import LiftFit
-    from ..fitting.specs import load_grid
+    from ..fitting.specs import lift_candidate as named_lift
     if not candidate.lift:
         return None
-    lift_candidate = load_grid("lift")[candidate.lift]
+    lift_candidate = named_lift(candidate.lift)
     lift = fitter.fit_one(lift_candidate)
     if lift.failed:
         raise DeclarationError(f"fitting the lift model {candidate.lift} that {candidate.name} needs failed: "
@@ -220,7 +220,7 @@ def simulate(plan: FlightTestPlan = FlightTestPlan(), *, seed: int = 0, scale: f
     from ..flight.flighttest import build_campaign
     campaign = build_campaign(seed=seed, withhold=tuple(plan.withhold or ()), scale=scale, extras=plan.extras,
                               aircraft=plan.aircraft, anomaly=plan.anomaly, raw=plan.raw,
-                              slow_errors=plan.slow_errors, flights=plan.flights)
+                              slow_errors=plan.slow_errors, flights=plan.flights, nominal=plan.nominal)
     if out is not None:
         write_campaign(campaign, Path(out), fmt=format)
     return campaign

@@ -151,7 +151,8 @@ class FlightTestPlan:
     """What a simulated campaign flies besides its seed and scale (``structsearch simulate``'s other options):
     the ``aircraft`` ("citation" or "transport"), effects of the truth to ``withhold``, an ``anomaly`` outside the
     diagnosis' library, ``extras`` maneuvers, ``raw`` channels instead of coefficients, the scale of the slow
-    reconstruction errors and ``flights`` = N > 0: the maneuvers flown on N flights that share errors."""
+    reconstruction errors, ``flights`` = N > 0: the maneuvers flown on N flights that share errors, and ``nominal``:
+    nominal (attached-flow) maneuvers across the envelope besides the stall maneuvers."""
 
     aircraft: str = "citation"
     withhold: tuple[str, ...] = ()
@@ -160,3 +161,4 @@ class FlightTestPlan:
     raw: bool = False
     slow_errors: float = 1.0
     flights: int = 0
+    nominal: bool = False

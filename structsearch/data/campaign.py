@@ -26,7 +26,17 @@ from .campaign_checks import (AIRCRAFT_KEYS, ANGLES, MANEUVER_KEYS, RAW_ANGLES, 
                               RESERVED_KEYS, _check_top_level, _close_match, _flight, _parse_aircraft, _parse_cutoffs,
                               _periodic, validate_maneuver)
 
-KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugoid", "other")
+KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugoid", "other", "nominal")
+# Nominal maneuvers (docs/interfaces.md 7.5) fly attached flow across the envelope; every other kind (and a
+# campaign written before nominal maneuvers existed) is a stall maneuver: the two regimes a global model is
+# validated on separately (structsearch.api.by_kind)
+NOMINAL = "nominal"
+REGIMES = ("nominal", "stall")
+
+
+def regime(kind: str) -> str:
+    """The flow regime of a maneuver kind: "nominal" for ``nominal``, else "stall"."""
+    return NOMINAL if kind == NOMINAL else "stall"
 SPLITS = ("train", "validation")
 FORMATS = ("standard", "raw")
 
@@ -85,6 +95,13 @@ class Campaign:
         if not idx:
             raise DataError(f"the campaign has no maneuvers of kind {', '.join(kinds)}", source=self._where())
         return self.data.select(idx)
+
+    def keeping(self, keep) -> "Campaign":
+        """The campaign of the maneuvers for which ``keep(maneuver)`` is true (manifest order kept)."""
+        idx = [i for i, m in enumerate(self.maneuvers) if keep(m)]
+        if not idx:
+            raise DataError("no maneuver of the campaign is left", source=self._where())
+        return replace(self, maneuvers=tuple(self.maneuvers[i] for i in idx), data=self.data.select(idx))
 
     def _where(self) -> str:
         return str(self.directory / "campaign.toml") if self.directory else self.name

@@ -19,6 +19,18 @@ def isa_density(h):
     return RHO0 * (1.0 - LAPSE * np.asarray(h) / T0) ** GAS_EXPONENT
 
 
+def isa_speed_of_sound(h):
+    """ISA troposphere speed of sound [m/s] at geometric altitude h [m] (air as a perfect gas, gamma 1.4)."""
+    return np.sqrt(1.4 * 287.053 * (T0 - LAPSE * np.asarray(h)))
+
+
+def air_data(V, h) -> tuple[np.ndarray, np.ndarray]:
+    """Mach number and dynamic pressure [Pa] of true airspeed ``V`` [m/s] at altitude ``h`` [m] (ISA), as an
+    air-data computer gives them."""
+    V = np.asarray(V, float)
+    return V / isa_speed_of_sound(h), 0.5 * isa_density(h) * V * V
+
+
 def specific_force_at_cg(ax, az, q, q_dot, position):
     """Specific force at the cg from an accelerometer at ``position`` = (x, y, z) from the cg, for a body
     pitching at q, q_dot without roll or yaw: a_cg = a_acc - q_dot x r - q x (q x r), longitudinal parts."""

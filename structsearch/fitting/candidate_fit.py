@@ -27,7 +27,7 @@ from .lift_fit import LiftFit
 from .lift_uncertainty import with_lift_uncertainty
 from .models import build_model
 from .options import FitOptions
-from .specs import load_grid
+from .specs import lift_candidate as named_lift
 from .staging import nested_start, STAGE_STARTS, WARM_STARTS, stages
 
 
@@ -266,7 +266,7 @@ def fit_lift_model(c: Candidate, train: FlightData, validation: FlightData, opti
     """The fitted lift model a drag or pitch candidate names (None for a candidate without one)."""
     if not c.lift:
         return None
-    lift_candidate = load_grid("lift")[c.lift]
+    lift_candidate = named_lift(c.lift)
     lift = fit_staged(lift_candidate, train, validation, None, options)
     if lift.failed:
         raise StructSearchError(f"fitting the lift model {c.lift} that {c.name} needs failed: {lift.error}")

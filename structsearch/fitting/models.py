@@ -26,7 +26,8 @@ def used_states(c: Candidate) -> dict[str, str]:
     reads (CD-X reads none)."""
     states = dict(c.states)
     symbols = {SeparationState(n, k, c.form_of(n)).symbol: n for n, k in states.items()}
-    used = {s for name, text in c.regressors for s in declare(name, text, states=list(symbols)).states}
+    used = {s for name, text in c.regressors
+            for s in declare(name, text, states=list(symbols), free_columns=True).states}
     return {symbols[s]: states[symbols[s]] for s in symbols if s in used}
 
 

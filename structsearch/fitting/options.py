@@ -90,12 +90,12 @@ def command_options(command: str, **changes) -> FitOptions:
 
 def check_box_names(boxes: Iterable[tuple[str, tuple[float, float]]], candidates) -> None:
     """An unknown NAME in ``--bound NAME=LO:HI`` is an error naming the parameters it could have meant."""
-    from .specs import load_grid
+    from .specs import lift_candidate
     known = set()
     for c in candidates:
         known.update(c.state_parameters)
         if c.lift:
-            known.update(load_grid("lift")[c.lift].state_parameters)
+            known.update(lift_candidate(c.lift).state_parameters)
     unknown = [k for k, _ in boxes if k not in known]
     if unknown:
         raise StructSearchError(f"--bound {unknown[0]}: no candidate has this nonlinear parameter; known: "

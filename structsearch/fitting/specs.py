@@ -34,6 +34,10 @@ from .enumeration import expand
 # Shipped inside the package (a link to the top-level model_specs/ in a checkout).
 SPEC_DIR = resources.files("structsearch") / "model_specs"
 BUILTIN_GRIDS = ("separation", "lift", "drag", "pitch")
+# The global models (one grid per coefficient in one file, model_specs/global.toml): found by name like the
+# candidates of the grids above, but no grid of ``search`` (they read the air-data columns Mach and qbar)
+GLOBAL_SPEC = "global"
+GLOBAL_TABLES = {"lift": "CL", "drag": "CD", "pitch": "Cm"}
 
 
 def suggestion(name: str, known) -> str:
@@ -75,6 +79,31 @@ def load_grid(name_or_path: str, lift_grid: Grid | None = None) -> Grid:
     return grid
 
 
+def load_global_grids() -> dict[str, Grid]:
+    """The global models' grids of model_specs/global.toml by coefficient; drag and pitch read the global lift."""
+    path = SPEC_DIR / f"{GLOBAL_SPEC}.toml"
+    doc = read_toml(path)
+    missing = [t for t in GLOBAL_TABLES if not isinstance(doc.get(t), dict)]
+    if missing:
+        raise DeclarationError(f"{path}: missing the table [{missing[0]}]")
+    lift = expand(doc["lift"], f"{path} [lift]")
+    grids = {"CL": lift}
+    for table in ("drag", "pitch"):
+        grid = expand(doc[table], f"{path} [{table}]")
+        grids[GLOBAL_TABLES[table]] = Grid(grid.name, grid.coefficient,
+                                           tuple(_with_lift_states(c, lift) for c in grid.candidates), grid.source,
+                                           lift)
+    return grids
+
+
+def lift_candidate(name: str) -> Candidate:
+    """The lift candidate ``name`` a drag or pitch candidate reads: of the shipped lift grid, else a global one."""
+    lift = load_grid("lift")
+    if name in lift.names:
+        return lift[name]
+    return load_global_grids()["CL"][name]
+
+
 def _with_lift_states(c: Candidate, lift_grid: Grid) -> Candidate:
     if not c.lift:
         return c
@@ -93,6 +122,11 @@ def find_candidate(name: str) -> Candidate:
             if c.name == name or c.name.split(" ")[-1] == name:
                 return c
             known.append(c.name.split(" ")[-1])
+    for grid in load_global_grids().values():
+        for c in grid.candidates:
+            if c.name == name:
+                return c
+            known.append(c.name)
     raise DeclarationError(f"no candidate named {name!r} in the shipped grids ({', '.join(BUILTIN_GRIDS)})"
                            + suggestion(name, known))
 

@@ -215,12 +215,15 @@ TRUTHS = {
 }
 
 
-def truth_model(withhold=(), aircraft: str = "citation", anomaly=None) -> AeroModel:
+def truth_model(withhold=(), aircraft: str = "citation", anomaly=None, envelope: bool = False) -> AeroModel:
     """The truth of ``aircraft``: for the Citation II the final model of the thesis (CL-VI, CD-IXr,
     Cm-XXXIIIr), for the transport its one-state model (:mod:`.transport`); named effects removed,
-    an ``anomaly`` of :mod:`.anomalies` (the object, not its name) added."""
+    an ``anomaly`` of :mod:`.anomalies` (the object, not its name) added. ``envelope``: with the
+    attached-flow terms of the wider envelope the nominal maneuvers fly (:mod:`.envelope`; Citation II only)."""
     if aircraft not in TRUTHS:
         raise DeclarationError(f"no aircraft {aircraft!r}: the simulator flies {', '.join(TRUTHS)}")
+    if envelope and aircraft != "citation":
+        raise DeclarationError(f"nominal maneuvers are declared for the Citation II only, not the {aircraft}")
     truth = TRUTHS[aircraft]
     withhold = tuple(dict.fromkeys(withhold))
     unknown = [w for w in withhold if w not in WITHHOLDABLE]
@@ -246,9 +249,14 @@ def truth_model(withhold=(), aircraft: str = "citation", anomaly=None) -> AeroMo
     constant = {f"X_{truth.second_state}": 1.0} if "second_separation_state" in withhold else {}
     models = [_with_kind(m, truth.lagged_state, kind)
               for m in (truth.lift(), truth.drag(lift_params), truth.pitch(lift_params))]
+    if envelope:
+        from .envelope import ENVELOPE_VALUES, with_envelope
+        models = [with_envelope(m) for m in models]
+        params.update(ENVELOPE_VALUES)
     label = ("truth" if aircraft == "citation" else f"{aircraft} truth") \
         + ("" if not withhold else " without " + ", ".join(withhold)) \
-        + ("" if anomaly is None else f" with {anomaly.name}")
+        + ("" if anomaly is None else f" with {anomaly.name}") \
+        + (" with the nominal envelope" if envelope else "")
     return AeroModel(*models, params, constant, name=label, anomaly=anomaly)
 
 

@@ -13,12 +13,13 @@ from typing import Mapping
 import numpy as np
 
 from ..data.errors import DataError
-from ..data.reduction import G, RHO0, isa_density  # noqa: F401  (G: the simulator reads ac.G)
+from ..data.reduction import G, RHO0, isa_density, isa_speed_of_sound  # noqa: F401  (G: the simulator reads ac.G)
 from .reference import AIRCRAFT, EMPTY_MASS, IYY
 
 FT = 0.3048
 INCH = 0.0254
 density = isa_density
+speed_of_sound = isa_speed_of_sound
 
 
 def flight_level_altitude(fl: float) -> float:

@@ -10,11 +10,11 @@ from . import aircraft as ac
 from .aircraft import CITATION, Aircraft
 from .transport import TRANSPORT
 from .aero import AeroModel
-from .simulation import Condition, Pilot, simulate, trim
+from .simulation import Condition, trim
+from .flying import DT, SLOW_ERROR_STALL_GAIN, Flown, fly_batch, reconstruction_error
 from .synthetic import smooth_noise
 from ..data.errors import DeclarationError
 
-DT = 0.01  # truth and output sample time [s]
 # Quasi-random elevator corrections of the quasi-steady stalls, as flown by hand while bleeding off 1 kt/s
 # (about 0.6 deg, band-limited to 1 Hz), and a gentle recovery. Their size sets how much C_m varies within a
 # quasi-steady stall: the pitching moment of a trimmed, slowly decelerating aircraft is otherwise its pitch
@@ -31,15 +31,6 @@ DYN_CENTRE = (0.19, 0.20)
 DYN_AMPLITUDE = (0.02, 0.03)
 DYN_FREQ_HZ = (0.3, 1.2)  # frequency sweep from the first to the second value
 DYN_OSCILLATION_S = 45.0
-# Slow errors of the reconstructed coefficients that no candidate model explains (accelerometer bias
-# instability, flight-path-reconstruction drift, aerodynamics outside the model): band-limited C_L,
-# C_D, C_m errors growing with the flow separation. They are added to the measurements, not fed
-# through the pilot, so they carry no closed-loop bias. Their size makes the final models' standard
-# deviations on the default campaign those of thesis Tables 11, 13 and 15 within a factor of 2 (README)
-# while the residual MSEs stay near Table 11.1.
-SLOW_ERROR_SIGMA = (0.03, 0.003, 0.006)  # C_L, C_D, C_m at attached flow
-SLOW_ERROR_BAND_HZ = (0.02, 0.3)
-SLOW_ERROR_STALL_GAIN = 1.0              # per unit of separation (1 - X summed over the states)
 # Each flight's centre of gravity: a narrow band inside the 276-286 in envelope, as loaded for the
 # test flights ("the center of gravity is relatively constant", thesis Table 16: C_m,cg and C_m,K0
 # correlate at -1.00); it sets how well C_m,cg can be told from C_m,K0.
@@ -189,21 +180,6 @@ def _smoothstep(x):
     return x * x * (3 - 2 * x)
 
 
-@dataclass(frozen=True)
-class Flown:
-    """What the pilot does in one maneuver and where it starts."""
-
-    condition: Condition
-    theta0: float
-    V0: float
-    alpha_ref: np.ndarray
-    de_extra: np.ndarray
-    throttle: np.ndarray
-    gains: tuple[float, float, float]
-    de_trim: float
-    alpha0: float
-
-
 def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: float, x_cg: float,
         proc: Procedures = Procedures()) -> Flown:
     """Reference profiles for one maneuver (pilot-like, seeded), flown as ``proc`` says."""
@@ -277,36 +253,6 @@ def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: fl
     return Flown(Condition(mass, x_cg, h, V), tr.alpha, V, alpha_ref, de_extra, throttle, gains, tr.de, tr.alpha)
 
 
-def reconstruction_error(rng: np.random.Generator, n: int, size: float = 1.0) -> np.ndarray:
-    """(n, 3) slow C_L, C_D, C_m errors at attached flow: ``size`` times SLOW_ERROR_SIGMA."""
-    from .measurement import band_noise
-    return np.column_stack([size * sigma * band_noise(rng, n, 1.0 / DT, *SLOW_ERROR_BAND_HZ)
-                            for sigma in SLOW_ERROR_SIGMA])
-
-
-def fly_batch(model: AeroModel, flown: list[Flown], aircraft: Aircraft = CITATION):
-    """Integrate maneuvers together (of any durations: each is padded with its final inputs and held
-    once it ends); returns the truth Trajectory, (longest duration, maneuvers)."""
-    lengths = np.array([len(f.alpha_ref) for f in flown])
-    n = int(lengths.max())
-
-    def stack(attr):
-        return np.column_stack([np.pad(getattr(f, attr), (0, n - len(f.alpha_ref)), mode="edge") for f in flown])
-    pilot = Pilot(stack("alpha_ref"), stack("de_extra"), stack("throttle"),
-                  np.array([f.de_trim for f in flown]), np.array([f.gains for f in flown]))
-    alpha0 = np.array([f.alpha0 for f in flown])
-    h0 = np.array([f.condition.h for f in flown])
-    x0 = model.separation_targets(alpha0, np.zeros_like(alpha0), h0)
-    y0 = {"V": np.array([f.V0 for f in flown]), "alpha": alpha0, "q": np.zeros(len(flown)),
-          "theta": np.array([f.theta0 for f in flown]), "h": h0}
-    y0.update({s.symbol: x0[s.symbol] for s in model.unsteady})
-    masses = np.array([f.condition.mass for f in flown])
-    # fuel burnt along the maneuver
-    burn = np.cumsum(stack("throttle"), axis=0) * DT * aircraft.max_fuel_flow
-    mass = masses[None, :] - burn
-    return simulate(model, y0, pilot, mass, np.array([f.condition.x_cg for f in flown]), DT, aircraft, lengths)
-
-
 def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int = 0, slow_errors: float = 1.0,
                       proc: Procedures = Procedures(), anomaly=None, sensor_errors=None, flights=None):
     """Fly every planned maneuver and measure it; returns (plan, list of column dicts) in plan order.
@@ -357,6 +303,24 @@ def simulate_campaign(plan: list[PlannedManeuver], model: AeroModel, seed: int =
     return results
 
 
+def _check_nominal(anomaly: bool, raw: bool, flights: int) -> None:
+    if anomaly or raw or flights:
+        what = "an anomaly" if anomaly else "raw channels" if raw else "flights"
+        raise DeclarationError(f"nominal maneuvers cannot be combined with {what}: the global model is fitted "
+                               "on reduced coefficients of one truth, flown without flight-shared errors")
+
+
+def _with_nominal(maneuvers: list, segments: list, model: AeroModel, seed: int, scale: float, slow_errors: float,
+                  proc: Procedures) -> tuple[list, list]:
+    """The stall maneuvers followed by the nominal ones (:mod:`.nominal`), every one with its air data."""
+    from ..data.campaign import Maneuver
+    from .nominal import nominal_plan, simulate_nominal, with_air_data
+    plan = nominal_plan(scale)
+    flown = simulate_nominal(plan, model, seed, slow_errors, proc.aircraft, proc.fuel, proc.flown_cg_range)
+    segments = [with_air_data(c) for c in segments + flown]
+    return maneuvers + [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split) for p in plan], segments
+
+
 def _cut(p: PlannedManeuver, columns: dict) -> dict:
     """Pullups and pushovers end where the pilot recovers (pitch attitude limit)."""
     if p.kind not in ("pullup", "pushover"):
@@ -369,7 +333,7 @@ def _cut(p: PlannedManeuver, columns: dict) -> dict:
 
 def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False,
                    slow_errors: float = 1.0, aircraft: str = "citation", anomaly: str | None = None,
-                   raw: bool = False, flights: int = 0):
+                   raw: bool = False, flights: int = 0, nominal: bool = False):
     """The simulated flight-test campaign (thesis Table 4) of ``aircraft`` (``citation`` or ``transport``),
     ready for :func:`write_campaign`.
 
@@ -385,7 +349,12 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     recorded) whose maneuvers share a mass, cg, engine-model and vane-calibration error on top of the per-maneuver
     ones (:data:`.measurement.FLIGHT_ERROR_SD`; the truth columns ``alpha_true``, ``mass_true``, ``x_cg_true`` and
     ``CT_true`` are added, the manifest gets ``flights = N``). 0 (the default): no flights, and the campaign is the
-    one simulated before flights existed, bit for bit."""
+    one simulated before flights existed, bit for bit.
+
+    ``nominal``: nominal (attached-flow) maneuvers across the envelope too (:mod:`.nominal`; ``kind = "nominal"``
+    in the manifest, after the stall maneuvers), flown with the truth's envelope terms (:mod:`.envelope`, zero
+    wherever a stall maneuver flies), and every maneuver carries the air data ``Mach`` and ``qbar``. Citation II
+    only, not with an anomaly, raw channels or flights."""
     from .aero import truth_model
     from .anomalies import anomaly_named
     from ..data.campaign import Maneuver, make_campaign
@@ -399,7 +368,10 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
         if withhold:
             raise DeclarationError(f"anomaly {anomaly!r} cannot be combined with withheld effects "
                                    f"({', '.join(withhold)}): a campaign tests one departure from the final model")
-    model = truth_model(withhold, aircraft, chosen if chosen is not None and chosen.flies else None)
+    if nominal:
+        _check_nominal(chosen is not None, raw, flights)
+    model = truth_model(withhold, aircraft, chosen if chosen is not None and chosen.flies else None,
+                        envelope=nominal)
     proc = PROCEDURES[aircraft]
     plan = scaled_plan(thesis_plan(extras), scale)
     if flights and raw:
@@ -413,6 +385,8 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     segments = simulate_campaign(plan, model, seed, slow_errors, proc, chosen, sensor_errors, labels)
     maneuvers = [Maneuver(p.id, f"{p.id}.csv", p.kind, p.split, None if labels is None else labels[i])
                  for i, p in enumerate(plan)]
+    if nominal:
+        maneuvers, segments = _with_nominal(maneuvers, segments, model, seed, scale, slow_errors, proc)
     extra = {"seed": int(seed), "scale": float(scale), "extras": bool(extras), "truth": model.name,
              "withheld": ",".join(withhold) or "none", "slow_errors": float(slow_errors)}
     if aircraft != "citation":  # campaigns written before the second aircraft carry no such key
@@ -424,7 +398,7 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     if sensor_errors is not None:
         extra.pop("slow_errors")
         extra.update(sensor_errors.manifest(), format="raw")
-    name = f"simulated {proc.aircraft.label} stall campaign (seed {seed}" \
+    name = f"simulated {proc.aircraft.label} stall {'and nominal ' if nominal else ''}campaign (seed {seed}" \
         + (f", anomaly {chosen.name})" if chosen is not None else ")")
     # the aircraft data of docs/interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope
     mass = proc.aircraft.empty_mass + proc.aircraft.crew_mass + float(np.mean(proc.fuel))

@@ -47,7 +47,9 @@ def _forces(model: AeroModel, aircraft: Aircraft, V, alpha, q, h, de, throttle, 
         thrust = throttle * aircraft.max_thrust(h, rho)
     ct = thrust / (qbar * aircraft.S)
     values = {"alpha": alpha, "q": q, "V": V, "de": de, "CT": ct, "x_cg": x_cg, "cbar": aircraft.cbar,
-              "S": aircraft.S, "b": aircraft.b, "h": h}
+              "S": aircraft.S, "b": aircraft.b, "h": h, "qbar": qbar}
+    if "Mach" in model.columns:  # the envelope's truth (structsearch.flight.envelope)
+        values["Mach"] = V / ac.speed_of_sound(h)
     values.update(X)
     cl, cd, cm = model.coefficients(values)
     return qbar, thrust, ct, cl, cd, cm
