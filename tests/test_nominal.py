@@ -97,7 +97,32 @@ def test_the_attached_part_holds_the_states_at_one_and_names_what_it_cannot_plac
     lost = dict(part.unidentifiable)
     assert lost["Cm_1mX_ssCL"] == VANISHES and lost["Cm_1mX_wCL"] == VANISHES and lost["a1_w"] == NOT_PLACED
     assert dict(part.sums) == {"Cm_de_plus_Cm_Xde_ss": ("Cm_de", "Cm_Xde_ss")}
-    assert part.candidate.lift is None
+    assert part.candidate.lift == "CL-G.nominal"   # the lift model's own attached-flow part
+    assert attached_part(find_candidate("CL-G")).candidate.lift is None
+
+
+def test_the_attached_drag_part_reads_the_lift_parts_cl_not_the_measured_one(simulated_campaign):
+    """The measured C_L carries each maneuver's own noise, correlated with C_D's (both rotate the measured C_X,
+    C_Z): a nominal-only drag model reading it would validate on the validation maneuvers' own noise while the
+    global model reads its lift model's C_L. The attached part reads the C_L of the lift's attached part."""
+    from structsearch.data.errors import StructSearchError
+    from structsearch.fitting.lift_fit import LiftAt
+    from structsearch.fitting.models import predict_candidate
+    data = simulated_campaign(0, SCALE, nominal=True).of_kind("nominal")
+    lift = find_candidate("CL-G")
+    lift_part = attached_part(lift).candidate
+    drag = attached_part(find_candidate("CD-G"), lift).candidate
+    assert drag.lift == lift_part.name
+    lift_params = {"CL0": 0.23, "CL_KL_ss_plus_CL_KL_w": 3.98, "CL_qstar": 8.07, "CL_de": -0.34, "CL_Ma": 3.0}
+    cl = predict_candidate(lift_part, lift_params, data)
+    assert np.std(cl - data["CL"]) > 1e-3   # the lift model's C_L is not the measured one
+    drag_params = {"CD0": 0.0165, "CD_CT": 0.39, "CD_de": -0.19, "CD_CL2": 0.026, "CD_M2": 0.15}
+    got = predict_candidate(drag, drag_params, data, LiftAt(lift_part, lift_params))
+    by_hand = (0.0165 + 0.39 * data["CT"] - 0.19 * data["de"] + 0.026 * cl ** 2
+               + 0.15 * np.maximum(data["Mach"] - MACH_ONSET, 0) ** 2)
+    np.testing.assert_allclose(got, by_hand, rtol=1e-12, atol=1e-15)
+    with pytest.raises(StructSearchError, match="needs the fitted lift model CL-G.nominal"):
+        predict_candidate(drag, drag_params, data)   # never the measured C_L by default
 
 
 def test_the_stall_part_drops_only_the_terms_the_data_never_excite(simulated_campaign):
@@ -137,6 +162,9 @@ def test_the_global_models_are_within_five_percent_of_the_separate_ones(simulate
         assert c.within("nominal") and c.within("stall"), (c.name, c.ratio("nominal"), c.ratio("stall"))
         # the attached-flow part knows no stall: the global model is needed there
         assert c.fit("nominal").validation_mse["stall"] > 5 * c.fit("all").validation_mse["stall"], c.name
+        # each fit's drag and pitch read the C_L of the lift model fitted on the same maneuvers
+        expected = {"all": "CL-G", "stall": "CL-G.stall", "nominal": "CL-G.nominal"}
+        assert all(f.result.lift == (expected[f.fitted_on] if c.name != "CL-G" else None) for f in c.fits)
     assert res.passed
 
 

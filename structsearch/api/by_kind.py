@@ -7,8 +7,10 @@ Three fits per model, each on its own campaign whose validation maneuvers are al
 * ``stall``: its stall part (:func:`structsearch.fitting.regimes.stall_part`) on the stall training maneuvers;
 * ``nominal``: its attached-flow part (:func:`structsearch.fitting.regimes.attached_part`) on the nominal ones.
 
-A drag or pitch model reads the lift model fitted the same way (its global lift, or that lift's stall part); its
-attached-flow part needs none.
+A drag or pitch model reads the C_L and the states of the lift model fitted the same way: the global lift, that
+lift's stall part or its attached-flow part (whose states are all 1). None reads the measured C_L, which carries
+each maneuver's own measurement noise (correlated with that of C_D and C_m): the three fits differ in the
+maneuvers they learn from, never in what a prediction reads.
 """
 from __future__ import annotations
 
@@ -72,7 +74,7 @@ def _part(c: Candidate, lift: Candidate | None, fitted_on: str, train) -> Part:
         return Part(c)
     if fitted_on == "stall":
         return stall_part(c, train, f"{c.lift}.stall" if c.lift else None)
-    return attached_part(c, lift)
+    return attached_part(c, lift, f"{c.lift}.nominal" if c.lift else None)
 
 
 def _fitted(fitter, candidate: Candidate, lifts: dict):

@@ -49,6 +49,7 @@ class RegimeFit:
         stderr = dict(r.estimates.stderr) if r.estimates is not None else {}
         return {"model": self.part.candidate.name, "fitted_on": self.fitted_on,
                 "train_maneuvers": self.train_maneuvers, "note": self.part.candidate.note,
+                "lift": self.part.candidate.lift,
                 "regressors": dict(self.part.candidate.regressors),
                 "validation_mse": {k: _number(v) for k, v in self.validation_mse.items()},
                 "mse_train": _number(r.train.mse) if r.train is not None else None,

@@ -10,7 +10,10 @@ and the comparison model is what is:
   attached flow (X = 1) and their parameters cannot be placed. The model fitted is the global one with every state
   at 1: a regressor that vanishes there is dropped, regressors that coincide there are one parameter (their sum),
   and the separation parameters are named unidentifiable. The comparison model is the attached-flow part, stated
-  as such, never a stall model fitted to data without a stall.
+  as such, never a stall model fitted to data without a stall. A drag or pitch part reads the C_L of its lift
+  model's attached-flow part fitted on the same maneuvers, as the global model reads the global lift model's: the
+  measured C_L would hand it each validation maneuver's own measurement noise, which is correlated with that of
+  C_D and C_m (both are rotations of the measured C_X and C_Z), and errors in variables besides.
 """
 from __future__ import annotations
 
@@ -49,9 +52,11 @@ def _parameters(c: Candidate, lift: Candidate | None) -> tuple[str, ...]:
     return own if own or lift is None else lift.state_parameters
 
 
-def attached_part(c: Candidate, lift: Candidate | None = None) -> Part:
+def attached_part(c: Candidate, lift: Candidate | None = None, lift_name: str | None = None) -> Part:
     """``c`` with every separation state at attached flow (X = 1): the nominal maneuvers' comparison model.
-    ``lift``: the lift candidate whose states a drag or pitch candidate reads (their parameters are named too)."""
+    ``lift``: the lift candidate whose states a drag or pitch candidate reads (their parameters are named too);
+    ``lift_name``: the name its lift model (itself an attached part) is fitted under, by default
+    ``"<c.lift>.nominal"`` (:func:`attached_part` of the lift model's name)."""
     symbols = _symbols(c)
     kept: list[tuple[str, sp.Expr, str]] = []
     dropped, sums = [], {}
@@ -72,7 +77,8 @@ def attached_part(c: Candidate, lift: Candidate | None = None) -> Part:
     regressors = tuple((_sum_name(sums.get(n, [n])), text) for n, _, text in kept)
     if not regressors:
         raise DeclarationError(f"{c.name}: no regressor is left at attached flow")
-    part = Candidate(f"{c.name}.nominal", c.grid, c.coefficient, regressors, (), None,
+    reads = (lift_name or f"{c.lift}.nominal") if c.lift else None
+    part = Candidate(f"{c.name}.nominal", c.grid, c.coefficient, regressors, (), reads,
                      f"the attached-flow part of {c.name} (every separation state at 1)")
     unidentifiable = tuple((p, NOT_PLACED) for p in _parameters(c, lift)) + tuple(dropped)
     return Part(part, unidentifiable, tuple((_sum_name(v), tuple(v)) for v in sums.values()))
