@@ -78,7 +78,8 @@ def markdown(res: ByKind) -> str:
              "global model's attached-flow part: alpha never reaches the stall there, so the separation states stay "
              "attached and their parameters are not identified (NaN below, with the reason); the stall-only model "
              "drops the terms the stall maneuvers never excite. Its validation on the other kind is an "
-             "extrapolation, shown for what it says.", ""]
+             "extrapolation, shown for what it says. Drag and pitch models read the C_L of the lift model fitted "
+             "on the same maneuvers, never the measured C_L (whose noise is correlated with theirs).", ""]
     lines += _md(comparison_rows(res)) + [""]
     lines += [f"- {verdict(c)}" for c in res.comparisons] + [""]
     for c in res.comparisons:
