@@ -22,11 +22,14 @@ class FitOutcome:
     lift: LiftFit | None
     bands: Any = None          # structsearch.fitting.bands.StaticBands: the static curve's bands (None: not made)
     profile: Any = None        # structsearch.engine.profile.Profiles: profile intervals (None: not asked for)
+    reference_point: float | None = None   # the campaign's fixed moment reference point [m] (None: none)
 
     def to_dict(self) -> dict:
         """``fit.json`` (docs/interfaces.md sections 2, 5.4 and 6.3; ``profile`` with ``fit(profile=True)``)."""
-        from ..reporting.documents import fit_document
+        from ..reporting.documents import fit_document, moment_reference_document
         doc = fit_document(self.result, self.lift, self.bands)
+        if self.candidate.coefficient == "Cm":
+            doc["moment_reference"] = moment_reference_document(self.candidate, self.reference_point)
         if self.profile is not None:
             doc["profile"] = self.profile.to_dict()
         return doc

@@ -31,7 +31,10 @@ class Settings:
     cycles as maneuvers), ``cache`` (the directory whose ``cache/`` holds the fits; default the command's
     ``out``, else a temporary directory), ``progress`` (receives the lines the command writes to stderr), ``meter``
     (told ``(finished, of, what)`` after each candidate a fit call fitted: the command line's progress bar) and
-    ``trace`` (a file the command writes its tasks to, as Chrome trace-event JSON: ``--trace FILE``)."""
+    ``trace`` (a file the command writes its tasks to, as Chrome trace-event JSON: ``--trace FILE``);
+    ``moment_reference`` ("cg" or "fixed": every pitch structure the command starts from takes C_m about it; None:
+    as each declares) and ``reference_point`` (the fixed station [m], replacing the manifest's; None: the
+    manifest's)."""
 
     starts: int | None = None
     seed: int = 0
@@ -44,6 +47,8 @@ class Settings:
     progress: Progress = None
     trace: str | os.PathLike | None = None
     meter: Meter | None = None
+    moment_reference: str | None = None
+    reference_point: float | None = None
 
     @property
     def processes(self) -> int:
@@ -145,7 +150,9 @@ class FlightTestPlan:
     """What a simulated campaign flies besides its seed and scale (``structsearch simulate``'s other options):
     the ``aircraft`` ("citation" or "transport"), effects of the truth to ``withhold``, an ``anomaly`` outside the
     diagnosis' library, ``extras`` maneuvers, ``raw`` channels instead of coefficients, the scale of the slow
-    reconstruction errors and ``flights`` = N > 0: the maneuvers flown on N flights that share errors."""
+    reconstruction errors and ``flights`` = N > 0: the maneuvers flown on N flights that share errors;
+    ``cg_spread`` [m]: the width of the band each loading's cg is drawn from (None: the default band);
+    ``cg_moment``: how the truth's C_m depends on the cg ("thesis" or "transfer")."""
 
     aircraft: str = "citation"
     withhold: tuple[str, ...] = ()
@@ -154,3 +161,5 @@ class FlightTestPlan:
     raw: bool = False
     slow_errors: float = 1.0
     flights: int = 0
+    cg_spread: float | None = None
+    cg_moment: str = "thesis"

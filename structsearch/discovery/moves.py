@@ -98,9 +98,11 @@ def _child(parent: Candidate, label: str, regressors, states=None, lift=..., bou
     states = parent.states if states is None else tuple(states)
     lift = parent.lift if lift is ... else lift
     regressors = tuple(regressors)
-    return Candidate(child_name(parent, label, regressors, states, lift), parent.grid or "discover",
-                     parent.coefficient, regressors, states, lift, f"{parent.name} with {label}",
-                     parent.bounds if bounds is None else tuple(bounds))
+    # a replace of the parent: a child keeps what the move does not change (its moment reference, ...)
+    return dataclasses.replace(parent, name=child_name(parent, label, regressors, states, lift),
+                               grid=parent.grid or "discover", regressors=regressors, states=states, lift=lift,
+                               note=f"{parent.name} with {label}",
+                               bounds=parent.bounds if bounds is None else tuple(bounds))
 
 
 def _keep_bounds(bounds, states) -> tuple:

@@ -1,9 +1,14 @@
 """Candidate model structures and the grids that hold them (declared in model_specs/ or in code)."""
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 from ..data.errors import DeclarationError
+
+# Where a pitch candidate's C_m is taken about (docs/interfaces.md 7.5): the recorded cg, or the fixed
+# ``[aircraft] reference_point``, moved to the recorded cg by the known transfer (structsearch.data.moment_transfer).
+MOMENT_REFERENCES = ("cg", "fixed")
 
 
 @dataclass(frozen=True)
@@ -18,6 +23,15 @@ class Candidate:
     lift: str | None = None
     note: str = ""
     bounds: tuple[tuple[str, tuple[float, float]], ...] = ()
+    moment_reference: str = "cg"   # MOMENT_REFERENCES; "fixed" for a pitch candidate only
+
+    def __post_init__(self):
+        if self.moment_reference not in MOMENT_REFERENCES:
+            raise DeclarationError(f"candidate {self.name!r}: moment_reference must be one of "
+                                   f"{', '.join(MOMENT_REFERENCES)}, not {self.moment_reference!r}")
+        if self.moment_reference == "fixed" and self.coefficient != "Cm":
+            raise DeclarationError(f"candidate {self.name!r}: moment_reference = \"fixed\" is for a pitch (Cm) "
+                                   f"candidate, not a {self.coefficient} one")
 
     @property
     def n_linear(self) -> int:
@@ -36,19 +50,29 @@ class Candidate:
         if not mine:
             return self
         merged = {**dict(self.bounds), **mine}
-        return Candidate(self.name, self.grid, self.coefficient, self.regressors, self.states, self.lift,
-                         self.note, tuple(sorted(merged.items())))
+        return dataclasses.replace(self, bounds=tuple(sorted(merged.items())))
+
+    def with_moment_reference(self, reference: str | None) -> "Candidate":
+        """This candidate with C_m taken about ``reference`` ("cg" or "fixed"; ``--moment-reference``): a pitch
+        candidate's changes, any other's and None leave it as declared."""
+        if reference is None or self.coefficient != "Cm" or reference == self.moment_reference:
+            return self
+        return dataclasses.replace(self, moment_reference=reference)
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "grid": self.grid, "coefficient": self.coefficient,
-                "regressors": dict(self.regressors), "states": dict(self.states), "lift": self.lift,
-                "note": self.note, "bounds": {k: list(v) for k, v in self.bounds}}
+        out = {"name": self.name, "grid": self.grid, "coefficient": self.coefficient,
+               "regressors": dict(self.regressors), "states": dict(self.states), "lift": self.lift,
+               "note": self.note, "bounds": {k: list(v) for k, v in self.bounds}}
+        if self.moment_reference != "cg":   # a cg candidate's dict (and cache key) is the one it always had
+            out["moment_reference"] = self.moment_reference
+        return out
 
     @classmethod
     def from_dict(cls, d) -> "Candidate":
         """The candidate of :meth:`to_dict` (an exact round trip)."""
         return cls(d["name"], d["grid"], d["coefficient"], tuple(d["regressors"].items()), tuple(d["states"].items()),
-                   d["lift"], d.get("note", ""), tuple((k, tuple(v)) for k, v in d.get("bounds", {}).items()))
+                   d["lift"], d.get("note", ""), tuple((k, tuple(v)) for k, v in d.get("bounds", {}).items()),
+                   d.get("moment_reference", "cg"))
 
 
 @dataclass(frozen=True)

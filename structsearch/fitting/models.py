@@ -7,6 +7,7 @@ import numpy as np
 
 from ..data.errors import StructSearchError
 from ..data.flightdata import FlightData
+from ..data.moment_transfer import TRANSFER_COLUMN, TRANSFER_TEXT
 from ..engine.regressors import declare
 from ..engine.separation import SeparationState
 from ..engine.stallmodel import StallModel
@@ -43,8 +44,9 @@ def model_with_lift(c: Candidate, lift_params: Mapping[str, float] | None) -> St
     free_bounds = {k: v for k, v in c.bounds if not fixed or k not in fixed}
     free_bounds = {k: v for k, v in free_bounds.items()
                    if k in {p for n, kd in states.items() for p in SeparationState(n, kd).parameters}}
+    offset = {"offset": TRANSFER_COLUMN, "offset_text": TRANSFER_TEXT} if c.moment_reference == "fixed" else {}
     return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states, fixed=fixed,
-                              bounds=free_bounds)
+                              bounds=free_bounds, **offset)
 
 
 def with_lift_prediction(data: FlightData, lift_params: Mapping[str, float], lift_candidate: Candidate) -> FlightData:

@@ -42,6 +42,8 @@ class Aircraft:
     max_fuel_flow: float          # all engines at full throttle [kg/s]; scales with throttle
     x_cg_range: tuple[float, float] | None = None  # cg envelope [m], the datum of the x_cg column
     records_cg: bool = True       # the campaign files carry an x_cg column
+    # The fixed station [m] a pitch model may take C_m about (docs/interfaces.md 7.5), the x_cg column's datum
+    reference_point: float | None = None
     # Pitch-rate gyro: white noise [rad/s] left after flight-path reconstruction, and the rate vibration
     # [rad/s per unit of buffet] it sees in separated flow. C_m comes from q_dot * Iyy / (qbar S cbar), so
     # what matters is their size in moment-coefficient terms; a heavy aircraft needs quieter rates.
@@ -63,15 +65,21 @@ class Aircraft:
         out = {"S": self.S, "cbar": self.cbar, "b": self.b, "Iyy": round(float(self.inertia(mass)), 1)}
         if self.x_cg_range is not None:
             out["x_cg_range"] = tuple(self.x_cg_range)
+        if self.reference_point is not None:
+            out["reference_point"] = self.reference_point
         return out
 
 
 # Two Pratt & Whitney JT15D-4, about 11.1 kN static sea-level thrust each; 0.16 kg/s of fuel at full
-# throttle; cg envelope 276-286 in from the datum 15 in ahead of the nose (docs/catalogue.md section 6).
+# throttle; cg envelope 276-286 in from the datum 15 in ahead of the nose (docs/catalogue.md section 6). The
+# moment reference point is the middle of the band the test flights were loaded in (280.5-282 in,
+# .flighttest.FLOWN_CG_RANGE): the thesis' identified C_m terms hold about the cg there.
+CITATION_REFERENCE_POINT = 281.25 * INCH
 CITATION = Aircraft(
     name="citation", label="Citation II", S=AIRCRAFT["S"], cbar=AIRCRAFT["cbar"], b=AIRCRAFT["b"],
     empty_mass=EMPTY_MASS, crew_mass=3 * 85.0, iyy_empty=IYY, iyy_per_kg=0.9,
-    max_thrust_sl=2 * 11_100.0, max_fuel_flow=0.16, x_cg_range=(276 * INCH, 286 * INCH))
+    max_thrust_sl=2 * 11_100.0, max_fuel_flow=0.16, x_cg_range=(276 * INCH, 286 * INCH),
+    reference_point=CITATION_REFERENCE_POINT)
 
 
 def aircraft_of_campaign(constants: Mapping[str, float], source: str = "") -> Aircraft:

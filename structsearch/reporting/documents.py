@@ -39,6 +39,15 @@ def fit_document(fit: CandidateResult, lift: LiftFit | None, bands=None) -> dict
     return doc
 
 
+def moment_reference_document(candidate, reference_point: float | None) -> dict:
+    """Where a pitch fit takes C_m about (docs/interfaces.md 7.5): ``about`` "cg" (the recorded cg) or "fixed";
+    a fixed one's ``reference_point`` [m] and the ``transfer`` that moves its C_m to the recorded cg."""
+    if candidate.moment_reference != "fixed":
+        return {"about": "cg"}
+    from ..data.moment_transfer import TRANSFER_TEXT
+    return {"about": "fixed", "reference_point": reference_point, "transfer": TRANSFER_TEXT}
+
+
 def bands_table(bands, every: int = 6) -> str:
     """The static curve's bands at every ``every``-th grid point, as Markdown (``fit.md``)."""
     from tabulate import tabulate

@@ -1,0 +1,81 @@
+"""The pitching moment moved from a fixed reference point to the recorded centre of gravity (docs/interfaces.md 7.5).
+
+Body x stations grow aft (the x_cg column's datum, ``[aircraft] x_cg_range``). The normal force C_N (up, normal to
+the body x axis) acting at any station gives, about a point at station x_p, a nose-up moment that grows as the point
+moves aft; the axial force acts along the axis through both points and adds none. So the moment about the recorded
+cg and the one about the fixed ``[aircraft] reference_point`` x_ref differ by
+
+    C_m,cg = C_m,ref + C_N (x_cg - x_ref) / cbar,    C_N = C_L cos(alpha) + C_D sin(alpha)
+
+(measured C_L and C_D: the transfer is a known offset of the measurements, never estimated). A campaign whose
+manifest gives ``reference_point`` and whose maneuvers record x_cg, C_L and C_D carries this term as the derived
+column :data:`TRANSFER_COLUMN`; a pitch candidate about the fixed point fits C_m minus it.
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from .errors import DataError
+
+TRANSFER_COLUMN = "Cm_transfer"
+# The column as the equations of a pitch model about the fixed point state it (C_m about the recorded cg is the
+# model's C_m about the point plus this)
+TRANSFER_TEXT = ("(x_cg - reference_point)/cbar*(CL*cos(alpha) + CD*sin(alpha)), C_m moved from the fixed "
+                 "reference point to the recorded cg (measured CL, CD)")
+REFERENCE_KEY = "reference_point"
+# A reference point further than this many chords from the cg envelope, or from a recorded cg, is a datum or unit
+# slip (inches for metres, another datum): a moment transfer over it would swamp C_m.
+MAX_CHORDS_FROM_CG = 2.0
+# Without a cg envelope: no aircraft's body station lies a kilometre from its datum.
+MAX_STATION_M = 1000.0
+TRANSFER_INPUTS = ("alpha", "CL", "CD", "x_cg")
+
+
+def normal_force_coefficient(alpha, cl, cd) -> np.ndarray:
+    """C_N = C_L cos(alpha) + C_D sin(alpha): the aerodynamic force normal to the body x axis."""
+    return np.asarray(cl) * np.cos(alpha) + np.asarray(cd) * np.sin(alpha)
+
+
+def moment_transfer(alpha, cl, cd, x_cg, reference_point: float, cbar: float) -> np.ndarray:
+    """C_m about the recorded cg minus C_m about the station ``reference_point``: C_N (x_cg - x_ref) / cbar."""
+    return normal_force_coefficient(alpha, cl, cd) * (np.asarray(x_cg) - reference_point) / cbar
+
+
+def check_reference_point(value, aircraft: Mapping[str, object], source: str | None) -> float:
+    """``[aircraft] reference_point``: a finite station [m] within :data:`MAX_CHORDS_FROM_CG` chords of the cg
+    envelope when the manifest gives one (else within :data:`MAX_STATION_M` of the datum)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(float(value)):
+        raise DataError(f"[aircraft] {REFERENCE_KEY} must be a finite number (a body x station in m, the x_cg "
+                        f"column's datum), not {value!r}", source=source, column=REFERENCE_KEY)
+    x = float(value)
+    envelope = aircraft.get("x_cg_range")
+    if envelope is not None:
+        reach = MAX_CHORDS_FROM_CG * float(aircraft["cbar"])
+        lo, hi = float(envelope[0]) - reach, float(envelope[1]) + reach
+        if not lo <= x <= hi:
+            raise DataError(f"[aircraft] {REFERENCE_KEY} = {x:g} m lies more than {MAX_CHORDS_FROM_CG:g} chords from "
+                            f"the cg envelope x_cg_range ({float(envelope[0]):g}, {float(envelope[1]):g}) m: the "
+                            "same datum and unit as x_cg are needed", source=source, column=REFERENCE_KEY)
+    elif abs(x) > MAX_STATION_M:
+        raise DataError(f"[aircraft] {REFERENCE_KEY} = {x:g} m is not a body station (more than "
+                        f"{MAX_STATION_M:g} m from the datum)", source=source, column=REFERENCE_KEY)
+    return x
+
+
+def transfer_column(columns: Mapping[str, np.ndarray], aircraft: Mapping[str, object],
+                    source: str | None) -> np.ndarray | None:
+    """The :data:`TRANSFER_COLUMN` of ``columns`` (None when the manifest has no reference point or the maneuvers
+    do not record what the transfer reads). A recorded cg more than :data:`MAX_CHORDS_FROM_CG` chords from the
+    reference point is refused, naming the key."""
+    if REFERENCE_KEY not in aircraft or any(c not in columns for c in TRANSFER_INPUTS):
+        return None
+    x_ref, cbar = float(aircraft[REFERENCE_KEY]), float(aircraft["cbar"])
+    x_cg = np.asarray(columns["x_cg"], float)
+    far = float(np.max(np.abs(x_cg - x_ref))) / cbar if x_cg.size else 0.0
+    if far > MAX_CHORDS_FROM_CG:
+        raise DataError(f"[aircraft] {REFERENCE_KEY} = {x_ref:g} m lies {far:.3g} chords from a recorded x_cg: the "
+                        "reference point and the x_cg column need the same datum and unit", source=source,
+                        column=REFERENCE_KEY)
+    return moment_transfer(columns["alpha"], columns["CL"], columns["CD"], x_cg, x_ref, cbar)
