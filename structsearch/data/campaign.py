@@ -22,7 +22,7 @@ from .flightdata import FlightData, from_segments
 from .errors import DataError
 from . import records
 from .tables import LINE_KEY, read_mat, read_table as _read_table  # noqa: F401  (read_mat: the reader of .mat files)
-from .moment_transfer import REFERENCE_KEY, TRANSFER_COLUMN, check_reference_point, transfer_column
+from .moment_transfer import REFERENCE_KEY, check_reference_point, check_transfer_datum
 from .campaign_checks import (AIRCRAFT_KEYS, ANGLES, MANEUVER_KEYS, RAW_ANGLES, RAW_REQUIRED, REQUIRED,
                               RESERVED_KEYS, _check_top_level, _close_match, _flight, _parse_aircraft, _parse_cutoffs,
                               validate_maneuver)
@@ -189,30 +189,20 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
                          flights=[m.flight for m in maneuvers])
     if fmt == "raw":
         extra["format"] = "raw"
-    data = with_moment_transfer(data, aircraft, toml)
+    check_transfer_datum(data.columns.get("x_cg"), aircraft, toml)
     return Campaign(name, aircraft, tuple(maneuvers), data, directory, extra, cutoffs, rules)
-
-
-def with_moment_transfer(data: FlightData, aircraft: Mapping[str, object], source: str | None = None) -> FlightData:
-    """``data`` with the derived column :data:`~.moment_transfer.TRANSFER_COLUMN` (C_m about the cg minus C_m
-    about ``[aircraft] reference_point``) when the manifest gives the point and the data record x_cg, C_L and C_D;
-    else ``data`` without it."""
-    columns = {k: v for k, v in data.columns.items() if k != TRANSFER_COLUMN}
-    transfer = transfer_column(columns, aircraft, source)
-    if transfer is None:
-        return data if TRANSFER_COLUMN not in data else data.with_columns(columns)
-    return data.with_columns({**columns, TRANSFER_COLUMN: transfer})
 
 
 def with_reference_point(campaign: Campaign, reference_point: float) -> Campaign:
     """``campaign`` with ``[aircraft] reference_point`` set to ``reference_point`` (``--reference-point``: it
-    replaces the manifest's), checked as the manifest's would be, and its transfer column computed from it."""
-    source = campaign._where()
-    aircraft = {**campaign.aircraft, REFERENCE_KEY: check_reference_point(reference_point, campaign.aircraft,
-                                                                          f"{source} (--reference-point)")}
+    replaces the manifest's), checked as the manifest's would be; the data's constants (which a pitch model about
+    the fixed point reads) follow."""
+    source = f"{campaign._where()} (--reference-point)"
+    aircraft = {**campaign.aircraft, REFERENCE_KEY: check_reference_point(reference_point, campaign.aircraft, source)}
+    check_transfer_datum(campaign.data.columns.get("x_cg"), aircraft, source)
     data = campaign.data
     data = FlightData(data.columns, data.starts, data.names, data.source, scalar_constants(aircraft), data.flights)
-    return replace(campaign, aircraft=aircraft, data=with_moment_transfer(data, aircraft, source))
+    return replace(campaign, aircraft=aircraft, data=data)
 
 
 def _same_columns_everywhere(maneuvers, segments, common: set, directory: Path) -> None:
@@ -332,8 +322,7 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
                 lines.append(f"flight = {_toml_value(m.flight)}")
             if m.record:
                 lines.append(f"record = {_toml_value(m.record)}")
-            # the transfer column is derived from the manifest on reading, never a recorded one
-            frame = pd.DataFrame({k: v[sl] for k, v in campaign.data.columns.items() if k != TRANSFER_COLUMN})
+            frame = pd.DataFrame({k: v[sl] for k, v in campaign.data.columns.items()})
             ordered = [c for c in ("t",) + REQUIRED[1:] if c in frame] + sorted(
                 c for c in frame if c not in REQUIRED)
             frame = frame[ordered]
@@ -376,5 +365,5 @@ def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[
                          constants=scalar_constants(aircraft),
                          derive_alpha_dot=(extra or {}).get("format") != "raw",  # raw: recorded channels only
                          flights=[m.flight for m in maneuvers])
-    data = with_moment_transfer(data, aircraft, name)
+    check_transfer_datum(data.columns.get("x_cg"), aircraft, name)
     return Campaign(name, dict(aircraft), tuple(maneuvers), data, None, dict(extra or {}))

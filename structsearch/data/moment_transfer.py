@@ -7,9 +7,10 @@ cg and the one about the fixed ``[aircraft] reference_point`` x_ref differ by
 
     C_m,cg = C_m,ref + C_N (x_cg - x_ref) / cbar,    C_N = C_L cos(alpha) + C_D sin(alpha)
 
-(measured C_L and C_D: the transfer is a known offset of the measurements, never estimated). A campaign whose
-manifest gives ``reference_point`` and whose maneuvers record x_cg, C_L and C_D carries this term as the derived
-column :data:`TRANSFER_COLUMN`; a pitch candidate about the fixed point fits C_m minus it.
+A pitch model about the fixed point adds this term, known and never estimated (:data:`TRANSFER_EXPRESSION`), to its
+output: its C_L is the one its other regressors read (the output of the lift model it names, as the thesis feeds
+pitch models; the measured C_L's buffet and reconstruction errors would enter the prediction), its C_D the measured.
+This module holds the expression and the checks of the manifest key.
 """
 from __future__ import annotations
 
@@ -19,28 +20,14 @@ import numpy as np
 
 from .errors import DataError
 
-TRANSFER_COLUMN = "Cm_transfer"
-# The column as the equations of a pitch model about the fixed point state it (C_m about the recorded cg is the
-# model's C_m about the point plus this)
-TRANSFER_TEXT = ("(x_cg - reference_point)/cbar*(CL*cos(alpha) + CD*sin(alpha)), C_m moved from the fixed "
-                 "reference point to the recorded cg (measured CL, CD)")
 REFERENCE_KEY = "reference_point"
+TRANSFER_NAME = "Cm_transfer"
+TRANSFER_EXPRESSION = "(x_cg - reference_point)/cbar*(CL*cos(alpha) + CD*sin(alpha))"
 # A reference point further than this many chords from the cg envelope, or from a recorded cg, is a datum or unit
 # slip (inches for metres, another datum): a moment transfer over it would swamp C_m.
 MAX_CHORDS_FROM_CG = 2.0
 # Without a cg envelope: no aircraft's body station lies a kilometre from its datum.
 MAX_STATION_M = 1000.0
-TRANSFER_INPUTS = ("alpha", "CL", "CD", "x_cg")
-
-
-def normal_force_coefficient(alpha, cl, cd) -> np.ndarray:
-    """C_N = C_L cos(alpha) + C_D sin(alpha): the aerodynamic force normal to the body x axis."""
-    return np.asarray(cl) * np.cos(alpha) + np.asarray(cd) * np.sin(alpha)
-
-
-def moment_transfer(alpha, cl, cd, x_cg, reference_point: float, cbar: float) -> np.ndarray:
-    """C_m about the recorded cg minus C_m about the station ``reference_point``: C_N (x_cg - x_ref) / cbar."""
-    return normal_force_coefficient(alpha, cl, cd) * (np.asarray(x_cg) - reference_point) / cbar
 
 
 def check_reference_point(value, aircraft: Mapping[str, object], source: str | None) -> float:
@@ -64,18 +51,14 @@ def check_reference_point(value, aircraft: Mapping[str, object], source: str | N
     return x
 
 
-def transfer_column(columns: Mapping[str, np.ndarray], aircraft: Mapping[str, object],
-                    source: str | None) -> np.ndarray | None:
-    """The :data:`TRANSFER_COLUMN` of ``columns`` (None when the manifest has no reference point or the maneuvers
-    do not record what the transfer reads). A recorded cg more than :data:`MAX_CHORDS_FROM_CG` chords from the
-    reference point is refused, naming the key."""
-    if REFERENCE_KEY not in aircraft or any(c not in columns for c in TRANSFER_INPUTS):
-        return None
+def check_transfer_datum(x_cg: np.ndarray | None, aircraft: Mapping[str, object], source: str | None) -> None:
+    """Refuse a recorded cg more than :data:`MAX_CHORDS_FROM_CG` chords from the reference point (a datum or unit
+    that differs between the x_cg column and the key), naming the key; nothing to check without either."""
+    if REFERENCE_KEY not in aircraft or x_cg is None or not np.size(x_cg):
+        return
     x_ref, cbar = float(aircraft[REFERENCE_KEY]), float(aircraft["cbar"])
-    x_cg = np.asarray(columns["x_cg"], float)
-    far = float(np.max(np.abs(x_cg - x_ref))) / cbar if x_cg.size else 0.0
+    far = float(np.max(np.abs(np.asarray(x_cg, float) - x_ref))) / cbar
     if far > MAX_CHORDS_FROM_CG:
         raise DataError(f"[aircraft] {REFERENCE_KEY} = {x_ref:g} m lies {far:.3g} chords from a recorded x_cg: the "
                         "reference point and the x_cg column need the same datum and unit", source=source,
                         column=REFERENCE_KEY)
-    return moment_transfer(columns["alpha"], columns["CL"], columns["CD"], x_cg, x_ref, cbar)

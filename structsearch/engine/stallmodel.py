@@ -45,23 +45,23 @@ class StallModel:
     start: Mapping[str, float] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     fixed: Mapping[str, float] = field(default_factory=dict)
-    # A data column added to the output with its coefficient fixed at 1 (a known term, never estimated): the model
-    # fits the coefficient minus it, and predicts with it. Its residuals are those of the coefficient itself.
-    offset: str | None = None
-    offset_text: str = ""          # what the offset column is, for the equations
+    # A known term added to the output with its coefficient fixed at 1 (never estimated), an expression of the data
+    # like a regressor's: the model fits the coefficient minus it, and predicts with it, so its residuals are those
+    # of the coefficient itself.
+    offset: Regressor | None = None
 
     @classmethod
     def declare(cls, name: str, coefficient: str, regressors: Mapping[str, str], *,
                 states: Mapping[str, str] | None = None, start: Mapping[str, float] | None = None,
                 bounds: Mapping[str, tuple[float, float]] | None = None,
-                fixed: Mapping[str, float] | None = None, offset: str | None = None,
-                offset_text: str = "") -> "StallModel":
+                fixed: Mapping[str, float] | None = None,
+                offset: tuple[str, str] | None = None) -> "StallModel":
         """``states`` maps a state name ("ss", "w", or "" for plain X) to its kind S, Q or U.
 
         ``fixed`` holds separation parameters that are not estimated (a drag or
         pitch model takes its states from the identified lift model); a model
-        whose separation parameters are all fixed is fitted by OLS. ``offset``: a data
-        column added to the output as it is (``offset_text`` says what it is).
+        whose separation parameters are all fixed is fitted by OLS. ``offset``: (name, expression)
+        of a known term added to the output with its coefficient fixed at 1 (it reads no separation state).
         """
         state_objs = tuple(SeparationState(n, k) for n, k in (states or {}).items())
         symbols = [s.symbol for s in state_objs]
@@ -80,10 +80,15 @@ class StallModel:
         if coefficient in {c for r in regs for c in r.columns}:
             raise DeclarationError(f"model {name!r}: the modelled coefficient {coefficient!r} appears in "
                                    "its own regressors")
-        if offset is not None and (offset == coefficient or offset in {r.name for r in regs}):
-            raise DeclarationError(f"model {name!r}: the offset column {offset!r} is its coefficient or a parameter")
+        known = None
+        if offset is not None:
+            known = declare(offset[0], offset[1], states=[], context=f"model {name!r}, offset {offset[0]!r}",
+                            free_columns=True)
+            if coefficient in known.columns or offset[0] in {r.name for r in regs}:
+                raise DeclarationError(f"model {name!r}: the offset {offset[0]!r} reads its own coefficient or is "
+                                       "named as a parameter")
         model = cls(name, coefficient, state_objs, regs, dict(start or {}), dict(bounds or {}),
-                    dict(fixed or {}), offset, offset_text)
+                    dict(fixed or {}), known)
         all_params = tuple(p for s in state_objs for p in s.parameters)
         for key in model.fixed:
             if key not in all_params:
@@ -122,17 +127,23 @@ class StallModel:
 
     @property
     def required_columns(self) -> tuple[str, ...]:
-        offset = {self.offset} if self.offset else set()
+        offset = set(self.offset.columns) if self.offset else set()
         return tuple(sorted({c for r in self.regressors for c in r.columns} | set(self.state_inputs) | offset))
 
+    def offset_value(self, data: FlightData) -> np.ndarray:
+        """The known term on ``data`` (zeros without one)."""
+        if self.offset is None:
+            return np.zeros(data.n_samples)
+        return self.offset.value(data, {}, data.n_samples)
+
     def target(self, data: FlightData) -> np.ndarray:
-        """What the regressors fit: the coefficient column, less the offset column when the model has one."""
+        """What the regressors fit: the coefficient column, less the known term when the model has one."""
         if self.offset is None:
             return data[self.coefficient]
-        return data[self.coefficient] - data[self.offset]
+        return data[self.coefficient] - self.offset_value(data)
 
     def _with_offset(self, data: FlightData, output: np.ndarray) -> np.ndarray:
-        return output if self.offset is None else output + data[self.offset]
+        return output if self.offset is None else output + self.offset_value(data)
 
     def _free(self):
         return [(s, p) for s in self.states for p in s.base_parameters if s.parameter_name(p) not in self.fixed]
@@ -224,7 +235,7 @@ class StallModel:
         fixed = all(p in self.fixed for s in self.states for p in s.parameters) and bool(self.states)
         return write_equations(self.coefficient, regressors, states,
                                state_note="  (its parameters fixed, not estimated here)" if fixed else "",
-                               offset=None if self.offset is None else (self.offset, self.offset_text))
+                               offset=None if self.offset is None else (self.offset.name, self.offset.text))
 
     def start_points(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
                      seed: int = 0, declared_too: bool = False,

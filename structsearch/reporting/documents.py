@@ -44,8 +44,10 @@ def moment_reference_document(candidate, reference_point: float | None) -> dict:
     a fixed one's ``reference_point`` [m] and the ``transfer`` that moves its C_m to the recorded cg."""
     if candidate.moment_reference != "fixed":
         return {"about": "cg"}
-    from ..data.moment_transfer import TRANSFER_TEXT
-    return {"about": "fixed", "reference_point": reference_point, "transfer": TRANSFER_TEXT}
+    from ..data.moment_transfer import TRANSFER_EXPRESSION, TRANSFER_NAME
+    return {"about": "fixed", "reference_point": reference_point,
+            "transfer": f"Cm = {TRANSFER_NAME} + (the model about the reference point), "
+                        f"{TRANSFER_NAME} = {TRANSFER_EXPRESSION}"}
 
 
 def bands_table(bands, every: int = 6) -> str:
