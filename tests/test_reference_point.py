@@ -208,6 +208,7 @@ def _fitted_stub():
     return Fitted()
 
 
+@pytest.mark.slow
 def test_fixed_and_cg_fits_of_one_structure_differ_in_one_cache(simulated_campaign, tmp_path):
     """Fitted through one cache, the structure about the cg and about the fixed point are two fits: their cg term
     differs by the transfer (about 1: C_N/C_L), every other estimate nearly equal."""
@@ -227,6 +228,7 @@ def test_fixed_and_cg_fits_of_one_structure_differ_in_one_cache(simulated_campai
 
 
 # ----- the comparison -----------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_without_a_cg_term_within_noise_where_the_truth_is_a_transfer(simulated_campaign):
     """A default-band campaign whose truth moves C_m to the cg by the transfer alone: Cm-XXXIIIr's cg term is
     not needed, the fixed-point structure is within noise of it on the validation maneuvers."""
@@ -235,6 +237,7 @@ def test_without_a_cg_term_within_noise_where_the_truth_is_a_transfer(simulated_
     assert out.validation.fixed_within_noise, out
 
 
+@pytest.mark.slow
 def test_the_thesis_truth_has_a_cg_term_that_is_no_transfer(simulated_campaign):
     """The default truth's cg term is the thesis' Cm_xcgCL = -0.96 (a transfer is +1 times C_N): without a cg term
     the fixed-point structure misses the rest, -1.96 x_cg/cbar C_L, and is worse on the validation maneuvers."""
@@ -252,9 +255,9 @@ def test_a_wide_cg_spread_favours_the_fixed_point(simulated_campaign):
 
 
 # ----- the command line ---------------------------------------------------------------------------------------
-def test_cli_refuses_a_reference_point_off_the_aircraft(run_cli, campaign_on_disk, tmp_path):
-    data = campaign_on_disk(0, 0.05)
-    proc = run_cli("fit", "--data", data.directory, "--model", "Cm-XXXIIIf", "--reference-point", "281.25",
+def test_cli_refuses_a_reference_point_off_the_aircraft(run_cli, tmp_path):
+    data = _campaign_dir(tmp_path / "c", "x_cg_range = [7.0, 7.3]\nreference_point = 7.14")
+    proc = run_cli("fit", "--data", data, "--model", "Cm-XXXIIIf", "--reference-point", "281.25",
                    "--out", tmp_path / "o")
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
     assert "reference_point" in proc.stderr and "--reference-point" in proc.stderr

@@ -45,9 +45,7 @@ class StallModel:
     start: Mapping[str, float] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     fixed: Mapping[str, float] = field(default_factory=dict)
-    # A known term added to the output with its coefficient fixed at 1 (never estimated), an expression of the data
-    # like a regressor's: the model fits the coefficient minus it, and predicts with it, so its residuals are those
-    # of the coefficient itself.
+    # a known term of the data (coefficient fixed at 1): fitted as coefficient - offset, predicted with it
     offset: Regressor | None = None
 
     @classmethod
@@ -80,13 +78,9 @@ class StallModel:
         if coefficient in {c for r in regs for c in r.columns}:
             raise DeclarationError(f"model {name!r}: the modelled coefficient {coefficient!r} appears in "
                                    "its own regressors")
-        known = None
-        if offset is not None:
-            known = declare(offset[0], offset[1], states=[], context=f"model {name!r}, offset {offset[0]!r}",
-                            free_columns=True)
-            if coefficient in known.columns or offset[0] in {r.name for r in regs}:
-                raise DeclarationError(f"model {name!r}: the offset {offset[0]!r} reads its own coefficient or is "
-                                       "named as a parameter")
+        known = offset and declare(*offset, states=[], context=f"model {name!r}, offset", free_columns=True)
+        if known and (coefficient in known.columns or known.name in {r.name for r in regs}):
+            raise DeclarationError(f"model {name!r}: the offset {known.name!r} reads {coefficient} or is a parameter")
         model = cls(name, coefficient, state_objs, regs, dict(start or {}), dict(bounds or {}),
                     dict(fixed or {}), known)
         all_params = tuple(p for s in state_objs for p in s.parameters)
@@ -132,15 +126,11 @@ class StallModel:
 
     def offset_value(self, data: FlightData) -> np.ndarray:
         """The known term on ``data`` (zeros without one)."""
-        if self.offset is None:
-            return np.zeros(data.n_samples)
-        return self.offset.value(data, {}, data.n_samples)
+        return np.zeros(data.n_samples) if self.offset is None else self.offset.value(data, {}, data.n_samples)
 
     def target(self, data: FlightData) -> np.ndarray:
         """What the regressors fit: the coefficient column, less the known term when the model has one."""
-        if self.offset is None:
-            return data[self.coefficient]
-        return data[self.coefficient] - self.offset_value(data)
+        return data[self.coefficient] if self.offset is None else data[self.coefficient] - self.offset_value(data)
 
     def _with_offset(self, data: FlightData, output: np.ndarray) -> np.ndarray:
         return output if self.offset is None else output + self.offset_value(data)

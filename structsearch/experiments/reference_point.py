@@ -47,7 +47,7 @@ class ReferenceComparison:
     mse_cv: dict
     validation: Excess
     cv: Excess | None
-    estimates: dict              # the cg terms of the cg structure and Cm_CL of both
+    estimates: dict              # [estimate, standard deviation] of the cg terms of the cg structure and Cm_CL of both
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -68,8 +68,13 @@ def compare_references(campaign: Campaign, cg: str = "Cm-XXXIIIr", fixed: str = 
         cg, fixed, {cg: r_cg.mse_validation, fixed: r_fixed.mse_validation},
         {cg: _cv_mse(r_cg), fixed: _cv_mse(r_fixed)}, Excess.of(r_fixed.validation, r_cg.validation),
         Excess.of(r_fixed.cv, r_cg.cv) if r_fixed.cv is not None and r_cg.cv is not None else None,
-        {f"{cg} {k}": v for k, v in r_cg.estimates.params.items() if k in ("Cm_CL", "Cm_xcgCL")}
-        | {f"{fixed} Cm_CL": r_fixed.estimates.params["Cm_CL"]})
+        _estimates(r_cg, ("Cm_CL", "Cm_xcgCL")) | _estimates(r_fixed, ("Cm_CL",)))
+
+
+def _estimates(r: CandidateResult, names) -> dict:
+    """Estimate and standard deviation of the cg and C_L terms of ``r``."""
+    e = r.estimates
+    return {f"{r.name} {n}": [e.params[n], e.stderr[n]] for n in names}
 
 
 def _cv_mse(r: CandidateResult) -> float | None:

@@ -12,7 +12,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..data.errors import DataError
+from ..data.errors import DataError, DeclarationError
 from ..data.reduction import G, RHO0, isa_density  # noqa: F401  (G: the simulator reads ac.G)
 from .reference import AIRCRAFT, EMPTY_MASS, IYY
 
@@ -80,6 +80,21 @@ CITATION = Aircraft(
     empty_mass=EMPTY_MASS, crew_mass=3 * 85.0, iyy_empty=IYY, iyy_per_kg=0.9,
     max_thrust_sl=2 * 11_100.0, max_fuel_flow=0.16, x_cg_range=(276 * INCH, 286 * INCH),
     reference_point=CITATION_REFERENCE_POINT)
+
+
+def cg_band(spread: float, aircraft: Aircraft, flown: tuple[float, float] | None) -> tuple[float, float]:
+    """The band [m] each loading's cg is drawn from (``simulate --cg-spread``): ``spread`` wide around the middle
+    of the ``flown`` band (the Citation's reference point), inside the aircraft's cg envelope."""
+    envelope = aircraft.x_cg_range
+    if envelope is None or flown is None:
+        raise DeclarationError(f"cg spread: the {aircraft.label} flies one fixed cg, not recorded")
+    centre = 0.5 * (flown[0] + flown[1])
+    widest = 2 * min(centre - envelope[0], envelope[1] - centre)
+    if not (isinstance(spread, (int, float)) and np.isfinite(spread) and 0 < spread <= widest):
+        raise DeclarationError(f"cg spread {spread!r} m: the width of the band the loadings' cg is drawn from, "
+                               f"above 0 and at most {widest:.4f} m (the cg envelope around {centre:.4f} m); "
+                               f"the default band is {flown[1] - flown[0]:.4f} m wide")
+    return centre - 0.5 * spread, centre + 0.5 * spread
 
 
 def aircraft_of_campaign(constants: Mapping[str, float], source: str = "") -> Aircraft:

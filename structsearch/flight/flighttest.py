@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import aircraft as ac
-from .aircraft import CITATION, Aircraft
+from .aircraft import CITATION, Aircraft, cg_band
 from .transport import TRANSPORT
 from .aero import AeroModel
 from .simulation import Condition, Pilot, simulate, trim
@@ -368,21 +368,6 @@ def _cut(p: PlannedManeuver, columns: dict) -> dict:
     return {k: v[:end] for k, v in columns.items()}
 
 
-def cg_band(spread: float, proc: Procedures = Procedures()) -> tuple[float, float]:
-    """The band [m] each loading's cg is drawn from, ``spread`` wide around the middle of the flown band
-    (:data:`FLOWN_CG_RANGE`, the Citation's reference point), inside the aircraft's cg envelope."""
-    envelope, flown = proc.aircraft.x_cg_range, proc.flown_cg_range
-    if envelope is None or flown is None:
-        raise DeclarationError(f"cg spread: the {proc.aircraft.label} flies one fixed cg, not recorded")
-    centre = 0.5 * (flown[0] + flown[1])
-    widest = 2 * min(centre - envelope[0], envelope[1] - centre)
-    if not (isinstance(spread, (int, float)) and np.isfinite(spread) and 0 < spread <= widest):
-        raise DeclarationError(f"cg spread {spread!r} m: the width of the band the loadings' cg is drawn from, "
-                               f"above 0 and at most {widest:.4f} m (the cg envelope around {centre:.4f} m); "
-                               f"the default band is {flown[1] - flown[0]:.4f} m wide")
-    return centre - 0.5 * spread, centre + 0.5 * spread
-
-
 def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False,
                    slow_errors: float = 1.0, aircraft: str = "citation", anomaly: str | None = None,
                    raw: bool = False, flights: int = 0, cg_spread: float | None = None,
@@ -404,10 +389,8 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     ``CT_true`` are added, the manifest gets ``flights = N``). 0 (the default): no flights, and the campaign is the
     one simulated before flights existed, bit for bit.
 
-    ``cg_spread`` [m] (Citation only): each loading's cg is drawn from a band this wide around the middle of the
-    default one (:func:`cg_band`; the same draws, so the same profiles up to the cg); the manifest gets
-    ``cg_spread``. ``cg_moment`` ("thesis" or "transfer", :data:`.aero.CG_MOMENTS`): how the truth's C_m depends
-    on the cg; "transfer" is recorded in the manifest as ``cg_moment``."""
+    ``cg_spread`` [m]: each loading's cg drawn from a band this wide (:func:`.aircraft.cg_band`; the same draws);
+    ``cg_moment`` (:data:`.aero.CG_MOMENTS`): how the truth's C_m depends on the cg. Both go to the manifest."""
     from .aero import truth_model
     from .anomalies import anomaly_named
     from ..data.campaign import Maneuver, make_campaign
@@ -424,7 +407,7 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     model = truth_model(withhold, aircraft, chosen if chosen is not None and chosen.flies else None, cg_moment)
     proc = PROCEDURES[aircraft]
     if cg_spread is not None:
-        proc = dataclasses.replace(proc, flown_cg_range=cg_band(cg_spread, proc))
+        proc = dataclasses.replace(proc, flown_cg_range=cg_band(cg_spread, proc.aircraft, proc.flown_cg_range))
     plan = scaled_plan(thesis_plan(extras), scale)
     if flights and raw:
         raise DeclarationError("flights: flight-level errors are errors of the reduced coefficients; a raw campaign "
