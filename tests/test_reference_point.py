@@ -228,7 +228,6 @@ def test_fixed_and_cg_fits_of_one_structure_differ_in_one_cache(simulated_campai
 
 
 # ----- the comparison -----------------------------------------------------------------------------------------
-@pytest.mark.slow
 def test_without_a_cg_term_within_noise_where_the_truth_is_a_transfer(simulated_campaign):
     """A default-band campaign whose truth moves C_m to the cg by the transfer alone: Cm-XXXIIIr's cg term is
     not needed, the fixed-point structure is within noise of it on the validation maneuvers."""
@@ -237,7 +236,6 @@ def test_without_a_cg_term_within_noise_where_the_truth_is_a_transfer(simulated_
     assert out.validation.fixed_within_noise, out
 
 
-@pytest.mark.slow
 def test_the_thesis_truth_has_a_cg_term_that_is_no_transfer(simulated_campaign):
     """The default truth's cg term is the thesis' Cm_xcgCL = -0.96 (a transfer is +1 times C_N): without a cg term
     the fixed-point structure misses the rest, -1.96 x_cg/cbar C_L, and is worse on the validation maneuvers."""
@@ -246,7 +244,6 @@ def test_the_thesis_truth_has_a_cg_term_that_is_no_transfer(simulated_campaign):
     assert not out.validation.fixed_within_noise and out.validation.mean > 0.1, out
 
 
-@pytest.mark.slow
 def test_a_wide_cg_spread_shows_the_cg_term_is_the_transfer(simulated_campaign):
     """Loadings 0.24 m apart and a truth that is the transfer: Cm-XXXIIIr's own cg term estimates the transfer
     (Cm_xcgCL about 1, C_N/C_L), and the fixed-point structure, which knows it, is within noise of it."""
