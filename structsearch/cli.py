@@ -42,7 +42,9 @@ def _settings(args, prefix: str = "", progress: bool = True):
                     jobs=getattr(args, "jobs", 0) or 0, backend=getattr(args, "backend", "loky") or "loky",
                     segment=getattr(args, "segment", None), cache=getattr(args, "cache", None) or None,
                     progress=sink, meter=sink.meter if sink is not None else None, trace=getattr(args, "trace", None),
-                    flight_effects=tuple(getattr(args, "flight_effects", None) or ()))
+                    flight_effects=tuple(getattr(args, "flight_effects", None) or ()),
+                    moment_reference=getattr(args, "moment_reference", None),
+                    reference_point=getattr(args, "reference_point", None))
 
 
 def raise_error(message: str):
@@ -61,7 +63,7 @@ def _simulate(args) -> int:
     from .api.settings import FlightTestPlan
     plan = FlightTestPlan(aircraft=args.aircraft, withhold=tuple(args.withhold or ()), anomaly=args.anomaly,
                           extras=args.extras, raw=args.raw, slow_errors=args.slow_errors, flights=args.flights,
-                          nominal=args.nominal)
+                          nominal=args.nominal, cg_spread=args.cg_spread, cg_moment=args.cg_moment)
     campaign = simulate(plan, seed=args.seed, scale=args.scale)
     out = write_campaign(campaign, Path(args.out), fmt=args.format)
     d = campaign.data

@@ -19,6 +19,9 @@ MAX_CORRELATION = 0.95
 CV_METHODS = ("refit", "one-step")
 # structsearch.data.records.SEGMENT_CHOICES (--segment)
 SEGMENT_CHOICES = ("cycles", "none")
+# structsearch.fitting.candidates.MOMENT_REFERENCES (--moment-reference) and structsearch.flight.aero.CG_MOMENTS
+MOMENT_REFERENCES = ("cg", "fixed")
+CG_MOMENTS = ("thesis", "transfer")
 PROFILE_CAMPAIGNS = 20
 
 
@@ -109,6 +112,16 @@ def _angle_degrees(text: str) -> float:
 def _non_negative_float(text: str) -> float:
     """A finite number >= 0."""
     return _float_option(text, lambda v: math.isfinite(v) and v >= 0.0, "be a finite number >= 0")
+
+
+def _finite_float(text: str) -> float:
+    """A finite number (a body station, which may lie ahead of the datum)."""
+    return _float_option(text, math.isfinite, "be a finite number")
+
+
+def _positive_float(text: str) -> float:
+    """A finite number > 0."""
+    return _float_option(text, lambda v: math.isfinite(v) and v > 0.0, "be a finite number > 0")
 
 
 def _fraction(text: str) -> float:

@@ -7,8 +7,9 @@ from typing import Callable, Mapping
 from ._version import __version__
 from .cli_help import command_parser, top_level
 from .cli_options import (COVARIANCE_KINDS, CV_METHODS, DEFAULT_COVARIANCE, MAX_CORRELATION, PROFILE_CAMPAIGNS,
-                          SEGMENT_CHOICES, _Parser, _angle_degrees, _bound, _count, _cutoff, _fraction, _non_negative,
-                          _non_negative_float, _seed_range)
+                          SEGMENT_CHOICES, CG_MOMENTS, MOMENT_REFERENCES, _Parser, _angle_degrees, _bound, _count,
+                          _cutoff, _finite_float, _fraction, _non_negative, _non_negative_float, _positive_float,
+                          _seed_range)
 from .flight.names import AIRCRAFT_NAMES, ANOMALY_NAMES, WITHHOLDABLE
 
 BENCHMARK_PARTS = ("withheld", "anomalies", "null")
@@ -60,6 +61,17 @@ def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
                         "maneuver (ids m07.c1, m07.c2, ...; same kind and split); none: keep every record whole, "
                         "and join a campaign written as cycles back into its records (default: as campaign.toml's "
                         "segment keys say, and records with a `cycle` column cut)")
+
+
+def _moment_reference_options(p) -> None:
+    """--moment-reference, --reference-point: where a pitch model takes C_m about (fit, search, diagnose, discover)."""
+    p.add_argument("--moment-reference", choices=MOMENT_REFERENCES, default=None,
+                   help="take every pitch structure's C_m about the cg (as recorded) or about the fixed [aircraft] "
+                        "reference_point, moved to the recorded cg by C_N (x_cg - reference_point)/cbar (default: "
+                        "as each structure declares; cg unless its spec says moment_reference = \"fixed\")")
+    p.add_argument("--reference-point", type=_finite_float, default=None, metavar="X",
+                   help="the fixed reference point [m, body x station, the x_cg column's datum], replacing the "
+                        "manifest's [aircraft] reference_point")
 
 
 def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
@@ -194,6 +206,13 @@ def _add_simulate(sub, handler: Callable) -> None:
                         "and altitude changes (kind = \"nominal\"), flown with the truth's Mach and dynamic-pressure "
                         "terms, and the air data Mach and qbar in every file (Citation II; not with --anomaly, "
                         "--raw or --flights)")
+    s.add_argument("--cg-spread", type=_positive_float, default=None, metavar="M",
+                   help="Citation: draw each loading's cg from a band M metres wide around the middle of the default "
+                        "one (281.25 in; default band 1.5 in = 0.0381 m; at most 0.2413 m, the cg envelope)")
+    s.add_argument("--cg-moment", choices=CG_MOMENTS, default="thesis",
+                   help="Citation: how the truth's C_m depends on the cg: thesis (default, its identified "
+                        "Cm_xcgCL x_cg/cbar C_L term) or transfer (the same model about the reference point, moved to "
+                        "the cg by C_N (x_cg - x_ref)/cbar alone)")
     s.set_defaults(func=handler)
 
 
@@ -252,6 +271,7 @@ def _add_fit(sub, handler: Callable) -> None:
                         "validation MSE on nominal and on stall maneuvers separately")
     f.add_argument("--replay-maneuver", metavar="NAME", default=None,
                    help="the validation maneuver the joint fit's sampled replay flies (default: the deepest)")
+    _moment_reference_options(f)
     f.set_defaults(func=handler)
 
 
@@ -278,6 +298,7 @@ def _add_search(sub, handler: Callable) -> None:
                         "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     r.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
     _admissibility_options(r)
+    _moment_reference_options(r)
     r.set_defaults(func=handler)
 
 
@@ -301,6 +322,7 @@ def _add_diagnose(sub, handler: Callable) -> None:
                         "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     _structure_search_options(g)
     g.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
+    _moment_reference_options(g)
     g.set_defaults(func=handler)
 
 
@@ -322,6 +344,7 @@ def _add_discover(sub, handler: Callable) -> None:
                         "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     _structure_search_options(d)
     d.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
+    _moment_reference_options(d)
     d.set_defaults(func=handler)
 
 

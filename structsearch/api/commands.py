@@ -20,14 +20,21 @@ from .settings import FlightTestPlan, Settings, command_fitter, dask_client, fit
 
 
 
-def as_campaign(campaign: Campaign | str | os.PathLike, segment: str | None = None) -> Campaign:
+def as_campaign(campaign: Campaign | str | os.PathLike, segment: str | None = None,
+                reference_point: float | None = None) -> Campaign:
     """``campaign`` itself, or the standard campaign read from that directory. ``segment`` (``--segment``):
     "cycles" cuts every record into its cycles, "none" keeps each whole, None as campaign.toml says
-    (:mod:`structsearch.data.records`; a campaign in memory: :func:`structsearch.data.cycles.segmented`)."""
+    (:mod:`structsearch.data.records`; a campaign in memory: :func:`structsearch.data.cycles.segmented`).
+    ``reference_point`` (``--reference-point``): the fixed moment reference point [m], replacing the manifest's."""
     if isinstance(campaign, Campaign):
         from ..data.cycles import segmented
-        return segmented(campaign, segment)
-    return read_campaign(campaign, segment=segment)
+        campaign = segmented(campaign, segment)
+    else:
+        campaign = read_campaign(campaign, segment=segment)
+    if reference_point is not None:
+        from ..data.campaign import with_reference_point
+        campaign = with_reference_point(campaign, reference_point)
+    return campaign
 
 
 def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Settings = Settings(),
@@ -39,9 +46,10 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
     and 68 % profile intervals of the nonlinear parameters (``.profile``, :mod:`structsearch.engine.profile`)."""
     _check_samples(band_samples)
     from ..fitting.specs import resolve_candidate
-    candidate = resolve_candidate(model)   # a misspelled name is answered before the campaign is read
+    # a misspelled name is answered before the campaign is read
+    candidate = resolve_candidate(model).with_moment_reference(settings.moment_reference)
     warm_workers(settings.backend, settings.processes)
-    campaign = as_campaign(campaign, settings.segment)
+    campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     options = fit_options("fit", settings, campaign)
     progress = settings.progress
     check_box_names(options.parameter_boxes, [candidate])
@@ -62,7 +70,8 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
         profiles = profile_candidate(candidate, result, train, lift)
     from .results import campaign_record
     return FitOutcome(candidate, result, lift, static_bands(candidate, result, train, lift, samples=band_samples,
-                                                            seed=settings.seed), profiles, campaign_record(campaign))
+                                                            seed=settings.seed), profiles, campaign_record(campaign),
+                      campaign.aircraft.get("reference_point"))
 
 
 def _lift_model(fitter, candidate):
@@ -94,8 +103,9 @@ def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence
     (``replay_maneuver``, default the one that flies deepest; :mod:`structsearch.flight.replay_bands`)."""
     _check_samples(band_samples)
     from ..fitting.joint import fit_joint as run, joint_structures
-    campaign = as_campaign(campaign, settings.segment)
-    candidates = joint_structures(structures if isinstance(structures, str) else ",".join(structures))
+    campaign = as_campaign(campaign, settings.segment, settings.reference_point)
+    candidates = [c.with_moment_reference(settings.moment_reference)
+                  for c in joint_structures(structures if isinstance(structures, str) else ",".join(structures))]
     options = fit_options("fit", settings, campaign)
     progress = settings.progress
     check_box_names(options.parameter_boxes, candidates)
@@ -135,14 +145,15 @@ def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, setting
     from ..grid_search.pipeline import search as run_search
     candidates = search_candidates(grid)   # a misspelled grid is answered before the campaign is read
     warm_workers(settings.backend, settings.processes)
-    campaign = as_campaign(campaign, settings.segment)
+    campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     options = fit_options("search", settings, campaign, cv_method=cv_method)
     check_box_names(options.parameter_boxes, candidates)
     joint = _joint_lift_structures(joint_lift, settings, options) if joint_lift else ()
     client = dask_client(scheduler, settings.processes) if settings.backend == "dask" else None
     try:
         with command_fitter("search", campaign, settings, out, cv_method=cv_method) as fitter:
-            result = run_search(fitter, grid, max_correlation=max_correlation, do_refine=refine, joint_lift=joint)
+            result = run_search(fitter, grid, max_correlation=max_correlation, do_refine=refine, joint_lift=joint,
+                                moment_reference=settings.moment_reference)
     finally:
         if client is not None:
             client.close()
@@ -200,8 +211,8 @@ def diagnose(campaign: Campaign | str | os.PathLike, model: str, *, settings: Se
     from ..diagnosis.diagnose import diagnose as run_diagnosis
     from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS
     from ..fitting.specs import resolve_candidate
-    campaign = as_campaign(campaign, settings.segment)
-    baseline = resolve_candidate(model, coefficient)
+    campaign = as_campaign(campaign, settings.segment, settings.reference_point)
+    baseline = resolve_candidate(model, coefficient).with_moment_reference(settings.moment_reference)
     check_box_names(fit_options("diagnose", settings).parameter_boxes, [baseline])
     with command_fitter("diagnose", campaign, settings, out) as fitter:
         result = run_diagnosis(fitter, baseline, seed=settings.seed, terms=None if terms is None else str(terms),
@@ -220,7 +231,8 @@ def simulate(plan: FlightTestPlan = FlightTestPlan(), *, seed: int = 0, scale: f
     from ..flight.flighttest import build_campaign
     campaign = build_campaign(seed=seed, withhold=tuple(plan.withhold or ()), scale=scale, extras=plan.extras,
                               aircraft=plan.aircraft, anomaly=plan.anomaly, raw=plan.raw,
-                              slow_errors=plan.slow_errors, flights=plan.flights, nominal=plan.nominal)
+                              slow_errors=plan.slow_errors, flights=plan.flights, nominal=plan.nominal,
+                              cg_spread=plan.cg_spread, cg_moment=plan.cg_moment)
     if out is not None:
         write_campaign(campaign, Path(out), fmt=format)
     return campaign
@@ -264,7 +276,7 @@ def study(campaign: Campaign | str | os.PathLike, *, settings: Settings = Settin
     ``settings.cache`` (default ``out``, else a temporary directory); with ``out``, the tables and box plots are
     written there."""
     from ..thesis_study.study import run_study
-    campaign = as_campaign(campaign, settings.segment)
+    campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     with command_fitter("study", campaign, settings, out) as fitter:
         result = run_study(fitter)
     written: list[Path] = []

@@ -20,10 +20,10 @@ def discover(campaign: Campaign | str | os.PathLike, coefficient: str, *, settin
     from ..diagnosis.diagnose import diagnose_search
     from ..discovery.discover import discover_structures
     from .commands import as_campaign
-    campaign = as_campaign(campaign, settings.segment)
+    campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     with command_fitter("discover", campaign, settings, out) as fitter:
         found = discover_structures(fitter, coefficient, diagnose_search, start=start, lifts=lifts, terms=terms,
-                                    beam=beam, max_steps=max_steps)
+                                    beam=beam, max_steps=max_steps, moment_reference=settings.moment_reference)
     if out is None:
         return found
     from ..reporting.discovery_doc import write_discovery

@@ -82,7 +82,7 @@ def report(campaign: Campaign | str | os.PathLike, out: str | os.PathLike = "res
     Needs matplotlib."""
     from ..reporting.page import build, require_figures
     started = time.perf_counter()
-    campaign = as_campaign(campaign, settings.segment)
+    campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     options = fit_options("report", settings, campaign)
     check_box_names(options.parameter_boxes, search_candidates("all"))
     require_figures()

@@ -23,11 +23,12 @@ class FitOutcome:
     bands: Any = None          # structsearch.fitting.bands.StaticBands: the static curve's bands (None: not made)
     profile: Any = None        # structsearch.engine.profile.Profiles: profile intervals (None: not asked for)
     data: Any = None           # the campaign it was fitted on (:func:`campaign_record`)
+    reference_point: float | None = None   # the campaign's fixed moment reference point [m] (None: none)
 
     def to_dict(self) -> dict:
         """``fit.json`` (docs/interfaces.md sections 2, 5.4 and 6.3; ``profile`` with ``fit(profile=True)``), with
         what ``export --fit`` reads (7.6): the ``structure``, every parameter's covariance and the ``data``."""
-        from ..reporting.documents import fit_document, parameter_covariance
+        from ..reporting.documents import fit_document, moment_reference_document, parameter_covariance
         doc = fit_document(self.result, self.lift, self.bands)
         doc["structure"] = self.candidate.to_dict()
         if self.lift is not None:
@@ -35,6 +36,8 @@ class FitOutcome:
         doc["parameter_covariance"] = parameter_covariance(self.result.estimates)
         if self.data is not None:
             doc["data"] = dict(self.data)
+        if self.candidate.coefficient == "Cm":
+            doc["moment_reference"] = moment_reference_document(self.candidate, self.reference_point)
         if self.profile is not None:
             doc["profile"] = self.profile.to_dict()
         return doc

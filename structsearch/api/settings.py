@@ -31,7 +31,10 @@ class Settings:
     cycles as maneuvers), ``cache`` (the directory whose ``cache/`` holds the fits; default the command's
     ``out``, else a temporary directory), ``progress`` (receives the lines the command writes to stderr), ``meter``
     (told ``(finished, of, what)`` after each candidate a fit call fitted: the command line's progress bar) and
-    ``trace`` (a file the command writes its tasks to, as Chrome trace-event JSON: ``--trace FILE``)."""
+    ``trace`` (a file the command writes its tasks to, as Chrome trace-event JSON: ``--trace FILE``);
+    ``moment_reference`` ("cg" or "fixed": every pitch structure the command starts from takes C_m about it; None:
+    as each declares) and ``reference_point`` (the fixed station [m], replacing the manifest's; None: the
+    manifest's)."""
 
     starts: int | None = None
     seed: int = 0
@@ -47,6 +50,8 @@ class Settings:
     # per-flight nuisance parameters every candidate estimates (``--flight-effects x_cg,intercept``;
     # structsearch.fitting.flight_effects)
     flight_effects: tuple[str, ...] = ()
+    moment_reference: str | None = None
+    reference_point: float | None = None
 
     @property
     def processes(self) -> int:
@@ -151,8 +156,10 @@ class FlightTestPlan:
     """What a simulated campaign flies besides its seed and scale (``structsearch simulate``'s other options):
     the ``aircraft`` ("citation" or "transport"), effects of the truth to ``withhold``, an ``anomaly`` outside the
     diagnosis' library, ``extras`` maneuvers, ``raw`` channels instead of coefficients, the scale of the slow
-    reconstruction errors, ``flights`` = N > 0: the maneuvers flown on N flights that share errors, and ``nominal``:
-    nominal (attached-flow) maneuvers across the envelope besides the stall maneuvers."""
+    reconstruction errors, ``flights`` = N > 0: the maneuvers flown on N flights that share errors, ``nominal``:
+    nominal (attached-flow) maneuvers across the envelope besides the stall maneuvers; ``cg_spread`` [m]: the width
+    of the band each loading's cg is drawn from (None: the default band); ``cg_moment``: how the truth's C_m depends
+    on the cg ("thesis" or "transfer")."""
 
     aircraft: str = "citation"
     withhold: tuple[str, ...] = ()
@@ -162,3 +169,5 @@ class FlightTestPlan:
     slow_errors: float = 1.0
     flights: int = 0
     nominal: bool = False
+    cg_spread: float | None = None
+    cg_moment: str = "thesis"

@@ -22,6 +22,7 @@ from .flightdata import FlightData, from_segments
 from .errors import DataError
 from . import records
 from .tables import LINE_KEY, read_mat, read_table as _read_table  # noqa: F401  (read_mat: the reader of .mat files)
+from .moment_transfer import REFERENCE_KEY, check_reference_point, check_transfer_datum
 from .campaign_checks import (AIRCRAFT_KEYS, ANGLES, MANEUVER_KEYS, RAW_ANGLES, RAW_REQUIRED, REQUIRED,
                               RESERVED_KEYS, _check_top_level, _close_match, _flight, _parse_aircraft, _parse_cutoffs,
                               _periodic, validate_maneuver)
@@ -213,7 +214,20 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
                          flights=[m.flight for m in maneuvers], periods=periods)
     if fmt == "raw":
         extra["format"] = "raw"
+    check_transfer_datum(data.columns.get("x_cg"), aircraft, toml)
     return Campaign(name, aircraft, tuple(maneuvers), data, directory, extra, cutoffs, rules)
+
+
+def with_reference_point(campaign: Campaign, reference_point: float) -> Campaign:
+    """``campaign`` with ``[aircraft] reference_point`` set to ``reference_point`` (``--reference-point``: it
+    replaces the manifest's), checked as the manifest's would be; the data's constants (which a pitch model about
+    the fixed point reads) follow."""
+    source = f"{campaign._where()} (--reference-point)"
+    aircraft = {**campaign.aircraft, REFERENCE_KEY: check_reference_point(reference_point, campaign.aircraft, source)}
+    check_transfer_datum(campaign.data.columns.get("x_cg"), aircraft, source)
+    data = campaign.data
+    data = FlightData(data.columns, data.starts, data.names, data.source, scalar_constants(aircraft), data.flights)
+    return replace(campaign, aircraft=aircraft, data=data)
 
 
 def _same_columns_everywhere(maneuvers, segments, common: set, directory: Path) -> None:
@@ -383,4 +397,5 @@ def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[
                          flights=[m.flight for m in maneuvers],
                          periods=[records.period(m.periodic, m.frequency, s["t"], f"{name}:{m.id}", m.id)
                                   for m, s in zip(maneuvers, segments)])
+    check_transfer_datum(data.columns.get("x_cg"), aircraft, name)
     return Campaign(name, dict(aircraft), tuple(maneuvers), data, None, dict(extra or {}))

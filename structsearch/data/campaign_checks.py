@@ -14,6 +14,7 @@ import numpy as np
 
 from .errors import DataError
 from . import records
+from .moment_transfer import REFERENCE_KEY, check_reference_point
 from .tables import LINE_KEY
 
 REQUIRED = ("t", "alpha", "q", "V", "de")
@@ -105,7 +106,7 @@ def _parse_aircraft(aircraft: dict, toml: str) -> dict:
         if not _number(aircraft.get(key)) or aircraft[key] <= 0:
             raise DataError(f"[aircraft] needs a positive finite number {key}", source=toml, column=key)
         out[key] = float(aircraft[key])
-    known = AIRCRAFT_KEYS + OPTIONAL_POSITIVE + OPTIONAL_SIGNED + tuple(OPTIONAL_VECTORS)
+    known = AIRCRAFT_KEYS + OPTIONAL_POSITIVE + OPTIONAL_SIGNED + tuple(OPTIONAL_VECTORS) + (REFERENCE_KEY,)
     for key, value in aircraft.items():
         if key not in known:
             raise DataError(f"[aircraft] has an unknown key {key!r}; known keys: {', '.join(known)}",
@@ -124,8 +125,10 @@ def _parse_aircraft(aircraft: dict, toml: str) -> dict:
                 raise DataError(f"[aircraft] x_cg_range must be [forward, aft] with forward < aft, not {value!r}",
                                 source=toml, column=key)
             out[key] = tuple(float(v) for v in value)
-        elif key not in AIRCRAFT_KEYS:
+        elif key not in AIRCRAFT_KEYS and key != REFERENCE_KEY:
             out[key] = float(value)
+    if REFERENCE_KEY in aircraft:   # checked against the cg envelope, whichever order the keys come in
+        out[REFERENCE_KEY] = check_reference_point(aircraft[REFERENCE_KEY], out, toml)
     return out
 
 

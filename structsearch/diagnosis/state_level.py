@@ -8,13 +8,14 @@ and after).
 (Issue 31: the story printed "replayed alpha RMS 0.78 rad" for a replay that had diverged.)"""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..data.campaign import Campaign
 from ..data.errors import DeclarationError
 from ..engine.regressors import declare, symbol_names
 from ..fitting.candidate_fit import fit_candidate
-from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
 from ..fitting.models import build_model
 from ..fitting.options import FitOptions
@@ -68,8 +69,8 @@ def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options
                     continue
                 if set(symbol_names(text)) <= have | {"CL"}:
                     kept.append((name, text))
-            structure = Candidate(structure.name, structure.grid, structure.coefficient, tuple(kept),
-                                  lift_cand.states, lift_cand.name, structure.note, lift_cand.bounds)
+            structure = dataclasses.replace(structure, regressors=tuple(kept), states=lift_cand.states,
+                                            lift=lift_cand.name, bounds=lift_cand.bounds)
             s = fit_candidate(structure, train, val, lift_fit, options)
             if s.failed:
                 raise DeclarationError(f"state-level comparison: {s.error}")

@@ -22,6 +22,8 @@ state.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import time
 from dataclasses import dataclass, fields
 from typing import Callable, Mapping
@@ -66,8 +68,8 @@ def baseline_without(effect: str) -> Candidate:
     states = tuple((n, kinds.get(n, k)) for n, k in final.states if kinds.get(n, k) is not None)
     regs = tuple(r for r in final.regressors if r[0] not in drop)
     bounds = tuple(b for b in final.bounds if not (effect == "second_separation_state" and b[0].endswith("_w")))
-    return Candidate(f"{final.name} - {effect}", final.grid, coefficient, regs, states, final.lift,
-                     f"{final.name} without {effect}", bounds)
+    return dataclasses.replace(final, name=f"{final.name} - {effect}", regressors=regs, states=states,
+                               note=f"{final.name} without {effect}", bounds=bounds)
 
 
 def truth_location(campaign, effect: str) -> dict:

@@ -40,10 +40,11 @@ def _start(coefficient: str, start: str, lift_names: list[str]):
 
 def discover_structures(fitter: Fitter, coefficient: str, diagnose_search: DiagnoseSearch, *,
                         start: str = "minimal", lifts=(), terms=None, beam: int | None = None,
-                        max_steps: int | None = None) -> Discovery:
+                        max_steps: int | None = None, moment_reference: str | None = None) -> Discovery:
     """Search structures for ``coefficient`` from ``start`` ("minimal", a candidate name or a spec file) with
     ``fitter``; drag and pitch structures may be fed ``lifts`` (names of the lift grid; default the thesis' CL-VI)
-    and the start's own lift model. Returns the typed :class:`Discovery` (nothing written)."""
+    and the start's own lift model. ``moment_reference`` ("cg" or "fixed"): a pitch start takes C_m about it
+    (None: as it declares; the moves keep it). Returns the typed :class:`Discovery` (nothing written)."""
     from ..fitting.options import check_box_names
     from ..fitting.specs import load_grid
     from ..flight.reference import FINAL_MODEL_NAMES
@@ -53,7 +54,7 @@ def discover_structures(fitter: Fitter, coefficient: str, diagnose_search: Diagn
     names = list(dict.fromkeys(list(lifts) or [FINAL_MODEL_NAMES["CL"]]))
     for n in names:
         lift_grid[n]   # an unknown lift model: the grid's error names the candidates it has
-    first = _start(coefficient, start, names)
+    first = _start(coefficient, start, names).with_moment_reference(moment_reference)
     if first.lift and first.lift not in names:
         names.insert(0, first.lift)
     check_box_names(fitter.options.parameter_boxes, [first])

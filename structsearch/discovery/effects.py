@@ -8,6 +8,8 @@ also declares the anomalies its term is the first-order signature of (:mod:`.equ
 """
 from __future__ import annotations
 
+import dataclasses
+
 from dataclasses import dataclass, replace
 from typing import Callable
 
@@ -51,8 +53,8 @@ def _add_regressors(effect: str, pairs: list[tuple[str, str]]):
         existing = {n for n, _ in c.regressors}
         if any(_uses(c, expr) or name in existing for name, expr in pairs):
             raise DeclarationError(f"baseline {c.name} already contains the effect {effect!r}")
-        return Candidate(f"{c.name} + {effect}", c.grid, c.coefficient, c.regressors + tuple(pairs), c.states,
-                         c.lift, f"{c.name} with {effect}", c.bounds, c.forms)
+        return dataclasses.replace(c, name=f"{c.name} + {effect}", regressors=c.regressors + tuple(pairs),
+                                   note=f"{c.name} with {effect}")
     return apply
 
 
@@ -91,8 +93,7 @@ def _kind_change(name: str, description: str, from_kind: str, to_kind: str, para
                                    f"from its lift model {c.lift}: diagnose the lift coefficient instead")
         s = target(c)
         states = tuple((n, to_kind if n == s else k) for n, k in c.states)
-        return Candidate(f"{c.name} + {name}", c.grid, c.coefficient, c.regressors, states, c.lift,
-                         f"{c.name} with {name}", c.bounds, c.forms)
+        return dataclasses.replace(c, name=f"{c.name} + {name}", states=states, note=f"{c.name} with {name}")
 
     def new(base: Candidate, changed: Candidate) -> tuple[str, ...]:
         s = target(base)
@@ -117,9 +118,9 @@ def _second_state() -> Effect:
         term = {"CL": f"K_L({x})", "CD": f"1 - {x}", "Cm": f"(1 - {x})*CL"}[c.coefficient]
         states = c.states + ((state, "S"),)
         bounds = c.bounds + ((f"a_star_{state}", (0.22, 0.45)),)
-        return Candidate(f"{c.name} + {name}", c.grid, c.coefficient,
-                         c.regressors + ((f"{c.coefficient}_{x}", term),), states, c.lift,
-                         f"{c.name} with {name}", bounds, c.forms)
+        return dataclasses.replace(c, name=f"{c.name} + {name}",
+                                   regressors=c.regressors + ((f"{c.coefficient}_{x}", term),), states=states,
+                                   note=f"{c.name} with {name}", bounds=bounds)
 
     def new(base, changed):
         return (changed.regressors[-1][0],)

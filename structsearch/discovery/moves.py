@@ -107,9 +107,11 @@ def _child(parent: Candidate, label: str, regressors, states=None, lift=..., bou
     regressors = tuple(regressors)
     forms = parent.forms if forms is None else tuple(forms)
     kept = tuple((n, f) for n, f in forms if n in dict(states) and f != "tanh")
-    return Candidate(child_name(parent, label, regressors, states, lift, kept), parent.grid or "discover",
-                     parent.coefficient, regressors, states, lift, f"{parent.name} with {label}",
-                     parent.bounds if bounds is None else tuple(bounds), kept)
+    # a replace of the parent: a child keeps what the move does not change (its moment reference, ...)
+    return dataclasses.replace(parent, name=child_name(parent, label, regressors, states, lift, kept),
+                               grid=parent.grid or "discover", regressors=regressors, states=states, lift=lift,
+                               note=f"{parent.name} with {label}",
+                               bounds=parent.bounds if bounds is None else tuple(bounds), forms=kept)
 
 
 def _keep_bounds(bounds, states, forms=()) -> tuple:

@@ -40,6 +40,8 @@ def _entry_lines(c: Candidate) -> list[str]:
     if c.lift:
         lines.append(f"lift = {_q(c.lift)}")
     lines.append("regressors = { " + ", ".join(f"{_q(n)} = {_q(e)}" for n, e in c.regressors) + " }")
+    if c.moment_reference != "cg":   # C_m about the fixed reference point: read back as it was fitted
+        lines.append(f"moment_reference = {_q(c.moment_reference)}")
     if c.states and not c.lift:   # a drag or pitch structure takes its states (and boxes) from its lift model
         lines.append("states = { " + ", ".join(f"{_q(n)} = {_q(k)}" for n, k in c.states) + " }")
         if c.forms:   # a state not named keeps the tanh

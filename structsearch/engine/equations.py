@@ -178,17 +178,26 @@ def latex_state(name: str, kind: str, form: str = DEFAULT_FORM) -> str:
 
 
 def write_equations(coefficient: str, regressors: Sequence[tuple[str, str]], states: Sequence[tuple[str, str]],
-                    *, state_note: str = "", values: Mapping[str, float | str] | None = None) -> Equations:
+                    *, state_note: str = "", values: Mapping[str, float | str] | None = None,
+                    offset: tuple[str, str] | None = None) -> Equations:
     """The :class:`Equations` of a model of ``coefficient`` with ``regressors`` ((name, text) pairs) and
     ``states`` ((name, kind) pairs, or (name, kind, form) for a static form other than the tanh); ``state_note``
     follows each state's text line (where its parameters come from); with ``values`` each parameter that has one
-    is written as its value in the text lines."""
+    is written as its value in the text lines. ``offset``: a known term (column name, what it is) added with its
+    coefficient fixed at 1, written first."""
     states = [tuple(st) if len(st) == 3 else (st[0], st[1], DEFAULT_FORM) for st in states]
-    text = [model_equation(coefficient, regressors)] + [state_equation(*st) + state_note for st in states]
+    model = model_equation(coefficient, regressors)
+    latex_line = latex_model(coefficient, regressors)
+    if offset is not None:
+        model = model.replace(" = ", f" = {offset[0]} + ", 1)
+        latex_line = latex_line.replace(" = ", r" = \mathrm{" + offset[0].replace("_", r"\_") + "} + ", 1)
+    text = [model] + [state_equation(*st) + state_note for st in states]
     if values:
         text = [with_values(line, values) for line in text]
     text += [f"where {m}" for m in helpers_used([t for _, t in regressors])]
     forms = dict.fromkeys(_form_key(f) for _, _, f in states if f != DEFAULT_FORM)
     text += [f"where {FORM_MEANINGS[f]}" for f in forms]
-    latex = [latex_model(coefficient, regressors)] + [latex_state(*st) for st in states]
+    if offset is not None:
+        text.append(f"where {offset[0]} = {offset[1] or 'a data column'} (known, coefficient fixed at 1)")
+    latex = [latex_line] + [latex_state(*st) for st in states]
     return Equations(tuple(text), tuple(latex))

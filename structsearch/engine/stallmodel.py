@@ -45,19 +45,23 @@ class StallModel:
     start: Mapping[str, float] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     fixed: Mapping[str, float] = field(default_factory=dict)
+    # a known term of the data (coefficient fixed at 1): fitted as coefficient - offset, predicted with it
+    offset: Regressor | None = None
 
     @classmethod
     def declare(cls, name: str, coefficient: str, regressors: Mapping[str, str], *,
                 states: Mapping[str, str] | None = None, start: Mapping[str, float] | None = None,
                 bounds: Mapping[str, tuple[float, float]] | None = None,
                 fixed: Mapping[str, float] | None = None,
-                forms: Mapping[str, str] | None = None) -> "StallModel":
+                forms: Mapping[str, str] | None = None,
+                offset: tuple[str, str] | None = None) -> "StallModel":
         """``states`` maps a state name ("ss", "w", or "" for plain X) to its kind S, Q or U; ``forms`` a state
         name to its static curve (:mod:`.static_forms`; a state not named has the tanh).
 
         ``fixed`` holds separation parameters that are not estimated (a drag or
         pitch model takes its states from the identified lift model); a model
-        whose separation parameters are all fixed is fitted by OLS.
+        whose separation parameters are all fixed is fitted by OLS. ``offset``: (name, expression)
+        of a known term added to the output with its coefficient fixed at 1 (it reads no separation state).
         """
         forms = dict(forms or {})
         stray = [n for n in forms if n not in (states or {})]
@@ -81,8 +85,11 @@ class StallModel:
         if coefficient in {c for r in regs for c in r.columns}:
             raise DeclarationError(f"model {name!r}: the modelled coefficient {coefficient!r} appears in "
                                    "its own regressors")
+        known = offset and declare(*offset, states=[], context=f"model {name!r}, offset", free_columns=True)
+        if known and (coefficient in known.columns or known.name in {r.name for r in regs}):
+            raise DeclarationError(f"model {name!r}: the offset {known.name!r} reads {coefficient} or is a parameter")
         model = cls(name, coefficient, state_objs, regs, dict(start or {}), dict(bounds or {}),
-                    dict(fixed or {}))
+                    dict(fixed or {}), known)
         all_params = tuple(p for s in state_objs for p in s.parameters)
         for key in model.fixed:
             if key not in all_params:
@@ -121,7 +128,19 @@ class StallModel:
 
     @property
     def required_columns(self) -> tuple[str, ...]:
-        return tuple(sorted({c for r in self.regressors for c in r.columns} | set(self.state_inputs)))
+        offset = set(self.offset.columns) if self.offset else set()
+        return tuple(sorted({c for r in self.regressors for c in r.columns} | set(self.state_inputs) | offset))
+
+    def offset_value(self, data: FlightData) -> np.ndarray:
+        """The known term on ``data`` (zeros without one)."""
+        return np.zeros(data.n_samples) if self.offset is None else self.offset.value(data, {}, data.n_samples)
+
+    def target(self, data: FlightData) -> np.ndarray:
+        """What the regressors fit: the coefficient column, less the known term when the model has one."""
+        return data[self.coefficient] if self.offset is None else data[self.coefficient] - self.offset_value(data)
+
+    def _with_offset(self, data: FlightData, output: np.ndarray) -> np.ndarray:
+        return output if self.offset is None else output + self.offset_value(data)
 
     def _free(self):
         return [(s, p) for s in self.states for p in s.base_parameters if s.parameter_name(p) not in self.fixed]
@@ -184,7 +203,7 @@ class StallModel:
             theta = np.clip(theta, lower, upper)
             if not any(np.array_equal(theta, a) for a in [theta0] + also):
                 also.append(theta)
-        return problem, data[self.coefficient], theta0, lower, upper, also
+        return problem, self.target(data), theta0, lower, upper, also
 
     def fit(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
             seed: int = 0, n_jobs: int = 1, covariance: str = STALL_DEFAULTS.covariance, max_lag=None,
@@ -212,7 +231,8 @@ class StallModel:
         states = [(s.name, s.kind, s.form) for s in self.states]
         fixed = all(p in self.fixed for s in self.states for p in s.parameters) and bool(self.states)
         return write_equations(self.coefficient, regressors, states,
-                               state_note="  (its parameters fixed, not estimated here)" if fixed else "")
+                               state_note="  (its parameters fixed, not estimated here)" if fixed else "",
+                               offset=None if self.offset is None else (self.offset.name, self.offset.text))
 
     def start_points(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
                      seed: int = 0, declared_too: bool = False,
@@ -224,7 +244,7 @@ class StallModel:
     def solve_from(self, data: FlightData, point: np.ndarray, tol: float = STALL_DEFAULTS.tol):
         """One local solve from ``point`` (a row of :meth:`start_points`), its failure recorded in the outcome."""
         lower, upper = self.bound_vectors(data)
-        return solve_recorded(self.bind(data), data[self.coefficient], point, lower, upper, tol=tol)
+        return solve_recorded(self.bind(data), self.target(data), point, lower, upper, tol=tol)
 
     def estimate(self, data: FlightData, *, start: Mapping[str, float] | None = None, n_starts: int = 1,
                  seed: int = 0, tol: float = STALL_DEFAULTS.tol, declared_too: bool = False,
@@ -244,19 +264,19 @@ class StallModel:
 
     def jacobian(self, data: FlightData, params: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
         """The model's Jacobian in every parameter, nonlinear then linear ([dPhi/dtheta c, Phi]), at ``params``
-        on ``data``, and the model output Phi c."""
+        on ``data``, and the model output Phi c (plus the offset column, when the model has one)."""
         theta = np.array([params[p] for p in self.nonlinear_names], float)
         coef = np.array([params[p] for p in self.linear_names], float)
         ev = self.bind(data).evaluate(theta)
-        return model_jacobian(ev, coef, len(theta)), ev.phi @ coef
+        return model_jacobian(ev, coef, len(theta)), self._with_offset(data, ev.phi @ coef)
 
     def predict(self, data: FlightData, params: Mapping[str, float]) -> np.ndarray:
-        """Model output for given parameter values (nonlinear and linear)."""
+        """Model output for given parameter values (nonlinear and linear), the offset column included."""
         missing = [p for p in self.nonlinear_names + self.linear_names if p not in params]
         if missing:
             raise DeclarationError(f"model {self.name!r}: no value for parameter {missing[0]!r}")
         phi = self.bind(data).regression_matrix(np.array([params[p] for p in self.nonlinear_names], float))
-        return phi @ np.array([params[p] for p in self.linear_names], float)
+        return self._with_offset(data, phi @ np.array([params[p] for p in self.linear_names], float))
 
 
 @dataclass(frozen=True, eq=False)

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..data.errors import StructSearchError
 from ..data.flightdata import FlightData
+from ..data.moment_transfer import REFERENCE_KEY
 from ..engine.scores import ManeuverScores
 from .candidate_result import CandidateResult, SplitScores
 from .candidates import Candidate
@@ -81,6 +82,9 @@ def _setup(c: Candidate, train: FlightData, validation: FlightData, lift: LiftFi
     """The model of ``c`` (bounded already) on its data, or why it does not apply to them."""
     model = build_model(c, lift)
     missing = [col for col in model.required_columns if col not in train and col not in train.constants]
+    if REFERENCE_KEY in missing:  # a pitch candidate about the fixed point on a campaign without one
+        return (f"not applicable: C_m about the fixed reference point needs [aircraft] {REFERENCE_KEY} in "
+                "campaign.toml (or --reference-point)")
     if missing:  # e.g. a pitch candidate with x_cg terms on a campaign without x_cg
         return f"not applicable: the campaign has no column {', '.join(missing)}"
     context = None

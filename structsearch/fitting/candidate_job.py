@@ -156,7 +156,7 @@ class CandidateJob:
         if any(o is None for o in self.stage_outcomes):
             return []
         try:
-            best = best_of(self.stage_outcomes, self.ctx.train[model.coefficient]).best
+            best = best_of(self.stage_outcomes, model.target(self.ctx.train)).best
             params = dict(zip(model.nonlinear_names + model.linear_names, np.concatenate([best.theta, best.coef])))
         except PLANNING_ERRORS:
             params = None   # a stage the data cannot fit gives no start: the candidate keeps its usual starts

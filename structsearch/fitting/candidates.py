@@ -6,6 +6,10 @@ from dataclasses import dataclass, field
 
 from ..data.errors import DeclarationError
 
+# Where a pitch candidate's C_m is taken about (docs/interfaces.md 7.5): the recorded cg, or the fixed
+# ``[aircraft] reference_point``, moved to the recorded cg by the known transfer (structsearch.data.moment_transfer).
+MOMENT_REFERENCES = ("cg", "fixed")
+
 
 @dataclass(frozen=True)
 class Candidate:
@@ -25,12 +29,21 @@ class Candidate:
     note: str = ""
     bounds: tuple[tuple[str, tuple[float, float]], ...] = ()
     forms: tuple[tuple[str, str], ...] = ()
+    # per-flight nuisance parameters estimated with it (.flight_effects.EFFECTS; docs/interfaces.md 7.5)
+    flight_effects: tuple[str, ...] = ()
+    moment_reference: str = "cg"   # MOMENT_REFERENCES; "fixed" for a pitch candidate only
 
     def __post_init__(self):
         given = dict(self.forms)
         kept = tuple((n, given[n]) for n, _ in self.states if given.get(n, "tanh") != "tanh")
         if kept != self.forms:
             object.__setattr__(self, "forms", kept)
+        if self.moment_reference not in MOMENT_REFERENCES:
+            raise DeclarationError(f"candidate {self.name!r}: moment_reference must be one of "
+                                   f"{', '.join(MOMENT_REFERENCES)}, not {self.moment_reference!r}")
+        if self.moment_reference == "fixed" and self.coefficient != "Cm":
+            raise DeclarationError(f"candidate {self.name!r}: moment_reference = \"fixed\" is for a pitch (Cm) "
+                                   f"candidate, not a {self.coefficient} one")
 
     def form_of(self, state: str) -> str:
         """The static separation form of state ``state`` ("tanh" unless declared otherwise)."""
@@ -41,8 +54,6 @@ class Candidate:
         """Its own states as :class:`~structsearch.engine.separation.SeparationState` (kind and form)."""
         from ..engine.separation import SeparationState
         return tuple(SeparationState(n, k, self.form_of(n)) for n, k in self.states)
-    # per-flight nuisance parameters estimated with it (.flight_effects.EFFECTS; docs/interfaces.md 7.5)
-    flight_effects: tuple[str, ...] = ()
 
     @property
     def n_linear(self) -> int:
@@ -62,10 +73,17 @@ class Candidate:
         merged = {**dict(self.bounds), **mine}
         return dataclasses.replace(self, bounds=tuple(sorted(merged.items())))
 
+    def with_moment_reference(self, reference: str | None) -> "Candidate":
+        """This candidate with C_m taken about ``reference`` ("cg" or "fixed"; ``--moment-reference``): a pitch
+        candidate's changes, any other's and None leave it as declared."""
+        if reference is None or self.coefficient != "Cm" or reference == self.moment_reference:
+            return self
+        return dataclasses.replace(self, moment_reference=reference)
+
     def to_dict(self) -> dict:
-        """Its fields as JSON; ``x0`` (state -> form) only when a state has a form other than the tanh and
-        ``flight_effects`` only when it has some, so that a structure without either writes what it wrote before
-        they existed."""
+        """Its fields as JSON; ``x0`` (state -> form) only when a state has a form other than the tanh,
+        ``flight_effects`` only when it has some and ``moment_reference`` only when it is not the cg, so that a
+        structure without them writes what it wrote (and keeps the cache key it had) before they existed."""
         out = {"name": self.name, "grid": self.grid, "coefficient": self.coefficient,
                "regressors": dict(self.regressors), "states": dict(self.states), "lift": self.lift,
                "note": self.note, "bounds": {k: list(v) for k, v in self.bounds}}
@@ -73,6 +91,8 @@ class Candidate:
             out["x0"] = dict(self.forms)
         if self.flight_effects:
             out["flight_effects"] = list(self.flight_effects)
+        if self.moment_reference != "cg":
+            out["moment_reference"] = self.moment_reference
         return out
 
     @classmethod
@@ -80,7 +100,8 @@ class Candidate:
         """The candidate of :meth:`to_dict` (an exact round trip; without ``x0`` every state is a tanh)."""
         return cls(d["name"], d["grid"], d["coefficient"], tuple(d["regressors"].items()), tuple(d["states"].items()),
                    d["lift"], d.get("note", ""), tuple((k, tuple(v)) for k, v in d.get("bounds", {}).items()),
-                   tuple(d.get("x0", {}).items()), flight_effects=tuple(d.get("flight_effects", ())))
+                   tuple(d.get("x0", {}).items()), flight_effects=tuple(d.get("flight_effects", ())),
+                   moment_reference=d.get("moment_reference", "cg"))
 
 
 @dataclass(frozen=True)

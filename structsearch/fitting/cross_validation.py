@@ -36,7 +36,7 @@ def cross_validate(model, train: FlightData, result, folds: FoldPlan | list[list
     training maneuvers (held-out ones included): their comparison is conditional on that lift model,
     as their fits are; it is the same for every candidate of a grid, so it does not favour one."""
     plan = folds if isinstance(folds, FoldPlan) else maneuver_plan(train, folds)
-    y = train[model.coefficient]
+    y = model.target(train)   # a model with a known offset: its regressors fit the coefficient less the offset
     # a linear model's rows (and a one-step fold's Jacobian rows) depend on no refitted state: holding out a
     # block of rows is exactly holding out those samples
     if not model.nonlinear_names:
@@ -46,7 +46,8 @@ def cross_validate(model, train: FlightData, result, folds: FoldPlan | list[list
         # a parameter on a bound or not identifiable stays where the full fit left it (an approximation: a
         # fold's refit could move it inward, never past the bound; a step along a null direction is arbitrary)
         free = [i for i, n in enumerate(result.names) if n not in result.at_bound and n not in result.unidentifiable]
-        return held_out_residuals(jac[:, free], y - output, plan.bounds, plan.folds)
+        # the output holds the offset too: the residual is the coefficient's
+        return held_out_residuals(jac[:, free], train[model.coefficient] - output, plan.bounds, plan.folds)
     residual = np.full_like(y, np.nan)
     for fold in range(plan.n_folds):
         rows, values = refit_fold(model, train, result.params, plan, fold)

@@ -12,7 +12,7 @@ from ..data.errors import DeclarationError
 from ..engine.regressors import parse
 from ..engine.separation import SeparationState
 from ..engine.static_forms import check_form
-from .candidates import Candidate, Grid, from_roman, roman
+from .candidates import MOMENT_REFERENCES, Candidate, Grid, from_roman, roman
 
 
 def _blocks(doc: dict, names: Sequence[str], where: str) -> list[tuple[str, str]]:
@@ -31,7 +31,7 @@ def _blocks(doc: dict, names: Sequence[str], where: str) -> list[tuple[str, str]
 # Every key a grid file and each of its entries may hold: any other is a typo, refused with the close match.
 GRID_KEYS = ("name", "coefficient", "prefix", "lift", "sets", "blocks", "bounds", "entry")
 ENTRY_KEYS = ("name", "lift", "states", "note", "bounds", "from", "drop", "kinds", "prefix", "blocks", "always",
-              "combinations", "regressors", "flight_effects", "x0")
+              "combinations", "regressors", "flight_effects", "x0", "moment_reference")
 
 
 def check_keys(table: dict, known: Sequence[str], where: str) -> None:
@@ -89,7 +89,7 @@ def expand(doc: dict, source: str) -> Grid:
     candidates: list[Candidate] = []
     used_bounds: set[str] = set()
 
-    def add(cand_name: str | None, regs, states, lift, note, where, bounds=(), forms=()):
+    def add(cand_name: str | None, regs, states, lift, note, where, bounds=(), forms=(), reference="cg"):
         nonlocal counter
         if cand_name is None:
             counter += 1
@@ -106,7 +106,8 @@ def expand(doc: dict, source: str) -> Grid:
         own = {p for k, kind in states for p in _state_params(k, kind, dict(forms).get(k, "tanh"))}
         used_bounds.update(b[0] for b in bounds if b[0] in own)
         candidates.append(Candidate(cand_name, name, coefficient, tuple(regs), tuple(states), lift, note,
-                                    tuple(b for b in bounds if b[0] in own), tuple(forms)))
+                                    tuple(b for b in bounds if b[0] in own), tuple(forms),
+                                    moment_reference=reference))
 
     for i, entry in enumerate(doc["entry"]):
         where = f"{source} [[entry]] #{i + 1}"
@@ -120,18 +121,20 @@ def expand(doc: dict, source: str) -> Grid:
         bounds += own_bounds
         before = set(used_bounds)
         used_bounds.clear()
+        reference = _moment_reference(entry, coefficient, where)
         if "from" in entry:
             base, regs = _derived(entry, candidates, where)
             forms = {**dict(base.forms), **dict(_forms(entry, [n for n, _ in base.states], lift, where))}
             add(entry.get("name"), regs, base.states, base.lift, note, where, base.bounds + own_bounds,
-                tuple(forms.items()))
+                tuple(forms.items()), reference or base.moment_reference)
         elif "kinds" in entry:
             kinds = entry["kinds"]
             regs = _blocks(doc, entry.get("blocks", []), where)
             forms = _forms(entry, list(kinds), lift, where)
             for combo in product(*kinds.values()):
                 st = tuple(zip(kinds.keys(), combo))
-                add(entry.get("prefix", prefix) + "/".join(combo), regs, st, lift, note, where, bounds, forms)
+                add(entry.get("prefix", prefix) + "/".join(combo), regs, st, lift, note, where, bounds, forms,
+                    reference or "cg")
         elif "combinations" in entry:
             combos = entry["combinations"]
             if isinstance(combos, str):
@@ -141,12 +144,12 @@ def expand(doc: dict, source: str) -> Grid:
             forms = _forms(entry, [n for n, _ in states], lift, where)
             for combo in combos:
                 add(None, _blocks(doc, list(entry.get("always", [])) + list(combo), where), states, lift, note,
-                    where, bounds, forms)
+                    where, bounds, forms, reference or "cg")
         else:
             regs = _blocks(doc, entry.get("blocks", []), where)
             regs += [(k, str(v)) for k, v in entry.get("regressors", {}).items()]
             add(entry.get("name"), regs, states, lift, note, where, bounds, _forms(entry, [n for n, _ in states],
-                                                                               lift, where))
+                                                                               lift, where), reference or "cg")
         _with_flight_effects(candidates, first_of_entry, entry, where)
         unused = [k for k, _ in own_bounds if k not in used_bounds]
         if unused:
@@ -169,6 +172,18 @@ def _with_flight_effects(candidates: list[Candidate], first: int, entry: dict, w
     for i in range(first, len(candidates)):
         check_declared(effects, candidates[i].regressors, f"{where} ({candidates[i].name})")
         candidates[i] = dataclasses.replace(candidates[i], flight_effects=effects)
+def _moment_reference(entry: dict, coefficient: str, where: str) -> str | None:
+    """An entry's ``moment_reference`` ("cg" or "fixed", pitch grids only); None when it gives none."""
+    if "moment_reference" not in entry:
+        return None
+    value = entry["moment_reference"]
+    if value not in MOMENT_REFERENCES:
+        raise DeclarationError(f"{where}: moment_reference must be one of "
+                               f"{', '.join(repr(r) for r in MOMENT_REFERENCES)}, not {value!r}")
+    if value == "fixed" and coefficient != "Cm":
+        raise DeclarationError(f"{where}: moment_reference = \"fixed\" takes C_m about a fixed point; this grid "
+                               f"models {coefficient}")
+    return value
 
 
 def _bounds(table, where: str) -> tuple[tuple[str, tuple[float, float]], ...]:

@@ -165,7 +165,8 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
         datas = [train if c is lift_c else with_lift_prediction(train, lift_params_now(current), lift_candidate)
                  for c in order]
         problem = JointProblem(tuple(m.bind(d) for m, d in zip(models, datas)), w, train.n_samples)
-        return problem, datas, problem.interleave([d[c.coefficient] for c, d in zip(order, datas)])
+        # a pitch model about a fixed point fits C_m less its known transfer (the model's target)
+        return problem, datas, problem.interleave([m.target(d) for m, d in zip(models, datas)])
 
     lower, upper = _box(problem_at(params, weights)[0], models, train)
     relaxed = _relax_by_gauss_newton(problem_at, [c.coefficient for c in order], params, weights, lower, upper,

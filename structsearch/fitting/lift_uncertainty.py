@@ -50,6 +50,8 @@ def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lif
     x_values = {sym: v[1] for sym, v in problem.state_values(theta, False).items()}
     d_output_d_cl = sum((c * reg.column_derivative("CL", predicted, x_values, m)
                          for c, reg in zip(coef, model.regressors)), np.zeros(m))
+    if model.offset is not None:   # a known term that reads the lift model's C_L (the moment transfer) moves too
+        d_output_d_cl = d_output_d_cl + model.offset.column_derivative("CL", predicted, {}, m)
     lift_names = list(lift_names)
     cols = []
     for name in names:

@@ -7,6 +7,7 @@ import numpy as np
 
 from ..data.errors import StructSearchError
 from ..data.flightdata import FlightData
+from ..data.moment_transfer import TRANSFER_EXPRESSION, TRANSFER_NAME
 from ..engine.regressors import declare
 from ..engine.separation import SeparationState
 from ..engine.stallmodel import StallModel
@@ -45,8 +46,10 @@ def model_with_lift(c: Candidate, lift_params: Mapping[str, float] | None) -> St
     free_bounds = {k: v for k, v in free_bounds.items()
                    if k in {p for n, kd in states.items() for p in SeparationState(n, kd, c.form_of(n)).parameters}}
     forms = {n: f for n, f in c.forms if n in states}
+    # about the fixed reference point: C_m about the recorded cg is the model's plus the known transfer
+    offset = (TRANSFER_NAME, TRANSFER_EXPRESSION) if c.moment_reference == "fixed" else None
     return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states, fixed=fixed,
-                              bounds=free_bounds, forms=forms)
+                              bounds=free_bounds, forms=forms, offset=offset)
 
 
 def with_lift_prediction(data: FlightData, lift_params: Mapping[str, float], lift_candidate: Candidate) -> FlightData:

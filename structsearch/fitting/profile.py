@@ -26,4 +26,4 @@ def profile_candidate(c: Candidate, result: CandidateResult, train: FlightData, 
         raise ValueError(f"{c.name}: a failed fit has no profile ({result.error})")
     model = build_model(c, lift)
     seen = with_lift_prediction(train, lift.params, lift.candidate) if c.lift and lift is not None else train
-    return profile(model.bind(seen), seen[c.coefficient], result.estimates, names, levels=levels)
+    return profile(model.bind(seen), model.target(seen), result.estimates, names, levels=levels)

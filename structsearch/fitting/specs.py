@@ -22,6 +22,7 @@ whose name is prefix + Roman numeral also advance the count.
 """
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import tomllib
 from importlib import resources
@@ -108,8 +109,7 @@ def _with_lift_states(c: Candidate, lift_grid: Grid) -> Candidate:
     if not c.lift:
         return c
     lift = lift_grid[c.lift]
-    return Candidate(c.name, c.grid, c.coefficient, c.regressors, lift.states, c.lift, c.note, lift.bounds,
-                     lift.forms)
+    return dataclasses.replace(c, states=lift.states, bounds=lift.bounds, forms=lift.forms)
 
 
 def find_candidate(name: str) -> Candidate:

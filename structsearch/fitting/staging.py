@@ -18,6 +18,8 @@ Drag and pitch candidates take their states from the lift model (nothing to stag
 """
 from __future__ import annotations
 
+import dataclasses
+
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
@@ -157,8 +159,8 @@ def demoted(c: Candidate, highest: str) -> Candidate:
     """``c`` with every state's kind lowered to at most ``highest`` (S or Q)."""
     states = tuple((n, min(k, highest, key=KIND_ORDER.get)) for n, k in c.states)
     own = {p for n, k in states for p in SeparationState(n, k, c.form_of(n)).parameters}
-    return Candidate(f"{c.name} [{highest}]", c.grid, c.coefficient, c.regressors, states, c.lift,
-                     f"stage of {c.name}", tuple(b for b in c.bounds if b[0] in own), c.forms)
+    return dataclasses.replace(c, name=f"{c.name} [{highest}]", states=states, note=f"stage of {c.name}",
+                               bounds=tuple(b for b in c.bounds if b[0] in own))
 
 
 def stages(c: Candidate) -> list[Candidate]:

@@ -190,7 +190,9 @@ class AeroModel:
         """(C_L, C_D, C_m); ``values`` holds columns, constants and separation states."""
         cl = self.coefficient("CL", values)
         with_cl = dict(values, CL=cl)
-        return cl, self.coefficient("CD", with_cl), self.coefficient("Cm", with_cl)
+        cd = self.coefficient("CD", with_cl)
+        # C_m may read C_D: a truth whose cg term is the moment transfer (C_N, :func:`cg_transfer_pitch`)
+        return cl, cd, self.coefficient("Cm", dict(with_cl, CD=cd))
 
 
 @dataclass(frozen=True)
@@ -215,15 +217,42 @@ TRUTHS = {
 }
 
 
-def truth_model(withhold=(), aircraft: str = "citation", anomaly=None, envelope: bool = False) -> AeroModel:
+# How the truth's pitching moment depends on the centre of gravity: "thesis", the identified Cm-XXXIIIr term
+# Cm_xcgCL x_cg/cbar C_L (-0.96, where the moment transfer of a rigid aircraft is +1 times C_N); "transfer", the
+# same model about the Citation's reference point, moved to the flown cg by the transfer alone.
+CG_MOMENTS = ("thesis", "transfer")
+TRANSFER_REGRESSOR = "(x_cg - {x_ref!r})/cbar*(CL*cos(alpha) + CD*sin(alpha))"
+
+
+def cg_transfer_pitch(pitch: StallModel, params: Mapping[str, float], x_ref: float, cbar: float):
+    """The thesis' pitch model ``pitch`` (with ``params``) about the station ``x_ref``: its cg terms frozen at
+    x_cg = x_ref (Cm_CL + Cm_xcgCL x_ref/cbar), the moment moved to the flown cg by
+    C_N (x_cg - x_ref)/cbar, C_N = C_L cos(alpha) + C_D sin(alpha). At x_cg = x_ref it is the thesis' model."""
+    regressors = {r.name: (TRANSFER_REGRESSOR.format(x_ref=x_ref) if r.name == "Cm_xcgCL" else r.text or sp.sstr(r.expr))
+                  for r in pitch.regressors}
+    moved = StallModel.declare(pitch.name, pitch.coefficient, regressors,
+                               states={s.name: s.kind for s in pitch.states}, fixed=pitch.fixed)
+    values = dict(params, Cm_CL=params["Cm_CL"] + params["Cm_xcgCL"] * x_ref / cbar, Cm_xcgCL=1.0)
+    return moved, values
+
+
+def truth_model(withhold=(), aircraft: str = "citation", anomaly=None, envelope: bool = False,
+                cg_moment: str = "thesis") -> AeroModel:
     """The truth of ``aircraft``: for the Citation II the final model of the thesis (CL-VI, CD-IXr,
     Cm-XXXIIIr), for the transport its one-state model (:mod:`.transport`); named effects removed,
     an ``anomaly`` of :mod:`.anomalies` (the object, not its name) added. ``envelope``: with the
-    attached-flow terms of the wider envelope the nominal maneuvers fly (:mod:`.envelope`; Citation II only)."""
+    attached-flow terms of the wider envelope the nominal maneuvers fly (:mod:`.envelope`; Citation II only).
+    ``cg_moment`` (:data:`CG_MOMENTS`, Citation only): "transfer" flies the pitch model about the reference
+    point, moved to the cg (:func:`cg_transfer_pitch`)."""
     if aircraft not in TRUTHS:
         raise DeclarationError(f"no aircraft {aircraft!r}: the simulator flies {', '.join(TRUTHS)}")
     if envelope and aircraft != "citation":
         raise DeclarationError(f"nominal maneuvers are declared for the Citation II only, not the {aircraft}")
+    if cg_moment not in CG_MOMENTS:
+        raise DeclarationError(f"cg moment {cg_moment!r}: one of {', '.join(CG_MOMENTS)}")
+    if cg_moment != "thesis" and (aircraft != "citation" or anomaly is not None):
+        raise DeclarationError(f"cg moment {cg_moment!r}: for the Citation II's truth without an anomaly (the "
+                               "transport records no cg)")
     truth = TRUTHS[aircraft]
     withhold = tuple(dict.fromkeys(withhold))
     unknown = [w for w in withhold if w not in WITHHOLDABLE]
@@ -249,6 +278,9 @@ def truth_model(withhold=(), aircraft: str = "citation", anomaly=None, envelope:
     constant = {f"X_{truth.second_state}": 1.0} if "second_separation_state" in withhold else {}
     models = [_with_kind(m, truth.lagged_state, kind)
               for m in (truth.lift(), truth.drag(lift_params), truth.pitch(lift_params))]
+    if cg_moment == "transfer":
+        from .aircraft import CITATION
+        models[2], params = cg_transfer_pitch(models[2], params, CITATION.reference_point, CITATION.cbar)
     if envelope:
         from .envelope import ENVELOPE_VALUES, with_envelope
         models = [with_envelope(m) for m in models]
@@ -256,6 +288,7 @@ def truth_model(withhold=(), aircraft: str = "citation", anomaly=None, envelope:
     label = ("truth" if aircraft == "citation" else f"{aircraft} truth") \
         + ("" if not withhold else " without " + ", ".join(withhold)) \
         + ("" if anomaly is None else f" with {anomaly.name}") \
+        + ("" if cg_moment == "thesis" else " with the cg moment a transfer") \
         + (" with the nominal envelope" if envelope else "")
     return AeroModel(*models, params, constant, name=label, anomaly=anomaly)
 

@@ -12,7 +12,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..data.errors import DataError
+from ..data.errors import DataError, DeclarationError
 from ..data.reduction import G, RHO0, isa_density, isa_speed_of_sound  # noqa: F401  (G: the simulator reads ac.G)
 from .reference import AIRCRAFT, EMPTY_MASS, IYY
 
@@ -43,6 +43,8 @@ class Aircraft:
     max_fuel_flow: float          # all engines at full throttle [kg/s]; scales with throttle
     x_cg_range: tuple[float, float] | None = None  # cg envelope [m], the datum of the x_cg column
     records_cg: bool = True       # the campaign files carry an x_cg column
+    # The fixed station [m] a pitch model may take C_m about (docs/interfaces.md 7.5), the x_cg column's datum
+    reference_point: float | None = None
     # Pitch-rate gyro: white noise [rad/s] left after flight-path reconstruction, and the rate vibration
     # [rad/s per unit of buffet] it sees in separated flow. C_m comes from q_dot * Iyy / (qbar S cbar), so
     # what matters is their size in moment-coefficient terms; a heavy aircraft needs quieter rates.
@@ -64,15 +66,36 @@ class Aircraft:
         out = {"S": self.S, "cbar": self.cbar, "b": self.b, "Iyy": round(float(self.inertia(mass)), 1)}
         if self.x_cg_range is not None:
             out["x_cg_range"] = tuple(self.x_cg_range)
+        if self.reference_point is not None:
+            out["reference_point"] = self.reference_point
         return out
 
 
 # Two Pratt & Whitney JT15D-4, about 11.1 kN static sea-level thrust each; 0.16 kg/s of fuel at full
-# throttle; cg envelope 276-286 in from the datum 15 in ahead of the nose (docs/catalogue.md section 6).
+# throttle; cg envelope 276-286 in from the datum 15 in ahead of the nose (docs/catalogue.md section 6). The
+# moment reference point is the middle of the band the test flights were loaded in (280.5-282 in,
+# .flighttest.FLOWN_CG_RANGE): the thesis' identified C_m terms hold about the cg there.
+CITATION_REFERENCE_POINT = 281.25 * INCH
 CITATION = Aircraft(
     name="citation", label="Citation II", S=AIRCRAFT["S"], cbar=AIRCRAFT["cbar"], b=AIRCRAFT["b"],
     empty_mass=EMPTY_MASS, crew_mass=3 * 85.0, iyy_empty=IYY, iyy_per_kg=0.9,
-    max_thrust_sl=2 * 11_100.0, max_fuel_flow=0.16, x_cg_range=(276 * INCH, 286 * INCH))
+    max_thrust_sl=2 * 11_100.0, max_fuel_flow=0.16, x_cg_range=(276 * INCH, 286 * INCH),
+    reference_point=CITATION_REFERENCE_POINT)
+
+
+def cg_band(spread: float, aircraft: Aircraft, flown: tuple[float, float] | None) -> tuple[float, float]:
+    """The band [m] each loading's cg is drawn from (``simulate --cg-spread``): ``spread`` wide around the middle
+    of the ``flown`` band (the Citation's reference point), inside the aircraft's cg envelope."""
+    envelope = aircraft.x_cg_range
+    if envelope is None or flown is None:
+        raise DeclarationError(f"cg spread: the {aircraft.label} flies one fixed cg, not recorded")
+    centre = 0.5 * (flown[0] + flown[1])
+    widest = 2 * min(centre - envelope[0], envelope[1] - centre)
+    if not (isinstance(spread, (int, float)) and np.isfinite(spread) and 0 < spread <= widest):
+        raise DeclarationError(f"cg spread {spread!r} m: the width of the band the loadings' cg is drawn from, "
+                               f"above 0 and at most {widest:.4f} m (the cg envelope around {centre:.4f} m); "
+                               f"the default band is {flown[1] - flown[0]:.4f} m wide")
+    return centre - 0.5 * spread, centre + 0.5 * spread
 
 
 def aircraft_of_campaign(constants: Mapping[str, float], source: str = "") -> Aircraft:

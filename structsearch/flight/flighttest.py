@@ -2,12 +2,13 @@
 for the Citation II and for the twin-jet transport (same maneuver kinds, its own speeds and angles)."""
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import aircraft as ac
-from .aircraft import CITATION, Aircraft
+from .aircraft import CITATION, Aircraft, cg_band
 from .transport import TRANSPORT
 from .aero import AeroModel
 from .simulation import Condition, trim
@@ -333,7 +334,8 @@ def _cut(p: PlannedManeuver, columns: dict) -> dict:
 
 def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False,
                    slow_errors: float = 1.0, aircraft: str = "citation", anomaly: str | None = None,
-                   raw: bool = False, flights: int = 0, nominal: bool = False):
+                   raw: bool = False, flights: int = 0, nominal: bool = False, cg_spread: float | None = None,
+                   cg_moment: str = "thesis"):
     """The simulated flight-test campaign (thesis Table 4) of ``aircraft`` (``citation`` or ``transport``),
     ready for :func:`write_campaign`.
 
@@ -354,7 +356,9 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     ``nominal``: nominal (attached-flow) maneuvers across the envelope too (:mod:`.nominal`; ``kind = "nominal"``
     in the manifest, after the stall maneuvers), flown with the truth's envelope terms (:mod:`.envelope`, zero
     wherever a stall maneuver flies), and every maneuver carries the air data ``Mach`` and ``qbar``. Citation II
-    only, not with an anomaly, raw channels or flights."""
+    only, not with an anomaly, raw channels or flights.
+    ``cg_spread`` [m]: each loading's cg drawn from a band this wide (:func:`.aircraft.cg_band`; the same draws);
+    ``cg_moment`` (:data:`.aero.CG_MOMENTS`): how the truth's C_m depends on the cg. Both go to the manifest."""
     from .aero import truth_model
     from .anomalies import anomaly_named
     from ..data.campaign import Maneuver, make_campaign
@@ -371,8 +375,10 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     if nominal:
         _check_nominal(chosen is not None, raw, flights)
     model = truth_model(withhold, aircraft, chosen if chosen is not None and chosen.flies else None,
-                        envelope=nominal)
+                        envelope=nominal, cg_moment=cg_moment)
     proc = PROCEDURES[aircraft]
+    if cg_spread is not None:
+        proc = dataclasses.replace(proc, flown_cg_range=cg_band(cg_spread, proc.aircraft, proc.flown_cg_range))
     plan = scaled_plan(thesis_plan(extras), scale)
     if flights and raw:
         raise DeclarationError("flights: flight-level errors are errors of the reduced coefficients; a raw campaign "
@@ -395,6 +401,10 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
         extra["anomaly"] = chosen.name
     if labels is not None:  # nor do campaigns without flights
         extra["flights"] = int(flights)
+    if cg_spread is not None:   # nor do campaigns flown in the default cg band
+        extra["cg_spread"] = float(cg_spread)
+    if cg_moment != "thesis":
+        extra["cg_moment"] = cg_moment
     if sensor_errors is not None:
         extra.pop("slow_errors")
         extra.update(sensor_errors.manifest(), format="raw")

@@ -1,6 +1,8 @@
 """Structure search: grids fitted in dependency order (lift before drag and pitch), ranked, refined."""
 from __future__ import annotations
 
+import dataclasses
+
 import time
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -69,13 +71,15 @@ def rules_for(campaign: Campaign, max_correlation: float = MAX_CORRELATION) -> A
 
 
 def search(fitter: Fitter, grid_spec: str, *, do_refine: bool = True, max_correlation: float = MAX_CORRELATION,
-           joint_lift: Sequence[Candidate] = ()) -> SearchResult:
+           joint_lift: Sequence[Candidate] = (), moment_reference: str | None = None) -> SearchResult:
     """Fit and rank the grids of ``grid_spec`` with ``fitter``, refining each grid's best.
     ``joint_lift``: structures (a lift one among them) fitted jointly first; drag and pitch candidates that
     name that lift structure read its joint estimate, and their two-step covariance has the joint fit as
-    its first step (:func:`structsearch.fitting.joint.joint_lift`)."""
+    its first step (:func:`structsearch.fitting.joint.joint_lift`). ``moment_reference`` ("cg" or "fixed"): every
+    pitch candidate takes C_m about it (None: as each declares)."""
     rules = rules_for(fitter.campaign, max_correlation)
-    grids = grids_for(grid_spec)
+    grids = [dataclasses.replace(g, candidates=tuple(c.with_moment_reference(moment_reference) for c in g.candidates))
+             for g in grids_for(grid_spec)]
     ranked_by_grid, seconds = {}, {}
     refinements: dict[str, list[Refinement]] = {}
     joint = None

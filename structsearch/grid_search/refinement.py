@@ -33,6 +33,8 @@ result and is reported as reached.
 """
 from __future__ import annotations
 
+import dataclasses
+
 from dataclasses import dataclass
 from typing import Callable
 
@@ -93,7 +95,7 @@ def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] |
     if simpler:
         changes.append(f"the state(s) {', '.join(simpler)} (a time constant at zero)")
     note = f"refined from {c.name}: " + "; ".join(changes)
-    return Candidate(f"{c.name}{suffix}", c.grid, c.coefficient, regs, states, c.lift, note, bounds, c.forms)
+    return dataclasses.replace(c, name=f"{c.name}{suffix}", regressors=regs, states=states, note=note, bounds=bounds)
 
 
 def structure_key(c: Candidate) -> tuple:

@@ -46,6 +46,15 @@ def parameter_covariance(estimates) -> dict:
     """Every parameter's covariance as fit.json's ``parameter_covariance``: ``names`` and the ``matrix`` in their
     order (what could not be estimated is null)."""
     return {"names": list(estimates.names), "matrix": np.asarray(estimates.covariance, float).tolist()}
+def moment_reference_document(candidate, reference_point: float | None) -> dict:
+    """Where a pitch fit takes C_m about (docs/interfaces.md 7.5): ``about`` "cg" (the recorded cg) or "fixed";
+    a fixed one's ``reference_point`` [m] and the ``transfer`` that moves its C_m to the recorded cg."""
+    if candidate.moment_reference != "fixed":
+        return {"about": "cg"}
+    from ..data.moment_transfer import TRANSFER_EXPRESSION, TRANSFER_NAME
+    return {"about": "fixed", "reference_point": reference_point,
+            "transfer": f"Cm = {TRANSFER_NAME} + (the model about the reference point), "
+                        f"{TRANSFER_NAME} = {TRANSFER_EXPRESSION}"}
 
 
 def bands_table(bands, every: int = 6) -> str:

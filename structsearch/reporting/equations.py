@@ -9,14 +9,22 @@ from ..engine.equations import HELPER_MEANINGS, write_equations
 from ..engine.equations import helpers_used as _helpers_used
 from ..engine.equations import model_equation as _model_equation
 from ..engine.equations import state_equation
+from ..data.moment_transfer import TRANSFER_EXPRESSION, TRANSFER_NAME
 from ..fitting.candidates import Candidate
 
 __all__ = ["HELPER_MEANINGS", "equations", "helpers_used", "model_equation", "state_equation", "latex_equations"]
 
 
+def _offset(c: Candidate) -> tuple[str, str] | None:
+    """The known term of a pitch candidate about the fixed reference point (docs/interfaces.md 7.5), else None."""
+    return (TRANSFER_NAME, TRANSFER_EXPRESSION) if c.moment_reference == "fixed" else None
+
+
 def model_equation(c: Candidate) -> str:
-    """``c``'s coefficient as the sum of its parameters times their regressors."""
-    return _model_equation(c.coefficient, c.regressors)
+    """``c``'s coefficient as the sum of its parameters times their regressors (and the moment transfer of a
+    pitch candidate about the fixed point)."""
+    line = _model_equation(c.coefficient, c.regressors)
+    return line.replace(" = ", f" = {TRANSFER_NAME} + ", 1) if _offset(c) else line
 
 
 def helpers_used(c: Candidate) -> list[str]:
@@ -38,9 +46,9 @@ def equations(c: Candidate, values: Mapping[str, float | str] | None = None) -> 
     by parameter name), each parameter that has one is written as its value (4 significant digits; a text value, such
     as "(0.12 ± 0.01)", as it is)."""
     return list(write_equations(c.coefficient, c.regressors, _states(c), state_note=_state_note(c),
-                                values=values).text)
+                                values=values, offset=_offset(c)).text)
 
 
 def latex_equations(c: Candidate) -> list[str]:
     """``c``'s model and state equations in LaTeX (one equation a line, no delimiters)."""
-    return list(write_equations(c.coefficient, c.regressors, _states(c)).latex)
+    return list(write_equations(c.coefficient, c.regressors, _states(c), offset=_offset(c)).latex)
