@@ -151,15 +151,27 @@ def test_closed_loop_van_ingen_through_jsbsim(on_disk, van_ingen_export):
         assert sim.simulator["mse"]["validation"] == pytest.approx(direct.mse.validation, rel=1e-6)
 
 
-def test_the_command_line_diagnoses_a_simulator_column_and_refuses_bad_baselines(on_disk, run_cli, tmp_path):
-    data = tmp_path / "campaign"
+@pytest.fixture(scope="module")
+def sim_column_on_disk(on_disk, tmp_path_factory):
+    """The small campaign with a simulator column that lacks the flight's elevator term, written to disk."""
+    data = tmp_path_factory.mktemp("sim_column") / "campaign"
     write_campaign(_with_column(on_disk, "CL_sim", on_disk.data["CL_true"] - 1.5 * on_disk.data["de"]), data)
+    return data
+
+
+@pytest.mark.slow
+def test_the_command_line_diagnoses_a_simulator_column(sim_column_on_disk, run_cli, tmp_path):
+    data = sim_column_on_disk
     out = tmp_path / "diag"
     ok = run_cli("diagnose", "--data", data, "--baseline-column", "CL_sim", "--coefficient", "CL", "--max-steps", "1",
                  "--beam", "1", "--starts", "1", "--jobs", "1", "--out", out, "--quiet")
     assert ok.returncode == 0, ok.stderr
     assert ok.stdout.startswith("CL column CL_sim: best effect elevator")
     assert "Baseline: the simulator column CL_sim" in (out / "diagnosis.md").read_text()
+
+
+def test_the_command_line_refuses_bad_simulator_baselines_in_one_line(sim_column_on_disk, run_cli, tmp_path):
+    data = sim_column_on_disk
     bad = [
         (("--baseline-column", "CL_nope", "--coefficient", "CL"), "column 'CL_nope'"),
         (("--baseline-column", "CL_sim"), "needs --coefficient"),
