@@ -286,14 +286,18 @@ def _diagnose(args) -> int:
     if args.benchmark:
         from .cli_bench import _diagnose_benchmark
         return _diagnose_benchmark(args)
-    if not args.data or not args.model:
-        raise_error("diagnose needs --data and --model (or --benchmark)")
+    baselines = [o for o, v in (("--model", args.model), ("--baseline-column", args.baseline_column),
+                                ("--simulator", args.simulator)) if v]
+    if not args.data or len(baselines) != 1:
+        raise_error("diagnose needs --data and one baseline: --model NAME, --baseline-column NAME or --simulator "
+                    "jsbsim:AIRCRAFT (or --benchmark)" + (f"; given {', '.join(baselines)}" if baselines else ""))
     from .api import diagnose
     from .reporting.diagnosis_doc import diagnosis_console_lines
     out = Path(args.out)
     diagnosis = diagnose(args.data, args.model, settings=_settings(args, "diagnose: "),
                          coefficient=args.coefficient, out=out, terms=args.terms, beam=args.beam,
-                         max_steps=args.max_steps)
+                         max_steps=args.max_steps, baseline_column=args.baseline_column or None,
+                         simulator=args.simulator)
     for line in diagnosis_console_lines(diagnosis, (out / "diagnosis.json", out / "diagnosis.md")):
         print(line)
     return 0

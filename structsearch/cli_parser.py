@@ -23,6 +23,13 @@ def _benchmark_parts(text: str) -> str:
     return ",".join(parts)
 
 
+def _simulator(text: str) -> str:
+    """``--simulator jsbsim:AIRCRAFT``: the prefix and a non-empty aircraft."""
+    if not text.startswith("jsbsim:") or not text[len("jsbsim:"):].strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: give jsbsim:AIRCRAFT (an exported aircraft's directory or name)")
+    return text
+
+
 def _flight_effects(text: str) -> tuple[str, ...]:
     """``--flight-effects x_cg,intercept``: names out of structsearch.fitting.flight_effects.EFFECTS."""
     from .data.errors import DeclarationError
@@ -307,7 +314,14 @@ def _add_diagnose(sub, handler: Callable) -> None:
     g = command_parser(sub, "diagnose")
     _campaign_options(g, starts=2, data_required=False)
     g.add_argument("--model", help="baseline candidate name or spec file")
-    g.add_argument("--coefficient", choices=("CL", "CD", "Cm"), help="check that the baseline models this")
+    g.add_argument("--coefficient", choices=("CL", "CD", "Cm"),
+                   help="check that the baseline models this (with a simulator baseline: the coefficient diagnosed)")
+    g.add_argument("--baseline-column", metavar="NAME", default=None,
+                   help="baseline: the simulator's coefficient along the flight, a column of the campaign's files "
+                        "(a fixed offset; needs --coefficient)")
+    g.add_argument("--simulator", metavar="jsbsim:AIRCRAFT", type=_simulator, default=None,
+                   help="baseline: a JSBSim aircraft exported by `structsearch export --format jsbsim` (its "
+                        "directory or name), evaluated at the recorded states (a fixed offset; needs --coefficient)")
     g.add_argument("--benchmark", action="store_true",
                    help="run the withheld-effect benchmark on simulated campaigns instead")
     g.add_argument("--scale", type=_fraction, default=1.0, help="benchmark campaign scale")

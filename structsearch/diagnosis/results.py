@@ -342,6 +342,9 @@ class Diagnosis:
     baseline_reasons: tuple[str, ...] = ()
     # the anomalies the terms it added are also the first-order signature of (.equivalence)
     equivalences: tuple[Equivalence, ...] = ()
+    # a simulator as the baseline (.offset.simulator_record): what it is, its own MSE and the bias the search
+    # started from; None when the baseline is one of our own structures
+    simulator: Mapping[str, Any] | None = None
 
     @property
     def baseline_admissible(self) -> bool:
@@ -399,6 +402,8 @@ class Diagnosis:
                "warnings": list(self.warnings), "baseline_admissible": self.baseline_admissible,
                "baseline_reasons": list(self.baseline_reasons),
                "equivalences": [e.to_dict() for e in self.equivalences]}
+        if self.simulator is not None:
+            out["simulator"] = dict(self.simulator)
         if self.state_level is not None:
             out["state_level"] = self.state_level.to_dict()
         if self.final_structure is not None:
@@ -419,4 +424,4 @@ class Diagnosis:
                    Unexplained.from_dict(d["unexplained"]), tuple(d.get("warnings", ())),
                    None if sl is None else StateLevel.from_dict(sl), d.get("seconds", float("nan")),
                    d.get("final_structure"), d.get("search"), tuple(d.get("baseline_reasons", ())),
-                   tuple(Equivalence.from_dict(e) for e in d.get("equivalences", ())))
+                   tuple(Equivalence.from_dict(e) for e in d.get("equivalences", ())), d.get("simulator"))

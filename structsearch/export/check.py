@@ -37,12 +37,12 @@ STATIC_ALPHAS = 61
 Predictor = Callable[[FlightData], Mapping[str, np.ndarray]]
 
 
-def need_jsbsim():
-    """The jsbsim module, or one error saying how to install it."""
+def need_jsbsim(what: str = "export --check drives JSBSim"):
+    """The jsbsim module, or one error saying how to install it (``what`` needs it)."""
     try:
         import jsbsim
     except ImportError:
-        raise StructSearchError("export --check drives JSBSim: install it with `pip install structsearch[jsbsim]` "
+        raise StructSearchError(f"{what}: install it with `pip install structsearch[jsbsim]` "
                                 "(or `pip install jsbsim`)") from None
     return jsbsim
 
@@ -110,25 +110,30 @@ def static_points(model: ExportedModel, data: FlightData) -> FlightData:
     return from_segments(segments, source="static points", constants=dict(data.constants))
 
 
-def _jsbsim_run(directory: Path, aircraft: str, model: ExportedModel, data: FlightData):
-    """JSBSim's coefficients and states along ``data`` (module docstring)."""
-    jsbsim = need_jsbsim()
+def load_aircraft(directory: Path | None, aircraft: str, what: str = "export --check drives JSBSim"):
+    """JSBSim with ``aircraft`` loaded from the root ``directory`` (None: JSBSim's own aircraft), initialised and
+    its integration suspended (module docstring); None when JSBSim cannot load it."""
+    jsbsim = need_jsbsim(what)
     jsbsim.FGJSBBase().debug_lvl = 0          # no banner on stdout
-    fdm = jsbsim.FGFDMExec(str(directory))
+    fdm = jsbsim.FGFDMExec(None if directory is None else str(directory))
     fdm.set_debug_level(0)
     if not fdm.load_model(aircraft):
-        raise StructSearchError(f"JSBSim could not load the exported aircraft {aircraft!r} from {directory}")
+        return None
     fdm.run_ic()
     fdm.suspend_integration()
+    return fdm
+
+
+def drive(fdm, data: FlightData, columns, read) -> np.ndarray:
+    """Write the namespace inputs of ``columns`` from ``data`` sample by sample (``structsearch/fill-inputs`` off,
+    ``structsearch/dt-sec`` the step from the previous sample, 0 at a maneuver's first), run one frame each, and
+    return the properties ``read`` (one row each, one column per sample)."""
     fdm[FILL_INPUTS] = 0.0
     manager = fdm.get_property_manager()
-    inputs = [(manager.get_node(INPUTS[c].property, True), np.asarray(data[c], float))
-              for c in inputs_used(model)]
+    inputs = [(manager.get_node(INPUTS[c].property, True), np.asarray(data[c], float)) for c in columns]
     step = manager.get_node(DT, True)
-    names = [c.coefficient for c in model.coefficients] + [s.symbol for s in model.states]
-    read = [manager.get_node(output_property(n) if n in ("CL", "CD", "Cm") else state_property(n), False)
-            for n in names]
-    out = np.empty((len(names), data.n_samples))
+    nodes = [manager.get_node(p, False) for p in read]
+    out = np.empty((len(nodes), data.n_samples))
     t = np.asarray(data["t"], float)
     for s, e in zip(data.bounds[:-1], data.bounds[1:]):
         for k in range(int(s), int(e)):
@@ -136,9 +141,20 @@ def _jsbsim_run(directory: Path, aircraft: str, model: ExportedModel, data: Flig
             for node, values in inputs:
                 node.set_double_value(values[k])
             fdm.run()
-            for j, node in enumerate(read):
+            for j, node in enumerate(nodes):
                 out[j, k] = node.get_double_value()
-    return dict(zip(names, out)), jsbsim.__version__
+    return out
+
+
+def _jsbsim_run(directory: Path, aircraft: str, model: ExportedModel, data: FlightData):
+    """JSBSim's coefficients and states along ``data`` (module docstring)."""
+    fdm = load_aircraft(directory, aircraft)
+    if fdm is None:
+        raise StructSearchError(f"JSBSim could not load the exported aircraft {aircraft!r} from {directory}")
+    names = [c.coefficient for c in model.coefficients] + [s.symbol for s in model.states]
+    read = [output_property(n) if n in ("CL", "CD", "Cm") else state_property(n) for n in names]
+    out = drive(fdm, data, inputs_used(model), read)
+    return dict(zip(names, out)), need_jsbsim().__version__
 
 
 def _tustin_difference(model: ExportedModel, data: FlightData) -> dict[str, float]:

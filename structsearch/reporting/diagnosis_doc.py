@@ -171,6 +171,18 @@ def _state_level_lines(sl) -> list[str]:
     return lines
 
 
+def _simulator_lines(sim) -> list[str]:
+    """What the simulator baseline is, its own MSE and how it enters (docs/interfaces.md 7.6)."""
+    if not sim:
+        return []
+    mse = sim.get("mse", {})
+    own = ", ".join(f"{k} {v:.4g}" for k, v in mse.items() if v is not None)
+    bias = sim.get("bias", {})
+    return [f"**Baseline: the simulator {sim['source']}** ({own} without the bias; bias {bias.get('name')} = "
+            f"{bias.get('value', float('nan')):.3g}). {sim.get('baseline', '')}; state level "
+            f"{sim.get('state_level', '')}.", ""]
+
+
 def markdown(doc: Diagnosis) -> str:
     lines = [f"# Diagnosis of {doc.coefficient} (baseline {doc.baseline})", ""]
     m = doc.mse
@@ -180,6 +192,7 @@ def markdown(doc: Diagnosis) -> str:
               f"the saturated model among them) and of a library-free flexible model of the residual "
               f"({u.noise_floor:.4g}); spectral estimate {doc.noise_floor_spectral:.4g}.", ""]
     lines += [f"Warning: {w}" for w in doc.warnings] + ([""] if doc.warnings else [])
+    lines += _simulator_lines(doc.simulator)
     lines += _gap_lines(doc)
     lines += _effect_lines(doc)
     lines += _round_lines(doc)

@@ -1,0 +1,62 @@
+"""``diagnose`` with a simulator as its baseline (docs/interfaces.md 7.6): ``--baseline-column NAME`` (the
+simulator's coefficient along the flight, a column of the campaign) or ``--simulator jsbsim:AIRCRAFT`` (a JSBSim
+aircraft evaluated at the recorded states). The gap, flight minus simulator, is diagnosed by the same structure
+search (:mod:`structsearch.diagnosis.offset`)."""
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+from ..data.campaign import Campaign
+from ..data.errors import DeclarationError
+from .settings import Settings, command_fitter, fit_options
+
+# the separation states a search from a simulator may add (structsearch.discovery.moves.NEW_STATES): a --bound
+# may name their parameters
+_ADDABLE_STATES = (("ss", "U"), ("w", "U"), ("w2", "U"))
+
+
+def diagnose_simulator(campaign: Campaign | str | os.PathLike, *, coefficient: str | None,
+                       baseline_column: str | None = None, simulator: str | None = None,
+                       settings: Settings = Settings(), out: str | os.PathLike | None = None,
+                       terms: str | os.PathLike | None = None, beam: int | None = None,
+                       max_steps: int | None = None):
+    """Diagnose the gap between a flight and a simulator's ``coefficient`` (exactly one of ``baseline_column``
+    and ``simulator``); with ``out``, also write ``diagnosis.json`` and ``diagnosis.md`` there. Returns the
+    diagnosis, whose ``simulator`` block says what the baseline was."""
+    from ..diagnosis import offset
+    from ..diagnosis.diagnose import diagnose_search
+    from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS
+    from ..fitting.candidates import Candidate
+    from ..fitting.options import check_box_names
+    from .commands import as_campaign
+    if (baseline_column is None) == (simulator is None):
+        raise DeclarationError("a simulator baseline is either --baseline-column NAME or --simulator jsbsim:AIRCRAFT")
+    offset.check_coefficient(coefficient)
+    target = None
+    if simulator is not None:   # a malformed value is answered before the campaign is read
+        from ..export.jsbsim_baseline import simulator_target
+        target = simulator_target(simulator)
+    check_box_names(fit_options("diagnose", settings).parameter_boxes,
+                    [Candidate("addable states", "", coefficient, (), _ADDABLE_STATES)])
+    campaign = as_campaign(campaign, settings.segment)
+    if target is None:
+        baseline = offset.column_baseline(campaign, coefficient, baseline_column)
+    else:
+        from ..export.jsbsim_baseline import jsbsim_baseline
+        if settings.progress is not None:
+            settings.progress(f"evaluating the JSBSim aircraft {target} at {campaign.data.n_samples} recorded samples")
+        baseline = jsbsim_baseline(target, campaign, coefficient)
+    start = offset.start_structure(baseline)
+    with command_fitter("diagnose", offset.gap_campaign(campaign, baseline), settings, out) as fitter:
+        result, search = diagnose_search(fitter, start, seed=settings.seed, states=False,
+                                         terms=None if terms is None else str(terms), beam=beam or DEFAULT_BEAM,
+                                         max_rounds=max_steps or DEFAULT_MAX_STEPS)
+    bias = search.final.path()[0].result.estimates.params[start.regressors[0][0]]
+    result = dataclasses.replace(offset.without_bias_reasons(result, start),
+                                 simulator=offset.simulator_record(campaign, baseline, bias))
+    if out is not None:
+        from ..reporting.diagnosis_doc import write
+        write(result, Path(out))
+    return result
