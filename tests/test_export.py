@@ -175,6 +175,30 @@ def test_only_the_tanh_form_is_exported():
         StateModel("w", "S", {"a1_w": 30.0, "a_star_w": 0.3}, form="goman")
 
 
+@pytest.mark.parametrize("change, words", [
+    ({"moment_reference": "fixed"}, "fixed reference point cannot be exported"),
+    ({"flight_effects": ("intercept",)}, "per-flight offsets"),
+    ({"forms": (("w", "goman"),)}, "static form 'goman' cannot be exported"),
+])
+def test_what_an_export_cannot_write_is_one_error_never_another_model(change, words):
+    """A pitch model about a fixed point, one with per-flight offsets, or a lift model with another static form is
+    refused before anything is written (an export that dropped the transfer, the offsets or the form would compute
+    another model in the simulator)."""
+    import dataclasses
+    from structsearch.api.exporting import Fitted, exported_model
+    from structsearch.fitting.specs import find_candidate
+    lift, pitch = find_candidate("CL-VI"), find_candidate("Cm-XXXIIIr")
+    if "forms" in change:
+        lift = dataclasses.replace(lift, **change)
+    else:
+        pitch = dataclasses.replace(pitch, **change)
+    values = {p: 0.1 for p in lift.state_parameters + tuple(n for n, _ in lift.regressors)}
+    values.update({"k_e_w": 30.0, "x_star_w": 0.5})
+    fitted = [Fitted(lift, values, {}), Fitted(pitch, {n: 0.1 for n, _ in pitch.regressors}, {})]
+    with pytest.raises(DeclarationError, match=words):
+        exported_model(fitted, None, {})
+
+
 def test_fly_stall_trims_the_example_aircraft_and_stalls_it(demo_export, tmp_path):
     """The example aircraft trims in JSBSim and flies past the wing's separation: alpha beyond a*_w, X_w falls."""
     res, out, _ = demo_export

@@ -191,8 +191,11 @@ def _campaign_of(data: Mapping, settings: Settings) -> Campaign:
 def exported_model(fitted: Sequence[Fitted], campaign: Campaign, data: Mapping) -> ExportedModel:
     """The :class:`ExportedModel` of ``fitted`` (the lift model first) on ``campaign``."""
     from ..fitting.models import used_states
+    for f in fitted:
+        _check_exportable(f.candidate)
     lift = next(f for f in fitted if f.candidate.coefficient == "CL")
-    states = tuple(StateModel(n, k, {p: lift.params[p] for p in SeparationState(n, k).parameters})
+    states = tuple(StateModel(n, k, {p: lift.params[p] for p in SeparationState(n, k, lift.candidate.form_of(n)).parameters},
+                              lift.candidate.form_of(n))
                    for n, k in lift.candidate.states)
     coefficients = []
     for f in fitted:
@@ -207,6 +210,18 @@ def exported_model(fitted: Sequence[Fitted], campaign: Campaign, data: Mapping) 
     train = campaign.split("train")
     return ExportedModel(ordered(coefficients), states, aircraft_record(campaign.aircraft, train),
                          validity(train), dict(data))
+
+
+def _check_exportable(c: Candidate) -> None:
+    """What an export cannot write yet is one error naming it, never a model that computes something else: a
+    pitch model about a fixed reference point (its known transfer term reads the measured C_D) and a model with
+    per-flight offsets (a simulator flies no recorded flight)."""
+    if c.moment_reference != "cg":
+        raise DeclarationError(f"{c.name}: C_m about a fixed reference point cannot be exported yet (its transfer "
+                               "term Cm_transfer is not written); export a model about the cg")
+    if c.flight_effects:
+        raise DeclarationError(f"{c.name}: per-flight offsets ({', '.join(c.flight_effects)}) belong to the "
+                               "recorded flights, not to a simulator; export the model fitted without them")
 
 
 def _finite(v) -> float | None:
