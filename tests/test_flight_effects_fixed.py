@@ -161,3 +161,29 @@ def test_on_the_simulator_with_the_transfer_truth_the_per_flight_cg_errors_are_r
     z = (np.array(cg.cg_offsets) + (error - error.mean())) / np.array(cg.cg_stderr)
     assert np.all(np.abs(z) < 4), z
     assert np.all(np.array(cg.cg_stderr) < 0.0035)                # a few mm: the flight errors' sd is 6 mm
+
+
+# ----- the calibration on the transfer truth ---------------------------------------------------------------
+def test_the_calibration_on_the_transfer_truth_fits_its_structure_about_the_fixed_point():
+    from structsearch.experiments.calibration import TRUTH, final_models
+    from structsearch.flight.aircraft import CITATION
+    from structsearch.flight.reference import FINAL_PITCH
+    names, truth = final_models("transfer")
+    assert names == {"CL": "CL-VI", "CD": "CD-IXr", "Cm": "Cm-XXXIIIf"}
+    assert "Cm_xcgCL" not in truth["Cm"] and truth["CL"] == TRUTH["CL"] and truth["CD"] == TRUTH["CD"]
+    # the thesis' cg terms frozen at the reference point
+    frozen = FINAL_PITCH["Cm_CL"] + FINAL_PITCH["Cm_xcgCL"] * CITATION.reference_point / CITATION.cbar
+    assert truth["Cm"]["Cm_CL"] == pytest.approx(frozen, rel=1e-12)
+    assert final_models("thesis") == ({"CL": "CL-VI", "CD": "CD-IXr", "Cm": "Cm-XXXIIIr"},
+                                      {k: dict(v) for k, v in TRUTH.items()})
+    with pytest.raises(DeclarationError, match="cg moment 'wind'"):
+        final_models("wind")
+
+
+def test_the_bench_options_parse_and_refuse_an_unknown_kind():
+    import argparse
+
+    from structsearch.cli_parser import _covariance_kinds
+    assert _covariance_kinds("hac-maneuver, hac-flight") == ("hac-maneuver", "hac-flight")
+    with pytest.raises(argparse.ArgumentTypeError, match="unknown covariance kind 'hac'"):
+        _covariance_kinds("hac-maneuver,hac")
