@@ -185,5 +185,5 @@ def test_the_bench_options_parse_and_refuse_an_unknown_kind():
 
     from structsearch.cli_parser import _covariance_kinds
     assert _covariance_kinds("hac-maneuver, hac-flight") == ("hac-maneuver", "hac-flight")
-    with pytest.raises(argparse.ArgumentTypeError, match="unknown covariance kind 'hac'"):
-        _covariance_kinds("hac-maneuver,hac")
+    with pytest.raises(argparse.ArgumentTypeError, match="unknown covariance kind 'hac-man'"):
+        _covariance_kinds("hac-maneuver,hac-man")
