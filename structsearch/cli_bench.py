@@ -14,14 +14,17 @@ def _calibration(args) -> int:
     say = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=_jobs(args), progress=say, seeds=args.seeds,
               profile_campaigns=args.profile_campaigns, flight_errors=args.flight_errors,
-              flight_effects=tuple(args.flight_effects))
+              flight_effects=tuple(args.flight_effects), cg_moment=args.cg_moment,
+              **({"kinds": args.kinds} if args.kinds else {}))
     out = Path(args.out)
     command = (f"structsearch bench --calibration --campaigns {args.campaigns} --scale {args.scale}"
                if args.seeds is None else
                f"structsearch bench --calibration --seeds {args.seeds[0]}:{args.seeds[-1] + 1} --scale {args.scale}") \
         + (f" --profile-campaigns {args.profile_campaigns}" if args.profile_campaigns != PROFILE_CAMPAIGNS else "") \
         + (" --flight-errors" if args.flight_errors else "") \
-        + (f" --flight-effects {','.join(args.flight_effects)}" if args.flight_effects else "")
+        + (f" --flight-effects {','.join(args.flight_effects)}" if args.flight_effects else "") \
+        + (f" --cg-moment {args.cg_moment}" if args.cg_moment != "thesis" else "") \
+        + (f" --kinds {','.join(args.kinds)}" if args.kinds else "")
     write_text(out / "calibration.md", calibration_markdown(cal, command))
     write_json(out / "calibration.json", calibration_dict(cal), indent=1)
     for k in cal.kinds:

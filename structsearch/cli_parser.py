@@ -30,6 +30,16 @@ def _simulator(text: str) -> str:
     return text
 
 
+def _covariance_kinds(text: str) -> tuple[str, ...]:
+    """``--kinds hac-maneuver,hac-flight``: covariance kinds out of COVARIANCE_KINDS, each once."""
+    kinds = tuple(dict.fromkeys(k.strip() for k in text.split(",") if k.strip()))
+    unknown = [k for k in kinds if k not in COVARIANCE_KINDS]
+    if not kinds or unknown:
+        raise argparse.ArgumentTypeError(f"unknown covariance kind {unknown[0] if unknown else text!r}; known: "
+                                         f"{', '.join(COVARIANCE_KINDS)}")
+    return kinds
+
+
 def _flight_effects(text: str) -> tuple[str, ...]:
     """``--flight-effects x_cg,intercept``: names out of structsearch.fitting.flight_effects.EFFECTS."""
     from .data.errors import DeclarationError
@@ -178,6 +188,13 @@ def _add_bench(sub, handler: Callable) -> None:
     b.add_argument("--flight-effects", type=_flight_effects, default=(), metavar="NAME[,NAME]",
                    help="--calibration --flight-errors: the final models estimate these per-flight offsets with "
                         "their parameters (x_cg, intercept; fit --flight-effects)")
+    b.add_argument("--cg-moment", choices=CG_MOMENTS, default="thesis",
+                   help="--calibration: how the simulated truth's C_m depends on the cg (simulate --cg-moment): "
+                        "thesis (default; the pitch model calibrated is Cm-XXXIIIr) or transfer (the moment transfer "
+                        "about the reference point; the pitch model calibrated is its structure Cm-XXXIIIf, about "
+                        "the fixed point)")
+    b.add_argument("--kinds", type=_covariance_kinds, default=None, metavar="KIND[,KIND]",
+                   help="--calibration: calibrate only these covariance kinds (default: every kind)")
     b.set_defaults(func=handler)
 
 

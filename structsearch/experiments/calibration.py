@@ -47,6 +47,26 @@ from ..fitting.lift_fit import LiftFit
 from ..thesis_study.thesis_estimator import fit_final_models
 
 TRUTH = {"CL": FINAL_LIFT, "CD": FINAL_DRAG, "Cm": FINAL_PITCH}
+# How the simulated truth's C_m depends on the cg (simulate --cg-moment) -> the pitch model calibrated on it, the
+# truth's own structure: the thesis' cg term (Cm-XXXIIIr), or the transfer about the fixed reference point
+# (Cm-XXXIIIf, whose x_cg flight effect has the transfer's known coefficient: docs/guide/flight-effects.md).
+PITCH_MODELS = {"thesis": FINAL_MODEL_NAMES["Cm"], "transfer": "Cm-XXXIIIf"}
+
+
+def final_models(cg_moment: str = "thesis") -> tuple[dict[str, str], dict[str, dict[str, float]]]:
+    """The models a calibration fits (coefficient -> name) and their simulator truth (coefficient -> parameter ->
+    value) on campaigns flown with ``cg_moment``: about the fixed point, the truth's cg terms frozen at the
+    reference point (:func:`structsearch.flight.aero.cg_transfer_pitch`), its transfer known."""
+    from ..data.errors import DeclarationError
+    if cg_moment not in PITCH_MODELS:
+        raise DeclarationError(f"cg moment {cg_moment!r}: one of {', '.join(PITCH_MODELS)}")
+    names = dict(FINAL_MODEL_NAMES, Cm=PITCH_MODELS[cg_moment])
+    if cg_moment == "thesis":
+        return names, {coef: dict(v) for coef, v in TRUTH.items()}
+    from ..flight.aero import truth_model
+    params = truth_model(cg_moment=cg_moment).params
+    pitch = {k: float(params[k]) for k in FINAL_PITCH if k != "Cm_xcgCL"}
+    return names, {"CL": dict(FINAL_LIFT), "CD": dict(FINAL_DRAG), "Cm": pitch}
 LARGE_DOF = 10 ** 9  # a draw without dof: the normal quantiles
 GAP_LEVEL = 0.01
 # goals of issue 11
@@ -102,20 +122,23 @@ def campaign_flights(scale: float) -> int:
 
 
 def draw(seed: int, scale: float, kinds: Sequence[str], profile: bool = False,
-         flight_errors: bool = False, flight_effects: tuple[str, ...] = ()) -> CampaignDraw:
+         flight_errors: bool = False, flight_effects: tuple[str, ...] = (), cg_moment: str = "thesis") -> CampaignDraw:
     """Simulate one campaign and fit the final models with every covariance kind; with ``profile``, also the
-    profile intervals of the default covariance's fits (:mod:`.calibration_profile`)."""
-    campaign = build_campaign(seed=seed, scale=scale, flights=campaign_flights(scale) if flight_errors else 0)
+    profile intervals of the default covariance's fits (:mod:`.calibration_profile`). ``cg_moment``: the truth's
+    cg dependence and the pitch model fitted (:func:`final_models`)."""
+    campaign = build_campaign(seed=seed, scale=scale, flights=campaign_flights(scale) if flight_errors else 0,
+                              cg_moment=cg_moment)
+    models, truth = final_models(cg_moment)
     train, val = campaign.split("train"), campaign.split("validation")
     estimates, stderr, gap, dof, hits, widths = {}, {}, {}, {}, {}, {}
     joint = ({}, {}, {})   # the joint fit's, with the default covariance only
     default = ({}, {}, {}, ())   # the default-start fits', with the default covariance only
     profiles, profile_seconds = {}, float("nan")
-    starts = {coef: dict(TRUTH[coef]) for coef in TRUTH}
+    starts = {coef: dict(truth[coef]) for coef in truth}
     for kind in kinds:
         options = FitOptions(n_starts=1, covariance=kind, cv_folds=0, flight_effects=flight_effects)
         stderr[kind], gap[kind], dof[kind] = {}, {}, {}
-        finals = fit_final_models(train, val, options, starts)
+        finals = fit_final_models(train, val, options, starts, models)
         lift = LiftFit(*finals["CL"])
         for coef, (cand, fit) in finals.items():
             if fit.failed:
@@ -130,11 +153,11 @@ def draw(seed: int, scale: float, kinds: Sequence[str], profile: bool = False,
             names = [p for ps in added.values() for p in ps]
             gap[kind][cand.name] = float("nan") if sat.failed else wald_p_value(sat, names)
         if kind == DEFAULT_COVARIANCE:
-            hits, widths = band_coverage(finals, train)
-            # the joint fit takes no flight effects: left out with them (its rows would be those of another model)
-            joint = joint_draw(train, val, options) if not flight_effects else joint
+            hits, widths = band_coverage(finals, train, truth)
+            # the joint fit takes no flight effects and fits the thesis' models: left out with either
+            joint = joint_draw(train, val, options) if not flight_effects and cg_moment == "thesis" else joint
             default = default_start_draw(train, val, {fit.name: fit.mse_train for _, fit in finals.values()},
-                                         flight_effects)
+                                         flight_effects, models)
             if profile:
                 from .calibration_profile import profile_draw
                 profiles, profile_seconds = profile_draw(finals, train)
@@ -142,8 +165,8 @@ def draw(seed: int, scale: float, kinds: Sequence[str], profile: bool = False,
                         profiles, profile_seconds)
 
 
-def default_start_draw(train, val, truth_mse: Mapping[str, float],
-                       flight_effects: tuple[str, ...] = ()) -> tuple[dict, dict, dict, tuple[str, ...]]:
+def default_start_draw(train, val, truth_mse: Mapping[str, float], flight_effects: tuple[str, ...] = (),
+                       names: Mapping[str, str] = FINAL_MODEL_NAMES) -> tuple[dict, dict, dict, tuple[str, ...]]:
     """The final models fitted as ``structsearch fit`` fits them (the default start: declared and quasi-random
     starts, staged; drag and pitch on that lift fit), with the default covariance: estimates, standard
     deviations and reference dof per model, and the models whose fit ended above the truth-start one's
@@ -153,7 +176,7 @@ def default_start_draw(train, val, truth_mse: Mapping[str, float],
     options = FitOptions(n_starts=4, covariance=DEFAULT_COVARIANCE, cv_folds=0, flight_effects=flight_effects)
     estimates, stderr, dof, other = {}, {}, {}, []
     lift = None
-    for coef, name in FINAL_MODEL_NAMES.items():
+    for coef, name in names.items():
         cand = find_candidate(name)
         fit = fit_staged(cand, train, val, lift if cand.lift else None, options)
         if fit.failed:
@@ -184,7 +207,7 @@ def truth_lift():
     return LiftAt(find_candidate(FINAL_MODEL_NAMES["CL"]), dict(TRUTH["CL"]))
 
 
-def band_coverage(finals, train) -> tuple[dict, dict]:
+def band_coverage(finals, train, truth: Mapping[str, Mapping[str, float]] = TRUTH) -> tuple[dict, dict]:
     """Per coefficient: whether the 95 % confidence band of the fitted static curve covers the truth's curve at
     each grid point (the truth's parameters, on the truth's lift model for drag and pitch), and the band's mean
     half width."""
@@ -193,9 +216,9 @@ def band_coverage(finals, train) -> tuple[dict, dict]:
     hits, widths = {}, {}
     for coef, (cand, fit) in finals.items():
         b = static_bands(cand, fit, train, lift if cand.lift else None)
-        _, truth, _, _, _ = static_evaluation(cand, TRUTH[coef], train, truth_lift() if cand.lift else None,
+        _, curve, _, _, _ = static_evaluation(cand, truth[coef], train, truth_lift() if cand.lift else None,
                                               jacobian=False)
-        hits[coef] = tuple(bool(h) for h in (truth >= b.band.confidence_low) & (truth <= b.band.confidence_high))
+        hits[coef] = tuple(bool(h) for h in (curve >= b.band.confidence_low) & (curve <= b.band.confidence_high))
         widths[coef] = float(np.nanmean(b.band.confidence_half_width))
     return hits, widths
 
@@ -298,13 +321,22 @@ class Calibration:
     draws: tuple[CampaignDraw, ...] = field(default=(), repr=False)
     flights: int = 0            # flights per campaign, each with its shared errors (0: no flight-level errors)
     flight_effects: tuple[str, ...] = ()   # per-flight offsets the final models estimate (fit --flight-effects)
+    cg_moment: str = "thesis"   # the truth's cg dependence and the pitch model fitted (final_models)
+
+    @property
+    def model_names(self) -> dict[str, str]:
+        return final_models(self.cg_moment)[0]
+
+    @property
+    def truth(self) -> dict[str, dict[str, float]]:
+        return final_models(self.cg_moment)[1]
 
     @property
     def band_coverage(self) -> dict[str, float]:
         """Per coefficient: the share of (alpha, campaign) points where the default covariance's 95 % confidence
         band of the static curve covers the truth's (NaN: no draw computed bands)."""
         out = {}
-        for coef in TRUTH:
+        for coef in self.truth:
             hits = [h for d in self.draws for h in d.band_hits.get(coef, ())]
             out[coef] = float(np.mean(hits)) if hits else float("nan")
         return out
@@ -313,7 +345,7 @@ class Calibration:
     def band_campaign_coverage(self) -> dict[str, tuple[float, float]]:
         """Per coefficient: the lowest and highest share of covered grid points over the campaigns."""
         out = {}
-        for coef in TRUTH:
+        for coef in self.truth:
             shares = [float(np.mean(d.band_hits[coef])) for d in self.draws if d.band_hits.get(coef)]
             out[coef] = (min(shares), max(shares)) if shares else (float("nan"), float("nan"))
         return out
@@ -343,15 +375,16 @@ def _parameter_row(model: str, p: str, truth: float, est: np.ndarray, sd: np.nda
         float(np.mean(np.abs(est - est.mean())[ok] <= z95[ok] * sd[ok])) if ok.any() else float("nan"))
 
 
-def default_start_rows(draws: Sequence[CampaignDraw]) -> tuple[ParameterCalibration, ...]:
+def default_start_rows(draws: Sequence[CampaignDraw], cg_moment: str = "thesis") -> tuple[ParameterCalibration, ...]:
     """The final models' parameters fitted from the default start, calibrated as the truth-start ones (none when
     no draw has them)."""
     if not draws or not all(d.default_estimates for d in draws):
         return ()
+    names, truths = final_models(cg_moment)
     return tuple(_parameter_row(name, p, truth, np.array([d.default_estimates[name][p] for d in draws]),
                                 np.array([d.default_stderr[name][p] for d in draws]),
                                 np.array([d.default_dof[name].get(p, LARGE_DOF) for d in draws], float))
-                 for coef, name in FINAL_MODEL_NAMES.items() for p, truth in TRUTH[coef].items())
+                 for coef, name in names.items() for p, truth in truths[coef].items())
 
 
 def joint_rows(draws: Sequence[CampaignDraw]) -> tuple[ParameterCalibration, ...]:
@@ -369,24 +402,26 @@ def joint_rows(draws: Sequence[CampaignDraw]) -> tuple[ParameterCalibration, ...
     return tuple(rows)
 
 
-def summarise(draws: Sequence[CampaignDraw], scale: float, seconds: float = 0.0) -> Calibration:
+def summarise(draws: Sequence[CampaignDraw], scale: float, seconds: float = 0.0,
+              cg_moment: str = "thesis") -> Calibration:
     """Coverage, standard-deviation ratios and gap-test rejections from the per-campaign draws."""
     kinds = tuple(draws[0].stderr)
+    names, truths = final_models(cg_moment)
     out = []
     for kind in kinds:
         rows = []
-        for coef, name in FINAL_MODEL_NAMES.items():
-            for p, truth in TRUTH[coef].items():
+        for coef, name in names.items():
+            for p, truth in truths[coef].items():
                 rows.append(_parameter_row(
                     name, p, truth, np.array([d.estimates[name][p] for d in draws]),
                     np.array([d.stderr[kind][name][p] for d in draws]),
                     np.array([d.dof.get(kind, {}).get(name, {}).get(p, LARGE_DOF) for d in draws], float)))
-        ps = np.array([d.gap_p[kind][name] for d in draws for name in FINAL_MODEL_NAMES.values()])
+        ps = np.array([d.gap_p[kind][name] for d in draws for name in names.values()])
         finite = np.isfinite(ps)
         out.append(KindCalibration(kind, tuple(rows), int(np.sum(ps[finite] < GAP_LEVEL)), int(finite.sum()),
                                    int((~finite).sum())))
     return Calibration(tuple(d.seed for d in draws), scale, int(np.mean([d.samples for d in draws])),
-                       tuple(out), seconds, tuple(draws))
+                       tuple(out), seconds, tuple(draws), cg_moment=cg_moment)
 
 
 def held_out(seeds: Sequence[int]) -> bool:
@@ -397,13 +432,15 @@ def held_out(seeds: Sequence[int]) -> bool:
 def run(n_campaigns: int = 50, scale: float = 0.1, kinds: Sequence[str] = COVARIANCE_KINDS,
         first_seed: int = HELD_OUT_FIRST, n_jobs: int = 2, progress: Callable[[str], None] | None = None,
         seeds: Sequence[int] | None = None, profile_campaigns: int = 0, flight_errors: bool = False,
-        flight_effects: Sequence[str] = ()) -> Calibration:
+        flight_effects: Sequence[str] = (), cg_moment: str = "thesis") -> Calibration:
     """Simulate seeded campaigns (``seeds``, else ``n_campaigns`` from ``first_seed``: held out by default) and
     calibrate every covariance kind on them; the first ``profile_campaigns`` also calibrate the profile
     intervals of the nonlinear parameters (:mod:`.calibration_profile`). ``flight_errors``: the campaigns are flown
     on flights that share errors (:func:`campaign_flights`); without them the kinds that group by flight are left
     out (no flight recorded: they would repeat hac-maneuver). ``flight_effects``: the final models estimate these
     per-flight offsets with their parameters (:mod:`structsearch.fitting.flight_effects`; needs ``flight_errors``).
+    ``cg_moment`` ("thesis" or "transfer", simulate --cg-moment): the truth's cg dependence, and the pitch model
+    fitted is that truth's structure (:data:`PITCH_MODELS`).
     """
     import dataclasses
     import time
@@ -414,6 +451,7 @@ def run(n_campaigns: int = 50, scale: float = 0.1, kinds: Sequence[str] = COVARI
     seeds = list(seeds) if seeds is not None else list(range(first_seed, first_seed + n_campaigns))
     n_campaigns = len(seeds)
     kinds = tuple(k for k in kinds if flight_errors or not KINDS[k].by_flight)
+    final_models(cg_moment)   # an unknown cg moment is refused before any campaign is flown
     flight_effects = tuple(flight_effects)
     if flight_effects and not flight_errors:
         from ..data.errors import DeclarationError
@@ -421,9 +459,9 @@ def run(n_campaigns: int = 50, scale: float = 0.1, kinds: Sequence[str] = COVARI
                                "estimated)")
     draws = []
     for i, d in enumerate(Parallel(n_jobs=n_jobs, return_as="generator")(
-            delayed(draw)(s, scale, tuple(kinds), i < profile_campaigns, flight_errors, flight_effects)
+            delayed(draw)(s, scale, tuple(kinds), i < profile_campaigns, flight_errors, flight_effects, cg_moment)
             for i, s in enumerate(seeds))):
         draws.append(d)
         say(f"calibration: campaign {i + 1}/{n_campaigns} ({time.perf_counter() - t0:.0f} s)")
-    return dataclasses.replace(summarise(draws, scale, time.perf_counter() - t0),
+    return dataclasses.replace(summarise(draws, scale, time.perf_counter() - t0, cg_moment),
                                flights=campaign_flights(scale) if flight_errors else 0, flight_effects=flight_effects)

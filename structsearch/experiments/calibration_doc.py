@@ -4,9 +4,8 @@ from __future__ import annotations
 from tabulate import tabulate
 
 from ..engine.statistics import KINDS
-from ..flight.reference import FINAL_MODEL_NAMES
 from .calibration import (BAND_COVERAGE_RANGE, COVERAGE_FLOOR, COVERAGE_RANGE, GAP_LEVEL, REJECTION_CEILING,
-                           TRUTH, TUNING_SEEDS, Calibration, KindCalibration, default_start_rows, held_out, joint_rows)
+                           TUNING_SEEDS, Calibration, KindCalibration, default_start_rows, held_out, joint_rows)
 from .calibration_profile import profile_dict, profile_lines
 
 # issue 30's targets for the standard deviations themselves and the two interval levels
@@ -36,7 +35,7 @@ def pooled(rows, attr: str) -> float:
 
 
 def default_start_dict(cal: Calibration) -> dict | None:
-    rows = default_start_rows(cal.draws)
+    rows = default_start_rows(cal.draws, cal.cg_moment)
     if not rows:
         return None
     other = sorted({m for d in cal.draws for m in d.other_basin})
@@ -55,9 +54,12 @@ def calibration_dict(cal: Calibration) -> dict:
         # maneuvers share a mass, cg, engine-model and vane-calibration error; keys absent without them
         **({"flight_errors": True, "flights": cal.flights} if cal.flights else {}),
         **({"flight_effects": list(cal.flight_effects)} if cal.flight_effects else {}),
+        # bench --calibration --cg-moment transfer: the truth's cg dependence and the pitch model fitted; absent for
+        # the thesis' truth
+        **({"cg_moment": cal.cg_moment, "models": cal.model_names} if cal.cg_moment != "thesis" else {}),
         "default_start": default_start_dict(cal),
         "joint": [parameter_dict(p) for p in joint_rows(cal.draws)],
-        "profile": profile_dict(cal, TRUTH, FINAL_MODEL_NAMES),
+        "profile": profile_dict(cal, cal.truth, cal.model_names),
         "bands": {coef: {"coverage95": cov, "campaign_min": cal.band_campaign_coverage[coef][0],
                          "campaign_max": cal.band_campaign_coverage[coef][1],
                          "mean_half_width": (float(sum(d.band_widths[coef] for d in cal.draws) / len(cal.draws))
@@ -107,6 +109,10 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
            "error (`--flight-errors`)" if cal.flights else "")
         + (f"; the final models estimate per-flight offsets ({', '.join(cal.flight_effects)}; `--flight-effects`) "
            "with their parameters, and the joint fit, which takes none, is left out" if cal.flight_effects else "")
+        + (f"; the truth's C_m depends on the cg by the moment transfer alone (`--cg-moment {cal.cg_moment}`), and "
+           f"the pitch model fitted is its structure, {cal.model_names['Cm']}, about the fixed reference point"
+           + (", whose x_cg effect has the transfer's known coefficient" if "x_cg" in cal.flight_effects else "")
+           + " (the joint fit, of the thesis' models, is left out)" if cal.cg_moment != "thesis" else "")
         + "), "
         "the three final models fitted on each; intervals are estimate +- t quantile * reported standard "
         "deviation around the simulator's truth, with each fit's reference degrees of freedom (G - 1 for "
@@ -131,7 +137,7 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
         f"{(0.95 * 0.05 / n) ** 0.5:.3f} at 95 %.", ""]
     lines += target_lines(cal)
     lines += default_start_lines(cal)
-    lines += profile_lines(cal, TRUTH, FINAL_MODEL_NAMES)
+    lines += profile_lines(cal, cal.truth, cal.model_names)
     lines += band_lines(cal)
     lines += joint_lines(cal)
     for k in cal.kinds:
@@ -171,7 +177,7 @@ def target_lines(cal: Calibration) -> list[str]:
     rows = []
     if default is not None:
         rows.append([f"{default.kind}, from the truth"] + _target_counts(default.parameters))
-    start = default_start_rows(cal.draws)
+    start = default_start_rows(cal.draws, cal.cg_moment)
     if start:
         rows.append([f"{cal.default_kind}, from the default start"] + _target_counts(start))
     # with flight-level errors, the kinds that group by flight beside it (same truth-start fits)
@@ -189,7 +195,7 @@ def target_lines(cal: Calibration) -> list[str]:
 
 
 def default_start_lines(cal: Calibration) -> list[str]:
-    rows = default_start_rows(cal.draws)
+    rows = default_start_rows(cal.draws, cal.cg_moment)
     if not rows:
         return []
     other = default_start_dict(cal)["other_basin"]

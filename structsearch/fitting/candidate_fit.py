@@ -162,7 +162,8 @@ def _scored(c: Candidate, setup: _Setup, result, plan: FoldPlan, options: FitOpt
     if effects is not None:
         estimates, flight_effects = split_effects(effects, result.estimates, train.n_segments)
         correlation_model = effects.base_model
-    warning = missing_effects_warning(c.regressors, c.coefficient, train, effects_of(c, options))
+    warning = missing_effects_warning(c.regressors, c.coefficient, train, effects_of(c, options),
+                                      fixed=c.moment_reference == "fixed")
     scores = {}
     if cv is not None:
         scores["cv"] = SplitScores.of(ManeuverScores.of(train[c.coefficient], cv, plan.slices()), None)

@@ -170,7 +170,8 @@ def _with_flight_effects(candidates: list[Candidate], first: int, entry: dict, w
     if not effects:
         return
     for i in range(first, len(candidates)):
-        check_declared(effects, candidates[i].regressors, f"{where} ({candidates[i].name})")
+        check_declared(effects, candidates[i].regressors, f"{where} ({candidates[i].name})",
+                       fixed=candidates[i].moment_reference == "fixed")
         candidates[i] = dataclasses.replace(candidates[i], flight_effects=effects)
 def _moment_reference(entry: dict, coefficient: str, where: str) -> str | None:
     """An entry's ``moment_reference`` ("cg" or "fixed", pitch grids only); None when it gives none."""

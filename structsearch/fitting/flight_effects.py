@@ -15,6 +15,13 @@ separable shape (the engine sees extra named regressors on extra data columns, t
   reported as that coefficient over theta (delta method). Not the rigid-body transfer ``C_N delta_f / cbar``:
   the fitted cg term is not the rigid-body one (the thesis' Cm_xcgCL is -0.96, the transfer's +1), and the
   model's own sensitivity is the one its x_cg column was fitted with.
+  A pitch model about the fixed reference point (``moment_reference = "fixed"``, :mod:`structsearch.data.
+  moment_transfer`) reads x_cg only through the known transfer ``Cm_transfer = (x_cg - x_ref)/cbar C_N`` (coefficient
+  1, never estimated): the column is ``d(Cm_transfer)/dx_cg c_f = C_N/cbar c_f`` (exact: the transfer is linear in
+  x_cg) and its coefficient is ``delta_f`` itself, in metres. The cg-referenced model cannot tell a per-flight cg
+  offset from its own cg term where the cg is constant within each flight (every column is then a per-flight
+  multiple of the sensitivity); about the fixed point the coefficient is known and C_N varies within every
+  maneuver, so the offsets are identified by that variation.
 
 Coding: sum to zero. With the training flights F_1..F_K (in the order first flown), flight k < K has the code
 column ``1[F_k] - 1[F_K]``; the offsets sum to zero over the flights, so the model's own intercept and cg terms
@@ -34,6 +41,7 @@ import sympy as sp
 
 from ..data.errors import DataError, DeclarationError
 from ..data.flightdata import FlightData
+from ..data.moment_transfer import TRANSFER_NAME
 from ..engine.regressors import declare, symbol_names
 
 EFFECTS = ("intercept", "x_cg")
@@ -71,17 +79,26 @@ def cg_terms(regressors: Sequence[tuple[str, str]]) -> tuple[str, ...]:
     return tuple(name for name, text in regressors if CG in symbol_names(text))
 
 
-def check_declared(effects: Sequence[str], regressors: Sequence[tuple[str, str]], where: str) -> None:
-    """A spec entry's ``x_cg`` effect needs exactly one regressor reading x_cg (its sensitivity is the column)."""
+def check_declared(effects: Sequence[str], regressors: Sequence[tuple[str, str]], where: str,
+                   fixed: bool = False) -> None:
+    """A spec entry's ``x_cg`` effect needs exactly one regressor reading x_cg (its sensitivity is the column), or,
+    about the fixed reference point (``fixed``), none (the known transfer's sensitivity is the column)."""
     if CG in effects:
-        reason = cg_reason(regressors)
+        reason = cg_reason(regressors, fixed)
         if reason:
             raise DeclarationError(f"{where}: flight effect 'x_cg': {reason}")
 
 
-def cg_reason(regressors: Sequence[tuple[str, str]]) -> str | None:
-    """Why the ``x_cg`` effect does not apply to a model with these regressors (None: it does)."""
+def cg_reason(regressors: Sequence[tuple[str, str]], fixed: bool = False) -> str | None:
+    """Why the ``x_cg`` effect does not apply to a model with these regressors (None: it does); ``fixed``: the model
+    takes C_m about the fixed reference point (it reads x_cg through the known transfer)."""
     terms = cg_terms(regressors)
+    if fixed:
+        if terms:
+            return (f"about the fixed reference point the known transfer {TRANSFER_NAME} reads x_cg, and "
+                    f"{', '.join(terms)} too: the offset's effect would be the transfer's sensitivity plus theirs "
+                    "weighted by their coefficients, which is not linear in the parameters")
+        return None
     if not terms:
         return "no regressor reads x_cg, so a cg offset does not reach the model"
     if len(terms) > 1:
@@ -143,7 +160,9 @@ def parameter_name(effect: str, k: int) -> str:
 @dataclass(frozen=True)
 class EffectDesign:
     """The effects a candidate's fit estimates: the coding, the effects that apply, those that do not (with the
-    reason) and, for ``x_cg``, the regressor whose sensitivity is the column."""
+    reason) and, for ``x_cg``, the regressor whose sensitivity is the column (about the fixed reference point,
+    ``known``: the transfer :data:`~structsearch.data.moment_transfer.TRANSFER_NAME`, whose coefficient is 1, so
+    the effect's coefficients are the offsets in metres)."""
 
     coding: FlightCoding
     effects: tuple[str, ...]
@@ -151,6 +170,7 @@ class EffectDesign:
     cg_term: str | None = None
     # effects the data cannot separate from the model's own terms -> why (their offsets are NaN)
     confounded: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    known: bool = False          # x_cg read through the known transfer (C_m about the fixed reference point)
 
     @property
     def parameters(self) -> tuple[str, ...]:
@@ -163,11 +183,19 @@ class EffectDesign:
             if effect == "intercept":
                 factor = sp.Integer(1)
             else:
-                reg = next(r for r in model.regressors if r.name == self.cg_term)
-                factor = sp.diff(reg.expr, sp.Symbol(CG, real=True))
+                factor = sp.diff(self._cg_expression(model), sp.Symbol(CG, real=True))
             for k, code in enumerate(self.coding.columns, start=1):
                 out[parameter_name(effect, k)] = factor * sp.Symbol(code, real=True)
         return out
+
+    def _cg_expression(self, model) -> sp.Expr:
+        """The expression the x_cg offset acts through: the cg term's regressor, or the model's known transfer."""
+        if self.known:
+            if model.offset is None or model.offset.name != self.cg_term:
+                raise DeclarationError(f"model {model.name!r}: the x_cg flight effect about the fixed reference point "
+                                       f"needs the known transfer {self.cg_term!r} as the model's offset")
+            return model.offset.expr
+        return next(r for r in model.regressors if r.name == self.cg_term).expr
 
     def model(self, model):
         """``model`` (a :class:`~structsearch.engine.stallmodel.StallModel`) with the effect regressors."""
@@ -178,21 +206,25 @@ class EffectDesign:
         return dataclasses.replace(model, regressors=model.regressors + extra)
 
 
-def design(effects: Sequence[str], regressors: Sequence[tuple[str, str]], train: FlightData) -> EffectDesign:
-    """The :class:`EffectDesign` of ``effects`` for a model with ``regressors`` on the training maneuvers: an
-    ``x_cg`` effect that does not apply (asked for a whole grid by an option) is skipped with its reason."""
+def design(effects: Sequence[str], regressors: Sequence[tuple[str, str]], train: FlightData,
+           fixed: bool = False) -> EffectDesign:
+    """The :class:`EffectDesign` of ``effects`` for a model with ``regressors`` on the training maneuvers (``fixed``:
+    C_m about the fixed reference point): an ``x_cg`` effect that does not apply (asked for a whole grid by an
+    option) is skipped with its reason."""
     coding = FlightCoding.of(train)
     kept, skipped, term = [], [], None
     for effect in effects:
         if effect == CG:
-            reason = cg_reason(regressors)
+            reason = cg_reason(regressors, fixed)
             if reason:
                 skipped.append((effect, reason))
                 continue
-            term = cg_terms(regressors)[0]
+            term = TRANSFER_NAME if fixed else cg_terms(regressors)[0]
         kept.append(effect)
-    confounded = {CG: cg_confounded(train, term)} if term is not None and cg_confounded(train, term) else {}
-    return EffectDesign(coding, tuple(kept), tuple(skipped), term, confounded)
+    # about the fixed point the column C_N/cbar c_f varies within every flight whatever the cg does
+    confounded = ({CG: cg_confounded(train, term)} if term is not None and not fixed and cg_confounded(train, term)
+                  else {})
+    return EffectDesign(coding, tuple(kept), tuple(skipped), term, confounded, known=fixed and term is not None)
 
 
 def cg_confounded(train: FlightData, term: str) -> str | None:
@@ -214,12 +246,19 @@ def reads_cg(regressors: Sequence[tuple[str, str]]) -> bool:
 
 
 def missing_effects_warning(regressors: Sequence[tuple[str, str]], coefficient: str, train: FlightData,
-                            effects: Sequence[str]) -> str | None:
-    """The warning of a moment model that reads x_cg, fitted without the ``x_cg`` effect on a campaign that
-    records flights (None when it does not apply)."""
-    if coefficient != "Cm" or CG in effects or train.flights is None or not reads_cg(regressors):
+                            effects: Sequence[str], fixed: bool = False) -> str | None:
+    """The warning of a moment model that reads x_cg (about the fixed reference point, ``fixed``: through the known
+    transfer), fitted without the ``x_cg`` effect on a campaign that records flights (None when it does not
+    apply)."""
+    if coefficient != "Cm" or CG in effects or train.flights is None or not (fixed or reads_cg(regressors)):
         return None
     n = len(dict.fromkeys(maneuver_flights(train)))
+    if fixed and not reads_cg(regressors):
+        return (f"the campaign records {n} flights and the moment model about the fixed reference point reads x_cg "
+                f"through the known transfer {TRANSFER_NAME} without flight effects: a per-flight error of the "
+                "recorded cg is left in the residuals, shared by each flight's maneuvers, and the standard "
+                "deviations of a per-maneuver covariance are then too small (declare flight_effects = [\"x_cg\"] "
+                "or fit with --flight-effects x_cg)")
     return (f"the campaign records {n} flights and the moment model reads x_cg ({', '.join(cg_terms(regressors))}) "
             "without flight effects: a per-flight error of the recorded cg is then read as the cg term's signal "
             "and its standard deviation is too small (declare flight_effects = [\"x_cg\"] or fit with "
@@ -231,8 +270,9 @@ def missing_effects_warning(regressors: Sequence[tuple[str, str]], coefficient: 
 class FlightOffsets:
     """One effect's offset per training flight, with its standard deviation (NaN with ``reason`` where the data
     cannot tell it). ``offsets`` are the coefficients of the effect's columns (``intercept``: in units of the
-    coefficient; ``x_cg``: theta delta_f, in metres times the cg term's coefficient); ``x_cg`` also gives
-    ``delta_f`` in metres (``cg_offsets``)."""
+    coefficient; ``x_cg``: theta delta_f, in metres times the cg term's coefficient, or delta_f itself about the
+    fixed reference point, where the term is the known transfer); ``x_cg`` also gives ``delta_f`` in metres
+    (``cg_offsets``)."""
 
     effect: str
     flights: tuple[str, ...]
@@ -292,7 +332,9 @@ class FlightEffects:
         for e in self.effects:
             unit = "delta x_cg [m]" if e.effect == CG else "offset"
             values, sds = (e.cg_offsets, e.cg_stderr) if e.effect == CG else (e.offsets, e.stderr)
-            out.append(f"  {e.effect}" + (f" (sensitivity of {e.term})" if e.term else "") + f": {unit}")
+            of = ("" if not e.term else f" (sensitivity of the known transfer {e.term})" if e.term == TRANSFER_NAME
+                  else f" (sensitivity of {e.term})")
+            out.append(f"  {e.effect}{of}: {unit}")
             out += [f"    {f:<16} {v: .4g} +- {s:.2g}" for f, v, s in zip(e.flights, values, sds)]
             if e.reason:
                 out.append(f"    not identifiable: {e.reason}")
@@ -358,6 +400,9 @@ def _offsets(estimates, d: EffectDesign, effect: str) -> FlightOffsets:
         sd = np.full(len(sd), np.nan)
     if effect != CG:
         return FlightOffsets(effect, d.coding.labels, tuple(map(float, offsets)), tuple(map(float, sd)), reason=reason)
+    if d.known:   # the transfer's coefficient is 1: the offsets are delta_f [m] themselves
+        return FlightOffsets(effect, d.coding.labels, tuple(map(float, offsets)), tuple(map(float, sd)), d.cg_term,
+                             tuple(map(float, offsets)), tuple(map(float, sd)), reason)
     # delta_f = offset_f / theta, by the delta method with the covariance of (offset_f, theta)
     t = names.index(d.cg_term)
     theta = values[t]

@@ -40,7 +40,7 @@ def prepare(c: Candidate, options: FitOptions, model, train: FlightData, validat
     effects = effects_of(c, options)
     if not effects:
         return None
-    d = design(effects, c.regressors, train)
+    d = design(effects, c.regressors, train, fixed=c.moment_reference == "fixed")
     if not d.effects:
         return EffectFit(d, model, model, train, validation, train)
     return EffectFit(d, model, d.model(model), d.coding.coded(train), d.coding.coded(validation), train)

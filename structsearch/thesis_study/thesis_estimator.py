@@ -16,11 +16,13 @@ from ..flight.reference import FINAL_MODEL_NAMES
 THESIS_COVARIANCE = "colored"
 
 
-def fit_final_models(train, val, options: FitOptions, starts: Mapping[str, Mapping[str, float]]) -> dict:
-    """The thesis' three final models fitted from ``starts`` (coefficient -> parameters), drag and pitch on
-    the fitted lift model's states: {coefficient: (candidate, result)}."""
+def fit_final_models(train, val, options: FitOptions, starts: Mapping[str, Mapping[str, float]],
+                     names: Mapping[str, str] = FINAL_MODEL_NAMES) -> dict:
+    """The thesis' three final models (or ``names``: coefficient -> model name) fitted from ``starts``
+    (coefficient -> parameters), drag and pitch on the fitted lift model's states: {coefficient: (candidate,
+    result)}."""
     lift, out = None, {}
-    for coef, name in FINAL_MODEL_NAMES.items():
+    for coef, name in names.items():
         cand = find_candidate(name)
         fit = fit_candidate(cand, train, val, lift if cand.lift else None, options, start=dict(starts[coef]))
         lift = LiftFit(cand, fit) if coef == "CL" else lift
