@@ -24,7 +24,7 @@ from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftFit
 from ..fitting.options import check_box_names
 from ..fitting.regimes import Part, attached_part, stall_part
-from .commands import as_campaign
+from .settings import as_campaign
 from .settings import Settings, command_fitter
 
 
@@ -37,7 +37,7 @@ def fit_by_kind(campaign: Campaign | str | os.PathLike, models: str | Sequence[s
     if not names:
         raise DeclarationError("--by-kind needs at least one model (--model CL-G,CD-G,Cm-G)")
     candidates = [resolve_candidate(n) for n in names]
-    campaign = as_campaign(campaign, settings.segment)
+    campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     _check_regimes(campaign)
     check_box_names(settings.boxes(), candidates)
     say = settings.progress

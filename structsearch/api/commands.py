@@ -16,25 +16,8 @@ from ..fitting.options import check_box_names
 from ..fitting.pools import warm_workers
 from ..grid_search.admissibility import MAX_CORRELATION
 from .results import FitOutcome, PreprocessOutcome, Ranking, StudyOutcome
-from .settings import FlightTestPlan, Settings, command_fitter, dask_client, fit_options
+from .settings import FlightTestPlan, Settings, as_campaign, command_fitter, dask_client, fit_options
 
-
-
-def as_campaign(campaign: Campaign | str | os.PathLike, segment: str | None = None,
-                reference_point: float | None = None) -> Campaign:
-    """``campaign`` itself, or the standard campaign read from that directory. ``segment`` (``--segment``):
-    "cycles" cuts every record into its cycles, "none" keeps each whole, None as campaign.toml says
-    (:mod:`structsearch.data.records`; a campaign in memory: :func:`structsearch.data.cycles.segmented`).
-    ``reference_point`` (``--reference-point``): the fixed moment reference point [m], replacing the manifest's."""
-    if isinstance(campaign, Campaign):
-        from ..data.cycles import segmented
-        campaign = segmented(campaign, segment)
-    else:
-        campaign = read_campaign(campaign, segment=segment)
-    if reference_point is not None:
-        from ..data.campaign import with_reference_point
-        campaign = with_reference_point(campaign, reference_point)
-    return campaign
 
 
 def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Settings = Settings(),

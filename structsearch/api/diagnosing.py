@@ -30,7 +30,7 @@ def diagnose_simulator(campaign: Campaign | str | os.PathLike, *, coefficient: s
     from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS
     from ..fitting.candidates import Candidate
     from ..fitting.options import check_box_names
-    from .commands import as_campaign
+    from .settings import as_campaign
     if (baseline_column is None) == (simulator is None):
         raise DeclarationError("a simulator baseline is either --baseline-column NAME or --simulator jsbsim:AIRCRAFT")
     offset.check_coefficient(coefficient)
@@ -40,7 +40,7 @@ def diagnose_simulator(campaign: Campaign | str | os.PathLike, *, coefficient: s
         target = simulator_target(simulator)
     check_box_names(fit_options("diagnose", settings).parameter_boxes,
                     [Candidate("addable states", "", coefficient, (), _ADDABLE_STATES)])
-    campaign = as_campaign(campaign, settings.segment)
+    campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     if target is None:
         baseline = offset.column_baseline(campaign, coefficient, baseline_column)
     else:

@@ -19,7 +19,7 @@ def discover(campaign: Campaign | str | os.PathLike, coefficient: str, *, settin
     :class:`~structsearch.discovery.discovered.Discovery`."""
     from ..diagnosis.diagnose import diagnose_search
     from ..discovery.discover import discover_structures
-    from .commands import as_campaign
+    from .settings import as_campaign
     campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     with command_fitter("discover", campaign, settings, out) as fitter:
         found = discover_structures(fitter, coefficient, diagnose_search, start=start, lifts=lifts, terms=terms,

@@ -288,7 +288,7 @@ def export(*, fit_dir: str | os.PathLike | None = None, campaign: Campaign | str
         if models is None:
             raise DeclarationError("--data needs --model NAME[,NAME...]")
         candidates = _model_names(models)    # a misspelled name is answered before the campaign is read
-        from .commands import as_campaign
+        from .settings import as_campaign
         the_campaign = as_campaign(campaign, settings.segment)
         fitted = fitted_from_data(the_campaign, candidates, settings)
         data = campaign_record(the_campaign)

@@ -14,7 +14,8 @@ from ..data.errors import DataError, DeclarationError
 from ..fitting.fitter import Fitter
 from ..fitting.lift_fit import LiftFit
 from ..fitting.options import check_box_names
-from .commands import as_campaign, search, search_candidates
+from .commands import search, search_candidates
+from .settings import as_campaign
 from .settings import Settings, command_fitter, fit_options
 from .results import ReportOutcome
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable, Iterator, Mapping
 
-from ..data.campaign import Campaign
+from ..data.campaign import Campaign, read_campaign
 from ..data.errors import DeclarationError
 from ..engine.statistics import DEFAULT_COVARIANCE
 from ..data.atomic import write_json
@@ -171,3 +171,20 @@ class FlightTestPlan:
     nominal: bool = False
     cg_spread: float | None = None
     cg_moment: str = "thesis"
+
+
+def as_campaign(campaign: Campaign | str | os.PathLike, segment: str | None = None,
+                reference_point: float | None = None) -> Campaign:
+    """``campaign`` itself, or the standard campaign read from that directory. ``segment`` (``--segment``):
+    "cycles" cuts every record into its cycles, "none" keeps each whole, None as campaign.toml says
+    (:mod:`structsearch.data.records`; a campaign in memory: :func:`structsearch.data.cycles.segmented`).
+    ``reference_point`` (``--reference-point``): the fixed moment reference point [m], replacing the manifest's."""
+    if isinstance(campaign, Campaign):
+        from ..data.cycles import segmented
+        campaign = segmented(campaign, segment)
+    else:
+        campaign = read_campaign(campaign, segment=segment)
+    if reference_point is not None:
+        from ..data.campaign import with_reference_point
+        campaign = with_reference_point(campaign, reference_point)
+    return campaign

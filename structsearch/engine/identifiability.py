@@ -21,6 +21,7 @@ from typing import Sequence
 
 import numpy as np
 from scipy.linalg import qr
+from ..data.errors import DeclarationError
 
 # 1/RANK_RTOL bounds the scaled condition number of an identifiable fit. 1e8 ~ 1/sqrt(eps): beyond it
 # the normal equations behind every covariance lose all digits. The NIST StRD problems reach 6e4
@@ -130,3 +131,19 @@ def covariance_basis(jac: np.ndarray, names: Sequence[str], reasons: dict, n_non
             keep[j] = True
             q = np.column_stack([q, rest / size])
     return keep
+
+
+def check_parameter_names(name: str, state_parameters, nonlinear_names, fixed, start, bounds) -> None:
+    """A declared model's fixed values name its separation parameters, its starts and boxes its nonlinear ones
+    (a name it does not have could never be estimated), and every box is increasing."""
+    for key in fixed:
+        if key not in state_parameters:
+            raise DeclarationError(f"model {name!r}: fixed parameter {key!r} is not one of its separation "
+                                   f"parameters ({', '.join(state_parameters) or 'none'})")
+    for key in list(start) + list(bounds):
+        if key not in nonlinear_names:
+            raise DeclarationError(f"model {name!r}: {key!r} is not one of its nonlinear parameters "
+                                   f"({', '.join(nonlinear_names) or 'none'})")
+    for key, (lo, hi) in bounds.items():
+        if not lo < hi:
+            raise DeclarationError(f"model {name!r}: bounds of {key!r} are not increasing: ({lo}, {hi})")

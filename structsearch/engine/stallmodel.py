@@ -25,7 +25,7 @@ from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
 from .equations import Equations, write_equations
 from .fit import fit_problem
-from .identifiability import SATURATION, collinear_with, join_names
+from .identifiability import SATURATION, check_parameter_names, collinear_with, join_names
 from .regressors import X_FLOOR, Regressor, declare
 from .results import FitResult
 from ..data.default_boxes import DEFAULT_BOUNDS, DEFAULT_START, data_bounds
@@ -90,18 +90,8 @@ class StallModel:
             raise DeclarationError(f"model {name!r}: the offset {known.name!r} reads {coefficient} or is a parameter")
         model = cls(name, coefficient, state_objs, regs, dict(start or {}), dict(bounds or {}),
                     dict(fixed or {}), known)
-        all_params = tuple(p for s in state_objs for p in s.parameters)
-        for key in model.fixed:
-            if key not in all_params:
-                raise DeclarationError(f"model {name!r}: fixed parameter {key!r} is not one of its separation "
-                                       f"parameters ({', '.join(all_params) or 'none'})")
-        for key in list(model.start) + list(model.bounds):
-            if key not in model.nonlinear_names:
-                raise DeclarationError(f"model {name!r}: {key!r} is not one of its nonlinear parameters "
-                                       f"({', '.join(model.nonlinear_names) or 'none'})")
-        for key, (lo, hi) in model.bounds.items():
-            if not lo < hi:
-                raise DeclarationError(f"model {name!r}: bounds of {key!r} are not increasing: ({lo}, {hi})")
+        check_parameter_names(name, tuple(p for s in state_objs for p in s.parameters), model.nonlinear_names,
+                              model.fixed, model.start, model.bounds)
         return model
 
     @property

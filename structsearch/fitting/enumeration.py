@@ -84,7 +84,6 @@ def expand(doc: dict, source: str) -> Grid:
     name, coefficient = doc["name"], doc["coefficient"]
     prefix = doc.get("prefix", f"{name}-")
     default_lift = doc.get("lift")
-    sets = doc.get("sets", {})
     counter = 0
     candidates: list[Candidate] = []
     used_bounds: set[str] = set()
@@ -122,34 +121,7 @@ def expand(doc: dict, source: str) -> Grid:
         before = set(used_bounds)
         used_bounds.clear()
         reference = _moment_reference(entry, coefficient, where)
-        if "from" in entry:
-            base, regs = _derived(entry, candidates, where)
-            forms = {**dict(base.forms), **dict(_forms(entry, [n for n, _ in base.states], lift, where))}
-            add(entry.get("name"), regs, base.states, base.lift, note, where, base.bounds + own_bounds,
-                tuple(forms.items()), reference or base.moment_reference)
-        elif "kinds" in entry:
-            kinds = entry["kinds"]
-            regs = _blocks(doc, entry.get("blocks", []), where)
-            forms = _forms(entry, list(kinds), lift, where)
-            for combo in product(*kinds.values()):
-                st = tuple(zip(kinds.keys(), combo))
-                add(entry.get("prefix", prefix) + "/".join(combo), regs, st, lift, note, where, bounds, forms,
-                    reference or "cg")
-        elif "combinations" in entry:
-            combos = entry["combinations"]
-            if isinstance(combos, str):
-                if combos not in sets:
-                    raise DeclarationError(f"{where}: unknown set {combos!r}")
-                combos = sets[combos]
-            forms = _forms(entry, [n for n, _ in states], lift, where)
-            for combo in combos:
-                add(None, _blocks(doc, list(entry.get("always", [])) + list(combo), where), states, lift, note,
-                    where, bounds, forms, reference or "cg")
-        else:
-            regs = _blocks(doc, entry.get("blocks", []), where)
-            regs += [(k, str(v)) for k, v in entry.get("regressors", {}).items()]
-            add(entry.get("name"), regs, states, lift, note, where, bounds, _forms(entry, [n for n, _ in states],
-                                                                               lift, where), reference or "cg")
+        _declare_entry(doc, entry, where, candidates, add, (lift, states, note, bounds, own_bounds, reference))
         _with_flight_effects(candidates, first_of_entry, entry, where)
         unused = [k for k, _ in own_bounds if k not in used_bounds]
         if unused:
@@ -161,6 +133,42 @@ def expand(doc: dict, source: str) -> Grid:
         raise DeclarationError(f"{source} [bounds]: bounds for {unused[0]!r}, which no candidate of the grid has as "
                                "a separation parameter")
     return Grid(name, coefficient, tuple(candidates), source)
+
+
+def _declare_entry(doc: dict, entry: dict, where: str, candidates: list[Candidate], add, context) -> None:
+    """Declare an entry's candidates through ``add``: derived ``from`` another, one per combination of ``kinds``,
+    one per set of ``combinations``, or one of its ``blocks`` and ``regressors``."""
+    lift, states, note, bounds, own_bounds, reference = context
+    prefix = doc.get("prefix", f"{doc['name']}-")
+    sets = doc.get("sets", {})
+    if "from" in entry:
+        base, regs = _derived(entry, candidates, where)
+        forms = {**dict(base.forms), **dict(_forms(entry, [n for n, _ in base.states], lift, where))}
+        add(entry.get("name"), regs, base.states, base.lift, note, where, base.bounds + own_bounds,
+            tuple(forms.items()), reference or base.moment_reference)
+    elif "kinds" in entry:
+        kinds = entry["kinds"]
+        regs = _blocks(doc, entry.get("blocks", []), where)
+        forms = _forms(entry, list(kinds), lift, where)
+        for combo in product(*kinds.values()):
+            st = tuple(zip(kinds.keys(), combo))
+            add(entry.get("prefix", prefix) + "/".join(combo), regs, st, lift, note, where, bounds, forms,
+                reference or "cg")
+    elif "combinations" in entry:
+        combos = entry["combinations"]
+        if isinstance(combos, str):
+            if combos not in sets:
+                raise DeclarationError(f"{where}: unknown set {combos!r}")
+            combos = sets[combos]
+        forms = _forms(entry, [n for n, _ in states], lift, where)
+        for combo in combos:
+            add(None, _blocks(doc, list(entry.get("always", [])) + list(combo), where), states, lift, note,
+                where, bounds, forms, reference or "cg")
+    else:
+        regs = _blocks(doc, entry.get("blocks", []), where)
+        regs += [(k, str(v)) for k, v in entry.get("regressors", {}).items()]
+        add(entry.get("name"), regs, states, lift, note, where, bounds, _forms(entry, [n for n, _ in states],
+                                                                           lift, where), reference or "cg")
 
 
 def _with_flight_effects(candidates: list[Candidate], first: int, entry: dict, where: str) -> None:

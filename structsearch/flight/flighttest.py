@@ -332,6 +332,21 @@ def _cut(p: PlannedManeuver, columns: dict) -> dict:
     return {k: v[:end] for k, v in columns.items()}
 
 
+def _chosen_anomaly(anomaly: str | None, aircraft: str, withhold: tuple):
+    """The anomaly named ``anomaly`` (None: none), refused for another aircraft or beside withheld effects."""
+    if anomaly is None:
+        return None
+    from .anomalies import anomaly_named
+    chosen = anomaly_named(anomaly)
+    if aircraft != "citation":
+        raise DeclarationError(f"anomaly {anomaly!r}: anomalies are declared for the Citation II only, "
+                               f"not the {aircraft}")
+    if withhold:
+        raise DeclarationError(f"anomaly {anomaly!r} cannot be combined with withheld effects "
+                               f"({', '.join(withhold)}): a campaign tests one departure from the final model")
+    return chosen
+
+
 def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False,
                    slow_errors: float = 1.0, aircraft: str = "citation", anomaly: str | None = None,
                    raw: bool = False, flights: int = 0, nominal: bool = False, cg_spread: float | None = None,
@@ -360,18 +375,9 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
     ``cg_spread`` [m]: each loading's cg drawn from a band this wide (:func:`.aircraft.cg_band`; the same draws);
     ``cg_moment`` (:data:`.aero.CG_MOMENTS`): how the truth's C_m depends on the cg. Both go to the manifest."""
     from .aero import truth_model
-    from .anomalies import anomaly_named
     from ..data.campaign import Maneuver, make_campaign
     withhold = tuple(withhold)
-    chosen = None
-    if anomaly is not None:
-        chosen = anomaly_named(anomaly)
-        if aircraft != "citation":
-            raise DeclarationError(f"anomaly {anomaly!r}: anomalies are declared for the Citation II only, "
-                                   f"not the {aircraft}")
-        if withhold:
-            raise DeclarationError(f"anomaly {anomaly!r} cannot be combined with withheld effects "
-                                   f"({', '.join(withhold)}): a campaign tests one departure from the final model")
+    chosen = _chosen_anomaly(anomaly, aircraft, withhold)
     if nominal:
         _check_nominal(chosen is not None, raw, flights)
     model = truth_model(withhold, aircraft, chosen if chosen is not None and chosen.flies else None,
