@@ -173,6 +173,30 @@ def test_compressibility_grows_the_lift_slope_with_airspeed():
     assert np.all(d[positive & (data["V"] > V_REF)] > 0) and np.all(d[positive & (data["V"] < V_REF)] < 0)
 
 
+def test_two_break_stall_flies_a_two_step_strip_of_more_lift():
+    from structsearch.engine.static_forms import static_value
+    from structsearch.flight.anomalies import TWO_BREAK_LIFT, TWO_BREAK_SS
+    c = flown("two_break_stall")
+    data = c.data
+    p = FINAL_LIFT
+    # the strips' state lags the two-break curve as the final model's lags its tanh (tau1 0.42 s): where alpha is
+    # slow and away from both breaks, the state is the curve's value (the plateau's between them)
+    a = data["alpha_true"]
+    breaks = np.array([0.12, 0.28])
+    steady = (np.abs(data["alpha_dot"]) < 0.002) & (np.min(np.abs(a[:, None] - breaks), axis=1) > 0.04)
+    assert np.any(steady & (a > 0.16) & (a < 0.24))
+    assert np.max(np.abs(data["X_ss_true"][steady] - static_value("two_break", data["alpha_true"][steady],
+                                                                  dict(TWO_BREAK_SS)))) < 0.05
+    # the truth minus the final model on the same (truth) states: the strips' extra lift (measured signals in
+    # final_cl: a few 1e-4 apart)
+    gap = data["CL_true"] - final_cl(a, data["X_ss_true"], data["X_w_true"], data)
+    extra = (TWO_BREAK_LIFT - 1) * p["CL_KL_ss"] * K_L(data["X_ss_true"]) * a
+    assert np.std(extra) > 0.05 and np.max(np.abs(gap - extra)) < 0.005
+    # the plateau: the curve holds x_mid over most of the 0.16 rad between its breaks
+    plateau = static_value("two_break", np.array([0.15, 0.2, 0.25]), dict(TWO_BREAK_SS))
+    assert np.all(np.abs(plateau - dict(TWO_BREAK_SS)["x_mid"]) < 0.01)
+
+
 def test_tail_aeroelastic_loses_elevator_effectiveness_with_airspeed():
     c = flown("tail_aeroelastic")
     data = c.data

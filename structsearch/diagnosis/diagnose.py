@@ -38,7 +38,7 @@ from ..data.errors import DataError, DeclarationError
 from ..discovery.adoption import DEFAULT_ALPHA, TEST_NAME
 from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, Status, explore
 from ..discovery.final_choice import stopped_text
-from ..discovery.moves import MOVE_KINDS, structure_key
+from ..discovery.moves import DIAGNOSE_KINDS, structure_key
 from ..discovery.search_start import start_search
 from ..fitting.comparison import MIN_MANEUVERS, relative_excess, within_noise as one_se_rule
 from ..fitting.candidates import Candidate
@@ -201,11 +201,12 @@ def diagnose(fitter: Fitter, baseline: Candidate, **settings) -> Diagnosis:
 
 def diagnose_search(fitter: Fitter, baseline: Candidate, *, max_rounds: int = DEFAULT_MAX_STEPS, seed: int = 0,
                     states: bool = True, terms: str | None = None, beam: int = DEFAULT_BEAM,
-                    alpha: float = DEFAULT_ALPHA, kinds=MOVE_KINDS, simplify: bool = False):
+                    alpha: float = DEFAULT_ALPHA, kinds=DIAGNOSE_KINDS, simplify: bool = False):
     """Diagnose one coefficient, and the structure search it ran: a search over moves
     (:mod:`structsearch.discovery`) from ``baseline`` until no move passes the adoption test; each adopted move
     is a round, and the final structure is judged against the floor. A diagnosis adopts moves that close the
-    gap; with ``simplify`` (``discover``) also moves that only simplify within one standard error. ``to_dict()``
+    gap; with ``simplify`` (``discover``) also moves that only simplify within one standard error. ``kinds``: the
+    moves searched (a diagnosis' default leaves the static separation forms to ``discover``). ``to_dict()``
     of the result is the JSON document of docs/interfaces.md sections 3 and 5.4. ``fitter``'s lift models are
     lift models a drag or pitch structure may be fed besides its own (the story: the lift structure found for
     C_L); ``terms`` a user's term file."""

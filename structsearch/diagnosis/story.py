@@ -16,7 +16,7 @@ from ..fitting.lift_fit import LiftFit
 from .results import Diagnosis
 from ..flight.reference import VAN_INGEN_MODEL_NAMES
 from ..discovery.explore import DEFAULT_MAX_STEPS
-from ..discovery.moves import MOVE_KINDS
+from ..discovery.moves import DIAGNOSE_KINDS
 from ..fitting.fitter import Fitter, console_line
 from ..fitting.specs import find_candidate
 
@@ -42,7 +42,7 @@ class Story:
         return {"diagnoses": {coef: d.to_dict() for coef, d in self.diagnoses.items()}, "lines": list(self.lines)}
 
 
-def van_ingen_story(fitter: Fitter, kinds=MOVE_KINDS, beam: int = STORY_BEAM) -> Story:
+def van_ingen_story(fitter: Fitter, kinds=DIAGNOSE_KINDS, beam: int = STORY_BEAM) -> Story:
     """Diagnose each Van Ingen structure (a structure search from each until it is at the floor or no move
     passes), lift first: the drag and pitch searches may feed their models the lift structure found for C_L.
     ``kinds`` and ``beam`` restrict the search (``("effect",)`` and 1: the effect library alone, one at a time)."""

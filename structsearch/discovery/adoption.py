@@ -7,7 +7,9 @@ options' kind: maneuver-aware, coloured residuals), the most powerful test the f
 
 The out-of-sample statistic is the ranking's: the per-maneuver relative MSE out of sample, paired maneuver by maneuver
 and weighted by samples, over every maneuver that has one: the training maneuvers held out by the
-maneuver-grouped cross-validation and the validation maneuvers (only these when a fit has no folds).
+maneuver-grouped cross-validation and the validation maneuvers (only these when a fit has no folds, or when the
+two were cross-validated by different methods: a structure with another static separation form has refitted folds,
+:func:`structsearch.discovery.explore.refits_folds`, and a form move is tested against its parent refitted alike).
 Pooling both doubles the pairs the test has; each error is still a prediction of data the fit did not see. A
 non-nested move *improves* when the one-sided paired t-test of ``1 - child/parent`` > 0 rejects at ``alpha / m``;
 a nested move when its Wald test rejects at ``alpha / m`` and the pooled held-out MSE (the samples' mean, what the
@@ -118,13 +120,23 @@ def move_test(parent: CandidateResult, child: CandidateResult, alpha: float, n_m
 ROUNDING_GAIN = TIE_RTOL
 
 
+def _methods_differ(a: CandidateResult, b: CandidateResult) -> bool:
+    """Whether ``a`` and ``b`` were cross-validated by different methods (a linear fit's folds are exact either
+    way, as the ranking has it)."""
+    methods = {r.cv_method for r in (a, b) if r.cv is not None and r.estimates is not None
+               and r.estimates.nonlinear_names}
+    return len(methods) > 1
+
+
 def _paired(parent: CandidateResult, child: CandidateResult, alpha: float, n_moves: int) -> MoveTest:
     threshold = alpha / max(n_moves, 1)
     if parent.failed or child.failed:
         return MoveTest("", float("nan"), float("nan"), 0, float("nan"), threshold, "a fit failed")
     basis, before, _ = _per_maneuver(parent)
     child_basis, after, samples = _per_maneuver(child)
-    if child_basis != basis:   # one of them without folds: compare what both have
+    if child_basis != basis or _methods_differ(parent, child):
+        # one of them without folds, or folds of another method (one-step and refitted: a structure with another
+        # static form is cross-validated by refitted folds): compare what both have alike
         basis, before, after, samples = "validation", np.array(parent.validation.mse_maneuvers), \
             np.array(child.validation.mse_maneuvers), np.array(child.validation.n_maneuvers, float)
     gain_each = 1.0 - after / before

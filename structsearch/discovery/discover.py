@@ -12,6 +12,7 @@ from ..data.errors import DeclarationError
 from ..fitting.fitter import Fitter
 from .discovered import GRIDS, Discovery, build_discovery
 from .explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, Exploration
+from .moves import DISCOVER_KINDS, MOVE_KINDS
 
 # A diagnosis of a structure search: (fitter, start, **settings) -> (its Diagnosis, the Exploration it ran)
 DiagnoseSearch = Callable[..., tuple[Any, Exploration]]
@@ -40,16 +41,22 @@ def _start(coefficient: str, start: str, lift_names: list[str]):
 
 def discover_structures(fitter: Fitter, coefficient: str, diagnose_search: DiagnoseSearch, *,
                         start: str = "minimal", lifts=(), terms=None, beam: int | None = None,
-                        max_steps: int | None = None, moment_reference: str | None = None) -> Discovery:
+                        max_steps: int | None = None, moment_reference: str | None = None,
+                        kinds=DISCOVER_KINDS) -> Discovery:
     """Search structures for ``coefficient`` from ``start`` ("minimal", a candidate name or a spec file) with
     ``fitter``; drag and pitch structures may be fed ``lifts`` (names of the lift grid; default the thesis' CL-VI)
     and the start's own lift model. ``moment_reference`` ("cg" or "fixed"): a pitch start takes C_m about it
-    (None: as it declares; the moves keep it). Returns the typed :class:`Discovery` (nothing written)."""
+    (None: as it declares; the moves keep it); ``kinds`` the moves it makes (:data:`~.moves.MOVE_KINDS`; default
+    every kind). Returns the typed :class:`Discovery` (nothing written)."""
     from ..fitting.options import check_box_names
     from ..fitting.specs import load_grid
     from ..flight.reference import FINAL_MODEL_NAMES
     if coefficient not in GRIDS:
         raise DeclarationError(f"--coefficient {coefficient}: one of {', '.join(GRIDS)}")
+    unknown = [k for k in kinds if k not in MOVE_KINDS]
+    if unknown or not kinds:
+        raise DeclarationError(f"move kinds {', '.join(map(repr, unknown)) or '(none)'}: each one of "
+                               f"{', '.join(MOVE_KINDS)}")
     lift_grid = load_grid("lift")
     names = list(dict.fromkeys(list(lifts) or [FINAL_MODEL_NAMES["CL"]]))
     for n in names:
@@ -66,7 +73,7 @@ def discover_structures(fitter: Fitter, coefficient: str, diagnose_search: Diagn
     diagnosis, exploration = diagnose_search(fitter, first, max_rounds=max_steps or DEFAULT_MAX_STEPS,
                                              seed=fitter.options.seed, states=False,
                                              terms=None if terms is None else str(terms),
-                                             beam=beam or DEFAULT_BEAM, simplify=True)
+                                             beam=beam or DEFAULT_BEAM, simplify=True, kinds=tuple(kinds))
     return build_discovery(fitter, diagnosis, exploration, time.perf_counter() - t0)
 
 

@@ -10,7 +10,8 @@
   candidate takes its states from its lift model);
 * ``add state`` / ``remove state``: a separation state with its own K term (K_L, 1 - X, (1 - X) C_L), or a state
   removed with every term on it;
-* ``form``: a separation state's static curve X0 replaced (own states only): a tanh by an exponential (goman),
+* ``form`` (``discover`` only, :data:`DISCOVER_KINDS`; not a diagnosis' move): a separation state's static
+  curve X0 replaced (own states only): a tanh by an exponential (goman),
   two breaks around a plateau (two_break) or a monotone spline of four knots (spline:4), any other form by the
   tanh (:mod:`structsearch.engine.static_forms`). Not nested (the tanh is no form's special case with some
   parameters at zero), so the out-of-sample test judges it;
@@ -39,6 +40,11 @@ from . import effects as fx
 from .terms import STATE_SYMBOL, TermLibrary, normalise, template_of, uses_state
 
 MOVE_KINDS = ("add", "drop", "replace", "state kind", "add state", "remove state", "lift", "effect", "form")
+# A diagnosis explains a gap by the effects it adds and the terms and states that carry them; another static curve
+# is a change of structure it does not search (and each form child costs a nonlinear fit of its own). ``discover``
+# explores structure: every kind.
+DIAGNOSE_KINDS = tuple(k for k in MOVE_KINDS if k != "form")
+DISCOVER_KINDS = MOVE_KINDS
 # the static curves a tanh state may take in one move (every other form's move is back to the tanh)
 FORM_STEPS = ("goman", "two_break", "spline:4")
 KIND_STEPS = {"S": ("Q",), "Q": ("S", "U"), "U": ("Q",)}
