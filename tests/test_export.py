@@ -203,10 +203,15 @@ def test_fly_stall_trims_the_example_aircraft_and_stalls_it(demo_export, tmp_pat
     """The example aircraft trims in JSBSim and flies past the wing's separation: alpha beyond a*_w, X_w falls."""
     res, out, _ = demo_export
     csv = tmp_path / "stall.csv"
-    run = subprocess.run([sys.executable, str(out / "fly_stall.py"), "--csv", str(csv)], capture_output=True,
-                         text=True, timeout=300)
+    report = tmp_path / "stall.md"
+    run = subprocess.run([sys.executable, str(out / "fly_stall.py"), "--csv", str(csv), "--report", str(report)],
+                         capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     rows = np.genfromtxt(csv, delimiter=",", names=True)
+    text = report.read_text()
+    crossing = rows["alpha_deg"][np.argmax(rows["X_w"] < 0.5)]
+    assert f"X_w falls through 0.5 at alpha {crossing:.2f} deg" in text      # the report reads the flight
+    assert f"largest C_L {rows['CL'].max():.3f}" in text and "| t | alpha_deg | CL |" in text
     a_star_w = res.model.states[1].params["a_star_w"]
     assert np.degrees(a_star_w) < rows["alpha_deg"].max() < np.degrees(a_star_w) + 5
     assert rows["X_w"].min() < 0.5 < rows["X_w"][0] and rows["X_ss"].min() < 0.01

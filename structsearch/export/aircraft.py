@@ -130,10 +130,13 @@ def fly_stall_script(model: ExportedModel, name: str) -> str:
 
 FLY_STALL = '''"""Trim the exported aircraft {name} and fly a quasi-steady stall in JSBSim.
 
-Run with the Python that has jsbsim installed: python fly_stall.py [--csv stall.csv]. The export directory is
+Run with the Python that has jsbsim installed: python fly_stall.py [--csv stall.csv] [--report stall.md]. The
+export directory is
 JSBSim's root (aircraft/, systems/, engine/, aerodynamics.xml). After a trim in level flight the throttle goes to
 idle and an elevator loop raises alpha at 1 deg/s until it is 3 deg past the last separation state's a*, holds it
-for 3 s, then lowers it at 2 deg/s back to the trim value. Prints alpha, C_L and the separation states every second.
+for 3 s, then lowers it at 2 deg/s back to the trim value. Prints alpha, C_L and the separation states every second;
+writes the flight (stall.csv) and its report (stall.md: where each state separates, the largest C_L, the peak alpha,
+the reattachment, and alpha, the coefficients and the states once a second).
 """
 import argparse
 import csv
@@ -196,11 +199,41 @@ def fly(csv_path=None, seconds=None, dt=0.01):
     return rows
 
 
+def report(rows):
+    """The flight as Markdown: its landmarks (trim, where each state falls through 0.5, the largest C_L, the peak
+    alpha, the states at the end) and alpha, the coefficients and the states once a second."""
+    first, top = rows[0], max(rows, key=lambda r: r["alpha_deg"])
+    lines = ["# Stall flown in JSBSim by {name}", "",
+             f"- trimmed at alpha {{first['alpha_deg']:.2f}} deg, {{first['V_mps']:.1f}} m/s"]
+    for s in STATES:
+        down = next((r for r in rows if r[s] < 0.5), None)
+        lines.append(f"- {{s}} falls through 0.5 at alpha {{down['alpha_deg']:.2f}} deg (t = {{down['t']:.1f}} s)"
+                     if down else f"- {{s}} stays above 0.5 (lowest {{min(r[s] for r in rows):.3f}})")
+    if "CL" in COEFFICIENTS:
+        peak = max(rows, key=lambda r: r["CL"])
+        lines.append(f"- largest C_L {{peak['CL']:.3f}} at alpha {{peak['alpha_deg']:.2f}} deg, "
+                     + ", ".join(f"{{s}} {{peak[s]:.3f}}" for s in STATES))
+    lines.append(f"- peak alpha {{top['alpha_deg']:.2f}} deg at t = {{top['t']:.1f}} s; at the end "
+                 + ", ".join(f"{{s}} {{rows[-1][s]:.3f}}" for s in STATES))
+    columns = ["t", "alpha_deg"] + list(COEFFICIENTS) + list(STATES)
+    lines += ["", "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    next_row = 0.0
+    for r in rows:
+        if r["t"] >= next_row:
+            lines.append("| " + " | ".join(f"{{r[c]:.4f}}" for c in columns) + " |")
+            next_row += 1.0
+    return "\\n".join(lines) + "\\n"
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--csv", default=os.path.join(HERE, "stall.csv"), help="where to write the flight")
+    parser.add_argument("--report", default=os.path.join(HERE, "stall.md"),
+                        help="where to write the flight's report (Markdown)")
     args = parser.parse_args()
     flown = fly(args.csv)
+    with open(args.report, "w") as f:
+        f.write(report(flown))
     top = max(flown, key=lambda r: r["alpha_deg"])
-    print(f"peak alpha {{top['alpha_deg']:.2f}} deg at t = {{top['t']:.1f}} s; wrote {{args.csv}}")
+    print(f"peak alpha {{top['alpha_deg']:.2f}} deg at t = {{top['t']:.1f}} s; wrote {{args.csv}} and {{args.report}}")
 '''
