@@ -23,10 +23,9 @@ from functools import lru_cache
 
 import numpy as np
 from scipy.signal import lfilter
-from scipy.special import expit
 
 from ..data.errors import DeclarationError
-from .static_forms import DEFAULT_FORM, check_form, form_parameters, static_gradient
+from .static_forms import DEFAULT_FORM, check_form, form_parameters, static_gradient, tanh_curve
 
 KINDS = ("S", "Q", "U")
 PARAMETERS_OF_KIND = {
@@ -82,9 +81,8 @@ class SeparationState:
         return f"{base}_{self.name}" if self.name else base
 
 
-def static_separation(alpha, a1, a_star):
-    """X0 = 0.5 (1 - tanh(a1 (alpha - a_star))), written as a logistic so it never rounds to 0."""
-    return expit(-2.0 * a1 * (np.asarray(alpha) - a_star))
+# X0 of the tanh form, the thesis' curve (one definition: :func:`.static_forms.tanh_curve`)
+static_separation = tanh_curve
 
 
 def _lag_coefficients(dt: np.ndarray, tau1: float):

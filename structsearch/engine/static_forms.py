@@ -113,9 +113,14 @@ def static_gradient(form: str, alpha, values, derivatives: bool = True):
     return x0.reshape(shape), dalpha.reshape(shape), grads.reshape(shape + (grads.shape[-1],))
 
 
+def tanh_curve(alpha, a1, a_star):
+    """X0 = 0.5 (1 - tanh(a1 (alpha - a_star))), written as a logistic so it never rounds to 0."""
+    return expit(-2.0 * a1 * (np.asarray(alpha) - a_star))
+
+
 def _tanh(alpha, v, derivatives):
     a1, a_star = v["a1"], v["a_star"]
-    x0 = expit(-2.0 * a1 * (alpha - a_star))
+    x0 = tanh_curve(alpha, a1, a_star)
     if not derivatives:
         return x0, None, None
     slope = -2.0 * x0 * (1.0 - x0)
