@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from structsearch.engine import separation as sep
-from structsearch.engine.separation import SeparationState, evaluate_state, first_order_lag, linear_recurrence
+from structsearch.engine.separation import KINDS, SeparationState, evaluate_state, first_order_lag, linear_recurrence
 
 from conftest import central_difference
 
@@ -94,7 +94,7 @@ def test_static_separation_limits():
     assert x[0] == pytest.approx(1.0) and x[1] == pytest.approx(0.5) and 0 < x[2] < 1e-100
 
 
-@pytest.mark.parametrize("kind", ["S", "Q", "U"])
+@pytest.mark.parametrize("kind", list(KINDS))
 @pytest.mark.parametrize("uniform", [True, False])
 def test_state_sensitivities_match_finite_differences(kind, uniform):
     rng = np.random.default_rng(5)

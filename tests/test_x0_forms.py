@@ -8,7 +8,7 @@ from scipy.special import expit
 
 from structsearch.data.default_boxes import DEFAULT_BOUNDS
 from structsearch.data.errors import DeclarationError
-from structsearch.engine.separation import SeparationState, evaluate_state
+from structsearch.engine.separation import KINDS, SeparationState, evaluate_state
 from structsearch.engine.static_forms import check_form, form_parameters, static_gradient, static_value
 from structsearch.fitting.candidates import Candidate
 from structsearch.fitting.specs import find_candidate, load_grid
@@ -31,7 +31,7 @@ def _grid(uniform: bool):
 
 
 @pytest.mark.parametrize("uniform", [True, False])
-@pytest.mark.parametrize("kind", ["S", "Q", "U"])
+@pytest.mark.parametrize("kind", list(KINDS))
 @pytest.mark.parametrize("form", FORMS)
 def test_sensitivities_match_central_differences(form, kind, uniform):
     t, alpha, alpha_dot, bounds = _grid(uniform)

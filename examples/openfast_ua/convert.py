@@ -32,16 +32,55 @@ Only data is taken from OpenFAST; nothing of its code.
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ORIGINAL = HERE / "original"
-RUNS = (  # (maneuver id, OSU case name, split)
-    ("s809_1p2hz", "C10m100AM20_s809", "train"),
-    ("s809_0p6hz", "C10l100AM20_s809", "validation"),
+
+
+@dataclass(frozen=True)
+class Airfoil:
+    """One airfoil's campaign: its directory under examples/openfast_ua, the runs (maneuver id, OSU case name,
+    split), the AeroDyn polar and the polar file written beside the campaign, the manifest's words."""
+
+    directory: str
+    runs: tuple[tuple[str, str, str], ...]
+    polar: str
+    polar_csv: str
+    title: str
+    about: str
+    chord: float | None = None        # None: the training run's driver's chord
+    chord_note: str = ""
+    drivers: dict[str, str] | None = None   # a run's driver file where its name differs from the run's
+
+    def driver(self, case: str) -> str:
+        return (self.drivers or {}).get(case, case)
+
+
+AIRFOILS = (
+    Airfoil("campaign", (("s809_1p2hz", "C10m100AM20_s809", "train"), ("s809_0p6hz", "C10l100AM20_s809", "validation")),
+            "S809_AD15.dat", "static_polar.csv", "S809 pitching airfoil (Ohio State University, via OpenFAST)",
+            "Ohio State University wind-tunnel tests of the S809 airfoil, clean, Re = 1e6, 18.8 +- 10.7 deg."),
+    Airfoil("campaign_ls417", (("ls417_re1p0", "C10m100AM14_l417", "train"),
+                               ("ls417_re1p5", "C10m150AM14_l417", "validation")),
+            "L417_C100_AD15.dat", "static_polar_ls417.csv",
+            "LS(1)-0417MOD pitching airfoil (Ohio State University, via OpenFAST)",
+            "Ohio State University wind-tunnel tests of the LS(1)-0417MOD airfoil, clean, 14 +- 10.7 deg at 1.2 Hz,\n"
+            "# Re = 1.0e6 (training) and 1.5e6 (validation).",
+            drivers={"C10m100AM14_l417": "C10m100AM14_LS417", "C10m150AM14_l417": "C10m150AM14_LS417"}),
+    Airfoil("campaign_naca", (("naca_mean20", "05014061", "train"), ("naca_mean15", "05014051", "validation")),
+            "05000051_AD15.dat", "static_polar_naca.csv", "Symmetric NACA section pitching through deep dynamic stall "
+            "(via OpenFAST)",
+            "Pitching runs of a symmetric NACA section (the readme's NACA 14061 and 14051): mean 20 and 15 deg,\n"
+            "# amplitude 10 deg, k = 0.077, Re = 1.48e6, one phase-averaged cycle each.",
+            chord=0.55,
+            chord_note="the readme gives k = 0.077 for both runs, which at 1.8 Hz and 40.36 m/s is a 0.55 m chord "
+                       "(05014051.dvr; 05014061.dvr says 0.5)"),
 )
+RUNS = AIRFOILS[0].runs     # the S809 runs (the tutorial's names)
 POLAR_RANGE_DEG = (-20.0, 40.0)
 
 
@@ -64,7 +103,7 @@ def sinusoid_fit(alpha: np.ndarray) -> tuple[float, float, float, float]:
         coef = np.linalg.lstsq(basis, alpha, rcond=None)[0]
         return float(np.sum((alpha - basis @ coef) ** 2)), coef
 
-    grid = np.arange(10.0, 80.0, 0.01)
+    grid = np.arange(10.0, min(80.0, len(alpha) / 2.5), 0.01)
     per_cycle = float(grid[np.argmin([fit(p)[0] for p in grid])])
     _, (mean, c, s) = fit(per_cycle)
     return per_cycle, float(mean), float(np.hypot(c, s)), float(np.arctan2(-s, c))
@@ -82,27 +121,54 @@ def phase_average(table: np.ndarray, per_cycle: float, phase0: float) -> np.ndar
     return np.column_stack([np.bincount(index, table[:, j], bins) / counts for j in range(table.shape[1])])
 
 
-def convert_run(case: str) -> tuple[dict[str, np.ndarray], dict[str, float]]:
-    driver = driver_values(ORIGINAL / f"{case}.dvr")
+def one_cycle(alpha: np.ndarray) -> tuple[float, float]:
+    """(mean, amplitude) of the first harmonic of a record that is one cycle of evenly spaced samples."""
+    k = 2 * np.pi * np.arange(len(alpha)) / len(alpha)
+    basis = np.column_stack([np.ones(len(k)), np.cos(k), np.sin(k)])
+    mean, c, s = np.linalg.lstsq(basis, alpha, rcond=None)[0]
+    return float(mean), float(np.hypot(c, s))
+
+
+# A record of one cycle is already phase-averaged (the NACA runs: 128 samples, one cycle); its first harmonic
+# matches the driver's mean and amplitude to 0.1 deg (the cycle is not a pure sinusoid), several cycles' to 0.01.
+ONE_CYCLE_TOLERANCE_DEG = 0.1
+CYCLES_TOLERANCE_DEG = 0.01
+
+
+def convert_run(case: str, chord: float | None = None, driver_name: str | None = None) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    driver = driver_values(ORIGINAL / f"{driver_name or case}.dvr")
     table = np.loadtxt(ORIGINAL / f"{case}_Validacion.txt", skiprows=1)   # Alfa Cl Cdp Cm
-    per_cycle, mean, amplitude, phase0 = sinusoid_fit(table[:, 0])
-    assert abs(mean - driver["Mean"]) < 0.01 and abs(amplitude - driver["Amplitude"]) < 0.01, (case, mean, amplitude)
-    cycle = phase_average(table, per_cycle, phase0)
+    if len(table) > 100 and one_cycle_record(table[:, 0]):
+        mean, amplitude = one_cycle(table[:, 0])
+        cycle, per_cycle, tolerance = table, float(len(table)), ONE_CYCLE_TOLERANCE_DEG
+    else:
+        per_cycle, mean, amplitude, phase0 = sinusoid_fit(table[:, 0])
+        cycle, tolerance = phase_average(table, per_cycle, phase0), CYCLES_TOLERANCE_DEG
+    assert abs(mean - driver["Mean"]) < tolerance and abs(amplitude - driver["Amplitude"]) < tolerance, \
+        (case, mean, amplitude)
     alpha = np.deg2rad(cycle[:, 0])
     step = 1.0 / (driver["Frequency"] * len(alpha))
     q = (np.roll(alpha, -1) - np.roll(alpha, 1)) / (2 * step)
     columns = {"alpha": alpha, "q": q, "V": np.full(len(alpha), driver["InflowVel"]), "de": np.zeros(len(alpha)),
                "CL": cycle[:, 1], "CD": cycle[:, 2], "Cm": cycle[:, 3]}
-    facts = {"frequency": driver["Frequency"], "chord": driver["Chord"], "V": driver["InflowVel"],
+    facts = {"frequency": driver["Frequency"], "chord": chord or driver["Chord"], "V": driver["InflowVel"],
              "per_cycle": per_cycle, "cycles": len(table) / per_cycle, "samples": len(alpha)}
     return columns, facts
 
 
-def static_polar() -> np.ndarray:
-    """The S809 table of S809_AD15.dat (alpha deg, C_l, C_d, C_m) within POLAR_RANGE_DEG, alpha in radians."""
-    lines = (ORIGINAL / "S809_AD15.dat").read_text(encoding="utf-8").splitlines()
+def one_cycle_record(alpha_deg: np.ndarray) -> bool:
+    """Whether a record is a single cycle: alpha passes its mean upwards once (several cycles: once a cycle)."""
+    above = alpha_deg > 0.5 * (alpha_deg.min() + alpha_deg.max())
+    crossings = np.count_nonzero(above & ~np.roll(above, 1))
+    return crossings == 1
+
+
+def static_polar(polar: str = "S809_AD15.dat") -> np.ndarray:
+    """The table of an AeroDyn polar (alpha deg, C_l, C_d, C_m) within POLAR_RANGE_DEG, alpha in radians."""
+    lines = (ORIGINAL / polar).read_text(encoding="utf-8").splitlines()
     start = next(i for i, line in enumerate(lines) if "NumAlf" in line)
-    rows = [[float(v) for v in line.split()] for line in lines[start + 1:] if line.strip() and not line.startswith("!")]
+    rows = [[float(v) for v in line.split()[:4]] for line in lines[start + 1:]
+            if line.strip() and not line.lstrip().startswith("!")]
     table = np.array(rows)
     keep = (table[:, 0] >= POLAR_RANGE_DEG[0]) & (table[:, 0] <= POLAR_RANGE_DEG[1])
     table = table[keep]
@@ -116,35 +182,42 @@ def write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
     path.write_text("\n".join(rows) + "\n", encoding="utf-8")
 
 
-def main(root: Path = HERE) -> None:
-    """Write ``root/campaign/`` and ``root/static_polar.csv`` (the tests convert into a temporary ``root`` and
-    compare with the committed files)."""
-    out = root / "campaign"
+def convert_airfoil(airfoil: Airfoil, root: Path) -> None:
+    """Write ``root/<airfoil.directory>/`` and the airfoil's static polar beside it."""
+    out = root / airfoil.directory
     out.mkdir(parents=True, exist_ok=True)
-    chord = None
+    chord = airfoil.chord
     entries = []
-    for maneuver, case, split in RUNS:
-        columns, facts = convert_run(case)
-        chord = facts["chord"]
+    for maneuver, case, split in airfoil.runs:
+        columns, facts = convert_run(case, airfoil.chord, airfoil.driver(case))
+        chord = chord or facts["chord"]
         write_csv(out / f"{maneuver}.csv", columns)
-        k = np.pi * facts["frequency"] * facts["chord"] / facts["V"]
+        k = np.pi * facts["frequency"] * chord / facts["V"]
         print(f"{maneuver}: {case}, {facts['cycles']:.2f} cycles of {facts['per_cycle']:.2f} samples averaged into "
               f"{facts['samples']} phase bins; f = {facts['frequency']} Hz, k = {k:.4f}")
         entries.append(f'[[maneuver]]\nid = "{maneuver}"\nfile = "{maneuver}.csv"\nkind = "deep-dynamic"\n'
-                       f'split = "{split}"\nfrequency = {facts["frequency"]!r}   # Hz, from {case}.dvr; '
+                       f'split = "{split}"\nfrequency = {facts["frequency"]!r}   # Hz, from {airfoil.driver(case)}.dvr; '
                        f"no time column: one phase-averaged cycle\n")
+    note = f"   # {airfoil.chord_note}" if airfoil.chord_note else ""
     manifest = (
         '# Written by examples/openfast_ua/convert.py from data shipped by OpenFAST (Apache-2.0, see ../NOTICE):\n'
-        '# Ohio State University wind-tunnel tests of the S809 airfoil, clean, Re = 1e6, 18.8 +- 10.7 deg.\n'
-        'name = "S809 pitching airfoil (Ohio State University, via OpenFAST)"\n'
+        f'# {airfoil.about}\n'
+        f'name = "{airfoil.title}"\n'
         'source = "OpenFAST CertTest/Wind/UA_Tests, commit a2961baa (Apache-2.0)"\n\n'
-        f"[aircraft]   # a two-dimensional section: chord {chord} m, 1 m span\nS = {chord!r}\ncbar = {chord!r}\n"
+        f"[aircraft]   # a two-dimensional section: chord {chord} m, 1 m span\nS = {chord!r}\ncbar = {chord!r}{note}\n"
         "b = 1.0\n\n" + "\n".join(entries))
     (out / "campaign.toml").write_text(manifest, encoding="utf-8")
-    polar = static_polar()
-    write_csv(root / "static_polar.csv", {"alpha": polar[:, 0], "CL": polar[:, 1], "CD": polar[:, 2],
-                                          "Cm": polar[:, 3]})
-    print(f"static polar: {len(polar)} points from {POLAR_RANGE_DEG[0]:g} to {POLAR_RANGE_DEG[1]:g} deg")
+    polar = static_polar(airfoil.polar)
+    write_csv(root / airfoil.polar_csv, {"alpha": polar[:, 0], "CL": polar[:, 1], "CD": polar[:, 2],
+                                         "Cm": polar[:, 3]})
+    print(f"{airfoil.polar_csv}: {len(polar)} points from {POLAR_RANGE_DEG[0]:g} to {POLAR_RANGE_DEG[1]:g} deg")
+
+
+def main(root: Path = HERE) -> None:
+    """Write each airfoil's campaign directory and static polar under ``root`` (the tests convert into a
+    temporary ``root`` and compare with the committed files)."""
+    for airfoil in AIRFOILS:
+        convert_airfoil(airfoil, root)
 
 
 if __name__ == "__main__":

@@ -86,7 +86,7 @@ def equivalences(baseline: Candidate, final: Candidate, params: Mapping[str, flo
     kept = {expr.replace(" ", "") for _, expr in final.regressors}
     dropped = tuple(name for name, expr in baseline.regressors if expr.replace(" ", "") not in kept)
     # a drag or pitch structure's states are its lift model's, fitted on the same lagged alpha
-    lagged = final.lift is not None or any(kind in ("Q", "U") for _, kind in final.states)
+    lagged = final.lift is not None or any(kind != "S" for _, kind in final.states)
     signature = Signature(data["alpha_dot"], data["V"], float(data.constants["cbar"]),
                           slope(final, params, data, lift))
     return tuple(Equivalence(effect, name, float(params[name]), q.anomaly, q.parameter,

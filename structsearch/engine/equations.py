@@ -23,7 +23,7 @@ from typing import Mapping, Sequence
 import sympy as sp
 
 from .expressions import parse_expression
-from .separation import SeparationState
+from .separation import SeparationState, is_delayed, is_lagged
 from .static_forms import DEFAULT_FORM, form_parameters
 
 # What each helper of the regressor language stands for (regressors.HELPERS), in words a reader checks.
@@ -104,16 +104,16 @@ def _form_key(form: str) -> str:
 
 
 def state_equation(name: str, kind: str, form: str = DEFAULT_FORM) -> str:
-    """The equation of separation state ``X_name`` of ``kind`` (S, Q or U) and static ``form`` in its own
+    """The equation of separation state ``X_name`` of ``kind`` (S, Q, U or L) and static ``form`` in its own
     parameters' names."""
     s = SeparationState(name, kind, form)
     p, x = s.parameter_name, s.symbol
-    shift = f" - {p('tau2')}*alpha_dot" if kind in ("Q", "U") else ""
+    shift = f" - {p('tau2')}*alpha_dot" if is_delayed(kind) else ""
     if form == DEFAULT_FORM:
         static = f"0.5*(1 - tanh({p('a1')}*(alpha{shift} - {p('a_star')})))"
     else:
         static = f"X0_{_form_key(form)}(alpha{shift}; {', '.join(p(b) for b in form_parameters(form))})"
-    return f"{p('tau1')}*d{x}/dt + {x} = {static}" if kind == "U" else f"{x} = {static}"
+    return f"{p('tau1')}*d{x}/dt + {x} = {static}" if is_lagged(kind) else f"{x} = {static}"
 
 
 def helpers_used(texts: Sequence[str]) -> list[str]:
@@ -167,14 +167,14 @@ def latex_model(coefficient: str, regressors: Sequence[tuple[str, str]]) -> str:
 def latex_state(name: str, kind: str, form: str = DEFAULT_FORM) -> str:
     s = SeparationState(name, kind, form)
     p, x = (lambda b: parameter_latex(s.parameter_name(b))), _latex_name(s.symbol)
-    shift = rf" - {p('tau2')}\,\dot{{\alpha}}" if kind in ("Q", "U") else ""
+    shift = rf" - {p('tau2')}\,\dot{{\alpha}}" if is_delayed(kind) else ""
     if form == DEFAULT_FORM:
         static = rf"\tfrac{{1}}{{2}}\left(1 - \tanh\left({p('a1')}\left(\alpha{shift} - {p('a_star')}\right)\right)\right)"
     else:
         args = ", ".join(p(b) for b in form_parameters(form))
         label = _form_key(form).replace("_", r"\_")
         static = rf"X_0^{{\mathrm{{{label}}}}}\left(\alpha{shift};\ {args}\right)"
-    return rf"{p('tau1')}\,\dot{{{x}}} + {x} = {static}" if kind == "U" else f"{x} = {static}"
+    return rf"{p('tau1')}\,\dot{{{x}}} + {x} = {static}" if is_lagged(kind) else f"{x} = {static}"
 
 
 def write_equations(coefficient: str, regressors: Sequence[tuple[str, str]], states: Sequence[tuple[str, str]],

@@ -6,8 +6,10 @@
 X0 above is the default static curve (form ``tanh``); a state may take another form of
 :mod:`.static_forms` (``goman``, ``two_break``, ``spline:K``), whose parameters replace a1 and a_star.
 
-Three kinds: steady ``S`` (X = X0(alpha)), quasi-steady ``Q`` (X = X0(alpha -
-tau2*alpha_dot)) and unsteady ``U`` (first-order lag of the quasi-steady value).
+Four kinds: steady ``S`` (X = X0(alpha)), quasi-steady ``Q`` (X = X0(alpha -
+tau2*alpha_dot)), unsteady ``U`` (first-order lag of the quasi-steady value) and lagged ``L`` (a first-order lag
+of X0(alpha) without the alpha_dot delay: U with tau2 = 0, the state a pitching airfoil's data often support
+when tau2 and tau1 cannot be told apart).
 
 The lag is discretised exactly for an input that is linear between samples
 (first-order hold), on any strictly increasing time grid. Every maneuver starts
@@ -27,14 +29,25 @@ from scipy.signal import lfilter
 from ..data.errors import DeclarationError
 from .static_forms import DEFAULT_FORM, check_form, form_parameters, static_gradient, tanh_curve
 
-KINDS = ("S", "Q", "U")
+KINDS = ("S", "Q", "U", "L")
 PARAMETERS_OF_KIND = {
     "S": ("a1", "a_star"),
     "Q": ("tau2", "a1", "a_star"),
     "U": ("tau1", "tau2", "a1", "a_star"),
+    "L": ("tau1", "a1", "a_star"),
 }
 # the time constants of each kind, before the static curve's parameters
-TIME_PARAMETERS_OF_KIND = {"S": (), "Q": ("tau2",), "U": ("tau1", "tau2")}
+TIME_PARAMETERS_OF_KIND = {"S": (), "Q": ("tau2",), "U": ("tau1", "tau2"), "L": ("tau1",)}
+
+
+def is_lagged(kind: str) -> bool:
+    """Whether a state of ``kind`` lags its static value (has tau1): U and L."""
+    return "tau1" in TIME_PARAMETERS_OF_KIND[kind]
+
+
+def is_delayed(kind: str) -> bool:
+    """Whether a state of ``kind`` reads alpha - tau2 alpha_dot (has tau2): Q and U."""
+    return "tau2" in TIME_PARAMETERS_OF_KIND[kind]
 # A step of a uniform grid may differ from the first by this relative amount.
 _UNIFORM_RTOL = 1e-9
 # Largest log-decay inside one block of the time-varying recursion (small blocks keep the
@@ -350,26 +363,27 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
     if state.form != DEFAULT_FORM:
         return _evaluate_form(state, values, alpha, alpha_dot, t, bounds, step, sensitivities, periods)
     a1, a_star = values["a1"], values["a_star"]
+    delayed, lagged = is_delayed(state.kind), is_lagged(state.kind)
     tau2 = values.get("tau2", 0.0)
-    effective_alpha = alpha - tau2 * alpha_dot if state.kind != "S" else alpha
+    effective_alpha = alpha - tau2 * alpha_dot if delayed else alpha
     x0 = static_separation(effective_alpha, a1, a_star)
     if not sensitivities:
-        if state.kind != "U":
+        if not lagged:
             return x0, None
         return first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0], None
     slope = -2.0 * x0 * (1.0 - x0)  # dX0 / d(a1 (alpha_eff - a_star))
-    inner = ("tau2", "a1", "a_star") if state.kind != "S" else ("a1", "a_star")
+    inner = ("tau2", "a1", "a_star") if delayed else ("a1", "a_star")
     du = np.empty((len(alpha), len(inner)), order="F")
     du[:, inner.index("a1")] = slope * (effective_alpha - a_star)
     du[:, inner.index("a_star")] = slope * (-a1)
-    if state.kind != "S":
+    if delayed:
         du[:, 0] = slope * (-a1 * alpha_dot)
-    if state.kind != "U":
+    if not lagged:
         return x0, du  # S and Q: columns already in state.base_parameters order
     x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step, periods)
-    out = np.empty((len(alpha), 4), order="F")
+    out = np.empty((len(alpha), 1 + len(inner)), order="F")
     out[:, 0] = dtau1
-    out[:, 1:] = dx  # U order: tau1, tau2, a1, a_star
+    out[:, 1:] = dx  # U order: tau1, tau2, a1, a_star; L: tau1, a1, a_star
     return x, out
 
 
@@ -378,18 +392,19 @@ def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alph
     """:func:`evaluate_state` for a static curve other than the tanh: the chain rule through alpha - tau2 alpha_dot
     (dX0/dtau2 = -dX0/dalpha alpha_dot), then the same lag."""
     tau2 = values.get("tau2", 0.0)
-    effective_alpha = alpha - tau2 * alpha_dot if state.kind != "S" else alpha
+    delayed, lagged = is_delayed(state.kind), is_lagged(state.kind)
+    effective_alpha = alpha - tau2 * alpha_dot if delayed else alpha
     x0, dalpha, grads = static_gradient(state.form, effective_alpha, values, sensitivities)
     if not sensitivities:
-        if state.kind != "U":
+        if not lagged:
             return x0, None
         return first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0], None
-    lead = 1 if state.kind != "S" else 0
+    lead = 1 if delayed else 0
     du = np.empty((len(alpha), lead + grads.shape[1]), order="F")
     if lead:
         du[:, 0] = -dalpha * alpha_dot
     du[:, lead:] = grads
-    if state.kind != "U":
+    if not lagged:
         return x0, du
     x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step, periods)
     out = np.empty((len(alpha), 1 + du.shape[1]), order="F")

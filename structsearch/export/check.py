@@ -24,7 +24,7 @@ from scipy.signal import lfilter
 
 from ..data.errors import StructSearchError
 from ..data.flightdata import FlightData, from_segments
-from ..engine.separation import SeparationState, evaluate_state, static_separation
+from ..engine.separation import SeparationState, evaluate_state, is_lagged, static_separation
 from .card import ExportedModel
 from .jsbsim_files import DT, FILL_INPUTS, inputs_used
 from .xml_functions import INPUTS, output_property, state_property
@@ -163,9 +163,9 @@ def _tustin_difference(model: ExportedModel, data: FlightData) -> dict[str, floa
     t, alpha, alpha_dot = (np.asarray(data[c], float) for c in ("t", "alpha", "alpha_dot"))
     for s in model.states:
         p = s.base()
-        if s.kind != "U":
+        if not is_lagged(s.kind):
             continue
-        u = static_separation(alpha - p["tau2"] * alpha_dot, p["a1"], p["a_star"])
+        u = static_separation(alpha - p.get("tau2", 0.0) * alpha_dot, p["a1"], p["a_star"])
         exact, _ = evaluate_state(SeparationState(s.name, s.kind), p, alpha, alpha_dot, t, data.bounds,
                                   sensitivities=False)
         worst = 0.0

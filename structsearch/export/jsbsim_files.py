@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
-from ..engine.separation import INSTANT_LAG, SeparationState
+from ..engine.separation import INSTANT_LAG, SeparationState, is_delayed, is_lagged
 from .card import ExportedModel, StateModel
 from .xml_functions import (INPUTS, NAMESPACE, Symbols, element, output_property, prop, regressor_xml,
                             state_property, term_property, value)
@@ -109,7 +109,7 @@ def _static(state: StateModel) -> ET.Element:
     """X0(alpha_eff) = 0.5*(1 - tanh(a1*(alpha_eff - a_star))) = 1/(1 + exp(2*a1*(alpha_eff - a_star)))."""
     p = state.base()
     alpha = prop(INPUTS["alpha"].property)
-    if state.kind != "S":
+    if is_delayed(state.kind):
         alpha = element("difference", alpha, element("product", value(p["tau2"]),
                                                      prop(INPUTS["alpha_dot"].property)))
     exponent = element("product", value(2.0 * p["a1"]), element("difference", alpha, value(p["a_star"])))
@@ -122,7 +122,7 @@ def _state_components(state: StateModel) -> list[ET.Element]:
     state_eq = SeparationState(state.name, state.kind)
     parts = [_fcs_function(static, _static(state), "X0 of " + state.symbol)]
     tau1 = state.base().get("tau1")
-    if state.kind != "U" or tau1 < INSTANT_LAG:     # a lag shorter than INSTANT_LAG is X = u in the fits too
+    if not is_lagged(state.kind) or tau1 < INSTANT_LAG:     # a lag shorter than INSTANT_LAG is X = u in the fits too
         parts.append(_fcs_function(x, prop(static), f"{state.symbol} ({state_eq.kind}) = X0"))
         return parts
     lag = f"{NAMESPACE}/lag/{state.symbol}"

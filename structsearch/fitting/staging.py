@@ -38,7 +38,7 @@ from .candidates import Candidate
 WARM_STARTS = 1
 STAGE_STARTS = 2
 # Kinds in order of nesting: each adds one parameter to the previous one.
-KIND_ORDER = {"S": 0, "Q": 1, "U": 2}
+KIND_ORDER = {"S": 0, "Q": 1, "L": 1, "U": 2}   # L (a lag without the delay) nests S as Q does
 
 
 @dataclass(frozen=True)
