@@ -213,6 +213,7 @@ def _named(names: list[str], shown: int = 3) -> str:
 
 
 def _print_winners(result) -> None:
+    from .grid_search.answer import answer_of
     from .grid_search.ranking import passed_over
     for grid, ranked in result.grids.items():
         ok = [s for s in ranked if not s.failed]
@@ -239,6 +240,10 @@ def _print_winners(result) -> None:
                          f"{_change(runner_up.comparison.mse / best.comparison.mse - 1)})")
         parts.append(f"{result.seconds[grid]:.1f} s")
         print(_clip("; ".join(parts)))
+        answer = answer_of(ranked)
+        if answer is not None and not answer.answered:
+            # the whole sentence, uncut: it is the search's answer
+            print(f"  {grid}: {answer.sentence()}")
         for s in passed_over(ranked)[:3]:
             print(_clip(f"  passed over {s.name} ({_held_out(s)} MSE "
                         f"{_change(s.comparison.mse / best.comparison.mse - 1)}): {'; '.join(s.placement.reasons)}"))

@@ -204,8 +204,10 @@ def test_collinear_candidate_ranked_after_identifiable_and_failure_recorded(tiny
     write_tables(result.grids, tmp_path / "out")
     ranked = result.grids["mine"]
     # M-III's lag ends at tau1 = 0, where its U state is Q: the refinement's M-IIIr-auto, the same fit with fewer
-    # parameters, comes first
-    assert [r.name for r in ranked] == ["M-IIIr-auto", "M-III", "M-I", "M-II", "M-IV"]
+    # parameters, comes first; no admissible structure near the best fit, the refinement goes down the ranking and
+    # makes the collinear M-II identifiable (M-IIr-auto)
+    assert [r.name for r in ranked] == ["M-IIIr-auto", "M-III", "M-I", "M-IIr-auto", "M-II", "M-IV"]
+    assert ranked[3].placement.origin == "refined" and ranked[4].placement.origin == "declared"
     assert ranked[0].estimates.params["tau2"] == pytest.approx(ranked[1].estimates.params["tau2"], rel=1e-4)
     # a failing candidate is recorded with a reason naming the regressor and the row; the search goes on
     assert ranked[-1].failed and ranked[-1].placement.rank is None
@@ -213,7 +215,7 @@ def test_collinear_candidate_ranked_after_identifiable_and_failure_recorded(tiny
     assert "inputs alpha = " in ranked[-1].error  # the data values it read there
     ranked = ranked[:-1]
     # collinear a and b: a result without standard deviations for them, ranked after the identifiable ones
-    assert ranked[-1].error is None and not ranked[-1].identifiable and ranked[-1].placement.rank == 4
+    assert ranked[-1].error is None and not ranked[-1].identifiable and ranked[-1].placement.rank == 5
     assert "a and b are collinear" in ranked[-1].estimates.not_identifiable["a"]
     assert np.isnan(ranked[-1].estimates.stderr["a"]) and np.isnan(ranked[-1].estimates.stderr["b"])
     rows = list(csv.DictReader((tmp_path / "out" / "ranking.csv").open()))
@@ -296,6 +298,7 @@ def _state_stub(at_bound=None, a_star_w=0.3, p=None, not_identifiable=None, mse=
     stub = _stub(names, [1e-9] * len(names) if p is None else p, mse=mse)
     e = stub.estimates
     e.nonlinear_names, e.lower = tuple(names[:6]), (0.0, 0.0, 2.0, 0.05, 2.0, 0.22)
+    e.upper = (5.0, 5.0, 200.0, 0.27, 200.0, 0.45)
     e.params = {**e.params, "a_star_ss": 0.2, "a_star_w": a_star_w}
     e.at_bound, e.not_identifiable = dict(at_bound or {}), dict(not_identifiable or {})
     return stub
@@ -319,7 +322,15 @@ def test_a_state_the_data_do_not_place_is_a_refinement_move():
     lag = _state_moves(c, _state_stub(at_bound={"tau1_ss": "lower"}), None)
     assert [(m.what, m.kinds) for m in lag] == [("making X_ss Q", (("ss", "Q"),)), ("dropping the state X_ss", ())]
     both = _state_moves(c, _state_stub(at_bound={"tau1_ss": "lower"}, p=[0.5, 0.4] + [1e-9] * 8), None)
-    assert [m.what for m in both][:2] == ["making X_ss S", "making X_ss Q"]
+    assert [m.what for m in both][:3] == ["making X_ss S", "making X_ss Q", "making X_ss L"]
+    # tau2_ss at zero alone: the lag without the alpha_dot delay (L)
+    delay = _state_moves(c, _state_stub(at_bound={"tau2_ss": "lower"}), None)
+    assert [(m.what, m.kinds) for m in delay][0] == ("making X_ss L", (("ss", "L"),))
+    # a Kirchhoff term of the wrong sign: the state mimics something else, and goes
+    wrong = _state_stub()
+    wrong.estimates.params["k_w"] = -0.8
+    assert [(m.what, m.drop) for m in _state_moves(c, wrong, (0.0, 0.35))] == [("dropping the state X_w", ("k_w",))]
+    assert "Kirchhoff term k_w = -0.8 not positive" in _state_moves(c, wrong, (0.0, 0.35))[0].why
     # a drag or pitch candidate's states are its lift model's
     assert _state_moves(dataclasses.replace(c, lift="CL-VI"), _state_stub(a_star_w=0.4), (0.0, 0.35)) == []
 
@@ -330,6 +341,24 @@ def test_a_state_the_data_do_not_place_is_a_refinement_move():
     assert step.states == (("ss", "U"),) and "k_w" not in dict(step.regressors) and "a_star_w" not in dict(step.bounds)
     simpler = refine(c, _state_stub(at_bound={"tau1_ss": "lower"}), fit).steps[0][0]
     assert simpler.states == (("ss", "Q"), ("w", "S")) and "X_ss as Q" in simpler.note
+
+
+def test_a_break_angle_the_default_box_holds_inside_the_range_flown_gets_the_range():
+    """alpha* at the upper side of the Citation's box (15.5 deg) on data flown to 28.6 deg: the box, not the data,
+    holds it; the first move widens the box to the alpha range flown (a box at the range's edge is left alone)."""
+    from structsearch.grid_search.refinement import _moves, refine
+    c = _two_states()
+    held = _state_stub(at_bound={"a_star_ss": "upper"})
+    moves = _moves(c, held, (0.0, 0.5))
+    assert moves[0].what == "widening the box of a_star_ss" and moves[0].boxes == (("a_star_ss", (0.0, 0.5)),)
+    assert "15.5 deg, inside the alpha range flown" in moves[0].why
+    assert not any(m.boxes for m in _moves(c, held, (0.0, 0.27)))    # the box's side is the range's edge
+    done = refine(c, held, lambda cand: _state_stub(mse=1.0), alpha_range=(0.0, 0.5))
+    first = done.steps[0][0]
+    assert dict(first.bounds)["a_star_ss"] == (0.0, 0.5) and dict(first.bounds)["a_star_w"] == (0.22, 0.45)
+    assert first.regressors == c.regressors and "the box of a_star_ss" in first.note
+    # the widened structure is another fit of the same structure: not the declared one
+    assert done.keys[0] != done.keys[0][:4] and not done.reached
 
 
 @pytest.mark.slow
@@ -606,6 +635,7 @@ def _stub(names, p, corr=None, centred=None, mse=1.0):
     nonlinear = tuple(n for n in names if n in ("tau1", "tau2", "a1", "a_star"))
     estimates = SimpleNamespace(names=tuple(names), p_values=dict(zip(names, p)), correlation=corr,
                                 params=dict.fromkeys(names, 0.1), nonlinear_names=nonlinear, lower=(0.0,) * len(nonlinear),
+                                upper=(np.inf,) * len(nonlinear),
                                 at_bound={}, not_identifiable={}, withheld=None)
     return SimpleNamespace(estimates=estimates, optimizer=SimpleNamespace(converged=True, message=""),
                            centred_correlation=() if centred is None else tuple(map(tuple, centred)),

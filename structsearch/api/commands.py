@@ -170,7 +170,10 @@ def write_search_tables(ranking: Ranking, campaign: Campaign, out: Path) -> list
     """``ranking.csv`` and each grid's tables (with the thesis-estimator refits of the final models)."""
     from ..reporting.tables import write_tables
     from ..thesis_study.thesis_estimator import thesis_estimator_fits
-    return write_tables(ranking.grids, out, thesis_estimator_fits(ranking.grids, campaign), refined_structures(ranking))
+    written = write_tables(ranking.grids, out, thesis_estimator_fits(ranking.grids, campaign),
+                           refined_structures(ranking))
+    answers = {g: a.to_dict() for g, a in ranking.answers.items() if a is not None}
+    return written + [write_json(out / "search_answer.json", {"answers": answers})]
 
 
 def refined_structures(ranking: Ranking) -> dict[str, list]:

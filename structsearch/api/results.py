@@ -61,6 +61,13 @@ class Ranking:
         """The grid's rank-1 candidate that did not fail (None if every one failed)."""
         return next((r for r in self.grids[grid] if not r.failed), None)
 
+    @property
+    def answers(self) -> dict:
+        """Per grid its :class:`~structsearch.grid_search.answer.Answer` (the admissible structure ranked first when
+        it fits near the best fit, else that none is near; None when nothing was fitted)."""
+        from ..grid_search.answer import answer_of
+        return {g: answer_of(ranked) for g, ranked in self.grids.items()}
+
     def to_frame(self):
         """``ranking.csv`` as a pandas DataFrame (the same columns and values)."""
         import io
@@ -74,6 +81,7 @@ class Ranking:
         """Per grid the rows of ``ranking.csv`` (None where a cell is empty), and the seconds per grid."""
         from ..reporting.tables import table_row
         return {"grids": {g: [table_row(r) for r in ranked] for g, ranked in self.grids.items()},
+                "answers": {g: a.to_dict() if a is not None else None for g, a in self.answers.items()},
                 "seconds": dict(self.seconds),
                 **({"joint_lift": self.joint.to_dict()} if self.joint is not None else {})}
 

@@ -54,6 +54,15 @@ DEFAULT_FORM = "tanh"
 TANH_PARAMETERS = ("a1", "a_star")
 GOMAN_PARAMETERS = ("a_star", "k_e", "x_star")
 TWO_BREAK_PARAMETERS = ("k1", "a_k1", "k2", "da_k2", "x_mid")
+# The angles of attack where a static curve sits (its break, its first knot): a t-test of one against zero tests
+# the datum of alpha, not the data; the rule that it lies inside the alpha range flown judges it instead.
+LOCATION_PARAMETERS = ("a_star", "a_k1", "a_sp")
+# Where a static curve breaks and how steeply (the break angles above; slopes and the second break's offset).
+# None is t-tested against zero: a location's zero is alpha's datum, and a slope's Wald interval is not its
+# uncertainty (the cost is far from quadratic in the slope of a sharp break, a measured p = 0.38 for a slope of
+# 48/rad whose flat limit, 0, fits 13 times worse on the NACA section); whether the data need the curve at all is asked by removing
+# its state (the refinement's move), whether they place it by its box and the alpha range flown.
+CURVE_SHAPE_PARAMETERS = LOCATION_PARAMETERS + ("a1", "k1", "k2", "da_k2", "k_e")
 
 
 def check_form(form) -> str:

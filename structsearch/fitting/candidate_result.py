@@ -92,6 +92,7 @@ class Placement:
     within_noise: bool | None = None
     gap: float | None = None            # mean per-maneuver relative held-out MSE excess over the best
     gap_se: float | None = None         # its standard error
+    origin: str = "declared"            # declared in a grid, reached by refinement ("refined") or "discovered"
 
     def __post_init__(self):
         object.__setattr__(self, "reasons", tuple(self.reasons))
@@ -177,7 +178,7 @@ class CandidateResult:
 
     def placed(self, **changes: Any) -> "CandidateResult":
         """A copy whose :class:`Placement` has ``changes`` (``admissible``, ``reasons``, ``rank``,
-        ``within_noise``, ``gap``, ``gap_se``)."""
+        ``within_noise``, ``gap``, ``gap_se``, ``origin``)."""
         return replace(self, placement=replace(self.placement or Placement(), **changes))
 
     # ----- what the estimates say of the fit (its statistics: ``estimates``) ------------------------------

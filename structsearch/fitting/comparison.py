@@ -15,6 +15,11 @@ from ..engine.scores import weighted_mean_se
 
 # A relative excess below this is never a reason to prefer a larger model.
 PRACTICAL_TOLERANCE = 0.01
+# How far above the best fit an admissible structure may fit and still be the answer (search, discover and
+# diagnose alike): a held-out MSE 25 % above the best is an RMS error 12 % above it, less than a wind tunnel's
+# runs of one airfoil differ from each other at another frequency or Reynolds number, and far below the factor
+# of 2 and more that a missing effect costs. Beyond it the outputs say that no admissible structure is near.
+ANSWER_TOLERANCE = 0.25
 # Fewer maneuvers than this give no standard error of an excess ("n/a"): only the practical tolerance.
 MIN_MANEUVERS = 3
 
@@ -31,6 +36,12 @@ def noise_bar(se: float) -> float:
     """How large an excess the data cannot tell from zero: one standard error, at least the practical
     tolerance (the tolerance alone when there is no standard error)."""
     return max(se, PRACTICAL_TOLERANCE) if np.isfinite(se) else PRACTICAL_TOLERANCE
+
+
+def answer_bar(se: float) -> float:
+    """How far (relative excess of held-out MSE) an admissible structure may fit above the best fit and still be
+    the answer: the noise bar, at least :data:`ANSWER_TOLERANCE`."""
+    return max(noise_bar(se), ANSWER_TOLERANCE)
 
 
 def within_noise(excess: float, se: float) -> bool:

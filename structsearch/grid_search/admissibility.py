@@ -2,7 +2,9 @@
 
 A candidate is admissible when its fit converged (a fit that did not reports no statistics to judge), the data
 identify every parameter, no nonlinear parameter sits at a bound (within 1e-3 of its box or within its own standard
-deviation of the bound: ``ParameterEstimates.at_bound``), every t-test rejects zero, no two parameters correlate
+deviation of the bound: ``ParameterEstimates.at_bound``), every t-test rejects zero (but those of a static curve's break angle
+and steepness: :data:`structsearch.engine.static_forms.CURVE_SHAPE_PARAMETERS` says why), no two parameters
+correlate
 beyond ``max_correlation``, every alpha* lies inside the angle-of-attack range flown, and the
 physics is plausible: positive Kirchhoff (K_L) and lift-slope (alpha) terms in a lift model, and,
 for a pitch model on a campaign that gives a cg envelope, the centre of pressure of the attached
@@ -27,6 +29,7 @@ import sympy
 
 from ..engine.regressors import parse
 from ..engine.separation import SeparationState
+from ..engine.static_forms import CURVE_SHAPE_PARAMETERS
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 
@@ -97,7 +100,7 @@ def reasons(result: CandidateResult, candidate: Candidate | None, rules: Admissi
         out.append(f"{name} at its {side} bound")
     unidentified = set(e.not_identifiable or {})
     accepts = [n for n, p in (e.p_values or {}).items()
-               if n not in unidentified and not (p < e.significance)]
+               if n not in unidentified and not (p < e.significance) and not _is_curve_shape(n)]
     if accepts:
         out.append(f"t-test accepts 0 at {e.significance:.0%}: {_fmt(accepts)}")
     out += _correlation_reasons(result, rules.max_correlation)
@@ -105,6 +108,15 @@ def reasons(result: CandidateResult, candidate: Candidate | None, rules: Admissi
         out += _alpha_star_reasons(result, candidate, rules.alpha_range)
         out += _physics_reasons(result, candidate, rules)
     return tuple(out)
+
+
+_CURVE_SHAPE = re.compile(rf"^({'|'.join(CURVE_SHAPE_PARAMETERS)})(_\w+)?$")
+
+
+def _is_curve_shape(name: str) -> bool:
+    """Whether ``name`` is where a static curve breaks or how steeply (:data:`CURVE_SHAPE_PARAMETERS`): no
+    t-test against zero judges it."""
+    return bool(_CURVE_SHAPE.match(name))
 
 
 def _correlation_reasons(result: CandidateResult, limit: float) -> list[str]:

@@ -12,7 +12,8 @@ from ..fitting.candidate_result import CandidateResult
 from .admissibility import FIXABLE_REASONS, AdmissibilityRules, MAX_CORRELATION, Reason, reasons
 from .ranking import rank
 from .ranking import near_best
-from .refinement import Refinement, refine, structure_key
+from .answer import answer_of
+from .refinement import Refinement, refine, refinement_key
 from ..fitting.fitter import Fitter, console_line
 from ..fitting.lift_fit import LiftFit
 from ..fitting.candidates import Candidate, Grid
@@ -106,12 +107,16 @@ def search(fitter: Fitter, grid_spec: str, *, do_refine: bool = True, max_correl
 
         ranked = rank(results, judge)
         if do_refine:
-            extra, refinements[grid.name] = _refine_grid(fitter, grid, results, ranked, rules.alpha_range)
+            def rerank(extra, by_name=by_name, judge=judge, results=results):
+                by_name.update({c.name: c for c, _ in extra})
+                return rank(results + [s for _, s in extra], judge)
+
+            extra, refinements[grid.name] = _refine_grid(fitter, grid, results, ranked, rules.alpha_range, rerank)
             if not refinements[grid.name]:
                 del refinements[grid.name]
             if extra:
-                by_name.update({c.name: c for c, _ in extra})
-                ranked = rank(results + [s for _, s in extra], judge)
+                ranked = rerank(extra)
+                ranked = [s.placed(origin="refined") if s.name in {c.name for c, _ in extra} else s for s in ranked]
         ranked_by_grid[grid.name] = ranked
         seconds[grid.name] = time.perf_counter() - t0
     return SearchResult(ranked_by_grid, seconds, refinements, joint)
@@ -150,25 +155,47 @@ def _with_lift_models(fitter: Fitter, names: Sequence[str]) -> Fitter:
 
 
 def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ranked: list[CandidateResult],
-                 alpha_range: tuple[float, float] | None = None):
-    """The structures the refinement of ``grid``'s best candidates reached (with their fits) and the
-    refinements themselves (``alpha_range``: the alpha range flown in training)."""
-    known = {structure_key(c): (c, r) for c, r in zip(grid.candidates, results) if not r.failed}
+                 alpha_range: tuple[float, float] | None = None, rerank=None):
+    """The structures the refinement of ``grid``'s candidates reached (with their fits) and the refinements
+    themselves (``alpha_range``: the alpha range flown in training). The candidates within noise of the best fit
+    are refined first (:func:`refinement_starts`); while no admissible structure is within the answer's tolerance
+    of the best fit (:mod:`.answer`), the next candidates follow, best fit first, until one is or every candidate
+    has been refined (``rerank(extra)``: the grid ranked with the structures reached so far)."""
+    known = {refinement_key(c): (c, r) for c, r in zip(grid.candidates, results) if not r.failed}
     # a step waits for the one before, but its starts and folds spread over the workers
     one_at_a_time = fitter.quiet()
     extra, done_all = [], []
-    for start in refinement_starts(ranked):
+    starts = refinement_starts(ranked)
+    queue = [s for s in down_the_ranking(ranked) if s.name not in {t.name for t in starts}]
+    while starts or (queue and rerank is not None and not _answered(rerank(extra) if extra else ranked)):
+        start = starts.pop(0) if starts else queue.pop(0)
         done = refine(grid[start.name], start, one_at_a_time.fit_one, known, alpha_range)
         new = [(c, r) for c, r in done.steps if c.name not in done.reached]
-        known.update({structure_key(c): (c, r) for c, r in new})
+        known.update({k: step for k, step in zip(done.keys, done.steps) if step[0].name not in done.reached})
         extra += new
-        steps = " -> ".join([start.name] + [c.name for c, _ in done.steps]) or start.name
-        # the first refusal and a count: every refused move would make a line of hundreds of characters
-        more = len(done.refused) - 1
-        stopped = (f"{done.refused[0]}; {more} more move{'s' if more > 1 else ''} refused" if more > 0
-                   else done.stopped)
-        # cut: the refinement's whole record is in the grid's tables and refined_<grid>.toml
-        fitter.say(console_line(f"grid {grid.name}: refined {steps}"
-                                + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {stopped}"))
+        fitter.say(_refinement_line(grid, start, done))
         done_all.append(done)
     return extra, done_all
+
+
+def down_the_ranking(ranked: list[CandidateResult]) -> list[CandidateResult]:
+    """Every fitted candidate that is not admissible, best fit first: where the refinement goes on when the
+    candidates near the best cannot be made admissible."""
+    fitted = [s for s in ranked if not s.failed and not s.placement.admissible and not s.estimates.withheld]
+    return sorted(fitted, key=lambda s: (s.comparison.mse, s.name))
+
+
+def _answered(ranked: list[CandidateResult]) -> bool:
+    found = answer_of(ranked)
+    return found is None or found.answered
+
+
+def _refinement_line(grid: Grid, start: CandidateResult, done: Refinement) -> str:
+    steps = " -> ".join([start.name] + [c.name for c, _ in done.steps]) or start.name
+    # the first refusal and a count: every refused move would make a line of hundreds of characters
+    more = len(done.refused) - 1
+    stopped = (f"{done.refused[0]}; {more} more move{'s' if more > 1 else ''} refused" if more > 0
+               else done.stopped)
+    # cut: the refinement's whole record is in the grid's tables and refined_<grid>.toml
+    return console_line(f"grid {grid.name}: refined {steps}"
+                        + (f" (= {', '.join(done.reached)})" if done.reached else "") + f"; stopped: {stopped}")

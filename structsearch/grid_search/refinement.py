@@ -42,8 +42,11 @@ import numpy as np
 
 from ..engine.regressors import symbol_names
 from ..engine.separation import SeparationState
+from ..engine.static_forms import LOCATION_PARAMETERS
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
+# a U state's lag and delay correlated beyond admissibility's limit: the data cannot tell them apart
+from .admissibility import MAX_CORRELATION
 
 # Correlated pairs above this are candidates for removal during refinement (thesis: 0.8).
 REFINE_CORRELATION = 0.8
@@ -61,24 +64,27 @@ class Refinement:
     stopped: str
     reached: tuple[str, ...] = ()      # existing candidates a step turned out to be
     refused: tuple[str, ...] = ()      # why each move of the last step was refused (``stopped`` joins them)
+    keys: tuple[tuple, ...] = ()       # each step's :func:`refinement_key`
 
 
 @dataclass(frozen=True)
 class Move:
     """One move a step tries: ``what`` in words ("dropping CL0"), the regressors it drops, the states whose kind
-    it simplifies (name -> kind), and ``why``."""
+    it simplifies (name -> kind), the search boxes it widens, and ``why``."""
 
     what: str
     drop: tuple[str, ...] = ()
     kinds: tuple[tuple[str, str], ...] = ()
     why: str = ""
+    boxes: tuple[tuple[str, tuple[float, float]], ...] = ()   # search boxes it widens (name -> (lo, hi))
 
 
-def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] | None = None) -> Candidate:
+def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] | None = None,
+             boxes: dict[str, tuple[float, float]] | None = None) -> Candidate:
     """``c`` without the regressors in ``drop`` (all drops so far, relative to ``c``), with the states of ``kinds``
-    (name -> kind) simplified, and without the separation states no remaining regressor uses (with the boxes of
-    the parameters that went)."""
-    kinds = kinds or {}
+    (name -> kind) simplified, the search boxes of ``boxes`` widened, and without the separation states no
+    remaining regressor uses (with the boxes of the parameters that went)."""
+    kinds, boxes = kinds or {}, boxes or {}
     regs = tuple(r for r in c.regressors if r[0] not in drop)
     # a drag or pitch candidate reads its lift model's states (their parameters fixed): one it no longer uses
     # costs nothing, and its states must stay the lift model's
@@ -86,7 +92,9 @@ def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] |
     states = tuple((n, kinds.get(n, k)) for n, k in c.states if SeparationState(n, k).symbol not in orphans)
     kept = {p for n, k in states for p in SeparationState(n, k, c.form_of(n)).parameters}
     gone = {p for s in c.separation_states for p in s.parameters} - kept
-    bounds = tuple((name, box) for name, box in c.bounds if name not in gone)
+    merged = {**dict(c.bounds), **{k: v for k, v in boxes.items() if k in kept}}
+    bounds = tuple(sorted((name, box) for name, box in merged.items() if name not in gone)) if boxes else \
+        tuple((name, box) for name, box in c.bounds if name not in gone)
     changes = [f"dropped {', '.join(drop)}"] if drop else []
     if orphans:
         changes[-1] += f" and the state(s) {', '.join(sorted(orphans))} they left without a regressor"
@@ -94,6 +102,10 @@ def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] |
                SeparationState(n, k).symbol not in orphans]
     if simpler:
         changes.append(f"the state(s) {', '.join(simpler)} (a time constant at zero)")
+    widened = [f"{k} in [{np.degrees(lo):.1f}, {np.degrees(hi):.1f}] deg" for k, (lo, hi) in sorted(boxes.items())
+               if k in kept]
+    if widened:
+        changes.append(f"the box of {', '.join(widened)} (the alpha range flown)")
     note = f"refined from {c.name}: " + "; ".join(changes)
     return dataclasses.replace(c, name=f"{c.name}{suffix}", regressors=regs, states=states, note=note, bounds=bounds)
 
@@ -103,6 +115,13 @@ def structure_key(c: Candidate) -> tuple:
     model."""
     return (c.coefficient, tuple(sorted(t.replace(" ", "") for _, t in c.regressors)), tuple(sorted(c.states)),
             c.lift) + ((tuple(sorted(c.forms)),) if c.forms else ())
+
+
+def refinement_key(c: Candidate, widened: dict[str, tuple[float, float]] | None = None) -> tuple:
+    """What makes two refined candidates the same fit: the structure, and the boxes a refinement widened (a
+    structure fitted in a wider box is another fit of it)."""
+    kept = {k: v for k, v in (widened or {}).items() if k in c.state_parameters}
+    return structure_key(c) + ((tuple(sorted(kept.items())),) if kept else ())
 
 
 def _orphans(c: Candidate, drop: list[str]) -> list[str]:
@@ -151,8 +170,9 @@ def _options(current: Candidate, summary: CandidateResult) -> list[tuple[str, st
 
 
 # a time constant at zero nests a simpler state: (kind, its time constants at zero, the state it equals there),
-# the simplest first
-_NESTED = (("U", frozenset({"tau1", "tau2"}), "S"), ("U", frozenset({"tau1"}), "Q"), ("Q", frozenset({"tau2"}), "S"))
+# the simplest first (U without the alpha_dot delay is L, a lag of X0(alpha))
+_NESTED = (("U", frozenset({"tau1", "tau2"}), "S"), ("U", frozenset({"tau1"}), "Q"), ("U", frozenset({"tau2"}), "L"),
+           ("Q", frozenset({"tau2"}), "S"), ("L", frozenset({"tau1"}), "S"))
 
 
 def _simpler_kinds(state: SeparationState, summary: CandidateResult) -> list[tuple[str, str]]:
@@ -168,8 +188,62 @@ def _simpler_kinds(state: SeparationState, summary: CandidateResult) -> list[tup
                 why[base] = f"{p} at its lower bound 0"
             elif p in summary.insignificant:
                 why[base] = f"{p}: t-test accepts 0"
+    tangled = _tangled_time_constants(state, summary)
+    if tangled:   # the data cannot tell the lag from the delay: either alone may carry what both do
+        for base in ("tau1", "tau2"):
+            why.setdefault(base, tangled)
     return [(simpler, "; ".join(why[b] for b in sorted(zero))) for kind, zero, simpler in _NESTED
             if kind == state.kind and zero <= set(why)]
+
+
+def _tangled_time_constants(state: SeparationState, summary: CandidateResult) -> str:
+    """Why the data cannot tell a U state's lag tau1 from its delay tau2 (their correlation beyond the ranking's
+    limit), or "" when they can."""
+    if "tau1" not in state.base_parameters or "tau2" not in state.base_parameters:
+        return ""
+    e = summary.estimates
+    names = list(e.names)
+    a, b = state.parameter_name("tau1"), state.parameter_name("tau2")
+    corr = np.asarray(e.correlation, float)
+    if a not in names or b not in names or corr.size == 0:
+        return ""
+    rho = corr[names.index(a), names.index(b)]
+    return f"|rho({a}, {b})| = {abs(rho):.2f}" if np.isfinite(rho) and abs(rho) > MAX_CORRELATION else ""
+
+
+def _box_moves(current: Candidate, summary: CandidateResult, alpha_range) -> list[Move]:
+    """A break angle at a side of its search box that lies inside the alpha range flown: the box, not the data,
+    holds it there (the Citation's default box on an airfoil that stalls elsewhere); widen the box to the range
+    flown."""
+    if alpha_range is None:
+        return []
+    e = summary.estimates
+    boxes = dict(zip(e.nonlinear_names, zip(e.lower, e.upper)))
+    out = []
+    for state in current.separation_states:
+        for base in LOCATION_PARAMETERS:
+            p = state.parameter_name(base)
+            side = e.at_bound.get(p)
+            if base not in state.base_parameters or side is None or p not in boxes:
+                continue
+            lo, hi = boxes[p]
+            edge = lo if side == "lower" else hi
+            if not alpha_range[0] < edge < alpha_range[1]:
+                continue
+            wider = (min(lo, alpha_range[0]), max(hi, alpha_range[1]))
+            out.append(Move(f"widening the box of {p}", boxes=((p, wider),),
+                            why=f"{p} at its {side} bound {np.degrees(edge):.1f} deg, inside the alpha range flown"))
+    return out
+
+
+def _wrong_sign(current: Candidate, state: SeparationState, summary: CandidateResult) -> list[str]:
+    """The Kirchhoff lift terms of ``state`` whose estimate is not positive (a lift model's state mimicking
+    something else: a vortex's overshoot and collapse, say)."""
+    if current.coefficient != "CL":
+        return []
+    params = summary.estimates.params
+    return [f"Kirchhoff term {n} = {params[n]:.3g} not positive" for n, t in current.regressors
+            if f"K_L({state.symbol})" in t.replace(" ", "") and n in params and not params[n] > 0]
 
 
 def _state_moves(current: Candidate, summary: CandidateResult,
@@ -189,6 +263,7 @@ def _state_moves(current: Candidate, summary: CandidateResult,
         a_star = e.params.get(state.parameter_name("a_star"))
         if alpha_range is not None and a_star is not None and not alpha_range[0] <= a_star <= alpha_range[1]:
             why.append(f"{state.parameter_name('a_star')} outside the alpha range flown")
+        why += _wrong_sign(current, state, summary)
         users = tuple(n for n, t in current.regressors if state.symbol in symbol_names(t))
         if why and users:
             out.append(Move(f"dropping the state {state.symbol}", users, why="; ".join(why)))
@@ -196,22 +271,24 @@ def _state_moves(current: Candidate, summary: CandidateResult,
 
 
 def _moves(current: Candidate, summary: CandidateResult, alpha_range) -> list[Move]:
-    """Every move a step tries, in order: terms, then states."""
+    """Every move a step tries, in order: boxes the default made too narrow, terms, then states."""
     terms = [Move(f"dropping {n}", (n,), why=why) for n, why in _options(current, summary)]
-    return terms + _state_moves(current, summary, alpha_range)
+    return _box_moves(current, summary, alpha_range) + terms + _state_moves(current, summary, alpha_range)
 
 
-def _try(move: Move, c: Candidate, dropped: list[str], kinds: dict[str, str], suffix: str, current_mse: float,
+def _try(move: Move, c: Candidate, so_far: tuple[list[str], dict, dict], suffix: str, current_mse: float,
          fit: Callable[[Candidate], CandidateResult], known: dict) -> tuple[tuple | None, str | None]:
-    """``move`` made on top of the refinement so far: (candidate, result, drops, kinds, was_known) when it is
-    taken, else None and why not."""
+    """``move`` made on top of the refinement so far (drops, kinds, boxes): (candidate, result, (drops, kinds,
+    boxes), was_known) when it is taken, else None and why not."""
+    dropped, kinds, boxes = so_far
     drop = dropped + [n for n in move.drop if n not in dropped]
     new_kinds = {**kinds, **dict(move.kinds)}
+    new_boxes = {**boxes, **dict(move.boxes)}
     what = f"{move.what} ({move.why})"
     if len(drop) >= len(c.regressors):
         return None, f"{what} would leave no term"
-    candidate = _refined(c, drop, suffix, new_kinds)
-    same = known.get(structure_key(candidate))
+    candidate = _refined(c, drop, suffix, new_kinds, new_boxes)
+    same = known.get(refinement_key(candidate, new_boxes))
     candidate, result = same if same is not None else (candidate, fit(candidate))
     if result.failed:
         return None, f"the refined {candidate.name} ({move.what}) failed: {result.error}"
@@ -222,7 +299,7 @@ def _try(move: Move, c: Candidate, dropped: list[str], kinds: dict[str, str], su
         return None, f"the held-out MSE after {move.what} cannot be compared (not finite)"
     if rise > REFINE_TOLERANCE:
         return None, f"{what} raises the held-out MSE by {rise:.1%}"
-    return (candidate, result, drop, new_kinds, same is not None), None
+    return (candidate, result, (drop, new_kinds, new_boxes), same is not None), None
 
 
 def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], CandidateResult],
@@ -232,8 +309,8 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
     fitted already to their candidate and result (reused instead of refitting); ``alpha_range``: the alpha range
     flown in training (an alpha* outside it is a state the data do not place; None: not judged)."""
     known = known or {}
-    steps, reached = [], []
-    current, current_summary, dropped, kinds = c, summary, [], {}
+    steps, reached, keys = [], [], []
+    current, current_summary, so_far = c, summary, ([], {}, {})
     stopped, refused_all = "nothing left to drop", ()
     if summary.estimates.withheld:   # no t-test, interval or bound to judge a move by
         return Refinement(c.name, (), f"{summary.estimates.withheld}: no statistics to refine by")
@@ -245,17 +322,18 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
         refused, taken = [], None
         suffix = "r" + ("" if step == 1 else str(step)) + "-auto"
         for move in moves:
-            taken, why = _try(move, c, dropped, kinds, suffix, current_summary.comparison.mse, fit, known)
+            taken, why = _try(move, c, so_far, suffix, current_summary.comparison.mse, fit, known)
             if taken is not None:
                 break
             refused.append(why)
         if taken is None:
             stopped, refused_all = "; ".join(refused) + "; not taken", tuple(refused)
             break
-        current, current_summary, dropped, kinds, was_known = taken
+        current, current_summary, so_far, was_known = taken
         steps.append((current, current_summary))
+        keys.append(refinement_key(current, so_far[2]))
         if was_known:
             reached.append(current.name)
     else:
         stopped = f"stopped after {MAX_STEPS} steps"
-    return Refinement(c.name, tuple(steps), stopped, tuple(reached), refused_all)
+    return Refinement(c.name, tuple(steps), stopped, tuple(reached), refused_all, tuple(keys))

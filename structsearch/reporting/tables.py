@@ -55,14 +55,14 @@ RANKING_FIELDS = ["grid", "model", "rank", "mse_train", "mse_validation", "n_par
                   "mse_cz_validation", "r2_validation_mean", "r2_validation_min", "r2_validation_max", "aic",
                   "n_insignificant", "n_high_corr", "within_noise", "converged", "nfev", "message", "identifiable",
                   "condition_number", "not_identifiable", "error", "admissible", "reasons", "mse_cv", "cv_folds",
-                  "gap", "gap_se", "r2_validation_pooled", "cv_scheme", "cv_note"]
+                  "gap", "gap_se", "r2_validation_pooled", "cv_scheme", "cv_note", "origin"]
 
 
 def table_row(s: CandidateResult) -> dict:
     """One candidate as the fields of ``ranking.csv`` (None where there is no value)."""
     p = s.placement or Placement()
     row = {"grid": s.grid, "model": s.name, "rank": p.rank, "lift": s.lift or "-", "error": s.error,
-           "admissible": p.admissible, "reasons": "; ".join(p.reasons)}
+           "admissible": p.admissible, "reasons": "; ".join(p.reasons), "origin": p.origin}
     if not s.failed:
         v = s.validation
         row.update({"n_params": s.n_params, "mse_train": s.mse_train, "mse_validation": s.mse_validation,
