@@ -33,6 +33,10 @@ def fit_report_models(fitter: Fitter, out: Path, *, diagnose: str | None = "Cm",
     quiet = fitter.quiet()
     choice = chosen_models(out, models, searched, campaign)
     notes = list(choice.notes)
+    if set(choice.winners) != {"CL", "CD", "Cm"}:   # no set to draw: the first screen and the rankings only
+        say(f"report: fitting {', '.join(c.name for c in choice.winners.values())}")
+        return ReportFits(choice.names, tuple(notes), None, None, answers=answer_fits(quiet, choice, None),
+                          source=choice.source, verdicts=choice.verdicts)
     say(f"report: fitting {', '.join(c.name for c in choice.shown.values())} and the Van Ingen structures")
     identified = fit_model_set("identified", choice.shown, quiet)
     answers = answer_fits(quiet, choice, identified)
@@ -50,7 +54,7 @@ def fit_report_models(fitter: Fitter, out: Path, *, diagnose: str | None = "Cm",
         if best is not None:
             effect = (best, *fit_with_effect(identified, diagnose, best, quiet))
     return ReportFits(choice.names, tuple(notes), identified, van_ingen, diagnose, diagnosis, effect,
-                      answers=answers, source=choice.source)
+                      answers=answers, source=choice.source, verdicts=choice.verdicts)
 
 
 def answer_fits(fitter: Fitter, choice, identified) -> dict:
@@ -58,14 +62,14 @@ def answer_fits(fitter: Fitter, choice, identified) -> dict:
     (lift None for the lift winner). A winner the figures' set holds is not fitted again."""
     out = {}
     for coef, c in choice.winners.items():
-        if identified.candidates[coef] == c:
+        if identified is not None and identified.candidates[coef] == c:
             out[coef] = (c, identified.summaries[coef], None if coef == "CL" else identified.lift)
             continue
         if coef == "CL":
             result, lift = fitter.fit_one(c), None
         else:
             lift_c = choice.lifts[coef]
-            lift = (identified.lift if identified.candidates["CL"] == lift_c
+            lift = (identified.lift if identified is not None and identified.candidates["CL"] == lift_c
                     else LiftFit(lift_c, fitter.fit_one(lift_c)))
             result = fitter.with_lifts({lift_c.name: lift}).fit_one(c)
         if result.failed:

@@ -230,7 +230,7 @@ def _box_moves(current: Candidate, summary: CandidateResult, alpha_range) -> lis
             edge = lo if side == "lower" else hi
             if not alpha_range[0] < edge < alpha_range[1]:
                 continue
-            wider = (min(lo, alpha_range[0]), max(hi, alpha_range[1]))
+            wider = (float(min(lo, alpha_range[0])), float(max(hi, alpha_range[1])))
             out.append(Move(f"widening the box of {p}", boxes=((p, wider),),
                             why=f"{p} at its {side} bound {np.degrees(edge):.1f} deg, inside the alpha range flown"))
     return out

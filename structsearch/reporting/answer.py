@@ -72,10 +72,35 @@ def gap_story(doc: Diagnosis) -> list[str]:
     return [where, effect, rest]
 
 
+def verdict_text(verdict: Mapping | None) -> str:
+    """The search's answer for one coefficient in words (docs/interfaces.md 8.1); "" without one."""
+    if not verdict:
+        return ""
+    cost = verdict.get("cost")
+    cost_text = "an unknown amount" if cost is None else f"{100 * cost:+.1f} %"
+    tolerance = f"{100 * float(verdict.get('tolerance', float('nan'))):.0f} %"
+    if verdict.get("status") == "admissible":
+        near = ("the best fit" if verdict.get("best_admissible") == verdict.get("best_fit") else
+                f"{cost_text} above the best fit {verdict.get('best_fit')}, within {tolerance}")
+        return f"Admissible ({near})."
+    reasons = "; ".join(verdict.get("best_fit_reasons") or []) or "no reason recorded"
+    other = (f"the best admissible structure, {verdict['best_admissible']}, fits {cost_text} worse" if
+             verdict.get("best_admissible") else "no structure is admissible")
+    return (f"No admissible structure within {tolerance} of the best fit. The best fit, {verdict.get('best_fit')}, "
+            f"is not admissible ({reasons}); {other}. The structure below is not an answer.")
+
+
+def answered(verdicts: Mapping[str, Mapping]) -> bool:
+    """Whether every coefficient with a verdict has an admissible answer."""
+    return all(v.get("status") == "admissible" for v in verdicts.values())
+
+
 def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis | None,
-                diagnosed: str | None) -> str:
+                diagnosed: str | None, verdicts: Mapping[str, Mapping] | None = None) -> str:
     """The first section of the page (module docstring)."""
-    parts = ["<section id='answer'><h2>The identified models</h2>",
+    verdicts = verdicts or {}
+    title = "The identified models" if answered(verdicts) else "The search's answers"
+    parts = [f"<section id='answer'><h2>{title}</h2>",
              f"<p class='source'>Each coefficient's structure {html.escape(source)}; estimates ± one standard "
              "deviation, rounded to it.</p>"]
     for coef, (c, result, lift) in answers.items():
@@ -83,7 +108,10 @@ def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis 
         parts.append(f"<div class='model'><h3>{html.escape(COEF_WORDS.get(coef, coef))}: "
                      f"<span class='name'>{html.escape(c.name)}</span>"
                      + (f" <small>(states of {html.escape(lift.name)})</small>" if lift is not None else "")
-                     + f"</h3><p class='fit'>{html.escape(fit_line(result))}</p>"
+                     + "</h3>"
+                     + (f"<p class='verdict'>{html.escape(verdict_text(verdicts.get(coef)))}</p>"
+                        if verdicts.get(coef) else "")
+                     + f"<p class='fit'>{html.escape(fit_line(result))}</p>"
                      f"<pre class='eq'>{html.escape(chr(10).join(lines))}</pre>")
         if diagnosis is not None and coef == diagnosed:
             parts.append("<ul class='gap'>" + "".join(f"<li>{html.escape(t)}</li>" for t in gap_story(diagnosis))

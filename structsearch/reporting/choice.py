@@ -10,6 +10,7 @@ one consistent set, draw that lift model with it (issue 43: the thesis' finals w
 from __future__ import annotations
 
 import csv
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
@@ -23,6 +24,7 @@ from ..flight.reference import FINAL_MODEL_NAMES
 from .refined import load_refined
 
 GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
+ANSWERS_MAX_BYTES = 1 << 20   # a search's answers are a few hundred bytes a grid
 
 
 @dataclass(frozen=True)
@@ -36,6 +38,9 @@ class Choice:
     source: str
     notes: tuple[str, ...] = ()
     lifts: Mapping[str, Candidate] = field(default_factory=dict)   # a drag or pitch winner's lift model
+    # per coefficient the search's answer (search_answer.json: docs/interfaces.md 8.1) where the winner is its
+    # rank 1; absent where the structure was named on the command line or the search wrote no answer
+    verdicts: Mapping[str, dict] = field(default_factory=dict)
 
     @property
     def names(self) -> dict[str, str]:
@@ -112,14 +117,43 @@ def chosen_models(out: Path, overrides: tuple[str, ...] = (), searched: str | No
         source = "named on the command line (--model)" + (f"; the others {source}" if len(chosen) < 3 else "")
         notes.append(f"Models chosen on the command line: {', '.join(overrides)}.")
     if campaign is not None:
-        winners = applicable_models(winners, campaign, notes)
-    return consistent(winners, rows or {}, resolve, source, notes)
+        # a coefficient the search did not rank shows the thesis' structure; a campaign that cannot fit it
+        # (a wind-tunnel airfoil has no thrust coefficient) leaves it out instead
+        unranked = set(GRIDS) if rows is None else {coef for coef, grid in GRIDS.items() if grid not in rows}
+        winners = applicable_models(winners, campaign, notes, optional=unranked - set(overrides_of(overrides)))
+        notes = [n for n in notes if not any(n.startswith(f"No {GRIDS[coef]} grid in the ranking")
+                                             for coef in set(GRIDS) - set(winners))]
+    choice = consistent(winners, rows or {}, resolve, source, notes)
+    verdicts = search_answers(out) if rows is not None else {}
+    return dataclasses.replace(choice, verdicts={coef: verdicts[GRIDS[coef]] for coef, c in winners.items()
+                                                 if GRIDS.get(coef) in verdicts
+                                                 and verdicts[GRIDS[coef]].get("best_admissible", c.name) in
+                                                 (c.name, None) and rows[GRIDS[coef]][0]["model"] == c.name})
+
+
+def search_answers(out: Path) -> dict[str, dict]:
+    """Per grid the search's answer in ``out/search_answer.json`` ({} when the search wrote none)."""
+    import json
+    path = Path(out) / "search_answer.json"
+    if not path.exists():
+        return {}
+    if not path.is_file() or path.stat().st_size > ANSWERS_MAX_BYTES:
+        raise DataError(f"not a regular file of at most {ANSWERS_MAX_BYTES} bytes", source=str(path))
+    try:
+        doc = json.loads(path.read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise DataError(f"not a JSON document ({type(exc).__name__})", source=str(path)) from None
+    answers = doc.get("answers") if isinstance(doc, dict) else None
+    if not isinstance(answers, dict) or not all(isinstance(a, dict) and isinstance(a.get("status"), str)
+                                                for a in answers.values()):
+        raise DataError("a search's answers: {\"answers\": {grid: {\"status\": ..., ...}}}", source=str(path))
+    return answers
 
 
 def consistent(winners: Mapping[str, Candidate], rows: Mapping[str, list[dict]], resolve, source: str,
                notes: list[str]) -> Choice:
     """The Choice of ``winners``: the figures' set on the lift model the drag and pitch winners read."""
-    lifts = {coef: resolve(winners[coef].lift) for coef in ("CD", "Cm") if winners[coef].lift}
+    lifts = {coef: resolve(winners[coef].lift) for coef in ("CD", "Cm") if coef in winners and winners[coef].lift}
     shown = dict(winners)
     other = {coef: c for coef, c in lifts.items() if c.name != winners["CL"].name}
     for coef, lift in other.items():
@@ -128,7 +162,7 @@ def consistent(winners: Mapping[str, Candidate], rows: Mapping[str, list[dict]],
     if other:
         pitch_lift = lifts.get("Cm", winners["CL"])
         shown["CL"] = pitch_lift
-        if winners["CD"].lift and winners["CD"].lift != pitch_lift.name:
+        if "CD" in winners and winners["CD"].lift and winners["CD"].lift != pitch_lift.name:
             shown["CD"] = _reading(pitch_lift, rows.get("drag", []), resolve)
             notes.append(f"The figures draw one set on one lift model's states, {pitch_lift.name} (the pitch "
                          f"winner's); its drag model there is {shown['CD'].name}, the best-ranked drag structure "
@@ -161,9 +195,16 @@ def missing_columns(candidate: Candidate, campaign: Campaign) -> list[str]:
     return sorted(used - states - have)
 
 
-def applicable_models(winners: Mapping[str, Candidate], campaign: Campaign, notes: list[str]) -> dict[str, Candidate]:
+def overrides_of(names: tuple[str, ...]) -> set[str]:
+    """The coefficients the structures named on the command line model."""
+    return {find_candidate(n).coefficient for n in names if not n.endswith("-auto")}
+
+
+def applicable_models(winners: Mapping[str, Candidate], campaign: Campaign, notes: list[str],
+                      optional: set[str] = frozenset()) -> dict[str, Candidate]:
     """``winners`` with every structure that needs a column the campaign lacks replaced by the first structure of
-    its grid that needs none (and takes its states from the same lift model), with a note each in ``notes``."""
+    its grid that needs none (and takes its states from the same lift model), with a note each in ``notes``; a
+    coefficient of ``optional`` that none fits is left out (a note says so)."""
     out = dict(winners)
     lift_grid = load_grid("lift")
     for coef, c in winners.items():
@@ -174,6 +215,12 @@ def applicable_models(winners: Mapping[str, Candidate], campaign: Campaign, note
         lift = None if coef == "CL" else (c.lift or out["CL"].name)
         substitute = next((s for s in grid.candidates
                            if not missing_columns(s, campaign) and (lift is None or s.lift == lift)), None)
+        if substitute is None and coef in optional:
+            del out[coef]
+            notes.append(f"No {GRIDS[coef]} structure is shown: the search ranked none, and {c.name} (the thesis') "
+                         f"needs {', '.join(missing)}, which the campaign does not have; so does every structure of "
+                         f"the {GRIDS[coef]} grid on {lift}.")
+            continue
         if substitute is None:
             raise DataError(f"no {GRIDS[coef]} structure can be shown: {c.name} needs column {missing[0]} and "
                             "every other one needs a column the campaign lacks too", source=str(campaign.directory),

@@ -56,7 +56,7 @@ class ReportFits:
 
     names: Mapping[str, str]
     notes: tuple[str, ...]
-    identified: ModelSet
+    identified: ModelSet | None                # None: no lift, drag and pitch set to draw (the first screen only)
     van_ingen: ModelSet | None                 # None: the Van Ingen structures could not be fitted (a note says why)
     diagnosis_coefficient: str | None = None
     diagnosis: Any = None                      # the diagnosis (dict or typed) of diagnosis_coefficient's model
@@ -64,6 +64,7 @@ class ReportFits:
     # per coefficient the structure the page answers with: (candidate, its fit, the LiftFit whose states it reads)
     answers: Mapping[str, tuple] = field(default_factory=dict)
     source: str = ""                           # where the answers come from, in words
+    verdicts: Mapping[str, dict] = field(default_factory=dict)   # per coefficient the search's answer (8.1)
 
 
 def require_figures() -> None:
@@ -88,11 +89,13 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
         fg.save(fig, fig_dir / file)
         written.append(Figure(file, title, caption))
 
-    curves = _static_figures(emit, campaign, names, ms, vi, train, alpha, ref)
-    _derived_pitch_figures(emit, campaign, names, ms, vi, alpha, ref, curves, notes)
-    hyst = _dynamic_figures(emit, campaign, names, ms, train, val, ref, options)
-    diagnosis = _diagnosis_figures(emit, campaign, fits, ms)
-    _replay_figure(emit, campaign, ms, hyst, notes)
+    diagnosis = None
+    if ms is not None:   # the figures draw one lift, drag and pitch set
+        curves = _static_figures(emit, campaign, names, ms, vi, train, alpha, ref)
+        _derived_pitch_figures(emit, campaign, names, ms, vi, alpha, ref, curves, notes)
+        hyst = _dynamic_figures(emit, campaign, names, ms, train, val, ref, options)
+        diagnosis = _diagnosis_figures(emit, campaign, fits, ms)
+        _replay_figure(emit, campaign, ms, hyst, notes)
     fits = fits if fits.answers else _with_answers(fits)
     page = render_html(campaign, out, fits, ms, vi, written, notes, diagnosis, story)
     write_text(out / "report.html", page)

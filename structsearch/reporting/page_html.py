@@ -11,7 +11,7 @@ from pathlib import Path
 from ..diagnosis.results import Diagnosis
 from ..diagnosis.story import unexplained_sentence
 from ..engine.summary import PARAMETER_HEADERS, parameter_rows
-from .answer import answer_html, contents_html
+from .answer import answer_html, answered, contents_html
 from .numbers import share, sig, with_uncertainty
 from .tables import render_table
 
@@ -24,7 +24,7 @@ h1{margin:0.2em 0}.summary td,.summary th{font-size:14px;padding:3px 10px}.summa
 .model{border-left:4px solid #4a7;padding:0 0 0 0.8em;margin:0.8em 0}.model h3{margin:0.2em 0}
 .model .name{font-family:monospace;font-size:1.1em}pre.eq{white-space:pre-wrap;font-size:12px;background:#f6f6f6;
 padding:0.4em;margin:0.3em 0}.fit{margin:0.2em 0}ul.gap{margin:0.2em 0;font-size:13px}
-nav#contents ol{columns:2;font-size:14px}.source{color:#555;font-size:13px}"""
+nav#contents ol{columns:2;font-size:14px}.source{color:#555;font-size:13px}.verdict{font-weight:bold}"""
 
 # The study's tables the page shows (stem -> title).
 STUDY_TABLES = {"legacy_vs_snls": "The legacy estimator against SNLS (Table 7)",
@@ -105,13 +105,24 @@ def parameter_html(fit) -> str:
     return render_table(rows, PARAMETER_HEADERS, "html", numparse=False)
 
 
-def summary_html(answers) -> str:
-    """One row per coefficient: the structure, its validation R^2 and held-out MSE (the first thing read)."""
+def summary_html(answers, verdicts=None) -> str:
+    """One row per coefficient: the structure, whether the search answers with it, its validation R^2 and
+    held-out MSE (the first thing read)."""
+    verdicts = verdicts or {}
+
+    def status(coef):
+        v = verdicts.get(coef)
+        if not v:
+            return "-"
+        if v.get("status") == "admissible":
+            return "admissible"
+        return f"no admissible structure within {100 * float(v.get('tolerance', float('nan'))):.0f} % of the best fit"
     rows = "".join(f"<tr><td>{coef}</td><td class='name'>{html.escape(c.name)}</td>"
+                   f"<td>{html.escape(status(coef))}</td>"
                    f"<td>{sig(r.validation.r2.pooled, 4)}</td><td>{sig(r.comparison.mse, 4)}</td></tr>"
                    for coef, (c, r, _) in answers.items())
-    return ("<table class='summary'><thead><tr><th>coefficient</th><th>structure</th><th>validation R^2</th>"
-            f"<th>held-out MSE</th></tr></thead><tbody>{rows}</tbody></table>")
+    return ("<table class='summary'><thead><tr><th>coefficient</th><th>structure</th><th>the search's verdict</th>"
+            f"<th>validation R^2</th><th>held-out MSE</th></tr></thead><tbody>{rows}</tbody></table>")
 
 
 def diagnosis_html(diagnosis: dict) -> str:
@@ -141,12 +152,20 @@ def diagnosis_html(diagnosis: dict) -> str:
     return "".join(parts)
 
 
+def page_title(verdicts) -> str:
+    """The page's title: "identified models" only when the search answers every coefficient it judged."""
+    missing = [c for c, v in (verdicts or {}).items() if v.get("status") != "admissible"]
+    if not missing:
+        return "identified models"
+    return f"search results, no admissible structure near the best fit for {', '.join(missing)}"
+
+
 def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, story=None) -> str:
     """The page (module docstring)."""
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
-    sections = [("answer", "The identified models"), ("notes", "How the models were chosen"),
-                ("parameters", "Identified parameters"), ("figures", "Figures")]
+    sections = [("answer", "The identified models" if answered(fits.verdicts) else "The search's answers"), ("notes", "How the models were chosen"),
+                ("parameters", "Identified parameters")] + ([("figures", "Figures")] if written else [])
     if diagnosis is not None:
         sections.append(("diagnosis", f"Diagnosis of {diagnosis['baseline']}"))
     if vi is not None or story:
@@ -161,24 +180,28 @@ def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, st
         sections.append(("rankings", "Search rankings"))
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>structsearch report: "
              f"{html.escape(campaign.name)}</title><style>{STYLE}</style></head><body>",
-             f"<h1>{html.escape(campaign.name)}: identified models</h1>",
-             summary_html(fits.answers),
+             f"<h1>{html.escape(campaign.name)}: {page_title(fits.verdicts)}</h1>",
+             summary_html(fits.answers, fits.verdicts),
              answer_html(fits.answers, fits.source, None if diagnosis is None else Diagnosis.from_dict(diagnosis),
-                         fits.diagnosis_coefficient),
+                         fits.diagnosis_coefficient, fits.verdicts),
              contents_html(sections),
              f"<h2 id='notes'>How the models were chosen</h2><p>{len(campaign.maneuvers)} maneuvers ({n_val} "
-             f"validation), {d.n_samples} samples. The figures draw "
-             + ", ".join(f"{c} {html.escape(n)}" for c, n in fits.names.items()) + ".</p>"]
+             f"validation), {d.n_samples} samples. "
+             + ("The figures draw " + ", ".join(f"{c} {html.escape(n)}" for c, n in fits.names.items()) + "."
+                if written else "No figures: they draw a lift, drag and pitch model together (a note says why "
+                                "one is missing).") + "</p>"]
     parts += [f"<p class='note'>{html.escape(n)}</p>" for n in notes]
     parts.append("<h2 id='parameters'>Identified parameters</h2>")
     # the answers' structures first, then any structure only the figures draw (the lift model a drag or pitch
     # winner reads when it is not the lift winner)
     shown = [r for _, r, _ in fits.answers.values()]
-    shown += [s for s in ms.summaries.values() if s.name not in {r.name for r in shown}]
+    if ms is not None:
+        shown += [s for s in ms.summaries.values() if s.name not in {r.name for r in shown}]
     for s in shown:
         parts.append(f"<h3>{html.escape(s.name)}</h3><p>MSE training {sig(s.mse_train, 4)}, validation "
                      f"{sig(s.mse_validation, 4)}</p>" + parameter_html(s.estimates))
-    parts.append("<h2 id='figures'>Figures</h2>")
+    if written:
+        parts.append("<h2 id='figures'>Figures</h2>")
     for f in written:
         parts.append(f"<figure><h3>{html.escape(f.title)}</h3><img src='{_image(out / 'figures' / f.file)}' "
                      f"alt='{html.escape(f.title)}'><figcaption>{html.escape(f.caption)}</figcaption></figure>")
