@@ -311,16 +311,19 @@ def test_a_state_the_data_do_not_place_is_a_refinement_move():
     c = _two_states()
     assert _state_moves(c, _state_stub(), (0.0, 0.35)) == []
     outside = _state_moves(c, _state_stub(a_star_w=0.4), (0.0, 0.35))
-    assert [(m.what, m.drop) for m in outside] == [("dropping the state X_w", ("k_w",))]
+    # first as attached flow (X_w = 1: its Kirchhoff lift the attached lift slope), then without its lift
+    assert [(m.what, m.drop, m.replace) for m in outside] == [("attaching X_w (X = 1)", (), (("k_w", "alpha"),)),
+                                                              ("dropping the state X_w", ("k_w",), ())]
     assert "a_star_w outside the alpha range flown" in outside[0].why
     assert [m.what for m in _state_moves(c, _state_stub(at_bound={"a1_w": "upper"}), None)] == [
-        "dropping the state X_w"]
+        "attaching X_w (X = 1)", "dropping the state X_w"]
     assert [m.what for m in _state_moves(c, _state_stub(not_identifiable={"a1_w": "flat"}), None)] == [
-        "dropping the state X_w"]
+        "attaching X_w (X = 1)", "dropping the state X_w"]
     # tau1_ss at its lower bound 0: U is Q there (and dropping the state is the next move); with tau2_ss
     # insignificant too, S first
     lag = _state_moves(c, _state_stub(at_bound={"tau1_ss": "lower"}), None)
-    assert [(m.what, m.kinds) for m in lag] == [("making X_ss Q", (("ss", "Q"),)), ("dropping the state X_ss", ())]
+    assert [(m.what, m.kinds) for m in lag] == [("making X_ss Q", (("ss", "Q"),)), ("attaching X_ss (X = 1)", ()),
+                                                ("dropping the state X_ss", ())]
     both = _state_moves(c, _state_stub(at_bound={"tau1_ss": "lower"}, p=[0.5, 0.4] + [1e-9] * 8), None)
     assert [m.what for m in both][:3] == ["making X_ss S", "making X_ss Q", "making X_ss L"]
     # tau2_ss at zero alone: the lag without the alpha_dot delay (L)
@@ -329,6 +332,7 @@ def test_a_state_the_data_do_not_place_is_a_refinement_move():
     # a Kirchhoff term of the wrong sign: the state mimics something else, and goes
     wrong = _state_stub()
     wrong.estimates.params["k_w"] = -0.8
+    # (not as attached flow: a negative Kirchhoff term is no attached lift slope)
     assert [(m.what, m.drop) for m in _state_moves(c, wrong, (0.0, 0.35))] == [("dropping the state X_w", ("k_w",))]
     assert "Kirchhoff term k_w = -0.8 not positive" in _state_moves(c, wrong, (0.0, 0.35))[0].why
     # a drag or pitch candidate's states are its lift model's
@@ -338,7 +342,9 @@ def test_a_state_the_data_do_not_place_is_a_refinement_move():
         return _state_stub(mse=1.002)
     done = refine(c, _state_stub(a_star_w=0.4), fit, alpha_range=(0.0, 0.35))
     step = done.steps[0][0]
-    assert step.states == (("ss", "U"),) and "k_w" not in dict(step.regressors) and "a_star_w" not in dict(step.bounds)
+    # attached: k_w now multiplies alpha, and X_w with its parameters and box is gone
+    assert step.states == (("ss", "U"),) and dict(step.regressors)["k_w"] == "alpha" and "a_star_w" not in dict(step.bounds)
+    assert "attached flow (X = 1) in k_w = alpha" in step.note
     simpler = refine(c, _state_stub(at_bound={"tau1_ss": "lower"}), fit).steps[0][0]
     assert simpler.states == (("ss", "Q"), ("w", "S")) and "X_ss as Q" in simpler.note
 

@@ -77,18 +77,19 @@ class Move:
     kinds: tuple[tuple[str, str], ...] = ()
     why: str = ""
     boxes: tuple[tuple[str, tuple[float, float]], ...] = ()   # search boxes it widens (name -> (lo, hi))
+    replace: tuple[tuple[str, str], ...] = ()                  # regressors it rewrites (name -> expression)
 
 
 def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] | None = None,
-             boxes: dict[str, tuple[float, float]] | None = None) -> Candidate:
+             boxes: dict[str, tuple[float, float]] | None = None, replace: dict[str, str] | None = None) -> Candidate:
     """``c`` without the regressors in ``drop`` (all drops so far, relative to ``c``), with the states of ``kinds``
     (name -> kind) simplified, the search boxes of ``boxes`` widened, and without the separation states no
     remaining regressor uses (with the boxes of the parameters that went)."""
-    kinds, boxes = kinds or {}, boxes or {}
-    regs = tuple(r for r in c.regressors if r[0] not in drop)
+    kinds, boxes, replace = kinds or {}, boxes or {}, replace or {}
+    regs = tuple((n, replace.get(n, t)) for n, t in c.regressors if n not in drop)
     # a drag or pitch candidate reads its lift model's states (their parameters fixed): one it no longer uses
     # costs nothing, and its states must stay the lift model's
-    orphans = set() if c.lift else set(_orphans(c, drop))
+    orphans = set() if c.lift else set(_orphans(c, drop, replace))
     states = tuple((n, kinds.get(n, k)) for n, k in c.states if SeparationState(n, k).symbol not in orphans)
     kept = {p for n, k in states for p in SeparationState(n, k, c.form_of(n)).parameters}
     gone = {p for s in c.separation_states for p in s.parameters} - kept
@@ -96,8 +97,12 @@ def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] |
     bounds = tuple(sorted((name, box) for name, box in merged.items() if name not in gone)) if boxes else \
         tuple((name, box) for name, box in c.bounds if name not in gone)
     changes = [f"dropped {', '.join(drop)}"] if drop else []
-    if orphans:
-        changes[-1] += f" and the state(s) {', '.join(sorted(orphans))} they left without a regressor"
+    if replace:
+        changes.append("attached flow (X = 1) in " + ", ".join(f"{n} = {t}" for n, t in sorted(replace.items())))
+    if orphans and drop:
+        changes[0] += f" and the state(s) {', '.join(sorted(orphans))} they left without a regressor"
+    elif orphans:
+        changes[-1] += f", the state(s) {', '.join(sorted(orphans))} removed"
     simpler = [f"{SeparationState(n, k).symbol} as {kinds[n]}" for n, k in c.states if n in kinds and
                SeparationState(n, k).symbol not in orphans]
     if simpler:
@@ -124,9 +129,10 @@ def refinement_key(c: Candidate, widened: dict[str, tuple[float, float]] | None 
     return structure_key(c) + ((tuple(sorted(kept.items())),) if kept else ())
 
 
-def _orphans(c: Candidate, drop: list[str]) -> list[str]:
-    """Separation states of ``c`` that no regressor would use once ``drop`` is dropped."""
-    used = {name for n, t in c.regressors if n not in drop for name in symbol_names(t)}
+def _orphans(c: Candidate, drop: list[str], replace: dict[str, str] | None = None) -> list[str]:
+    """Separation states of ``c`` that no regressor would use once ``drop`` is dropped (and ``replace`` made)."""
+    replace = replace or {}
+    used = {name for n, t in c.regressors if n not in drop for name in symbol_names(replace.get(n, t))}
     symbols = [SeparationState(n, k).symbol for n, k in c.states]
     return [s for s in symbols if s not in used]
 
@@ -266,8 +272,23 @@ def _state_moves(current: Candidate, summary: CandidateResult,
         why += _wrong_sign(current, state, summary)
         users = tuple(n for n, t in current.regressors if state.symbol in symbol_names(t))
         if why and users:
+            out += _attach(current, state, users, why, summary)
             out.append(Move(f"dropping the state {state.symbol}", users, why="; ".join(why)))
     return out
+
+
+def _attach(current: Candidate, state: SeparationState, users: tuple[str, ...], why: list[str],
+            summary: CandidateResult) -> list[Move]:
+    """A lift model's state the data do not place, as attached flow (X = 1): its Kirchhoff lift K_L(X) becomes
+    the attached lift slope alpha (K_L(1) = alpha), its other terms go; tried before dropping the state with its
+    lift (the data may need the lift and not the separation: an airfoil that never stalls in the range flown).
+    Not for a Kirchhoff term of the wrong sign (a negative lift slope is no attached flow)."""
+    kirchhoff = [n for n, t in current.regressors if t.replace(" ", "") == f"K_L({state.symbol})"]
+    if current.coefficient != "CL" or not kirchhoff or _wrong_sign(current, state, summary):
+        return []
+    rest = tuple(n for n in users if n not in kirchhoff)
+    return [Move(f"attaching {state.symbol} (X = 1)", rest, replace=tuple((n, "alpha") for n in kirchhoff),
+                 why="; ".join(why))]
 
 
 def _moves(current: Candidate, summary: CandidateResult, alpha_range) -> list[Move]:
@@ -276,18 +297,19 @@ def _moves(current: Candidate, summary: CandidateResult, alpha_range) -> list[Mo
     return _box_moves(current, summary, alpha_range) + terms + _state_moves(current, summary, alpha_range)
 
 
-def _try(move: Move, c: Candidate, so_far: tuple[list[str], dict, dict], suffix: str, current_mse: float,
+def _try(move: Move, c: Candidate, so_far: tuple[list[str], dict, dict, dict], suffix: str, current_mse: float,
          fit: Callable[[Candidate], CandidateResult], known: dict) -> tuple[tuple | None, str | None]:
-    """``move`` made on top of the refinement so far (drops, kinds, boxes): (candidate, result, (drops, kinds,
-    boxes), was_known) when it is taken, else None and why not."""
-    dropped, kinds, boxes = so_far
+    """``move`` made on top of the refinement so far (drops, kinds, boxes, rewritten regressors): (candidate,
+    result, the changes so far with it, was_known) when it is taken, else None and why not."""
+    dropped, kinds, boxes, replaced = so_far
     drop = dropped + [n for n in move.drop if n not in dropped]
     new_kinds = {**kinds, **dict(move.kinds)}
     new_boxes = {**boxes, **dict(move.boxes)}
+    new_replaced = {**replaced, **dict(move.replace)}
     what = f"{move.what} ({move.why})"
     if len(drop) >= len(c.regressors):
         return None, f"{what} would leave no term"
-    candidate = _refined(c, drop, suffix, new_kinds, new_boxes)
+    candidate = _refined(c, drop, suffix, new_kinds, new_boxes, new_replaced)
     same = known.get(refinement_key(candidate, new_boxes))
     candidate, result = same if same is not None else (candidate, fit(candidate))
     if result.failed:
@@ -299,7 +321,7 @@ def _try(move: Move, c: Candidate, so_far: tuple[list[str], dict, dict], suffix:
         return None, f"the held-out MSE after {move.what} cannot be compared (not finite)"
     if rise > REFINE_TOLERANCE:
         return None, f"{what} raises the held-out MSE by {rise:.1%}"
-    return (candidate, result, (drop, new_kinds, new_boxes), same is not None), None
+    return (candidate, result, (drop, new_kinds, new_boxes, new_replaced), same is not None), None
 
 
 def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], CandidateResult],
@@ -310,7 +332,7 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
     flown in training (an alpha* outside it is a state the data do not place; None: not judged)."""
     known = known or {}
     steps, reached, keys = [], [], []
-    current, current_summary, so_far = c, summary, ([], {}, {})
+    current, current_summary, so_far = c, summary, ([], {}, {}, {})
     stopped, refused_all = "nothing left to drop", ()
     if summary.estimates.withheld:   # no t-test, interval or bound to judge a move by
         return Refinement(c.name, (), f"{summary.estimates.withheld}: no statistics to refine by")

@@ -1,0 +1,154 @@
+"""Measured records get an answer: the repository's real pitching-airfoil campaigns (OpenFAST's test set) and
+simulated sections whose lift truth is simpler than the lift grid's structures. The search ranks an admissible
+structure first when one fits near the best fit, says so when none does, and never ranks a structure that fits
+worse than one it contains."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from structsearch.api import search
+from structsearch.api.settings import Settings
+from structsearch.grid_search.answer import ADMISSIBLE, NONE_NEAR, answer_of
+from structsearch.reporting.choice import resolver
+
+sys.path.insert(0, str(Path(__file__).parent))
+from airfoil_truths import TRUTHS, write_campaign  # noqa: E402
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "openfast_ua"
+# kinds a state nests (the smaller first): S in Q, L and U; Q and L in U
+NESTED = {("S", "Q"), ("S", "L"), ("S", "U"), ("Q", "U"), ("L", "U")}
+
+
+def _contains(big, small) -> bool:
+    """Whether structure ``big`` holds ``small``: its terms, states no simpler, the same forms, boxes no narrower."""
+    if big.name == small.name or big.coefficient != small.coefficient or big.lift != small.lift:
+        return False
+    terms = {t.replace(" ", "") for _, t in big.regressors}
+    if not {t.replace(" ", "") for _, t in small.regressors} <= terms:
+        return False
+    kinds = dict(big.states)
+    for name, kind in small.states:
+        if name not in kinds or (kind != kinds[name] and (kind, kinds[name]) not in NESTED):
+            return False
+        if big.form_of(name) != small.form_of(name):
+            return False
+    boxes = dict(big.bounds)
+    return all(name not in boxes or (boxes[name][0] <= lo and hi <= boxes[name][1])
+               for name, (lo, hi) in small.bounds)
+
+
+def assert_no_structure_fits_worse_than_one_it_contains(ranked, out: Path):
+    """The search's invariant on its training cost (the fit's own objective), to the optimizer's tolerance."""
+    resolve = resolver(out)
+    fitted = [(resolve(r.name), r) for r in ranked if not r.failed]
+    pairs = 0
+    for big, rb in fitted:
+        for small, rs in fitted:
+            if _contains(big, small):
+                pairs += 1
+                assert rb.mse_train <= rs.mse_train * (1 + 1e-6), (big.name, small.name)
+    return pairs
+
+
+@pytest.fixture(scope="module")
+def naca(tmp_path_factory):
+    out = tmp_path_factory.mktemp("naca")
+    return search(EXAMPLES / "campaign_naca", "lift", settings=Settings(jobs=1), out=out), out
+
+
+def test_the_symmetric_section_gets_an_admissible_answer_without_a_constant(naca):
+    """The NACA section pitching through deep dynamic stall: the grid ranks nothing admissible (its best fits put
+    a second state's Kirchhoff term or CL0 where the data cannot support them); the refinement goes down the
+    ranking and reaches one lagged state without the constant (a symmetric section has no lift at zero alpha),
+    admissible, within the answer's tolerance of the best fit and with a validation R^2 of 0.94 (measured)."""
+    ranking, out = naca
+    ranked = ranking.grids["lift"]
+    first = ranked[0]
+    assert first.placement.admissible and first.placement.origin == "refined"
+    assert "CL0" not in first.estimates.names and first.validation.r2.pooled >= 0.85
+    answer = ranking.answers["lift"]
+    assert answer.status == ADMISSIBLE and answer.best_admissible == first.name
+    assert 0.0 <= answer.cost <= answer.tolerance
+    assert not any(r.placement.admissible for r in ranked if r.placement.origin == "declared")
+    doc = (out / "search_answer.json").read_text()
+    assert '"status": "admissible"' in doc and first.name in doc
+    rows = (out / "ranking.csv").read_text().splitlines()
+    assert rows[0].split(",")[-1] == "origin" and rows[1].endswith(",refined")
+    assert assert_no_structure_fits_worse_than_one_it_contains(ranked, out) > 5
+
+
+def test_no_admissible_structure_near_the_best_fit_is_said_as_such(naca):
+    """The answer's rule on the same ranking: with nothing admissible, the best fit is named with its reasons and
+    no structure is the answer; an admissible one far above the best fit is not the answer either."""
+    ranked = naca[0].grids["lift"]
+    rejected = [r.placed(admissible=False, reasons=("a reason",)) for r in ranked]
+    answer = answer_of(rejected)
+    assert answer.status == NONE_NEAR and answer.best_admissible is None and answer.structure is None
+    assert answer.best_fit_reasons == ("a reason",)
+    assert answer.sentence().startswith("no admissible structure within 25% of the best fit")
+    # only the worst-fitting fitted structure admissible: it is ranked first, but it is not the answer
+    worst = max((r for r in ranked if not r.failed), key=lambda r: r.comparison.mse)
+    only = [r.placed(admissible=r is worst, reasons=() if r is worst else ("x",)) for r in ranked]
+    far = answer_of([r for r in only if r.placement.admissible] + [r for r in only if not r.placement.admissible])
+    assert far.best_admissible == worst.name and far.cost > far.tolerance and far.status == NONE_NEAR
+    assert far.structure is None and "fits +" in far.sentence()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("airfoil", ["campaign", "campaign_ls417"])
+def test_the_other_airfoils_rank_an_admissible_structure_first(airfoil, tmp_path):
+    """S809 and LS(1)-0417: an admissible structure ranks first and the invariant holds. Measured: LS(1)-0417's is
+    one lagged state without the constant, 11 % above the best fit (validation R^2 0.71, the Reynolds number of the
+    validation run differs); S809's a quasi-steady state 114 % above the best fit (validation R^2 0.34 at half the
+    training frequency): no admissible structure near the best fit, and every output says so."""
+    ranking = search(EXAMPLES / airfoil, "lift", settings=Settings(jobs=1), out=tmp_path)
+    ranked = ranking.grids["lift"]
+    assert ranked[0].placement.admissible
+    assert assert_no_structure_fits_worse_than_one_it_contains(ranked, tmp_path) > 0
+    answer = ranking.answers["lift"]
+    if airfoil == "campaign_ls417":
+        assert answer.status == ADMISSIBLE
+    else:
+        assert answer.status == NONE_NEAR and answer.best_admissible == ranked[0].name
+
+
+@pytest.mark.slow
+def test_the_report_of_a_campaign_without_an_answer_says_so(tmp_path, run_cli):
+    """The report's first screen carries the search's verdict; its title does not read "identified models"."""
+    data = EXAMPLES / "campaign"
+    assert run_cli("search", "--data", data, "--grid", "lift", "--out", tmp_path).returncode == 0
+    proc = run_cli("report", "--data", data, "--out", tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    page = (tmp_path / "report.html").read_text()
+    head = page[:page.index("id='contents'")]
+    assert "identified models" not in head
+    assert "no admissible structure near the best fit for CL" in head
+    assert "No admissible structure within 25 % of the best fit" in head and "is not an answer" in head
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("truth,seed", [("symmetric", 101), ("lag_only", 102), ("quasi_steady", 103),
+                                        ("linear", 104)])
+def test_a_truth_simpler_than_the_grid_is_found(truth, seed, tmp_path):
+    """A section whose lift truth is simpler than every structure of the lift grid (no C_L0; a lag without the
+    alpha_dot delay; a quasi-steady state; no state at all): the refinement reaches the truth's terms, ranked first
+    and admissible. The campaigns are integrated by scipy, not by the engine, with seeds the simulator does not
+    use."""
+    want = TRUTHS[truth]
+    data = write_campaign(want, tmp_path / "campaign", seed)
+    ranking = search(data, "lift", settings=Settings(jobs=1), out=tmp_path / "out")
+    first = ranking.grids["lift"][0]
+    assert first.placement.admissible and ranking.answers["lift"].status == ADMISSIBLE
+    c = resolver(tmp_path / "out")(first.name)
+    terms = sorted(t.replace(" ", "") for _, t in c.regressors)
+    expected = (["K_L(X)"] if want.cl0 == 0 else ["1", "K_L(X)"]) if want.kind else ["1", "alpha"]
+    assert terms == sorted(expected)
+    assert dict(c.states) == ({"": want.kind} if want.kind else {})
+    p = first.estimates.params
+    if want.kind in ("U", "L"):
+        assert abs(p["tau1"] - want.tau1) <= 3 * first.estimates.stderr["tau1"] + 0.01
+    assert np.isfinite(first.validation.r2.pooled) and first.validation.r2.pooled > 0.9
