@@ -152,3 +152,21 @@ def test_a_truth_simpler_than_the_grid_is_found(truth, seed, tmp_path):
     if want.kind in ("U", "L"):
         assert abs(p["tau1"] - want.tau1) <= 3 * first.estimates.stderr["tau1"] + 0.01
     assert np.isfinite(first.validation.r2.pooled) and first.validation.r2.pooled > 0.9
+
+
+@pytest.mark.slow
+def test_discover_states_its_answer_by_the_same_rule(tmp_path):
+    """discover.json carries the answer (docs/interfaces.md 8.1): the final structure when it is admissible and
+    near the best fit of every structure fitted in full, else that none is."""
+    import json
+
+    from structsearch.api import discover
+    discover(EXAMPLES / "campaign_naca", "CL", settings=Settings(jobs=1), max_steps=2, out=tmp_path)
+    doc = json.loads((tmp_path / "discover.json").read_text())
+    answer = doc["answer"]
+    assert answer["status"] in (ADMISSIBLE, NONE_NEAR) and answer["tolerance"] >= 0.25
+    if answer["status"] == ADMISSIBLE:
+        assert answer["best_admissible"] == doc["final"]["name"] and doc["final"]["admissible"]
+        assert answer["cost"] <= answer["tolerance"]
+    else:
+        assert answer["best_admissible"] in (None, doc["final"]["name"])

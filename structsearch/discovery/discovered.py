@@ -160,6 +160,8 @@ class Discovery:
     final_rule: str = ""
     # the search itself, every structure it fitted (not written: what a caller checks the final choice against)
     exploration: Exploration | None = field(default=None, repr=False, compare=False)
+    # the final structure as the answer, by the ranking's rule (docs/interfaces.md 8.1; None: nothing to judge)
+    answer: Any = None
 
     def to_dict(self) -> dict:
         """``discover.json``."""
@@ -170,7 +172,8 @@ class Discovery:
                 "stopped": self.stopped, "structures_fitted": self.structures_fitted,
                 "noise_floor": self.noise_floor, "at_floor": self.explained,
                 "terms": dict((self.diagnosis.search or {}).get("terms", {})), "seconds": self.seconds,
-                "final_rule": self.final_rule, "set_aside": [a.to_dict() for a in self.set_aside]}
+                "final_rule": self.final_rule, "set_aside": [a.to_dict() for a in self.set_aside],
+                "answer": self.answer.to_dict() if self.answer is not None else None}
 
 
 # The grid each coefficient's rank-1 candidate comes from.
@@ -237,4 +240,18 @@ def build_discovery(fitter: Fitter, diagnosis, exploration: Exploration, seconds
     return Discovery(coef, start.candidate.to_dict(), start.result.validation.mse, _cv(start.result), tuple(path),
                      final, tuple(rows), steps, exploration.stopped, exploration.n_fitted, diagnosis.noise_floor,
                      diagnosis.explained, diagnosis, seconds, tuple(map(SetAsideRow.of, exploration.set_aside)),
-                     exploration.final_rule, exploration)
+                     exploration.final_rule, exploration, discovery_answer(exploration))
+
+
+def discovery_answer(exploration: Exploration):
+    """The final structure as the answer (:mod:`structsearch.grid_search.answer`): admissible and within the
+    answer's tolerance of the best fit among every structure fitted in full, else "no admissible structure near"
+    (a repair that fell back to an admissible structure far worse than the best fit is no answer)."""
+    from ..grid_search.answer import answer_of
+    final = exploration.final
+    others = sorted((n for n in exploration.fitted() if n is not final), key=lambda n: (n.mse, n.candidate.name))
+    placed = [n.result.placed(admissible=n.admissible, reasons=n.reasons) for n in [final] + others]
+    if not final.admissible:   # the answer is the final structure or none: no other admissible one stands in
+        placed = [r.placed(admissible=False, reasons=r.placement.reasons or ("not the final structure",))
+                  for r in placed]
+    return answer_of(placed)

@@ -107,6 +107,8 @@ def markdown(found: Discovery, command: str = "") -> str:
     lines += ["## Final structure", "", f"{f.name}: validation MSE {_g(f.mse_validation)}, CV MSE {_g(f.mse_cv)}, "
               + ("admissible" if f.admissible else "not admissible: " + "; ".join(f.reasons))
               + ("; at the floor" if found.explained else "; above the floor") + ".", ""]
+    if found.answer is not None:
+        lines += [f"The answer: {found.answer.sentence()}.", ""]
     lines += [tabulate([[n, e] for n, e in f.structure["regressors"].items()], headers=["parameter", "term"],
                        tablefmt="github"), ""]
     lines += ["```", *equations(Candidate.from_dict(f.structure)), "```", ""]
@@ -179,6 +181,8 @@ def discovery_console_lines(found: Discovery, out: Path) -> list[str]:
     for i, (p, c) in enumerate(zip(found.path, closed_shares(found)), 1):
         lines.append(f"  {i}. {p.move} ({'' if p.verdict == 'improves' else p.verdict + ', '}"
                      f"p {_g(p.p_value, '.2g')}, closes {_g(c, '.0%')} of the start's gap)")
+    if found.answer is not None and not found.answer.answered:
+        lines.append(f"  {found.answer.sentence()}")
     if found.set_aside:
         a = found.set_aside[0]
         lines.append(f"  set aside {len(found.set_aside)} structures of lower held-out MSE; the lowest {a.name} "
