@@ -28,8 +28,8 @@ class LiftTruth:
     tau2: float = 0.0
     a1: float = 20.0
     a_star: float = 0.30
-    mean: float = 0.26
-    amplitude: float = 0.17
+    mean: float = 0.06            # -13.8 to 20.6 deg: through zero alpha, so that C_L0 and the lift slope separate
+    amplitude: float = 0.30
 
 
 TRUTHS = {
