@@ -170,3 +170,24 @@ def test_discover_states_its_answer_by_the_same_rule(tmp_path):
         assert answer["cost"] <= answer["tolerance"]
     else:
         assert answer["best_admissible"] in (None, doc["final"]["name"])
+
+
+@pytest.mark.slow
+def test_a_grid_with_nothing_admissible_is_searched_on_by_structure(tmp_path):
+    """A section pitching at 5-25 deg only, whose C_L0 and lift slope the data cannot separate (|rho| 0.99): no
+    structure of the grid or its refinements is admissible, so the structure search goes on from the minimal
+    structure; the admissible structures it fits are ranked beside the grid as "discovered", and since they fit
+    160 times worse than the best fit (measured), the answer says no admissible structure is near."""
+    import dataclasses
+    truth = dataclasses.replace(TRUTHS["quasi_steady"], mean=0.26, amplitude=0.17)
+    data = write_campaign(truth, tmp_path / "campaign", 103)
+    ranking = search(data, "lift", settings=Settings(jobs=1), out=tmp_path / "out")
+    ranked = ranking.grids["lift"]
+    found = [r for r in ranked if r.placement.origin == "discovered"]
+    assert found and all(r.placement.admissible and r.name.endswith("-auto") for r in found)
+    assert not any(r.placement.admissible for r in ranked if r.placement.origin != "discovered")
+    answer = ranking.answers["lift"]
+    assert answer.status == NONE_NEAR and answer.best_admissible == ranked[0].name == found[0].name
+    assert answer.cost > answer.tolerance
+    assert "discovered" in (tmp_path / "out" / "ranking.csv").read_text()
+    assert assert_no_structure_fits_worse_than_one_it_contains(ranked, tmp_path / "out") > 0

@@ -137,15 +137,30 @@ def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, setting
         with command_fitter("search", campaign, settings, out, cv_method=cv_method) as fitter:
             result = run_search(fitter, grid, max_correlation=max_correlation, do_refine=refine, joint_lift=joint,
                                 moment_reference=settings.moment_reference)
+            grids, discovered = _with_discovered(fitter, result, candidates) if refine else (result.grids, {})
     finally:
         if client is not None:
             client.close()
-    ranking = Ranking(result.grids, result.seconds, result.refinements, joint=result.joint)
+    ranking = Ranking(grids, result.seconds, result.refinements, joint=result.joint, discovered=discovered)
     if out is not None:
         write_search_tables(ranking, campaign, Path(out))
         if result.joint is not None:
             write_json(Path(out) / "joint_lift.json", result.joint.to_dict())
     return ranking
+
+
+def _with_discovered(fitter, result, declared) -> tuple[dict, dict]:
+    """Each grid's ranking with what a structure search found where the grid has no admissible structure
+    (:mod:`.fallback`), and per grid the structures it added."""
+    from .fallback import discover_beside, needs_discovery
+    grids, discovered = dict(result.grids), {}
+    for name, ranked in result.grids.items():
+        if needs_discovery(ranked):
+            refined = [c for r in result.refinements.get(name, []) for c, _ in r.steps]
+            grids[name], found = discover_beside(fitter, name, ranked, list(declared) + refined)
+            if found:
+                discovered[name] = found
+    return grids, discovered
 
 
 def _joint_lift_structures(joint_lift: str | Sequence[str], settings: Settings, options) -> list:
@@ -184,6 +199,8 @@ def refined_structures(ranking: Ranking) -> dict[str, list]:
         seen = out.setdefault(grid, [])
         for r in done:
             seen += [c for c, _ in r.steps if c.name not in r.reached and c not in seen]
+    for grid, found in ranking.discovered.items():   # a structure search's, beside the grid
+        out.setdefault(grid, []).extend(c for c in found if c not in out[grid])
     return {g: cs for g, cs in out.items() if cs}
 
 

@@ -56,6 +56,8 @@ class Ranking:
     seconds: dict[str, float]
     refinements: dict[str, list] = field(default_factory=dict)
     joint: Any = None       # the JointFit whose lift block drag and pitch read (``search(joint_lift=...)``)
+    # per grid the structures a structure search ranked beside it (the grid had no admissible structure)
+    discovered: dict[str, list] = field(default_factory=dict)
 
     def best(self, grid: str) -> CandidateResult | None:
         """The grid's rank-1 candidate that did not fail (None if every one failed)."""
