@@ -126,6 +126,6 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
         say("no figures: the report needs matplotlib (pip install 'structsearch[figures]')")
         return DemoOutcome(out, campaign, ranking, story, story_md, written, None, seconds)
     from .api.report import report
-    page = report(campaign, out, settings=settings, story=list(story.lines))
+    page = report(campaign, out, settings=settings, story=list(story.lines), gaps=story.diagnoses)
     seconds["report"] = page.seconds
     return DemoOutcome(out, campaign, ranking, story, story_md, written, page, seconds)

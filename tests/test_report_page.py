@@ -185,3 +185,31 @@ def test_a_report_after_a_search_opens_with_its_winners(tmp_path):
     for grid in ("lift", "drag", "pitch"):
         assert winners[grid] in first, (grid, winners[grid], first)
     assert "the report shows the final structures" not in proc.stdout
+
+
+def test_the_first_screen_gives_every_coefficients_verdict_and_simulator_gap():
+    """Each coefficient's row carries the search's verdict and, where the demo's story diagnosed the simulator's
+    model, its gap story; the title reads "identified models" only when every coefficient has an answer."""
+    from types import SimpleNamespace
+
+    from structsearch.reporting.answer import answer_html, verdict_text
+    from structsearch.reporting.page_html import page_title
+    near = {"status": "admissible", "tolerance": 0.25, "best_fit": "A", "best_admissible": "B", "cost": 0.1,
+            "best_fit_reasons": ["x"]}
+    far = {"status": "none_admissible_near", "tolerance": 0.25, "best_fit": "A", "best_admissible": "B",
+           "cost": 1.137, "best_fit_reasons": ["Kirchhoff term CL_KL_w = -4.14 is not positive"]}
+    assert verdict_text(near) == "Admissible (+10.0 % above the best fit A, within 25 %)."
+    text = verdict_text(far)
+    assert text.startswith("No admissible structure within 25 % of the best fit. The best fit, A, is not admissible")
+    assert "CL_KL_w = -4.14" in text and "B, fits +113.7 % worse" in text and "not an answer" in text
+    assert page_title({"CL": near, "CD": near}) == "identified models"
+    assert page_title({"CL": far, "CD": near}) == "search results, no admissible structure near the best fit for CL"
+    # a row per coefficient: the verdict, then the simulator's gap where a story diagnosed it
+    c = find_candidate("CL-I")
+    result = SimpleNamespace(estimates=SimpleNamespace(params={}, stderr={}, names=()), comparison=SimpleNamespace(mse=1.0),
+                             validation=SimpleNamespace(r2=SimpleNamespace(pooled=0.9, mean=0.9, min=0.8)), cv=None,
+                             mse_validation=1.0, n_params=7)
+    page = visible_text(answer_html({"CL": (c, result, None)}, "ranked first", None, None, {"CL": far},
+                                    {"CL": _diagnosis(False)}))
+    assert "The search's answers" in page and "No admissible structure within 25 %" in page
+    assert "The simulator's gap: its model Cm-X against the flight data." in page and "Where it misses" in page

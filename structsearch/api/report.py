@@ -80,10 +80,12 @@ def answer_fits(fitter: Fitter, choice, identified) -> dict:
 
 def report(campaign: Campaign | str | os.PathLike, out: str | os.PathLike = "results", *,
            settings: Settings = Settings(), diagnose: str | None = "Cm", models: tuple[str, ...] = (),
-           story: list[str] | None = None) -> ReportOutcome:
+           story: list[str] | None = None, gaps=None) -> ReportOutcome:
     """Figures and one self-contained HTML page for a campaign, as ``structsearch report`` writes them in
     ``out`` (``diagnose=None``: no gap breakdown); fits are cached under ``settings.cache`` (default ``out``).
     Without ``out/ranking.csv`` and ``models``, the search runs first (writing its ranking to ``out``).
+    ``gaps``: per coefficient a diagnosis of the simulator's model (the demo's story), whose gap story the first
+    screen gives.
     Needs matplotlib."""
     from ..reporting.page import build, require_figures
     started = time.perf_counter()
@@ -98,5 +100,5 @@ def report(campaign: Campaign | str | os.PathLike, out: str | os.PathLike = "res
         searched = f"ranked first by the search this report ran (its settings; ranking in {out / 'ranking.csv'})"
     with command_fitter("report", campaign, settings, out) as fitter:
         fits = fit_report_models(fitter, out, diagnose=diagnose, models=tuple(models), searched=searched)
-    res = build(campaign, out, fits, options=options, story=story)
+    res = build(campaign, out, fits, options=options, story=story, gaps=gaps)
     return ReportOutcome(res["html"], res["figures"], res["notes"], time.perf_counter() - started)

@@ -96,9 +96,11 @@ def answered(verdicts: Mapping[str, Mapping]) -> bool:
 
 
 def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis | None,
-                diagnosed: str | None, verdicts: Mapping[str, Mapping] | None = None) -> str:
-    """The first section of the page (module docstring)."""
-    verdicts = verdicts or {}
+                diagnosed: str | None, verdicts: Mapping[str, Mapping] | None = None,
+                gaps: Mapping[str, Diagnosis] | None = None) -> str:
+    """The first section of the page (module docstring); ``gaps``: per coefficient a diagnosis of the simulator's
+    model (the demo's story), whose gap story each coefficient's row gives."""
+    verdicts, gaps = verdicts or {}, gaps or {}
     title = "The identified models" if answered(verdicts) else "The search's answers"
     parts = [f"<section id='answer'><h2>{title}</h2>",
              f"<p class='source'>Each coefficient's structure {html.escape(source)}; estimates ± one standard "
@@ -113,10 +115,14 @@ def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis 
                         if verdicts.get(coef) else "")
                      + f"<p class='fit'>{html.escape(fit_line(result))}</p>"
                      f"<pre class='eq'>{html.escape(chr(10).join(lines))}</pre>")
+        if coef in gaps:
+            parts.append(f"<p class='source'>The simulator's gap: its model {html.escape(gaps[coef].baseline)} "
+                         "against the flight data.</p><ul class='gap'>"
+                         + "".join(f"<li>{html.escape(t)}</li>" for t in gap_story(gaps[coef])) + "</ul>")
         if diagnosis is not None and coef == diagnosed:
             parts.append("<ul class='gap'>" + "".join(f"<li>{html.escape(t)}</li>" for t in gap_story(diagnosis))
                          + "</ul>")
-        elif diagnosis is not None:   # one diagnosis per report: say where the others' gap stories come from
+        elif diagnosis is not None and coef not in gaps:   # one diagnosis per report: where the others' come from
             parts.append(f"<p class='source'>Gap story: not diagnosed in this report (structsearch report "
                          f"--diagnose {coef}, or structsearch diagnose --model {html.escape(c.name)}).</p>")
         parts.append("</div>")

@@ -73,7 +73,7 @@ def require_figures() -> None:
 
 
 def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOptions = FitOptions(),
-          story: list[str] | None = None) -> dict:
+          story: list[str] | None = None, gaps=None) -> dict:
     """Write ``out/figures/*.png`` and ``out/report.html`` from ``fits``; returns what was written and the notes."""
     fg.require()
     t0 = time.perf_counter()
@@ -97,7 +97,7 @@ def build(campaign: Campaign, out: Path, fits: ReportFits, *, options: FitOption
         diagnosis = _diagnosis_figures(emit, campaign, fits, ms)
         _replay_figure(emit, campaign, ms, hyst, notes)
     fits = fits if fits.answers else _with_answers(fits)
-    page = render_html(campaign, out, fits, ms, vi, written, notes, diagnosis, story)
+    page = render_html(campaign, out, fits, ms, vi, written, notes, diagnosis, story, gaps)
     write_text(out / "report.html", page)
     return {"html": out / "report.html", "figures": [fig_dir / f.file for f in written], "notes": notes,
             "seconds": time.perf_counter() - t0}

@@ -160,7 +160,7 @@ def page_title(verdicts) -> str:
     return f"search results, no admissible structure near the best fit for {', '.join(missing)}"
 
 
-def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, story=None) -> str:
+def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, story=None, gaps=None) -> str:
     """The page (module docstring)."""
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
@@ -183,7 +183,7 @@ def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, st
              f"<h1>{html.escape(campaign.name)}: {page_title(fits.verdicts)}</h1>",
              summary_html(fits.answers, fits.verdicts),
              answer_html(fits.answers, fits.source, None if diagnosis is None else Diagnosis.from_dict(diagnosis),
-                         fits.diagnosis_coefficient, fits.verdicts),
+                         fits.diagnosis_coefficient, fits.verdicts, gaps),
              contents_html(sections),
              f"<h2 id='notes'>How the models were chosen</h2><p>{len(campaign.maneuvers)} maneuvers ({n_val} "
              f"validation), {d.n_samples} samples. "
