@@ -113,3 +113,16 @@ def test_the_gap_to_best_reads_as_the_console_prints_it():
     from structsearch.reporting.tables import signed_percent
     assert signed_percent(0.107) == "+10.7%" and signed_percent(-0.0004) == "-0.04%"
     assert signed_percent(1.3e-17) == "0%" and signed_percent(0.0123, sign=False) == "1.2%"
+
+
+def test_a_structure_a_search_reached_is_named_by_its_path():
+    """The story's pitch path (five moves, 145 characters) was named "Cm-I [04152628]", a digest that says nothing
+    of what the structure holds; a path up to a console line's width keeps its words."""
+    import dataclasses
+    from structsearch.discovery.moves import child_name
+    from structsearch.fitting.specs import find_candidate
+    path = ("Cm-I + lift CL-I -> CL-story + cp_shift + elevator + replace Cm_alpha by Cm_CL = CL and Cm_xcgCL = "
+            "x_cg/cbar*CL")
+    parent = dataclasses.replace(find_candidate("Cm-I"), name=path)
+    name = child_name(parent, "add Cm_Xde_2 = X*de", parent.regressors, parent.states, parent.lift)
+    assert name == path + " + add Cm_Xde_2 = X*de" and "[" not in name
