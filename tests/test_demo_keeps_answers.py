@@ -88,3 +88,14 @@ def test_no_earlier_results_no_snapshot(tmp_path):
     (tmp_path / "empty" / "cache").mkdir(parents=True)
     (tmp_path / "empty" / "cache" / "fit.json").write_text(json.dumps({}))
     assert snapshot(tmp_path / "empty") is None                                # a cache alone holds no results
+
+
+def test_a_wall_time_in_a_sentence_is_not_an_answer_and_a_difference_names_its_line(tmp_path):
+    from structsearch.experiments.unchanged import differences
+    a, b = tmp_path / "a.md", tmp_path / "b.md"
+    a.write_text("# Study\n\nSNLS on all maneuvers (10.3 s).\n\n| x | 0.5 |\n")
+    b.write_text("# Study\n\nSNLS on all maneuvers (9.2 s).\n\n| x | 0.5 |\n")
+    assert differences("study.md", a, b) == []
+    b.write_text("# Study\n\nSNLS on all maneuvers (9.2 s).\n\n| x | 0.7 |\n")
+    found = differences("study.md", a, b)
+    assert [(d.where, d.first, d.second, d.kind) for d in found] == [("line 5", "| x | 0.5 |", "| x | 0.7 |", "number")]

@@ -10,6 +10,7 @@ of the file sets are then recomputed from the files as they are.
 """
 from __future__ import annotations
 
+import re
 import shutil
 import tempfile
 from dataclasses import dataclass
@@ -72,13 +73,34 @@ def differences(name: str, earlier: Path, now: Path, tol: Tolerances = Tolerance
         return _compare_csv(name, a, b, tol)
     if suffix == ".json":
         return _compare_json(name, a, b, tol)
-    return _compare_text_or_number(name, "text", _squeezed(a), _squeezed(b), 0.0, tol)
+    return _compare_text(name, a, b, tol)
 
 
-def _squeezed(text: str) -> str:
-    """A table's text without its padding: a number printed one digit longer widens its column."""
-    import re
-    return re.sub(r"-{3,}", "---", re.sub(r"[ \t]+", " ", text))
+# a wall time in a sentence ("(10.3 s)", "in 4.8 s"): how the run went, not what it found
+_SECONDS = re.compile(r"\b\d+(?:\.\d+)? s\b")
+
+
+def _squeezed(text: str) -> list[str]:
+    """A text's lines without a table's padding (a number printed one digit longer widens its column) and with
+    wall times masked."""
+    return [_SECONDS.sub("# s", re.sub(r"-{3,}", "---", re.sub(r"[ \t]+", " ", line))).strip()
+            for line in text.splitlines()]
+
+
+def _compare_text(name: str, a: str, b: str, tol: Tolerances) -> list[Difference]:
+    """Line by line: words equal, numbers within tolerance; the first line that differs is named."""
+    lines_a, lines_b = _squeezed(a), _squeezed(b)
+    if len(lines_a) != len(lines_b):
+        return [Difference(name, "lines", str(len(lines_a)), str(len(lines_b)), "decision")]
+    for i, (x, y) in enumerate(zip(lines_a, lines_b)):
+        found = _compare_text_or_number(name, f"line {i + 1}", x, y, 0.0, tol)
+        if found:
+            return [Difference(name, found[0].where, _short(x), _short(y), found[0].kind)]
+    return []
+
+
+def _short(line: str, width: int = 120) -> str:
+    return line if len(line) <= width else line[:width - 4] + " ..."
 
 
 def keep_unchanged(out: Path, aside: Path, tol: Tolerances = Tolerances()) -> Unchanged:
