@@ -62,7 +62,9 @@ def test_the_same_answers_keep_every_file_byte_for_byte(earlier):
     found = keep_unchanged(earlier, aside)
     assert {n: (earlier / n).read_bytes() for n in before} == before
     assert not found.changed and set(found.kept) == set(FILES) and not aside.exists()
+    assert set(found.put_back) == set(FILES) - {"figures/lift_static.png", "refined_pitch.toml"}  # rewritten: no figure, no toml (no long numbers)
     assert "the same answers as the results already there" in found.line(earlier)
+    assert "5 rewritten with other last digits and put back" in found.line(earlier)
     check_set(earlier, "search", "ranking.csv")                                # the manifest proves the files
 
 

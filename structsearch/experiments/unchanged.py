@@ -32,11 +32,13 @@ class Unchanged:
     kept: tuple[str, ...]
     changed: tuple[Difference, ...]
     new: tuple[str, ...]
+    put_back: tuple[str, ...] = ()   # kept files the run had rewritten with other digits
 
     def line(self, out: Path) -> str:
         if not self.changed:
+            back = f" ({len(self.put_back)} rewritten with other last digits and put back)" if self.put_back else ""
             return (f"{out}: the same answers as the results already there (in a checkout, the committed ones): "
-                    f"{len(self.kept)} files kept as they were" + (f", {len(self.new)} new" if self.new else ""))
+                    f"{len(self.kept)} files kept as they were{back}" + (f", {len(self.new)} new" if self.new else ""))
         return (f"{out}: {len(self.changed)} files hold other answers than the results that were there and were "
                 f"rewritten (first: {self.changed[0].line()}); {len(self.kept)} files with the same answers kept "
                 "as they were")
@@ -107,7 +109,7 @@ def keep_unchanged(out: Path, aside: Path, tol: Tolerances = Tolerances()) -> Un
     """Put back from ``aside`` (:func:`snapshot`) every file of ``out`` whose answers are the same; recompute the
     manifests; remove ``aside``."""
     out = Path(out)
-    kept, changed, new = [], [], []
+    kept, changed, new, put_back = [], [], [], []
     try:
         for name in _files(out):
             if name.endswith(MANIFEST_SUFFIX):
@@ -121,11 +123,12 @@ def keep_unchanged(out: Path, aside: Path, tol: Tolerances = Tolerances()) -> Un
             else:
                 if (aside / name).read_bytes() != (out / name).read_bytes():
                     shutil.copy2(aside / name, out / name)
+                    put_back.append(name)
                 kept.append(name)
         _refinish_manifests(out)
     finally:
         shutil.rmtree(aside, ignore_errors=True)
-    return Unchanged(tuple(kept), tuple(changed), tuple(new))
+    return Unchanged(tuple(kept), tuple(changed), tuple(new), tuple(put_back))
 
 
 def _refinish_manifests(out: Path) -> None:
