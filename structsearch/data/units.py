@@ -5,9 +5,10 @@ file of twenty moves C_L's pitch-rate derivative through zero. The reader compar
 redundant ones it carries:
 
 * the pitch rate with the derivative of the pitch attitude (else of the angle of attack): the regression slope of
-  q on d(theta)/dt, both smoothed below 2 Hz, is about 1 in rad/s (q = d(theta)/dt in wings-level flight) and 57.3
-  in deg/s; q on d(alpha)/dt (q = d(alpha)/dt + d(gamma)/dt) spreads 0.5-3.5 in rad/s on the simulated stall, pullup
-  and phugoid maneuvers and stays far from 57. A slope near 1000 is time in milliseconds instead;
+  q on d(theta)/dt, both smoothed below 2 Hz, is 0.95-1.00 in rad/s on the simulated campaigns (q = d(theta)/dt in
+  wings-level flight) and 57.3 in deg/s; q on d(alpha)/dt (q = d(alpha)/dt + d(gamma)/dt) is 0.62-1.23 in the
+  stall maneuvers and 2.3-3.3 in pullups, far from 57 (pushovers and phugoids, whose q and d(alpha)/dt do not move
+  together, are not judged). A slope near 1000 is time in milliseconds instead;
 * the time step with the other files' and the declared ``sample_rate``, and one above a second;
 * the airspeed with sqrt(2 qbar / rho) and with Mach times the speed of sound (``a``, else from ``T_air``, else
   the ISA at ``h``), and with the aircraft's declared ``V_range``: a factor of a common unit (knots, km/h, ft/s,
@@ -25,7 +26,7 @@ import numpy as np
 from .errors import DataError
 
 # q against the derivative of the attitude or the angle of attack: deg/s gives 57.3 times the rad/s slope, time
-# in ms 1000 times, both 57,300 times. The rad/s slopes lie within 0.3-3.5 (module docstring), so each window
+# in ms 1000 times, both 57,300 times. The rad/s slopes lie within 0.6-3.3 (module docstring), so each window
 # starts a factor of 3 above the largest and ends a factor of 3 beyond the unit's own factor.
 RATE_UNITS = (("q", "degrees per second", 57.29578, (12.0, 200.0)),
               ("t", "milliseconds", 1000.0, (300.0, 4000.0)),
