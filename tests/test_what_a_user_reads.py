@@ -113,6 +113,11 @@ def test_the_gap_to_best_reads_as_the_console_prints_it():
     from structsearch.reporting.tables import signed_percent
     assert signed_percent(0.107) == "+10.7%" and signed_percent(-0.0004) == "-0.04%"
     assert signed_percent(1.3e-17) == "0%" and signed_percent(0.0123, sign=False) == "1.2%"
+    # the report's ranking tables read the CSV's fractions and show them so too
+    from structsearch.reporting.page_html import csv_table
+    html = csv_table(ROOT / "results" / "pitch.csv", 5, ("model", "gap to best"))
+    gaps = re.findall(r"<td>([^<]*)</td>", html)[1::2]
+    assert gaps[0] == "0%" and all(re.fullmatch(r"[-+][0-9.]+%|0%", g) for g in gaps), gaps
 
 
 def test_a_structure_a_search_reached_is_named_by_its_path():
