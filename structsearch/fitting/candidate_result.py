@@ -83,7 +83,7 @@ class OptimizerReport:
     n_starts_asked: int | None = None   # the rest of n_starts are warm starts (engine.results.starts_line)
 
     def to_json(self) -> dict:
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "n_starts_asked"}
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 @dataclass(frozen=True)
