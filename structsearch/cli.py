@@ -217,9 +217,11 @@ def _print_winners(result) -> None:
     from .grid_search.ranking import passed_over
     for grid, ranked in result.grids.items():
         ok = [s for s in ranked if not s.failed]
-        failed = len(ranked) - len(ok)
+        skipped = [s for s in ranked if s.not_applicable]
+        failed = len(ranked) - len(ok) - len(skipped)
         if not ok:
-            print(f"{grid}: every candidate failed")
+            print(f"{grid}: every candidate " + ("failed" if failed else "was skipped"))
+            _print_skipped(skipped)
             continue
         best, runner_up = ok[0], (ok[1] if len(ok) > 1 else None)
         # without cross-validation the held-out MSE is the validation MSE: said once
@@ -247,16 +249,24 @@ def _print_winners(result) -> None:
         for s in passed_over(ranked)[:3]:
             print(_clip(f"  passed over {s.name} ({_held_out(s)} MSE "
                         f"{_change(s.comparison.mse / best.comparison.mse - 1)}): {'; '.join(s.placement.reasons)}"))
+        _print_skipped(skipped)
+
+
+def _print_skipped(skipped) -> None:
+    """One line per reason: the candidates the campaign cannot fit by their nature (not failures)."""
+    from .fitting.candidate_result import NOT_APPLICABLE
+    by_reason: dict[str, list[str]] = {}
+    for s in skipped:
+        by_reason.setdefault(s.error[len(NOT_APPLICABLE):], []).append(s.name)
+    for reason, names in by_reason.items():
+        print(_clip(f"  skipped {_named(names)}: {reason}"))
 
 
 def _change(x: float) -> str:
     """A relative change as a signed percentage that never reads "-0.0%": below 0.1% at two significant
     digits (a structure passed over for a change this small is why the line is printed)."""
-    if x != x:   # NaN: a held-out MSE that could not be computed
-        return "n/a"
-    if x == 0:
-        return "0%"
-    return f"{100 * x:+.2g}%" if abs(x) < 1e-3 else f"{x:+.1%}"
+    from .reporting.tables import signed_percent   # the tables' "gap to best" reads the same
+    return signed_percent(x)
 
 
 def _demo(args) -> int:

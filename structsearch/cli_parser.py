@@ -56,10 +56,13 @@ def _admissibility_options(p) -> None:
                         "judged with the data columns centred)")
 
 
-def _campaign_options(p, starts: int = 4, data_required: bool = True) -> None:
+FIT_OUT = "fit-results"
+
+
+def _campaign_options(p, starts: int = 4, data_required: bool = True, out: str = "results") -> None:
     """--data, --out, --starts, --seed: the options every command that fits a campaign shares."""
     p.add_argument("--data", required=data_required, help="campaign directory")
-    p.add_argument("--out", default="results", help="output directory (default: results)")
+    p.add_argument("--out", default=out, help=f"output directory (default: {out})")
     p.add_argument("--starts", type=_count, default=starts, help="starts per nonlinear fit (1: the default start)")
     p.add_argument("--seed", type=_non_negative, default=0,
                    help="seed of the random starts beyond the default one (default 0; same seed, same fits)")
@@ -275,7 +278,8 @@ def _add_study(sub, handler: Callable) -> None:
 def _add_fit(sub, handler: Callable) -> None:
     """The ``fit`` command."""
     f = command_parser(sub, "fit")
-    _campaign_options(f)
+    # not results/: a fit of the user's data must not land among the demo's results (a repository's committed ones)
+    _campaign_options(f, out=FIT_OUT)
     which = f.add_mutually_exclusive_group(required=True)
     which.add_argument("--model", help="candidate name (CL-VI, CD-IXr, Cm-XXXIII, ...) or spec file")
     which.add_argument("--joint", metavar="LIFT,DRAG,PITCH",

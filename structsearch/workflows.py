@@ -77,7 +77,26 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
          meter: Meter | None = None) -> DemoOutcome:
     """``structsearch demo``: every artefact in ``out``. ``winners`` is called with the search's ranking when it
     is done (the command prints each grid's winner there); ``meter`` is told of every candidate fitted (the
-    command's progress bar)."""
+    command's progress bar). Over earlier results (a checkout's committed ``results/``) the files whose answers
+    are the same are kept byte for byte and one line says so (:mod:`structsearch.experiments.unchanged`)."""
+    from .experiments.unchanged import keep_unchanged, snapshot
+    aside = snapshot(Path(out))
+    try:
+        outcome = _demo(Path(out), jobs=jobs, starts=starts, scale=scale, max_correlation=max_correlation,
+                        say=say or (lambda m: None), winners=winners, progress=progress, meter=meter)
+    except BaseException:
+        if aside is not None:
+            import shutil
+            shutil.rmtree(aside, ignore_errors=True)
+        raise
+    if aside is not None:
+        (say or (lambda m: None))(keep_unchanged(Path(out), aside).line(Path(out)))
+    return outcome
+
+
+def _demo(out: Path, *, jobs: int, starts: int, scale: float, max_correlation: float, say: Lines,
+          winners: Callable[[Ranking], None] | None, progress: Lines | None, meter: Meter | None) -> DemoOutcome:
+    """The demo's run (:func:`demo`), every file written into ``out``."""
     from .api.settings import Settings, command_fitter
     from .diagnosis.story import console_lines, van_ingen_story
     from .reporting import figures
@@ -85,8 +104,6 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
     from .reporting.study_doc import write as write_study
     from .grid_search.pipeline import search
     from .thesis_study.study import run_study
-    say = say or (lambda m: None)
-    out = Path(out)
     t0 = time.perf_counter()
     campaign = demo_campaign(out, scale, say)
     t_sim = time.perf_counter() - t0

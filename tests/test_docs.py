@@ -6,7 +6,10 @@ Code blocks are read by their language tag:
 * ``python``: executed, the page's blocks in order in one namespace and one working directory;
 * ``console`` (commands after ``$ ``, other lines are output) and ``bash``: every command must be a
   ``structsearch`` command (``.venv/bin/structsearch`` too) and runs as ``python -m structsearch ...`` in the
-  page's working directory;
+  page's working directory. The lines after a command in a console block quote its output: each must be a line
+  the command prints (stdout or stderr), in the order quoted, words equal and numbers within one unit of their
+  last quoted digit (or the relative tolerance ``<!-- output: rtol R -->`` before the fence states); ``...`` in
+  a quoted line stands for any text (a wall time). A quoted line the run does not print fails the test;
 * ``toml``: parsed; with ``<!-- file: NAME -->`` right before the fence it is also written to NAME in the
   page's working directory, where later blocks use it (a grid spec is then searched, a term library loaded);
 * ``text``, ``csv``, ``json``: listings, not run (``json`` is parsed when it is a whole document).
@@ -44,7 +47,7 @@ RUN_SHELL = {"console", "bash"}
 LISTINGS = {"text", "csv", "json", "toml"}
 
 FENCE = re.compile(r"^(?P<indent>[ ]*)```(?P<lang>[\w-]*)[^\n]*\n(?P<body>.*?)^(?P=indent)```[ ]*$", re.M | re.S)
-MARKER = re.compile(r"<!--\s*(test|file):\s*(.*?)\s*-->\s*$")
+MARKER = re.compile(r"<!--\s*(test|file|output):\s*(.*?)\s*-->\s*$")
 ISSUE = re.compile(r"\bissues? #?\d+|\(#\d+\)", re.I)
 
 
@@ -56,6 +59,7 @@ class Block:
     body: str
     marker: str = ""        # "slow", "skip (...)" or ""
     file: str = ""          # <!-- file: NAME -->
+    output: str = ""        # <!-- output: rtol R -->: how close a quoted output's numbers must be
 
     @property
     def where(self) -> str:
@@ -76,6 +80,8 @@ def blocks(page: Path) -> list[Block]:
             marker = MARKER.search(lines.pop().strip())
             if marker[1] == "test":
                 block.marker = marker[2]
+            elif marker[1] == "output":
+                block.output = marker[2]
             else:
                 block.file = marker[2]
         found.append(block)
@@ -104,6 +110,76 @@ def commands(block: Block) -> list[str]:
     return out
 
 
+def quoted_outputs(block: Block) -> list[list[str]]:
+    """Per command of a console block (in :func:`commands`' order) the output lines quoted after it."""
+    if block.lang != "console":
+        return [[] for _ in commands(block)]
+    out: list[list[str]] = []
+    continued = False
+    for line in block.body.splitlines():
+        if line.startswith("$ "):
+            out.append([])
+            continued = line.rstrip().endswith("\\")
+        elif continued:
+            continued = line.rstrip().endswith("\\")
+        elif out and line.strip():
+            out[-1].append(line)
+    return out
+
+
+NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
+
+
+def _line_pattern(quoted: str) -> re.Pattern:
+    """A quoted output line as a pattern: its words literal, each number a group, ``...`` any text."""
+    parts = []
+    for i, piece in enumerate(quoted.strip().split("...")):
+        if i:
+            parts.append(".*?")
+        last = 0
+        for m in NUMBER.finditer(piece):
+            parts.append(re.escape(piece[last:m.start()]))
+            parts.append(r"([-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?)")
+            last = m.end()
+        parts.append(re.escape(piece[last:]))
+    return re.compile("".join(parts))
+
+
+def _close(quoted: str, printed: str, rtol: float | None) -> bool:
+    """``printed`` within ``rtol`` of ``quoted``, else within one unit of ``quoted``'s last digit."""
+    x, y = float(quoted), float(printed)
+    if rtol is not None:
+        return abs(x - y) <= rtol * max(abs(x), abs(y))
+    mantissa, _, exponent = quoted.lower().partition("e")
+    digits = len(mantissa.split(".")[1]) if "." in mantissa else 0
+    return abs(x - y) <= 1.0001 * 10.0 ** (int(exponent or 0) - digits)
+
+
+def quoted_output_problem(quoted: list[str], printed: str, rtol: float | None = None) -> str | None:
+    """None when every quoted line is a line of ``printed`` (in order; numbers within tolerance), else which
+    quoted line the run did not print."""
+    lines = printed.splitlines()
+    at = 0
+    for q in quoted:
+        pattern = _line_pattern(q)
+        for k in range(at, len(lines)):
+            m = pattern.search(lines[k])
+            if m and all(_close(a, b, rtol) for a, b in zip(NUMBER.findall(q.replace("...", " ")), m.groups())):
+                at = k + 1
+                break
+        else:
+            return f"the quoted output line {q.strip()!r} is not printed (in this order); the run printed:\n{printed}"
+    return None
+
+
+def _rtol(block: Block) -> float | None:
+    if not block.output:
+        return None
+    m = re.fullmatch(r"rtol ([0-9.eE+-]+)", block.output)
+    assert m, f"{block.where}: <!-- output: rtol R --> expected, not {block.output!r}"
+    return float(m[1])
+
+
 def pages_with(predicate) -> list[Path]:
     return [page for page in PAGES if any(predicate(b) for b in blocks(page))]
 
@@ -125,10 +201,12 @@ def _env():
     return env
 
 
-def _structsearch(argv: list[str], cwd: Path, where: str = "") -> None:
-    proc = subprocess.run([sys.executable, "-m", "structsearch", *argv], cwd=cwd, env=_env(),
-                          capture_output=True, text=True, timeout=3600)
-    assert proc.returncode == 0, f"{where}: structsearch {' '.join(argv)} failed:\n{proc.stdout[-2000:]}{proc.stderr}"
+def _structsearch(argv: list[str], cwd: Path, where: str = "") -> str:
+    """Run ``structsearch ARGV`` in ``cwd``; what it printed, stdout and stderr interleaved as on a console."""
+    proc = subprocess.run([sys.executable, "-m", "structsearch", *argv], cwd=cwd, env={**_env(), "PYTHONUNBUFFERED": "1"},
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=3600)
+    assert proc.returncode == 0, f"{where}: structsearch {' '.join(argv)} failed:\n{proc.stdout[-4000:]}"
+    return proc.stdout
 
 
 def run_page(page: Path, workdir: Path, small_campaign_dir, include_slow: bool, monkeypatch) -> int:
@@ -151,12 +229,13 @@ def run_page(page: Path, workdir: Path, small_campaign_dir, include_slow: bool, 
                 except Exception as error:      # noqa: BLE001 - name the block that failed
                     raise AssertionError(f"{block.where}: the python block failed: {error!r}") from error
         elif block.lang in RUN_SHELL:
-            for command in commands(block):
+            for command, quoted in zip(commands(block), quoted_outputs(block)):
                 argv = shlex.split(command)
-                if command == SMALL_CAMPAIGN and not (workdir / "camp").exists():
+                if command == SMALL_CAMPAIGN and not (workdir / "camp").exists() and not quoted:
                     shutil.copytree(small_campaign_dir(), workdir / "camp")
-                else:
-                    _structsearch(argv[1:], workdir, block.where)
+                    continue
+                problem = quoted_output_problem(quoted, _structsearch(argv[1:], workdir, block.where), _rtol(block))
+                assert problem is None, f"{block.where}: {command}: {problem}"
         else:
             continue
         ran += 1
@@ -201,6 +280,7 @@ def test_every_block_has_a_known_tag_and_markers_are_well_formed(page):
     for block in blocks(page):
         assert block.lang in RUN_PYTHON | RUN_SHELL | LISTINGS, f"{block.where}: a block tagged {block.lang!r}"
         assert block.marker in ("", "slow") or re.fullmatch(r"skip \(.+\)", block.marker), block.where
+        assert not block.output or (block.lang == "console" and _rtol(block) is not None), block.where
         if block.lang == "json" and block.body.lstrip().startswith("{") and "..." not in block.body:
             json.loads(block.body)
         if block.lang in RUN_SHELL and not block.marker.startswith("skip"):
@@ -208,6 +288,32 @@ def test_every_block_has_a_known_tag_and_markers_are_well_formed(page):
             for command in commands(block):
                 assert shlex.split(command)[0] in ("structsearch", ".venv/bin/structsearch"), \
                     f"{block.where}: only structsearch commands run ({command!r}); mark the block skip with a reason"
+
+
+TUTORIAL_RUN = """\
+grid lift: 6 candidates
+grid lift: refined CL-VI; stopped: dropping CL_qstar (t-test accepts 0, p = 0.63) raises the held-out MSE by 1.2%; 1 more move refused
+lift: CL-VI (11 parameters, validation MSE 0.003777); NOT admissible (none of 6 is); next CL-V (10 parameters, +1.2%); 4.8 s
+wrote first-search/ranking.csv and the tables of each grid
+"""
+
+
+def test_a_quoted_output_the_run_does_not_print_fails():
+    """The first-search tutorial once quoted "lift: CL-VI (NOT admissible: no candidate is)", a line the search
+    never printed; a quoted line must be one the run prints, its numbers within their last digit."""
+    printed = TUTORIAL_RUN
+    assert quoted_output_problem(["lift: CL-VI (NOT admissible: no candidate is)"], printed) is not None
+    assert quoted_output_problem(["lift: CL-VI (11 parameters, validation MSE 0.003777); NOT admissible (none of 6 "
+                                  "is); next CL-V (10 parameters, +1.2%); ..."], printed) is None
+    assert quoted_output_problem(["lift: CL-VI (11 parameters, validation MSE 0.00378); ..."], printed) is None
+    assert quoted_output_problem(["lift: CL-VI (11 parameters, validation MSE 0.00390); ..."], printed) is not None
+    assert quoted_output_problem(["lift: CL-VI (11 parameters, validation MSE 0.0039); ..."], printed, 0.05) is None
+    assert quoted_output_problem(["wrote first-search/ranking.csv ...", "grid lift: 6 candidates"], printed) \
+        is not None                                                       # the order counts
+    console = Block(ROOT / "README.md", 1, "console", "$ structsearch search \\\n  --grid lift\nout 1\n\nout 2\n"
+                    "$ structsearch grids\n")
+    assert commands(console) == ["structsearch search --grid lift", "structsearch grids"]
+    assert quoted_outputs(console) == [["out 1", "out 2"], []]
 
 
 def test_markers_are_found():

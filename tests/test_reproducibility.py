@@ -100,3 +100,26 @@ def test_a_path_into_the_output_directory_names_where_it_ran_not_what_it_found(t
     (b / "discover.json").write_text(json.dumps({"final": {"spec": str(b / "CD_discovered.toml")}}))
     found = compare_outputs(a, b)
     assert [d.kind for d in found.differences] == ["decision"]
+
+
+def test_a_directory_named_relative_and_absolute_gives_the_same_answers(tmp_path, monkeypatch, run_cli):
+    """A run stores its files' paths as it named them (``results/discover_Cm/Cm_discovered.toml``, relative to
+    where it ran): the same directory compared with itself, named relative and absolute, from its parent or from
+    elsewhere, is the same answers; a path to another file under it is still a decision."""
+    run = tmp_path / "work" / "results"
+    (run / "discover_Cm").mkdir(parents=True)
+    (run / "discover_Cm" / "Cm_discovered.toml").write_text("")
+    (run / "discover_Cm" / "Other.toml").write_text("")
+    document = {"final": {"spec": "results/discover_Cm/Cm_discovered.toml"}}
+    (run / "discover_Cm" / "discover.json").write_text(json.dumps(document))
+    monkeypatch.chdir(tmp_path / "work")
+    assert compare_outputs("results", run).same and compare_outputs(run, "results").same
+    monkeypatch.chdir(run)
+    assert compare_outputs(".", run).same
+    cli = run_cli("compare", "results", run, cwd=tmp_path / "work")
+    assert cli.returncode == 0 and "the same answers" in cli.stdout, cli.stdout
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy)
+    document["final"]["spec"] = "results/discover_Cm/Other.toml"
+    (copy / "discover_Cm" / "discover.json").write_text(json.dumps(document))
+    assert [d.kind for d in compare_outputs(run, copy).differences] == ["decision"]

@@ -97,12 +97,16 @@ def test_console_lines_are_short_where_the_story_lines_are_long():
     assert console_verdicts(lines) == {("CD", 1): None}
 
 
-def test_a_refinement_progress_line_is_cut_at_the_console_width():
+def test_a_refinement_progress_line_is_wrapped_at_the_console_width_not_cut():
+    """A long line is wrapped onto indented lines, each within the width, and keeps every word (a cut line lost
+    the held-out MSE that says why refinement stopped)."""
     from structsearch.fitting.fitter import CONSOLE_WIDTH as PROGRESS_WIDTH
-    from structsearch.fitting.fitter import console_line as _clipped
+    from structsearch.fitting.fitter import console_line as _wrapped
     long = ("grid pitch: refined Cm-XXXIX -> Cm-XXXIXr-auto -> Cm-XXXIII -> Cm-XXXIIIr (= Cm-XXXIII, Cm-XXXIIIr); "
             "stopped: dropping Cm_Xde_ss (|rho(Cm_Xde_ss, Cm_1mX_ssCL)| = 0.80 > 0.8) raises the held-out MSE by 6.8%")
-    cut = _clipped(long)
-    assert len(long) > PROGRESS_WIDTH >= len(cut) and cut.endswith(" ...") and long.startswith(cut[:-4])
-    assert _clipped("grid lift: refined CL-VI; stopped: nothing left to drop") == \
+    wrapped = _wrapped(long).split("\n")
+    assert len(long) > PROGRESS_WIDTH and len(wrapped) == 2 and max(map(len, wrapped)) <= PROGRESS_WIDTH
+    assert wrapped[1].startswith("    ") and " ".join(part.strip() for part in wrapped) == long
+    assert "..." not in _wrapped(long) and _wrapped("  " + long).split("\n")[1].startswith("      ")
+    assert _wrapped("grid lift: refined CL-VI; stopped: nothing left to drop") == \
         "grid lift: refined CL-VI; stopped: nothing left to drop"

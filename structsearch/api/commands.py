@@ -144,6 +144,7 @@ def search(campaign: Campaign | str | os.PathLike, grid: str = "all", *, setting
     ranking = Ranking(grids, result.seconds, result.refinements, joint=result.joint, discovered=discovered)
     if out is not None:
         write_search_tables(ranking, campaign, Path(out))
+        _note_thesis_stderr(ranking, campaign, settings.progress)
         if result.joint is not None:
             write_json(Path(out) / "joint_lift.json", result.joint.to_dict())
     return ranking
@@ -189,6 +190,17 @@ def write_search_tables(ranking: Ranking, campaign: Campaign, out: Path) -> list
                            refined_structures(ranking))
     answers = {g: a.to_dict() for g, a in ranking.answers.items() if a is not None}
     return written + [write_json(out / "search_answer.json", {"answers": answers})]
+
+
+def _note_thesis_stderr(ranking: Ranking, campaign: Campaign, progress) -> None:
+    """One line when the search fitted the thesis' final models but ``thesis_stderr.md`` is left out: the campaign
+    flies another aircraft than the thesis' Citation."""
+    from ..flight.reference import FINAL_MODEL_NAMES
+    from ..thesis_study.thesis_estimator import other_aircraft
+    fitted = {r.name for ranked in ranking.grids.values() for r in ranked if not r.failed}
+    note = other_aircraft(campaign)
+    if progress is not None and note is not None and set(FINAL_MODEL_NAMES.values()) <= fitted:
+        progress(f"search: {note}")
 
 
 def refined_structures(ranking: Ranking) -> dict[str, list]:

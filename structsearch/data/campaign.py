@@ -25,7 +25,8 @@ from .tables import LINE_KEY, read_mat, read_table as _read_table  # noqa: F401 
 from .moment_transfer import REFERENCE_KEY, check_reference_point, check_transfer_datum
 from .campaign_checks import (AIRCRAFT_KEYS, ANGLES, MANEUVER_KEYS, RAW_ANGLES, RAW_REQUIRED, REQUIRED,
                               RESERVED_KEYS, _check_top_level, _close_match, _flight, _parse_aircraft, _parse_cutoffs,
-                              _periodic, validate_maneuver)
+                              _number, _periodic, validate_maneuver)
+from . import units
 
 KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugoid", "other", "nominal")
 # Nominal maneuvers (docs/interfaces.md 7.5) fly attached flow across the envelope; every other kind (and a
@@ -155,6 +156,17 @@ def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
     return str(doc.get("name", "")), parsed, maneuvers
 
 
+def _sample_rate(doc: dict, toml: str) -> float | None:
+    """The optional top-level ``sample_rate`` [Hz]: every maneuver file's time step is checked against it."""
+    if "sample_rate" not in doc:
+        return None
+    value = doc["sample_rate"]
+    if not (_number(value) and value > 0):
+        raise DataError(f"sample_rate must be a positive number of samples per second (Hz), not {value!r}",
+                        source=toml, column="sample_rate")
+    return float(value)
+
+
 def scalar_constants(aircraft: Mapping[str, object]) -> dict[str, float]:
     """The aircraft data a regressor may name (numbers, not the envelope or positions)."""
     return {k: float(v) for k, v in aircraft.items() if not isinstance(v, (tuple, list))}
@@ -186,15 +198,19 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     if segment is not None and segment not in records.SEGMENT_CHOICES:
         raise DataError(f"segment must be one of {', '.join(records.SEGMENT_CHOICES)}, not {segment!r}")
     rules = records.LengthRules.parse(doc.get("min_convective_times"), KINDS, toml)
-    segments, pieces = [], []
+    sample_rate = _sample_rate(doc, toml)
+    segments, pieces, steps = [], [], []
     for i, m in enumerate(maneuvers):
         path = directory / m.file
         columns = records.with_cycle_time(_read_table(path), m.id, m.frequency, str(path))
-        validate_maneuver(columns, path, required, angles, cbar=aircraft["cbar"], rule=rules.for_kind(m.kind))
+        validate_maneuver(columns, path, required, angles, cbar=aircraft["cbar"], rule=rules.for_kind(m.kind),
+                          sample_rate=sample_rate, v_range=aircraft.get("V_range"))
+        steps.append(units.median_step(columns["t"]))
         for piece, cut in _pieces(m, columns, path, doc["maneuver"][i], segment, rules, aircraft["cbar"],
                                   f"{toml} [[maneuver]] #{i + 1}", derive_alpha_dot=fmt != "raw"):
             pieces.append(piece)
             segments.append(cut)
+    units.check_steps_across(steps, [str(directory / m.file) for m in maneuvers])
     ids = [m.id for m in pieces]
     if len(set(ids)) != len(ids):
         twice = next(x for x in ids if ids.count(x) > 1)

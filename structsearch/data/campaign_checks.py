@@ -16,6 +16,7 @@ from .errors import DataError
 from . import records
 from .moment_transfer import REFERENCE_KEY, check_reference_point
 from .tables import LINE_KEY
+from . import units
 
 REQUIRED = ("t", "alpha", "q", "V", "de")
 ANGLES = ("alpha", "de", "theta")
@@ -31,7 +32,7 @@ AIRCRAFT_KEYS = ("S", "cbar", "b")
 # optional aircraft data (docs/interfaces.md 5.1): positive scalars, signed scalars, and vectors of a length
 OPTIONAL_POSITIVE = ("mass", "Ixx", "Iyy", "Izz")
 OPTIONAL_SIGNED = ("Ixz", "thrust_line_z")
-OPTIONAL_VECTORS = {"x_cg_range": 2, "accelerometer": 3}
+OPTIONAL_VECTORS = {"x_cg_range": 2, "accelerometer": 3, "V_range": 2}
 # Top-level names of campaign.toml that free-text keys of a campaign may not take.
 RESERVED_KEYS = ("name", "format", "aircraft", "maneuver", "cutoffs", "min_convective_times")
 
@@ -124,6 +125,9 @@ def _parse_aircraft(aircraft: dict, toml: str) -> dict:
             if key == "x_cg_range" and not value[0] < value[1]:
                 raise DataError(f"[aircraft] x_cg_range must be [forward, aft] with forward < aft, not {value!r}",
                                 source=toml, column=key)
+            if key == "V_range" and not 0 < value[0] < value[1]:
+                raise DataError(f"[aircraft] V_range must be [slowest, fastest] airspeed in m/s with 0 < slowest < "
+                                f"fastest, not {value!r}", source=toml, column=key)
             out[key] = tuple(float(v) for v in value)
         elif key not in AIRCRAFT_KEYS and key != REFERENCE_KEY:
             out[key] = float(value)
@@ -138,11 +142,13 @@ def _row_message(columns: Mapping[str, np.ndarray], row: int) -> str:
 
 
 def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=REQUIRED, angles=ANGLES, *,
-                      cbar: float | None = None, rule: records.LengthRule | None = None) -> None:
+                      cbar: float | None = None, rule: records.LengthRule | None = None,
+                      sample_rate: float | None = None, v_range: tuple[float, float] | None = None) -> None:
     """One clear error for the first problem found in a maneuver's columns (``required`` and ``angles``: those
     of the standard format, or RAW_REQUIRED and RAW_ANGLES for a raw campaign). With the aircraft's ``cbar``, a
     maneuver shorter than ``rule`` (default: :class:`structsearch.data.records.LengthRule`) in convective times
-    cbar/V is an error too."""
+    cbar/V is an error too. The units of time, pitch rate and airspeed are read from the file's redundant
+    channels, the declared ``sample_rate`` [Hz] and the aircraft's ``v_range`` [m/s] (:mod:`.units`)."""
     source = str(path)
     names = [c for c in columns if c != LINE_KEY]
     for col in required:
@@ -174,6 +180,7 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
     if slow.size:
         raise DataError(f"airspeed {columns['V'][slow[0]]:g} m/s is not positive"
                         + _row_message(columns, int(slow[0])), source=source, column="V", row=int(slow[0]))
+    units.check_step(t, source, sample_rate)
     why = None if cbar is None else (rule or records.LengthRule()).problem(t, columns["V"], cbar)
     if why is not None:
         raise DataError(f"maneuver is too short to fit separation dynamics: {why}", source=source, column="t")
@@ -185,6 +192,8 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
                                 f"radians" + _row_message(columns, int(big[0])), source=source, column=col,
                                 row=int(big[0]))
     _check_rates(columns, source)
+    units.check_rate_units(columns, source)
+    units.check_airspeed_units(columns, source, v_range)
 
 
 # Body rates beyond a full turn per second are not flown by a fixed-wing aircraft: degrees per second.
@@ -193,9 +202,8 @@ RATES = ("q", "p", "r")
 
 
 def _check_rates(columns: Mapping[str, np.ndarray], source: str) -> None:
-    """Rates in rad/s. A rate above a turn per second is refused; so is a pitch rate that follows the pitch
-    attitude's (else the angle of attack's) derivative 57 times over, which is q in degrees per second even
-    when its values are small (a gentle stall at 5 deg/s)."""
+    """Rates in rad/s: a rate above a turn per second is refused (a pitch rate in deg/s with small values, a
+    gentle stall at 5 deg/s, is found by :func:`.units.check_rate_units`)."""
     for col in RATES:
         if col in columns:
             big = np.flatnonzero(np.abs(columns[col]) > MAX_RATE_RAD_S)
@@ -203,20 +211,6 @@ def _check_rates(columns: Mapping[str, np.ndarray], source: str) -> None:
                 raise DataError(f"value {columns[col][big[0]]:g} looks like degrees per second; rates must be in "
                                 "rad/s" + _row_message(columns, int(big[0])), source=source, column=col,
                                 row=int(big[0]))
-    reference = next((c for c in ("theta", "alpha") if c in columns), None)
-    if "q" not in columns or reference is None or len(columns["t"]) < 3:
-        return
-    rate = np.gradient(columns[reference], columns["t"])
-    q = columns["q"]
-    if not (np.all(np.isfinite(rate)) and np.any(rate) and np.any(q)):
-        return
-    slope = float(q @ rate / (rate @ rate))
-    correlation = float(np.corrcoef(q, rate)[0, 1])
-    # rad/s: slope about 1 (q = theta_dot in wings-level flight); deg/s: 57.3. Between 20 and 150 with a clear
-    # correlation is a unit, not aerodynamics.
-    if correlation > 0.5 and 20.0 < slope < 150.0:
-        raise DataError(f"q is {slope:.0f} times d({reference})/dt: it looks like degrees per second; rates must be "
-                        "in rad/s", source=source, column="q")
 
 
 def _parse_cutoffs(table, toml: str) -> dict[str, float]:

@@ -137,14 +137,14 @@ def story_lines(docs: Mapping[str, Diagnosis]) -> list[str]:
     return lines
 
 
-# The console's lines (structsearch demo) are read on a terminal: one a round, none longer than fitter.CONSOLE_WIDTH;
+# The console's lines (structsearch demo) are read on a terminal: one a round, wrapped at fitter.CONSOLE_WIDTH;
 # the story's own lines (story.md, the report) name every reason and term, up to a thousand characters.
 
 
 def console_lines(story: Story) -> list[str]:
     """What ``structsearch demo`` prints of the story: per coefficient where its Van Ingen model starts, one line a
     round with the verdict story.md's table gives it (adopted or not, and why) and where it ends; long texts are
-    cut at :data:`CONSOLE_WIDTH` (story.md holds them whole)."""
+    wrapped at :data:`CONSOLE_WIDTH` onto indented lines."""
     lines = []
     for coef, doc in story.diagnoses.items():
         mse, floor = doc.mse.validation, doc.noise_floor
@@ -155,7 +155,7 @@ def console_lines(story: Story) -> list[str]:
                          "listed in story.md")
         lines += [f"  {coef} round {i + 1}: {round_verdict(doc, i)}" for i in range(len(doc.rounds))]
         lines.append(f"  {coef} ends at {doc.final_model}: {_end_words(doc)}")
-    return [console_line(line) for line in lines]
+    return [part for line in lines for part in console_line(line).split("\n")]
 
 
 def round_verdict(doc: Diagnosis, i: int) -> str:

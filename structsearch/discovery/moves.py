@@ -52,7 +52,10 @@ KIND_STEPS = {"S": ("Q",), "Q": ("S", "U"), "U": ("Q",)}
 # the stall strip separates first, then the wing).
 K_TERMS = {"CL": ("{c}_KL{s}", "K_L({X})"), "CD": ("{c}_1mX{s}", "1 - {X}"), "Cm": ("{c}_1mX{s}CL", "(1 - {X})*CL")}
 NEW_STATES = (("ss", (0.05, 0.27)), ("w", (0.22, 0.45)), ("w2", (0.22, 0.45)))
-MAX_NAME = 90
+# A structure a search reaches is named by its path from the start (``Cm-I + cp_shift + elevator``), readable in
+# every table and line; only a path longer than a console line (fitting.fitter.CONSOLE_WIDTH) is named by its root
+# and a digest of its terms instead (``Cm-I [04152628]``), which says nothing of what it holds.
+MAX_NAME = 160
 
 
 @dataclass(frozen=True)

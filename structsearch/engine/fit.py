@@ -126,4 +126,5 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
         segments=segments, total_sst=float(np.sum((y - y.mean()) ** 2)),
         nfev=outcome.nfev, njev=outcome.njev, message=outcome.message, converged=outcome.success,
         n_starts=n_starts_used, n_reached_best=reached, start=outcome.start,
+        n_starts_asked=min(n_starts, n_starts_used) if solution is None else n_starts_used,
         covariance_basis=basis, jacobian_inverse_factor=estimate.inverse_factor)

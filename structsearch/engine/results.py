@@ -23,6 +23,16 @@ if TYPE_CHECKING:
 _ESTIMATE_FIELDS = frozenset(f.name for f in dataclasses.fields(ParameterEstimates))
 
 
+def starts_line(reached: int, used: int, asked: int | None) -> str:
+    """How many starts reached the best cost, of those solved; the warm starts a fit adds to those asked for
+    named, so that ``starts=1`` reading "3 of 3" says where the other two came from."""
+    if asked is None or used <= asked:
+        return f"{reached} of {used}"
+    more = used - asked
+    return (f"{reached} of {used} ({asked} asked for and {more} the fit adds: the declared start, a fitted "
+            "stage's or contained structure's estimates)")
+
+
 def _delegate(name: str):
     def get(self):
         return getattr(self.estimates, name)
@@ -55,6 +65,9 @@ class FitResult:
     n_starts: int
     n_reached_best: int
     start: np.ndarray | None
+    # the starts the caller asked for (``n_starts`` of the fit); the rest of n_starts are warm starts the fit
+    # adds (a stage's or donor's estimates, the declared start after them, a contained structure's optimum)
+    n_starts_asked: int | None
     # the parameters the covariance was computed on (identifiability.covariance_basis), and R^-1 of the thin
     # QR of the column-scaled Jacobian on them (scaling folded back in; statistics.inverse_factor): a later
     # covariance estimator on the same Jacobian (the two-step one) reuses both instead of factorising the
@@ -67,7 +80,7 @@ class FitResult:
     def __init__(self, model: str, coefficient: str | None, estimates: ParameterEstimates, residuals: np.ndarray,
                  segment_names: Sequence[str], segments: ManeuverScores, total_sst: float = float("nan"),
                  nfev: int = 0, njev: int = 0, message: str = "", converged: bool = True, n_starts: int = 1,
-                 n_reached_best: int = 1, start: np.ndarray | None = None,
+                 n_reached_best: int = 1, start: np.ndarray | None = None, n_starts_asked: int | None = None,
                  covariance_basis: np.ndarray | None = None, jacobian_inverse_factor: np.ndarray | None = None,
                  equations: Equations | None = None, **estimate_changes: Any):
         unknown = set(estimate_changes) - _ESTIMATE_FIELDS
@@ -80,6 +93,7 @@ class FitResult:
                             ("segments", segments), ("total_sst", total_sst), ("nfev", nfev), ("njev", njev),
                             ("message", message), ("converged", converged), ("n_starts", n_starts),
                             ("n_reached_best", n_reached_best), ("start", start),
+                            ("n_starts_asked", n_starts_asked),
                             ("covariance_basis", covariance_basis),
                             ("jacobian_inverse_factor", jacobian_inverse_factor), ("equations", equations)):
             object.__setattr__(self, name, value)
@@ -192,7 +206,7 @@ class FitResult:
             ("covariance", covariance_line(self.covariance_kind, self.max_lag, self.bandwidth)),
             ("optimizer", f"{'converged' if self.converged else 'NOT CONVERGED'}: {self.message} "
                           f"({self.nfev} evaluations)"),
-            ("starts reaching the best cost", f"{self.n_reached_best} of {self.n_starts}"),
+            ("starts reaching the best cost", starts_line(self.n_reached_best, self.n_starts, self.n_starts_asked)),
             *covariance_head(self.estimates),
         )
         return FitSummary(self.estimates, head, self.equations)

@@ -138,12 +138,31 @@ OUTPUT_DIRECTORY = "<output directory>"
 
 
 def _text(root: Path, name: str) -> str:
-    """A file's text with its output directory's path replaced by a placeholder: a path a run writes into its own
-    output (a discovered structure's spec file) names where it ran, not what it found."""
+    """A file's text with the paths into its output directory written relative to it, after a placeholder: a path
+    a run writes into its own output (a discovered structure's spec file) names where it ran (relative to the
+    working directory of the run, or absolute), not what it found, and the directory may be named here either
+    way."""
     text = (root / name).read_text(encoding="utf-8")
-    for prefix in sorted({str(root.resolve()), str(root)}, key=len, reverse=True):
-        text = text.replace(prefix, OUTPUT_DIRECTORY)
-    return text
+    text = text.replace(str(root.resolve()), OUTPUT_DIRECTORY)
+    if not root.is_absolute() and str(root) != ".":
+        text = text.replace(str(root) + "/", OUTPUT_DIRECTORY + "/")
+    return _PATH.sub(lambda m: _under(root, m[0]), text)
+
+
+# a token with a slash that may be a path (no spaces: the stored paths of a run's own files have none), not one
+# that already follows the placeholder
+_PATH = re.compile(r"(?<![\w.~/>-])[\w.~-]*(?:/[\w.~-]+)+")
+
+
+def _under(root: Path, token: str) -> str:
+    """``token`` as ``<output directory>/TAIL`` when its longest tail of path parts names something under ``root``
+    (the part before the tail is where the run was made from), else unchanged."""
+    parts = token.split("/")
+    for i in range(len(parts)):
+        tail = parts[i:]
+        if tail and all(tail) and ".." not in tail and (root / Path(*tail)).exists():
+            return OUTPUT_DIRECTORY + "/" + "/".join(tail)
+    return token
 
 
 def _compare_csv(name: str, a: str, b: str, tol: Tolerances) -> list[Difference]:

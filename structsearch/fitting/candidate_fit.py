@@ -14,7 +14,7 @@ from ..data.errors import StructSearchError
 from ..data.flightdata import FlightData
 from ..data.moment_transfer import REFERENCE_KEY
 from ..engine.scores import ManeuverScores
-from .candidate_result import CandidateResult, SplitScores
+from .candidate_result import NOT_APPLICABLE, CandidateResult, SplitScores
 from .candidates import Candidate
 from .centred_correlation import centred_correlation
 from .cross_validation import cross_validate, refit_fold
@@ -83,10 +83,10 @@ def _setup(c: Candidate, train: FlightData, validation: FlightData, lift: LiftFi
     model = build_model(c, lift)
     missing = [col for col in model.required_columns if col not in train and col not in train.constants]
     if REFERENCE_KEY in missing:  # a pitch candidate about the fixed point on a campaign without one
-        return (f"not applicable: C_m about the fixed reference point needs [aircraft] {REFERENCE_KEY} in "
+        return (f"{NOT_APPLICABLE}C_m about the fixed reference point needs [aircraft] {REFERENCE_KEY} in "
                 "campaign.toml (or --reference-point)")
     if missing:  # e.g. a pitch candidate with x_cg terms on a campaign without x_cg
-        return f"not applicable: the campaign has no column {', '.join(missing)}"
+        return f"{NOT_APPLICABLE}the campaign has no column {', '.join(missing)}"
     context = None
     if c.lift and lift is not None:
         context = lift_context(train, validation, lift)

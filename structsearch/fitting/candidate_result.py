@@ -16,7 +16,7 @@ import numpy as np
 from ..data.atomic import json_ready
 from ..engine.equations import Equations
 from ..engine.estimates import ParameterEstimates, WaldTest
-from ..engine.results import FitResult
+from ..engine.results import FitResult, starts_line
 from ..engine.scores import ManeuverScores, R2Summary
 from .flight_effects import FlightEffects
 
@@ -67,6 +67,9 @@ class SplitScores:
                    doc.get("mse_cx"), doc.get("mse_cz"))
 
 
+NOT_APPLICABLE = "not applicable: "
+
+
 @dataclass(frozen=True)
 class OptimizerReport:
     """How the optimizer reached a candidate's estimates: its own verdict on the best start, its words, the
@@ -77,6 +80,7 @@ class OptimizerReport:
     nfev: int = 0
     n_starts: int = 0
     n_reached_best: int = 0
+    n_starts_asked: int | None = None   # the rest of n_starts are warm starts (engine.results.starts_line)
 
     def to_json(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -166,7 +170,7 @@ class CandidateResult:
                    estimates=result.estimates,
                    centred_correlation=() if centred_correlation is None else centred_correlation,
                    optimizer=OptimizerReport(bool(result.converged), result.message, int(result.nfev),
-                                             result.n_starts, result.n_reached_best),
+                                             result.n_starts, result.n_reached_best, result.n_starts_asked),
                    aic=result.aic, bic=result.bic,
                    train=train, validation=validation, cv=cv, cv_folds=cv_folds, cv_method=cv_method,
                    cv_scheme=cv_scheme, cv_note=cv_note, equations=result.equations)
@@ -185,6 +189,12 @@ class CandidateResult:
     @property
     def failed(self) -> bool:
         return self.error is not None
+
+    @property
+    def not_applicable(self) -> bool:
+        """A candidate the campaign cannot fit by its nature (a column or the fixed reference point it lacks), not
+        one whose fit went wrong: skipped, with ``error`` saying why."""
+        return self.error is not None and self.error.startswith(NOT_APPLICABLE)
 
     @property
     def n_params(self) -> int:
@@ -233,7 +243,7 @@ class CandidateResult:
         head += [("covariance", covariance_line(e.covariance_kind, e.max_lag, e.bandwidth)),
                  ("optimizer", f"{'converged' if o.converged else 'NOT CONVERGED'}: {o.message} "
                                f"({o.nfev} evaluations)"),
-                 ("starts reaching the best cost", f"{o.n_reached_best} of {o.n_starts}"),
+                 ("starts reaching the best cost", starts_line(o.n_reached_best, o.n_starts, o.n_starts_asked)),
                  *covariance_head(e)]
         if self.flight_effects is not None:
             f = self.flight_effects

@@ -31,8 +31,14 @@ CONSOLE_WIDTH = 160
 
 
 def console_line(line: str, width: int = CONSOLE_WIDTH) -> str:
-    """``line`` cut at ``width`` characters on a word boundary, " ..." saying so."""
-    return line if len(line) <= width else line[:width - 4].rsplit(" ", 1)[0] + " ..."
+    """``line`` wrapped at ``width`` characters on word boundaries, nothing cut: the lines after the first indented
+    four spaces more than it (joined by newlines; a line that fits is returned as it is)."""
+    if len(line) <= width:
+        return line
+    import textwrap
+    indent = " " * (len(line) - len(line.lstrip(" ")))
+    return "\n".join(textwrap.wrap(line, width, subsequent_indent=indent + "    ", break_long_words=False,
+                                    break_on_hyphens=False))
 
 
 def _silent(message: str) -> None:

@@ -13,7 +13,7 @@ from ..diagnosis.story import unexplained_sentence
 from ..engine.summary import PARAMETER_HEADERS, parameter_rows
 from .answer import answer_html, answered, contents_html
 from .numbers import share, sig, with_uncertainty
-from .tables import render_table
+from .tables import render_table, signed_percent
 
 STYLE = """body{font-family:sans-serif;max-width:1100px;margin:1em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;font-size:12px;margin:0.5em 0 1.5em;max-width:100%;table-layout:auto}
@@ -57,6 +57,14 @@ def _number(text: str) -> str:
     return text if text.lstrip("-").isdigit() else sig(value, 4)
 
 
+def _gap(text: str) -> str:
+    """The gap to best as the console and the Markdown tables give it: a signed percentage."""
+    try:
+        return signed_percent(float(text))
+    except ValueError:
+        return text
+
+
 def _fold(text: str) -> str:
     """A long text folded: its first words, the rest behind a click."""
     text = html.escape(text)
@@ -84,7 +92,8 @@ def csv_table(path: Path, top: int, columns: tuple[str, ...] | None = None) -> s
         for i in keep:
             v = r[i] if i < len(r) else ""
             long = rows[0][i] == "not admissible because"
-            cells.append(f"<td class='reason'>{_fold(v)}</td>" if long else f"<td>{html.escape(_number(v))}</td>")
+            shown = _gap(v) if rows[0][i] == "gap to best" else _number(v)
+            cells.append(f"<td class='reason'>{_fold(v)}</td>" if long else f"<td>{html.escape(shown)}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     more = f"<p>{len(rows) - 1 - top} more rows in {html.escape(path.name)}.</p>" if len(rows) - 1 > top else ""
     return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>{more}"

@@ -82,6 +82,17 @@ def table_row(s: CandidateResult) -> dict:
     return row
 
 
+def signed_percent(x: float, sign: bool = True) -> str:
+    """A relative change as a percentage (signed unless ``sign`` is false) that never reads "-0.0%": below 0.1%
+    at two significant digits; "n/a" for NaN; a change below 1e-9 is rounding of zero (a gap of 1e-17): "0%"."""
+    if x != x:
+        return "n/a"
+    if abs(x) < 1e-9:
+        return "0%"
+    plus = "+" if sign else ""
+    return f"{100 * x:{plus}.2g}%" if abs(x) < 1e-3 else f"{x:{plus}.1%}"
+
+
 def _cell(v):
     if v is None:
         return "-"
@@ -99,6 +110,9 @@ def grid_table(ranked: list[CandidateResult], fmt: str) -> str:
     body = []
     for s in ranked:
         row = table_row(s)
+        if fmt != "csv":   # a person reads the gaps as the console prints them: +10.7%; the CSV keeps fractions
+            row.update({k: signed_percent(row[k], sign=k == "gap") for k in ("gap", "gap_se")
+                        if isinstance(row.get(k), float)})
         body.append([_cell(row.get(k)) for k, _ in COLUMNS] + [row["reasons"]])
     table = _with_newline(render_table(body, headers, fmt), fmt)
     note = gap_note(ranked)

@@ -11,7 +11,7 @@ from ..fitting.candidate_fit import fit_candidate
 from ..fitting.lift_fit import LiftFit
 from ..fitting.options import FitOptions
 from ..fitting.specs import find_candidate
-from ..flight.reference import FINAL_MODEL_NAMES
+from ..flight.reference import AIRCRAFT, FINAL_MODEL_NAMES
 
 THESIS_COVARIANCE = "colored"
 
@@ -30,12 +30,24 @@ def fit_final_models(train, val, options: FitOptions, starts: Mapping[str, Mappi
     return out
 
 
+def other_aircraft(campaign) -> str | None:
+    """None when ``campaign`` flies the thesis' aircraft (the Citation II's reference geometry S, cbar, b), else a
+    note saying why ``thesis_stderr.md``, which compares standard deviations with the thesis' Citation, is not
+    written."""
+    mine = {k: float(campaign.aircraft.get(k, float("nan"))) for k in AIRCRAFT}
+    if all(abs(mine[k] - v) <= 1e-6 * v for k, v in AIRCRAFT.items()):
+        return None
+    return ("thesis_stderr.md not written: it compares standard deviations with the thesis' Citation II (S 30 m^2, "
+            f"cbar 2.013 m, b 15.75 m), and this campaign's aircraft has S {mine['S']:g} m^2, cbar {mine['cbar']:g} "
+            f"m, b {mine['b']:g} m")
+
+
 def thesis_estimator_fits(grids: Mapping[str, Sequence], campaign) -> dict[str, list]:
     """The thesis' final models of a search refitted with the thesis' covariance estimator (starting at
     their estimates, so only the covariance changes), as {model name: [result]}; {} unless the
-    search fitted all three (a campaign of the Citation with the thesis' grids)."""
+    search fitted all three on a campaign of the thesis' aircraft (:func:`other_aircraft`)."""
     found = {s.name: s for ranked in grids.values() for s in ranked if not s.failed}
-    if not all(name in found for name in FINAL_MODEL_NAMES.values()):
+    if not all(name in found for name in FINAL_MODEL_NAMES.values()) or other_aircraft(campaign) is not None:
         return {}
     options = FitOptions(n_starts=1, covariance=THESIS_COVARIANCE, cv_folds=0)
     starts = {coef: found[name].estimates.params for coef, name in FINAL_MODEL_NAMES.items()}
