@@ -10,7 +10,6 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -20,6 +19,7 @@ import numpy as np
 from .atomic import exchange_directories, sync_path, umask
 from .flightdata import FlightData, from_segments
 from .errors import DataError
+from .reading import inside, load_toml
 from . import records
 from .tables import LINE_KEY, read_mat, read_table as _read_table  # noqa: F401  (read_mat: the reader of .mat files)
 from .moment_transfer import REFERENCE_KEY, check_reference_point, check_transfer_datum
@@ -111,12 +111,9 @@ class Campaign:
 # ----- reading -----------------------------------------------------------------------------
 def _manifest(path: Path) -> dict:
     toml = path / "campaign.toml"
-    if not toml.is_file():
+    if not toml.exists() and not toml.is_symlink():
         raise DataError("campaign.toml not found", source=str(toml))
-    try:
-        return tomllib.loads(toml.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise DataError(f"not valid TOML: {exc}", source=str(toml)) from None
+    return load_toml(inside(path, "campaign.toml", str(toml)))
 
 
 def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
@@ -188,7 +185,7 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     rules = records.LengthRules.parse(doc.get("min_convective_times"), KINDS, toml)
     segments, pieces = [], []
     for i, m in enumerate(maneuvers):
-        path = directory / m.file
+        path = inside(directory, m.file, f"{toml} [[maneuver]] #{i + 1}", "file")
         columns = records.with_cycle_time(_read_table(path), m.id, m.frequency, str(path))
         validate_maneuver(columns, path, required, angles, cbar=aircraft["cbar"], rule=rules.for_kind(m.kind))
         for piece, cut in _pieces(m, columns, path, doc["maneuver"][i], segment, rules, aircraft["cbar"],

@@ -137,6 +137,10 @@ def _row_message(columns: Mapping[str, np.ndarray], row: int) -> str:
     return f" (line {int(lines[row])})" if lines is not None and row < len(lines) else ""
 
 
+# No measured quantity in any unit comes near it; a fit squares and sums the values, which must stay finite.
+MAX_MAGNITUDE = 1e15
+
+
 def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=REQUIRED, angles=ANGLES, *,
                       cbar: float | None = None, rule: records.LengthRule | None = None) -> None:
     """One clear error for the first problem found in a maneuver's columns (``required`` and ``angles``: those
@@ -164,6 +168,11 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
         if bad.size:
             raise DataError("value is NaN or infinite" + _row_message(columns, int(bad[0])), source=source,
                             column=col, row=int(bad[0]))
+        huge = np.flatnonzero(np.abs(values) > MAX_MAGNITUDE)
+        if huge.size:
+            raise DataError(f"value {values[huge[0]]:g} is an absurd magnitude (above {MAX_MAGNITUDE:g}): its squares "
+                            "would overflow a fit" + _row_message(columns, int(huge[0])), source=source, column=col,
+                            row=int(huge[0]))
     t = columns["t"]
     step = np.diff(t)
     bad = np.flatnonzero(step <= 0)

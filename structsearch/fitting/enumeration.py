@@ -12,6 +12,7 @@ from ..data.errors import DeclarationError
 from ..engine.regressors import parse
 from ..engine.separation import SeparationState
 from ..engine.static_forms import check_form
+from .spec_types import ENTRY_TYPES, GRID_TYPES, check_types
 from .candidates import MOMENT_REFERENCES, Candidate, Grid, from_roman, roman
 
 
@@ -52,6 +53,9 @@ def _check_grid(doc: dict, source: str) -> None:
             raise DeclarationError(f"{source}: missing {key!r}")
     if not isinstance(doc["entry"], list) or not all(isinstance(e, dict) for e in doc["entry"]):
         raise DeclarationError(f"{source}: 'entry' must be a list of [[entry]] tables")
+    check_types(doc, GRID_TYPES, source)
+    for i, entry in enumerate(doc["entry"]):
+        check_types(entry, ENTRY_TYPES, f"{source} [[entry]] #{i + 1}")
 
 
 def _check_expressions(regs, where: str) -> None:
