@@ -18,11 +18,12 @@ from __future__ import annotations
 import csv
 import io
 import dataclasses
-import json
 import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
+
+from ..data.reading import inside, parse_json, read_text
 
 # Fields that describe how a run went, not what it found: they differ between machines by design.
 RUN_FIELDS = frozenset({"seconds", "wall_seconds", "elapsed", "nfev", "evaluations", "njev", "message",
@@ -140,7 +141,7 @@ OUTPUT_DIRECTORY = "<output directory>"
 def _text(root: Path, name: str) -> str:
     """A file's text with its output directory's path replaced by a placeholder: a path a run writes into its own
     output (a discovered structure's spec file) names where it ran, not what it found."""
-    text = (root / name).read_text(encoding="utf-8")
+    text = read_text(inside(root, name, str(root)))   # regular, bounded, UTF-8, and inside the directory
     for prefix in sorted({str(root.resolve()), str(root)}, key=len, reverse=True):
         text = text.replace(prefix, OUTPUT_DIRECTORY)
     return text
@@ -188,7 +189,7 @@ def _as_float(text: str) -> float | None:
 
 def _compare_json(name: str, a: str, b: str, tol: Tolerances) -> list[Difference]:
     out: list[Difference] = []
-    _walk(name, "", json.loads(a), json.loads(b), 0.0, tol, out)
+    _walk(name, "", parse_json(a, name), parse_json(b, name), 0.0, tol, out)   # nesting bounded: _walk recurses
     return out
 
 

@@ -10,6 +10,7 @@ one consistent set, draw that lift model with it (issue 43: the thesis' finals w
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
@@ -17,6 +18,7 @@ from typing import Mapping
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..data.manifest import check_set
+from ..data.reading import excerpt, read_text
 from ..fitting.candidates import Candidate
 from ..fitting.specs import find_candidate, load_grid
 from ..flight.reference import FINAL_MODEL_NAMES
@@ -66,13 +68,19 @@ def ranked_rows(out: Path) -> dict[str, list[dict]] | None:
     path = Path(out) / "ranking.csv"
     if not path.exists():
         return None
+    text = read_text(path)   # a regular UTF-8 file of bounded size, before its manifest hashes it
     check_set(Path(out), "search", "ranking.csv")
-    with path.open(newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
+    try:
+        reader = csv.DictReader(io.StringIO(text, newline=""))
         missing = [c for c in ("grid", "model", "rank") if c not in (reader.fieldnames or ())]
         if missing:
             raise DataError("a search ranking needs this column", source=str(path), column=missing[0], row=1)
         rows = list(reader)
+    except csv.Error as exc:
+        raise DataError(f"not a CSV table: {excerpt(exc)}", source=str(path)) from None
+    for i, row in enumerate(rows):
+        if not all(isinstance(row.get(k), str) for k in ("grid", "model", "rank")):
+            raise DataError("a row without its grid, model or rank", source=str(path), row=i + 2)
     by_grid: dict[str, list[dict]] = {}
     for row in rows:
         by_grid.setdefault(row["grid"], []).append(row)
