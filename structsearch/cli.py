@@ -378,6 +378,9 @@ def main(argv: list[str] | None = None) -> int:
     import signal
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, _terminate)
+    import tempfile
+    from .data.atomic import remove_dead_runs
+    remove_dead_runs(Path(tempfile.gettempdir()))   # what a run killed with -9 left (it could not clean up)
     try:
         return _run(args)
     except KeyboardInterrupt:

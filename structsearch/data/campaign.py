@@ -16,7 +16,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .atomic import exchange_directories, sync_path, umask
+from .atomic import exchange_directories, remove_orphans, sync_path, umask
 from .flightdata import FlightData, from_segments
 from .errors import DataError
 from .reading import inside, load_toml
@@ -323,7 +323,9 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
         raise DataError("refusing to replace it: it exists and is not a campaign directory (no campaign.toml)",
                         source=str(directory))
     directory.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=directory.parent))
+    # named after this process: a run killed (-9) while writing leaves it, and the next writer removes it
+    remove_orphans(directory.parent, f".{directory.name}.")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.{os.getpid()}-", dir=directory.parent))
     os.chmod(tmp, 0o777 & ~umask())
     try:
         lines = [f"name = {_toml_value(campaign.name)}", "", "[aircraft]"]
