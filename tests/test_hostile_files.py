@@ -264,7 +264,7 @@ def test_a_fifo_is_refused_at_once(campaign_dir, tmp_path, which):
     ('bounds = [0, 1]\n[[entry]]\nregressors = { c = "1" }\n', "'bounds'"),
     ('[[entry]]\nregressors = { c = "1" }\nbounds = [1, 2]\n', "'bounds'"),
     ('[[entry]]\nregressors = { c = "1" }\nstates = ["S"]\n', "'states'"),
-    ('[[entry]]\nregressors = { c = "1" }\nfrom = 1\n', "'from'"),
+    ('[[entry]]\nname = "G-I"\nregressors = { c = "1" }\n[[entry]]\nfrom = "G-I"\ndrop = "c"\n', "'drop'"),
     ('[[entry]]\nkinds = { ss = "S" }\nregressors = { c = "1" }\n', "'kinds'"),
     ('[[entry]]\nregressors = { c = "1" }\nnote = { text = "a table" }\n', "'note'"),
     ('[[entry]]\nregressors = { c = "1" }\n[[entry]]\nalways = [["a"]]\ncombinations = [["b"]]\n', "'always'"),
