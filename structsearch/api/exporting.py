@@ -21,7 +21,7 @@ from ..engine.separation import SeparationState, evaluate_state
 from ..export.card import (CoefficientModel, ExportedModel, StateModel, aircraft_record, ordered, validity)
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftAt
-from ..data.reading import excerpt
+from ..data.reading import shown
 from .fit_document import Fields, read_fit_json
 from .results import campaign_record
 from .settings import Settings, command_fitter
@@ -116,7 +116,7 @@ def read_fit_directory(directory: str | os.PathLike) -> tuple[list[Fitted], dict
                         source=str(path))
     doc = read_fit_json(path)
     if not isinstance(doc, dict):
-        raise DataError(f"not a fit document (a JSON object), but {excerpt(repr(doc))}", source=str(path))
+        raise DataError(f"not a fit document (a JSON object), but {shown(doc)}", source=str(path))
     fields = Fields(path)
     fitted = _joint_fitted(doc, fields) if doc.get("joint") else _single_fitted(doc, fields)
     data = doc.get("data")
@@ -171,7 +171,7 @@ def _joint_fitted(doc: Mapping, fields: Fields) -> list[Fitted]:
     for coef, entry in fields.table(doc, "coefficients").items():
         where = f"coefficients.{coef}."
         if not isinstance(entry, dict):
-            fields.fail(where[:-1], f"must be a table, not {excerpt(repr(entry))}")
+            fields.fail(where[:-1], f"must be a table, not {shown(entry)}")
         c = resolve_candidate(fields.string(entry, "model", where))
         params = fields.numbers(entry, "parameters", where)
         keep = [i for i, n in enumerate(names) if n in params]

@@ -14,7 +14,7 @@ from typing import Mapping
 import numpy as np
 
 from ..data.errors import DataError, DeclarationError
-from ..data.reading import excerpt, load_json
+from ..data.reading import excerpt, load_json, shown
 from ..fitting.candidates import Candidate
 from ..fitting.spec_types import ENTRY_TYPES, grid_name_problem
 
@@ -31,13 +31,13 @@ class Fields:
     def table(self, doc, key: str, where: str = "") -> dict:
         value = doc.get(key) if isinstance(doc, dict) else None
         if not isinstance(value, dict):
-            self.fail(where + key, f"must be a table (a JSON object), not {excerpt(repr(value))}")
+            self.fail(where + key, f"must be a table (a JSON object), not {shown(value)}")
         return value
 
     def string(self, doc, key: str, where: str = "") -> str:
         value = doc.get(key)
         if not isinstance(value, str) or not value:
-            self.fail(where + key, f"must be a non-empty string, not {excerpt(repr(value))}")
+            self.fail(where + key, f"must be a non-empty string, not {shown(value)}")
         return value
 
     def number(self, value, key: str) -> float:
@@ -45,7 +45,7 @@ class Fields:
         if value is None:
             return math.nan
         if not isinstance(value, (int, float)) or isinstance(value, bool):
-            self.fail(key, f"must be a number, not {excerpt(repr(value))}")
+            self.fail(key, f"must be a number, not {shown(value)}")
         return float(value)
 
     def numbers(self, doc, key: str, where: str = "") -> dict[str, float]:
@@ -65,7 +65,7 @@ class Fields:
         table = self.table(doc, "parameter_covariance", where)
         names = table.get("names")
         if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-            self.fail(f"{key}.names", f"must be a list of parameter names, not {excerpt(repr(names))}")
+            self.fail(f"{key}.names", f"must be a list of parameter names, not {shown(names)}")
         rows = table.get("matrix")
         if not isinstance(rows, list) or len(rows) != len(names) or not all(
                 isinstance(r, list) and len(r) == len(names) for r in rows):
@@ -86,10 +86,10 @@ class Fields:
         for field in ("regressors", "states", "lift", "note", "bounds", "x0"):
             test, wanted = ENTRY_TYPES.get("states" if field == "x0" else field)
             if field in d and d[field] is not None and not test(d[field]):
-                self.fail(f"{key}.{field}", f"must be {wanted}, not {excerpt(repr(d[field]))}")
+                self.fail(f"{key}.{field}", f"must be {wanted}, not {shown(d[field])}")
         for name, box in (d.get("bounds") or {}).items():
             if not (isinstance(box, list) and len(box) == 2):
-                self.fail(f"{key}.bounds.{name}", f"must be [lo, hi], not {excerpt(repr(box))}")
+                self.fail(f"{key}.bounds.{name}", f"must be [lo, hi], not {shown(box)}")
             for v in box:
                 self.number(v, f"{key}.bounds.{name}")
         self._expressions(d.get("regressors") or {}, key)

@@ -45,6 +45,15 @@ def excerpt(text, limit: int = EXCERPT) -> str:
     return repr(text[:limit]) + (f" (and {len(text) - limit} more characters)" if len(text) > limit else "")
 
 
+def shown(value, limit: int = EXCERPT) -> str:
+    """A value read from a file as an error line shows it: a string as :func:`excerpt`, anything else (a table, a
+    list, a number) as its repr cut to ``limit`` characters."""
+    if isinstance(value, str):
+        return excerpt(value, limit)
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
 def _kind(mode: int) -> str:
     for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
                        (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Callable, Mapping
 
 from ..data.errors import DeclarationError
-from ..data.reading import excerpt
+from ..data.reading import shown
 
 # Characters a grid's name may not hold: it names the grid's folder of the cache and its tables' files.
 _PATH_CHARACTERS = ("/", "\\", "\0", ":")
@@ -91,4 +91,4 @@ def check_types(table: dict, types: Mapping[str, tuple[Callable, str]], where: s
     """Refuse the first key of ``table`` whose value is not of its type, naming it and what it must be."""
     for key, value in table.items():
         if key in types and not types[key][0](value):
-            raise DeclarationError(f"{where}: {key!r} must be {types[key][1]}, not {excerpt(repr(value))}")
+            raise DeclarationError(f"{where}: {key!r} must be {types[key][1]}, not {shown(value)}")
