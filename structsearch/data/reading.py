@@ -83,7 +83,7 @@ def _check_stat(st: os.stat_result, path, limit: int, error: ErrorType) -> None:
         raise error(str(path), f"{st.st_size} bytes, more than the {limit // MiB} MiB such a file may have")
 
 
-def open_regular(path: Path | str, limit: int, error: ErrorType = data_error) -> "BoundedReader":
+def open_regular(path: Path | str, limit: int, error: ErrorType = data_error, no_nul: bool = False) -> "BoundedReader":
     """``path`` opened for reading as a :class:`BoundedReader`: opened without blocking (a FIFO that appeared
     after a stat does not hang the open) and checked again on the open file."""
     regular_file(path, limit, error)
@@ -97,7 +97,7 @@ def open_regular(path: Path | str, limit: int, error: ErrorType = data_error) ->
     except BaseException:
         os.close(fd)
         raise
-    return BoundedReader(fd, path, limit, error)
+    return BoundedReader(fd, path, limit, error, no_nul)
 
 
 class BoundedReader(io.RawIOBase):
@@ -156,9 +156,11 @@ def read_text(path: Path | str, limit: int = MAX_DOCUMENT_BYTES, error: ErrorTyp
     return decode(read_bytes(path, limit, error), path, error)
 
 
-# What holds no bracket that nests: strings and comments (TOML), strings (JSON).
-_TOML_INERT = re.compile(r'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"(?:[^"\\\n]|\\.)*"|\'[^\'\n]*\'|#[^\n]*')
-_JSON_INERT = re.compile(r'"(?:[^"\\]|\\.)*"')
+# What holds no bracket that nests: strings and comments (TOML), strings (JSON). Every pattern matches once it
+# has started (an unclosed string runs to the end of its line or of the text), so a substitution is linear in the
+# text however many quotes are left open (a pattern that could fail after a long scan would be quadratic).
+_TOML_INERT = re.compile(r'"""[\s\S]*?(?:"""|\Z)|\'\'\'[\s\S]*?(?:\'\'\'|\Z)|"(?:[^"\\\n]|\\.)*"?|\'[^\'\n]*\'?|#[^\n]*')
+_JSON_INERT = re.compile(r'"(?:[^"\\]|\\.)*"?', re.DOTALL)
 
 
 def bracket_depth(text: str, inert: re.Pattern) -> int:

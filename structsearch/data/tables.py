@@ -14,12 +14,6 @@ from .errors import DataError, StructSearchError
 from .reading import MAX_TABLE_BYTES, excerpt, open_regular, read_bytes, regular_file
 
 
-def _text_reader(path: Path):
-    reader = open_regular(path, MAX_TABLE_BYTES)
-    reader.no_nul = True
-    return reader
-
-
 def read_table(path: Path) -> dict[str, np.ndarray]:
     """The columns of one maneuver file by name (a CSV file's also its rows' file lines under LINE_KEY)."""
     suffix = path.suffix.lower()
@@ -30,7 +24,7 @@ def read_table(path: Path) -> dict[str, np.ndarray]:
     if suffix == ".csv":
         header = csv_header(path)
         try:   # read through a reader that stops at the size bound and at a NUL byte, wherever they come
-            with io.BufferedReader(_text_reader(path)) as raw:
+            with io.BufferedReader(open_regular(path, MAX_TABLE_BYTES, no_nul=True)) as raw:
                 frame = pd.read_csv(raw)
         except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as exc:
             if isinstance(exc, StructSearchError):
