@@ -107,7 +107,10 @@ def expand(doc: dict, source: str) -> Grid:
         if not regs:
             raise DeclarationError(f"{where}: candidate {shown(cand_name)} has no regressors")
         _check_expressions(regs, where)
-        own = {p for k, kind in states for p in _state_params(k, kind, dict(forms).get(k, "tanh"))}
+        try:
+            own = {p for k, kind in states for p in _state_params(k, kind, dict(forms).get(k, "tanh"))}
+        except DeclarationError as exc:   # an unknown kind: named with the file and entry that declare it
+            raise DeclarationError(f"{where}: {exc}") from None
         used_bounds.update(b[0] for b in bounds if b[0] in own)
         candidates.append(Candidate(cand_name, name, coefficient, tuple(regs), tuple(states), lift, note,
                                     tuple(b for b in bounds if b[0] in own), tuple(forms),

@@ -6,6 +6,7 @@ key. Each is one :class:`DeclarationError` naming the file, the entry and the ke
 """
 from __future__ import annotations
 
+import math
 from typing import Callable, Mapping
 
 from ..data.errors import DeclarationError
@@ -36,8 +37,12 @@ def _grid_name(v) -> bool:
     return grid_name_problem(v) is None
 
 
-def _expression(v) -> bool:   # a quoted expression (a bare number reads as one)
-    return isinstance(v, (str, int, float)) and not isinstance(v, bool)
+def _expression(v) -> bool:   # a quoted expression (a bare finite number reads as one)
+    return isinstance(v, str) or (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v))
+
+
+def _name(v) -> bool:
+    return isinstance(v, str) and bool(v.strip())
 
 
 def _names(v) -> bool:
@@ -69,7 +74,7 @@ GRID_TYPES: Mapping[str, tuple[Callable, str]] = {
     "bounds": (_table, "a table of parameter = [lo, hi]"),
 }
 ENTRY_TYPES: Mapping[str, tuple[Callable, str]] = {
-    "name": (_string, "a string"),
+    "name": (_name, "a non-empty string"),
     "lift": (_string, "the name of a lift candidate"),
     "states": (_table_of(_string), "a table of state names to kinds, such as { ss = \"S\" }"),
     "note": (_string, "a string"),

@@ -76,8 +76,11 @@ def load_grid(name_or_path: str, lift_grid: Grid | None = None) -> Grid:
     if any(c.lift for c in grid.candidates):
         if lift_grid is None:
             lift_grid = load_grid("lift") if grid.name != "lift" else grid
-        grid = Grid(grid.name, grid.coefficient, tuple(_with_lift_states(c, lift_grid) for c in grid.candidates),
-                    grid.source, lift_grid)
+        try:
+            lifted = tuple(_with_lift_states(c, lift_grid) for c in grid.candidates)
+        except DeclarationError as exc:   # a lift model the lift grid lacks: named with the file that reads it
+            raise DeclarationError(f"{path}: {exc}") from None
+        grid = Grid(grid.name, grid.coefficient, lifted, grid.source, lift_grid)
     return grid
 
 
