@@ -160,11 +160,6 @@ def compile_expression(expr: sp.Expr, argnames: tuple[str, ...]):
     return sp.lambdify([_real(a) for a in argnames], expr, modules="numpy")
 
 
-# Beyond it a regressor's squares and their sums over a campaign overflow, or come close: no physical regressor
-# of a coefficient does.
-MAX_REGRESSOR = 1e100
-
-
 @dataclass(frozen=True)
 class Regressor:
     """One column of the regression matrix."""
@@ -198,21 +193,8 @@ class Regressor:
         return args
 
     def value(self, data, state_values, n: int) -> np.ndarray:
-        with np.errstate(all="ignore"):   # an overflow is reported below, once, as an error naming the regressor
-            out = compile_expression(self.expr, self.argnames)(*self._arguments(data, state_values))
-        out = np.broadcast_to(np.asarray(out, dtype=float), (n,))
-        if not np.all(np.abs(out) <= MAX_REGRESSOR):   # NaN fails the comparison too
-            self._not_finite(out)
-        return out
-
-    def _not_finite(self, out: np.ndarray) -> None:
-        """A column with an infinite, NaN or astronomically large value (``exp(1000*alpha)`` overflows the sums of
-        squares, ``1/(alpha-alpha)`` divides by zero) would be fitted silently, and badly: one error naming the
-        regressor instead."""
-        row = int(np.flatnonzero(~(np.abs(out) <= MAX_REGRESSOR))[0])
-        raise DeclarationError(f"regressor {self.name!r} = {(self.text or str(self.expr))[:80]!r} is "
-                               f"{out[row]:.3g} at sample {row} (an overflow or a division by zero): a regressor's "
-                               f"values must be finite numbers below {MAX_REGRESSOR:g}")
+        out = compile_expression(self.expr, self.argnames)(*self._arguments(data, state_values))
+        return np.broadcast_to(np.asarray(out, dtype=float), (n,))
 
     def column_derivative(self, column: str, data, state_values, n: int) -> np.ndarray:
         """d value / d (data column ``column``): zero when the regressor does not read it."""
