@@ -7,8 +7,8 @@ user's cache folder (``$STRUCTSEARCH_CACHE_KEY_FILE``, else ``$XDG_CACHE_HOME/st
 ``~/.cache/structsearch/cache.key``), made with mode 0600 on first use. An entry not signed under this key (an
 edited one, or one from another user or machine) is refitted, never served.
 
-Where no key can be kept (a read-only home), a key of this process only is used: the run's own entries are served
-to itself, none of an earlier run.
+Where no key can be kept or read (a read-only home, a key file of the wrong size), a key of this process only is
+used: the run's own entries are served to itself, none of an earlier run.
 """
 from __future__ import annotations
 
@@ -37,6 +37,8 @@ def _key(path: Path) -> bytes:
         return _read_key(path)
     except FileNotFoundError:
         pass
+    except OSError:   # not a key (another size, a FIFO) or unreadable: this process's own, trusting no file
+        return secrets.token_bytes(KEY_BYTES)
     try:
         return _create_key(path)
     except FileExistsError:       # another process made it first: use theirs
