@@ -393,6 +393,9 @@ def main(argv: list[str] | None = None) -> int:
     import signal
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, _terminate)
+    import tempfile
+    from .data.atomic import remove_dead_runs
+    remove_dead_runs(Path(tempfile.gettempdir()))   # what a run killed with -9 left (it could not clean up)
     try:
         return _run(args)
     except KeyboardInterrupt:
@@ -401,9 +404,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"structsearch {args.command}: interrupted;{again}" if again else
               f"structsearch {args.command}: interrupted", file=sys.stderr)
         return 130
-    except StructSearchError as exc:
-        print(f"structsearch {args.command}: error: {exc}", file=sys.stderr)
+    except (StructSearchError, OSError) as exc:
+        print(f"structsearch {args.command}: error: {_one_line(str(exc))}", file=sys.stderr)
         return 2
-    except OSError as exc:
-        print(f"structsearch {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+
+
+# The longest error line printed: the messages quote short excerpts of what they read; this bounds any other.
+MAX_ERROR_CHARACTERS = 2000
+
+
+def _one_line(message: str) -> str:
+    message = " ".join(message.split("\n"))
+    if len(message) <= MAX_ERROR_CHARACTERS:
+        return message
+    return f"{message[:MAX_ERROR_CHARACTERS]}... ({len(message) - MAX_ERROR_CHARACTERS} more characters)"

@@ -20,13 +20,14 @@ Lines = Callable[[str], None]
 
 def simulated_as(directory: Path) -> dict | None:
     """How the campaign in ``directory`` was simulated (seed, scale, ...), or None if there is none."""
-    import tomllib
+    from .data.errors import StructSearchError
+    from .data.reading import load_toml
     toml = directory / "campaign.toml"
     if not toml.exists():
         return None
     try:
-        doc = tomllib.loads(toml.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError):
+        doc = load_toml(toml)
+    except StructSearchError:
         return {"manifest": "unreadable"}
     return {k: doc.get(k) for k in ("seed", "scale", "withheld", "slow_errors", "extras", "flights")}
 

@@ -43,7 +43,7 @@ def fit(campaign: Campaign | str | os.PathLike, model: str, *, settings: Setting
         lift = _lift_model(fitter, candidate)
         result = fitter.with_lifts({candidate.lift: lift} if lift else {}).fit_one(candidate)
     if result.failed:
-        raise DeclarationError(result.error)
+        raise DeclarationError(f"{candidate.name}: {result.error}")
     from ..fitting.bands import static_bands
     profiles = None
     if profile:

@@ -7,7 +7,6 @@ compares with structsearch's own prediction of the same fit (:func:`structsearch
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass
@@ -22,6 +21,8 @@ from ..engine.separation import SeparationState, evaluate_state
 from ..export.card import (CoefficientModel, ExportedModel, StateModel, aircraft_record, ordered, validity)
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftAt
+from ..data.reading import shown
+from .fit_document import Fields, read_fit_json
 from .results import campaign_record
 from .settings import Settings, command_fitter
 
@@ -107,68 +108,80 @@ def fitted_from_data(campaign: Campaign, candidates: Sequence[Candidate], settin
 
 
 def read_fit_directory(directory: str | os.PathLike) -> tuple[list[Fitted], dict]:
-    """The structures of a fit directory's ``fit.json`` (single or joint) and its ``data`` record."""
+    """The structures of a fit directory's ``fit.json`` (single or joint) and its ``data`` record, every field
+    checked for its type (:mod:`.fit_document`)."""
     path = Path(directory) / "fit.json"
-    try:
-        doc = json.loads(path.read_text())
-    except FileNotFoundError:
+    if not os.path.lexists(path):
         raise DataError("no fit.json here: --fit takes the --out directory of `structsearch fit`",
-                        source=str(path)) from None
-    except (OSError, ValueError) as exc:
-        raise DataError(f"unreadable fit.json ({exc})", source=str(path)) from None
-    try:
-        fitted = _joint_fitted(doc) if doc.get("joint") else _single_fitted(doc)
-    except (KeyError, TypeError, AttributeError) as exc:
-        raise DataError(f"fit.json lacks the field {exc} an export reads", source=str(path)) from None
-    if not isinstance(doc.get("data"), dict) or not doc["data"].get("source"):
+                        source=str(path))
+    doc = read_fit_json(path)
+    if not isinstance(doc, dict):
+        raise DataError(f"not a fit document (a JSON object), but {shown(doc)}", source=str(path))
+    fields = Fields(path)
+    fitted = _joint_fitted(doc, fields) if doc.get("joint") else _single_fitted(doc, fields)
+    data = doc.get("data")
+    if not isinstance(data, dict) or not data.get("source"):
         raise DataError("fit.json does not name the campaign it was fitted on (a fit of an older version, or of a "
                         "campaign in memory): export with --data DIR --model NAME", source=str(path))
-    return fitted, doc["data"]
+    fields.string(data, "source", "data.")
+    if data.get("digest") is not None:
+        fields.string(data, "digest", "data.")
+    for f in fitted:
+        _complete(f, fields)
+    return fitted, data
 
 
-def _candidate(entry: Mapping, name: str) -> Candidate:
+def _complete(f: Fitted, fields: Fields) -> None:
+    """Every parameter an export writes is in the document: each regressor's, and a lift model's states'."""
+    needed = [name for name, _ in f.candidate.regressors]
+    if f.candidate.coefficient == "CL":
+        needed += list(f.candidate.state_parameters)
+    missing = [p for p in needed if p not in f.params]
+    if missing:
+        fields.fail(f"params.{missing[0]}", f"missing: {f.candidate.name} has the parameter {missing[0]!r}")
+
+
+def _candidate(entry: Mapping, fields: Fields, where: str = "") -> Candidate:
     from ..fitting.specs import resolve_candidate
-    return Candidate.from_dict(entry["structure"]) if entry.get("structure") else resolve_candidate(name)
+    if entry.get("structure"):
+        return fields.structure(entry, where)
+    return resolve_candidate(fields.string(entry, "model", where))
 
 
-def _single_fitted(doc: Mapping) -> list[Fitted]:
-    c = _candidate(doc, doc["model"])
-    cov = doc.get("parameter_covariance")
-    own = Fitted(c, _floats(doc["params"]), doc.get("stderr", {}), tuple(cov["names"]) if cov else (),
-                 _matrix(cov), _sd(doc.get("mse", {}).get("train")),
-                 "" if cov else "fit.json records no covariance matrix (a fit of an older version)")
+def _single_fitted(doc: Mapping, fields: Fields) -> list[Fitted]:
+    c = _candidate(doc, fields)
+    names, matrix = fields.covariance(doc)
+    own = Fitted(c, fields.numbers(doc, "params"), fields.optional_numbers(doc, "stderr"), names, matrix,
+                 _sd(fields.number(doc.get("mse", {}).get("train") if isinstance(doc.get("mse"), dict) else None,
+                                   "mse.train")),
+                 "" if matrix is not None else "fit.json records no covariance matrix (a fit of an older version)")
     if c.coefficient == "CL" or not doc.get("lift"):
         return [own]
-    lift = doc["lift"]
-    lift_c = _candidate(lift, lift["model"])
-    return [Fitted(lift_c, _floats(lift["params"]), {}, note=f"the fit of {c.name} records its lift model's "
-                   "estimates only: fit the lift model for its statistics"), own]
+    lift = fields.table(doc, "lift")
+    lift_c = _candidate(lift, fields, "lift.")
+    return [Fitted(lift_c, fields.numbers(lift, "params", "lift."), {},
+                   note=f"the fit of {c.name} records its lift model's estimates only: fit the lift model for its "
+                        "statistics"), own]
 
 
-def _joint_fitted(doc: Mapping) -> list[Fitted]:
+def _joint_fitted(doc: Mapping, fields: Fields) -> list[Fitted]:
     from ..fitting.specs import resolve_candidate
-    cov = doc.get("parameter_covariance")
-    names = tuple(cov["names"]) if cov else ()
-    matrix = _matrix(cov)
+    names, matrix = fields.covariance(doc)
     out = []
-    for entry in doc["coefficients"].values():
-        c = resolve_candidate(entry["model"])
-        params = _floats(entry["parameters"])
+    for coef, entry in fields.table(doc, "coefficients").items():
+        where = f"coefficients.{coef}."
+        if not isinstance(entry, dict):
+            fields.fail(where[:-1], f"must be a table, not {shown(entry)}")
+        c = resolve_candidate(fields.string(entry, "model", where))
+        params = fields.numbers(entry, "parameters", where)
         keep = [i for i, n in enumerate(names) if n in params]
-        out.append(Fitted(c, params, entry.get("stderr", {}), tuple(names[i] for i in keep),
-                          None if matrix is None else matrix[np.ix_(keep, keep)], _sd(entry["mse"]["train"]),
-                          "" if cov else "fit.json records no covariance matrix (a fit of an older version)"))
+        mse = fields.table(entry, "mse", where)
+        out.append(Fitted(c, params, fields.optional_numbers(entry, "stderr", where), tuple(names[i] for i in keep),
+                          None if matrix is None else matrix[np.ix_(keep, keep)],
+                          _sd(fields.number(mse.get("train"), f"{where}mse.train")),
+                          "" if matrix is not None else "fit.json records no covariance matrix (a fit of an older "
+                                                        "version)"))
     return out
-
-
-def _floats(d: Mapping) -> dict[str, float]:
-    return {k: float("nan") if v is None else float(v) for k, v in d.items()}
-
-
-def _matrix(cov) -> np.ndarray | None:
-    if not cov:
-        return None
-    return np.array([[np.nan if v is None else float(v) for v in row] for row in cov["matrix"]], float)
 
 
 def _sd(mse) -> float | None:

@@ -89,7 +89,7 @@ def cache_directory(cache: str | os.PathLike | None) -> Iterator[Path]:
     if cache is not None:
         yield Path(cache)
         return
-    with tempfile.TemporaryDirectory(prefix="structsearch-") as tmp:
+    with tempfile.TemporaryDirectory(prefix=f"structsearch-{os.getpid()}-") as tmp:
         yield Path(tmp)
 
 

@@ -138,3 +138,29 @@ def exchange_directories(new: Path, target: Path) -> bool:
     if done:
         sync_path(Path(target).parent)
     return done
+
+
+def remove_dead_runs(base: Path) -> None:
+    """Remove what runs killed with -9 left: their ``structsearch-<pid>-*`` folders in ``base`` and the named
+    semaphores their worker pools made (``/dev/shm/sem.loky-<pid>-*``; only of a pid that had such a folder, so
+    never another program's)."""
+    dead = set()
+    for entry in _entries(base):
+        pid = entry.name[len("structsearch-"):].split("-", 1)[0]
+        if entry.name.startswith("structsearch-") and pid.isdigit() and not process_alive(int(pid)):
+            dead.add(pid)
+    for pid in sorted(dead):
+        for semaphore in _entries(Path("/dev/shm")):
+            if semaphore.name.startswith(f"sem.loky-{pid}-"):
+                try:
+                    semaphore.unlink()
+                except OSError:
+                    pass
+    remove_orphans(base, "structsearch-")
+
+
+def _entries(directory: Path) -> list[Path]:
+    try:
+        return list(directory.iterdir())
+    except OSError:
+        return []

@@ -10,16 +10,16 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
 
-from .atomic import exchange_directories, sync_path, umask
+from .atomic import exchange_directories, remove_orphans, sync_path, umask
 from .flightdata import FlightData, from_segments
 from .errors import DataError
+from .reading import inside, load_toml
 from . import records
 from .tables import LINE_KEY, read_mat, read_table as _read_table  # noqa: F401  (read_mat: the reader of .mat files)
 from .moment_transfer import REFERENCE_KEY, check_reference_point, check_transfer_datum
@@ -27,6 +27,7 @@ from .campaign_checks import (AIRCRAFT_KEYS, ANGLES, MANEUVER_KEYS, RAW_ANGLES, 
                               RESERVED_KEYS, _check_top_level, _close_match, _flight, _parse_aircraft, _parse_cutoffs,
                               _number, _periodic, validate_maneuver)
 from . import units
+from .reading import shown
 
 KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugoid", "other", "nominal")
 # Nominal maneuvers (docs/interfaces.md 7.5) fly attached flow across the envelope; every other kind (and a
@@ -77,7 +78,7 @@ class Campaign:
     def split(self, which: str) -> FlightData:
         """The maneuvers of one split ("train" or "validation") as FlightData."""
         if which not in SPLITS:
-            raise DataError(f"unknown split {which!r}; expected one of {SPLITS}")
+            raise DataError(f"unknown split {shown(which)}; expected one of {SPLITS}")
         # computed once per campaign (a search splits it for every grid and refinement step); the frozen
         # dataclass keeps the cache in its __dict__, and the sample arrays are read-only so that a caller
         # that writes into one fails instead of changing what the next caller reads
@@ -112,12 +113,9 @@ class Campaign:
 # ----- reading -----------------------------------------------------------------------------
 def _manifest(path: Path) -> dict:
     toml = path / "campaign.toml"
-    if not toml.is_file():
+    if not toml.exists() and not toml.is_symlink():
         raise DataError("campaign.toml not found", source=str(toml))
-    try:
-        return tomllib.loads(toml.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise DataError(f"not valid TOML: {exc}", source=str(toml)) from None
+    return load_toml(inside(path, "campaign.toml", str(toml)))
 
 
 def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
@@ -136,19 +134,19 @@ def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
             raise DataError("a [[maneuver]] entry must be a table", source=where)
         unknown = [k for k in e if k not in MANEUVER_KEYS]
         if unknown:
-            raise DataError(f"unknown key {unknown[0]!r}{_close_match(unknown[0], MANEUVER_KEYS)}", source=where,
+            raise DataError(f"unknown key {shown(unknown[0])}{_close_match(unknown[0], MANEUVER_KEYS)}", source=where,
                             column=unknown[0])
         for key in ("id", "file", "kind", "split"):
             if not isinstance(e.get(key), str) or not e[key]:
-                raise DataError(f"missing or empty {key!r}", source=where, column=key)
+                raise DataError(f"missing or empty {shown(key)}", source=where, column=key)
         if e["id"] in seen:
-            raise DataError(f"maneuver id {e['id']!r} appears twice", source=where, column="id")
+            raise DataError(f"maneuver id {shown(e['id'])} appears twice", source=where, column="id")
         seen.add(e["id"])
         if e["kind"] not in KINDS:
-            raise DataError(f"unknown kind {e['kind']!r}; expected one of {', '.join(KINDS)}",
+            raise DataError(f"unknown kind {shown(e['kind'])}; expected one of {', '.join(KINDS)}",
                             source=where, column="kind")
         if e["split"] not in SPLITS:
-            raise DataError(f"unknown split {e['split']!r}; expected one of {', '.join(SPLITS)}",
+            raise DataError(f"unknown split {shown(e['split'])}; expected one of {', '.join(SPLITS)}",
                             source=where, column="split")
         periodic, frequency = _periodic(e, where)
         maneuvers.append(Maneuver(e["id"], e["file"], e["kind"], e["split"], _flight(e, where), "", periodic,
@@ -185,7 +183,7 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     doc = _manifest(directory)
     found = doc.get("format", "standard")
     if found not in FORMATS:
-        raise DataError(f"unknown format {found!r}; expected one of {', '.join(FORMATS)}", source=toml,
+        raise DataError(f"unknown format {shown(found)}; expected one of {', '.join(FORMATS)}", source=toml,
                         column="format")
     if found != fmt:
         hint = (" (recorded channels: turn them into coefficients with `structsearch preprocess --raw DIR "
@@ -196,12 +194,12 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     extra = {k: v for k, v in doc.items() if k not in RESERVED_KEYS and not isinstance(v, (dict, list))}
     required, angles = (RAW_REQUIRED, RAW_ANGLES) if fmt == "raw" else (REQUIRED, ANGLES)
     if segment is not None and segment not in records.SEGMENT_CHOICES:
-        raise DataError(f"segment must be one of {', '.join(records.SEGMENT_CHOICES)}, not {segment!r}")
+        raise DataError(f"segment must be one of {', '.join(records.SEGMENT_CHOICES)}, not {shown(segment)}")
     rules = records.LengthRules.parse(doc.get("min_convective_times"), KINDS, toml)
     sample_rate = _sample_rate(doc, toml)
     segments, pieces, steps = [], [], []
     for i, m in enumerate(maneuvers):
-        path = directory / m.file
+        path = inside(directory, m.file, f"{toml} [[maneuver]] #{i + 1}", "file")
         columns = records.with_cycle_time(_read_table(path), m.id, m.frequency, str(path))
         validate_maneuver(columns, path, required, angles, cbar=aircraft["cbar"], rule=rules.for_kind(m.kind),
                           sample_rate=sample_rate, v_range=aircraft.get("V_range"))
@@ -214,7 +212,7 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     ids = [m.id for m in pieces]
     if len(set(ids)) != len(ids):
         twice = next(x for x in ids if ids.count(x) > 1)
-        raise DataError(f"maneuver id {twice!r} appears twice once the records are cut into cycles", source=toml,
+        raise DataError(f"maneuver id {shown(twice)} appears twice once the records are cut into cycles", source=toml,
                         column="id")
     maneuvers = pieces
     if segment == "none":
@@ -283,7 +281,7 @@ def _join_written_cycles(maneuvers: list, segments: list, toml: str) -> tuple[li
             dt = float(np.median(np.diff(a["t"]))) if len(a["t"]) > 1 else float("nan")
             gap = float(b["t"][0] - a["t"][-1])
             if not (np.isfinite(dt) and 0.5 * dt < gap < 1.5 * dt):
-                raise DataError(f"--segment none: the cycles of record {m.record!r} do not follow one another in "
+                raise DataError(f"--segment none: the cycles of record {shown(m.record)} do not follow one another in "
                                 f"time ({name} starts {gap:.4g} s after the cycle before it, the sample time is "
                                 f"{dt:.4g} s): they cannot be joined into one record", source=toml, column="record")
         keys = set.intersection(*(set(p) for p in parts))
@@ -302,7 +300,7 @@ def _pieces(m: Maneuver, columns: dict, path: Path, entry: dict, segment: str | 
     lines = columns.pop(LINE_KEY, None)
     if "record" in entry:   # a cycle written by write_campaign names the record it was cut from
         if not isinstance(entry["record"], str) or not entry["record"]:
-            raise DataError(f"record must be a non-empty string, not {entry['record']!r}", source=where,
+            raise DataError(f"record must be a non-empty string, not {shown(entry['record'])}", source=where,
                             column="record")
         m = replace(m, record=entry["record"])
     asked = records.segment_request(entry, where)
@@ -332,7 +330,7 @@ def _toml_value(v) -> str:
 def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") -> Path:
     """Write a campaign atomically: everything goes to a temporary directory that replaces the target."""
     if fmt not in ("csv", "parquet"):
-        raise DataError(f"unknown campaign file format {fmt!r} (csv or parquet)")
+        raise DataError(f"unknown campaign file format {shown(fmt)} (csv or parquet)")
     import pandas as pd
     directory = Path(directory).resolve()   # a symbolic link: replace what it points to
     if directory.parent == directory:
@@ -342,7 +340,9 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
         raise DataError("refusing to replace it: it exists and is not a campaign directory (no campaign.toml)",
                         source=str(directory))
     directory.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=directory.parent))
+    # named after this process: a run killed (-9) while writing leaves it, and the next writer removes it
+    remove_orphans(directory.parent, f".{directory.name}.")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.{os.getpid()}-", dir=directory.parent))
     os.chmod(tmp, 0o777 & ~umask())
     try:
         lines = [f"name = {_toml_value(campaign.name)}", "", "[aircraft]"]
@@ -406,7 +406,7 @@ def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[
                   ) -> Campaign:
     clash = [k for k in (extra or {}) if k in RESERVED_KEYS and not (k == "format" and extra[k] == "raw")]
     if clash:
-        raise DataError(f"campaign key {clash[0]!r} is reserved in campaign.toml ({', '.join(RESERVED_KEYS)})")
+        raise DataError(f"campaign key {shown(clash[0])} is reserved in campaign.toml ({', '.join(RESERVED_KEYS)})")
     data = from_segments(list(segments), names=[m.id for m in maneuvers], source=name,
                          constants=scalar_constants(aircraft),
                          derive_alpha_dot=(extra or {}).get("format") != "raw",  # raw: recorded channels only

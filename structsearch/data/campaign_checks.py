@@ -17,6 +17,7 @@ from . import records
 from .moment_transfer import REFERENCE_KEY, check_reference_point
 from .tables import LINE_KEY
 from . import units
+from .reading import shown
 
 REQUIRED = ("t", "alpha", "q", "V", "de")
 ANGLES = ("alpha", "de", "theta")
@@ -43,7 +44,7 @@ MANEUVER_KEYS = ("id", "file", "kind", "split", "flight", "record", "segment", "
 
 def _close_match(key: str, known) -> str:
     close = difflib.get_close_matches(key, list(known), n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else f" (known: {', '.join(known)})"
+    return f" (did you mean {shown(close[0])}?)" if close else f" (known: {', '.join(known)})"
 
 
 def _check_top_level(doc: dict, toml: str) -> None:
@@ -55,8 +56,8 @@ def _check_top_level(doc: dict, toml: str) -> None:
             continue
         close = difflib.get_close_matches(key, RESERVED_KEYS, n=1, cutoff=0.75)
         if isinstance(value, (dict, list)) or close:
-            hint = f" (did you mean {close[0]!r}?)" if close else f" (tables: {', '.join(RESERVED_KEYS[2:])})"
-            raise DataError(f"unknown key {key!r}{hint}", source=toml, column=key)
+            hint = f" (did you mean {shown(close[0])}?)" if close else f" (tables: {', '.join(RESERVED_KEYS[2:])})"
+            raise DataError(f"unknown key {shown(key)}{hint}", source=toml, column=key)
 
 
 def _flight(entry: dict, where: str) -> str | None:
@@ -66,8 +67,8 @@ def _flight(entry: dict, where: str) -> str | None:
     value = entry["flight"]
     if not isinstance(value, str) or not value.strip() or not value.isprintable():
         hint = f' (quote it: flight = "{value}")' if _number(value) else ""
-        raise DataError(f"maneuver {entry['id']!r}: flight must be a non-empty string of printable characters "
-                        f"naming the flight it was flown on, not {value!r}{hint}", source=where, column="flight")
+        raise DataError(f"maneuver {shown(entry['id'])}: flight must be a non-empty string of printable characters "
+                        f"naming the flight it was flown on, not {shown(value)}{hint}", source=where, column="flight")
     return value
 
 
@@ -76,16 +77,16 @@ def _periodic(entry: dict, where: str) -> tuple[bool, float | None]:
     maneuver periodic, so ``periodic = false`` beside it is a contradiction)."""
     periodic = entry.get("periodic")
     if periodic is not None and not isinstance(periodic, bool):
-        raise DataError(f"maneuver {entry['id']!r}: periodic must be true or false, not {periodic!r}", source=where,
+        raise DataError(f"maneuver {shown(entry['id'])}: periodic must be true or false, not {shown(periodic)}", source=where,
                         column="periodic")
     if "frequency" not in entry:
         return bool(periodic), None
     frequency = entry["frequency"]
     if not (_number(frequency) and frequency > 0):
-        raise DataError(f"maneuver {entry['id']!r}: frequency must be a positive finite number of cycles per "
-                        f"second (Hz), not {frequency!r}", source=where, column="frequency")
+        raise DataError(f"maneuver {shown(entry['id'])}: frequency must be a positive finite number of cycles per "
+                        f"second (Hz), not {shown(frequency)}", source=where, column="frequency")
     if periodic is False:
-        raise DataError(f"maneuver {entry['id']!r}: a frequency makes the maneuver periodic; remove periodic = false "
+        raise DataError(f"maneuver {shown(entry['id'])}: a frequency makes the maneuver periodic; remove periodic = false "
                         "or the frequency", source=where, column="frequency")
     return True, float(frequency)
 
@@ -110,24 +111,24 @@ def _parse_aircraft(aircraft: dict, toml: str) -> dict:
     known = AIRCRAFT_KEYS + OPTIONAL_POSITIVE + OPTIONAL_SIGNED + tuple(OPTIONAL_VECTORS) + (REFERENCE_KEY,)
     for key, value in aircraft.items():
         if key not in known:
-            raise DataError(f"[aircraft] has an unknown key {key!r}; known keys: {', '.join(known)}",
+            raise DataError(f"[aircraft] has an unknown key {shown(key)}; known keys: {', '.join(known)}",
                             source=toml, column=key)
         if key in OPTIONAL_POSITIVE and not (_number(value) and value > 0):
-            raise DataError(f"[aircraft] {key} must be a positive finite number, not {value!r}", source=toml,
+            raise DataError(f"[aircraft] {key} must be a positive finite number, not {shown(value)}", source=toml,
                             column=key)
         if key in OPTIONAL_SIGNED and not _number(value):
-            raise DataError(f"[aircraft] {key} must be a finite number, not {value!r}", source=toml, column=key)
+            raise DataError(f"[aircraft] {key} must be a finite number, not {shown(value)}", source=toml, column=key)
         if key in OPTIONAL_VECTORS:
             n = OPTIONAL_VECTORS[key]
             if not (isinstance(value, list) and len(value) == n and all(_number(v) for v in value)):
-                raise DataError(f"[aircraft] {key} must be a list of {n} finite numbers, not {value!r}",
+                raise DataError(f"[aircraft] {key} must be a list of {n} finite numbers, not {shown(value)}",
                                 source=toml, column=key)
             if key == "x_cg_range" and not value[0] < value[1]:
-                raise DataError(f"[aircraft] x_cg_range must be [forward, aft] with forward < aft, not {value!r}",
+                raise DataError(f"[aircraft] x_cg_range must be [forward, aft] with forward < aft, not {shown(value)}",
                                 source=toml, column=key)
             if key == "V_range" and not 0 < value[0] < value[1]:
                 raise DataError(f"[aircraft] V_range must be [slowest, fastest] airspeed in m/s with 0 < slowest < "
-                                f"fastest, not {value!r}", source=toml, column=key)
+                                f"fastest, not {shown(value)}", source=toml, column=key)
             out[key] = tuple(float(v) for v in value)
         elif key not in AIRCRAFT_KEYS and key != REFERENCE_KEY:
             out[key] = float(value)
@@ -139,6 +140,10 @@ def _parse_aircraft(aircraft: dict, toml: str) -> dict:
 def _row_message(columns: Mapping[str, np.ndarray], row: int) -> str:
     lines = columns.get(LINE_KEY)
     return f" (line {int(lines[row])})" if lines is not None and row < len(lines) else ""
+
+
+# No measured quantity in any unit comes near it; a fit squares and sums the values, which must stay finite.
+MAX_MAGNITUDE = 1e15
 
 
 def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=REQUIRED, angles=ANGLES, *,
@@ -155,8 +160,8 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
         if col not in columns:
             close = [c for c in names if c.lower() == col.lower()]
             spaced = [c for c in names if c.strip() == col]
-            hint = (f" (found {close[0]!r}: column names are case-sensitive)" if close else
-                    f" (found {spaced[0]!r}: remove the spaces around the column name)" if spaced else
+            hint = (f" (found {shown(close[0])}: column names are case-sensitive)" if close else
+                    f" (found {shown(spaced[0])}: remove the spaces around the column name)" if spaced else
                     " (a phase-averaged cycle without time stamps: give its frequency in Hz in its [[maneuver]] "
                     "entry)" if col == "t" else "")
             raise DataError(f"required column is missing{hint}", source=source, column=col)
@@ -170,6 +175,11 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
         if bad.size:
             raise DataError("value is NaN or infinite" + _row_message(columns, int(bad[0])), source=source,
                             column=col, row=int(bad[0]))
+        huge = np.flatnonzero(np.abs(values) > MAX_MAGNITUDE)
+        if huge.size:
+            raise DataError(f"value {values[huge[0]]:g} is an absurd magnitude (above {MAX_MAGNITUDE:g}): its squares "
+                            "would overflow a fit" + _row_message(columns, int(huge[0])), source=source, column=col,
+                            row=int(huge[0]))
     t = columns["t"]
     step = np.diff(t)
     bad = np.flatnonzero(step <= 0)
@@ -219,6 +229,6 @@ def _parse_cutoffs(table, toml: str) -> dict[str, float]:
         raise DataError("[cutoffs] must be a table of channel = frequency in Hz", source=toml, column="cutoffs")
     for key, value in table.items():
         if not (_number(value) and value > 0):
-            raise DataError(f"[cutoffs] {key} must be a positive frequency in Hz, not {value!r}", source=toml,
+            raise DataError(f"[cutoffs] {key} must be a positive frequency in Hz, not {shown(value)}", source=toml,
                             column=key)
     return {k: float(v) for k, v in table.items()}

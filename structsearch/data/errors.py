@@ -26,8 +26,8 @@ class DataError(StructSearchError):
         where = []
         if source is not None:
             where.append(f"file {source}")
-        if column is not None:
-            where.append(f"column {column!r}")
+        if column is not None:   # a column's name may come from a file: at most 80 characters of it
+            where.append(f"column {column[:80]!r}" if isinstance(column, str) else f"column {column!r}")
         if row is not None:
             where.append(f"row {row}")
         prefix = (", ".join(where) + ": ") if where else ""

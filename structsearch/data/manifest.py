@@ -8,12 +8,12 @@ whose content is not the one its run recorded, is named, never read as if it bel
 from __future__ import annotations
 
 import hashlib
-import json
 from pathlib import Path
 from typing import Iterable
 
 from .atomic import write_json
 from .errors import DataError
+from .reading import MAX_TABLE_BYTES, load_json, open_regular
 
 
 def manifest_path(out: Path, name: str) -> Path:
@@ -44,9 +44,13 @@ def listed_files(out: Path, name: str) -> set[str] | None:
 
 def _read(path: Path, name: str) -> tuple[bool, dict]:
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-        return bool(doc["complete"]), dict(doc["files"])
-    except (OSError, ValueError, KeyError, TypeError):
+        doc = load_json(path)
+        complete, files = doc["complete"], doc["files"]
+        if not isinstance(complete, bool) or not isinstance(files, dict) or not all(
+                isinstance(v, str) for v in files.values()):
+            raise TypeError
+        return complete, dict(files)
+    except (ValueError, KeyError, TypeError):   # a DataError of the reader is a ValueError too
         raise DataError(f"the {name} manifest is unreadable: run the {name} again", source=str(path)) from None
 
 
@@ -68,7 +72,7 @@ def check_set(out: Path, name: str, file: str) -> None:
 
 def _sha256(path: Path) -> str:
     h = hashlib.sha256()
-    with path.open("rb") as f:
+    with open_regular(path, MAX_TABLE_BYTES) as f:   # a FIFO put in a file's place is refused, never waited on
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()

@@ -19,6 +19,7 @@ from typing import Mapping
 import numpy as np
 
 from .errors import DataError
+from .reading import shown
 
 REFERENCE_KEY = "reference_point"
 TRANSFER_NAME = "Cm_transfer"
@@ -35,7 +36,7 @@ def check_reference_point(value, aircraft: Mapping[str, object], source: str | N
     envelope when the manifest gives one (else within :data:`MAX_STATION_M` of the datum)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(float(value)):
         raise DataError(f"[aircraft] {REFERENCE_KEY} must be a finite number (a body x station in m, the x_cg "
-                        f"column's datum), not {value!r}", source=source, column=REFERENCE_KEY)
+                        f"column's datum), not {shown(value)}", source=source, column=REFERENCE_KEY)
     x = float(value)
     envelope = aircraft.get("x_cg_range")
     if envelope is not None:

@@ -42,6 +42,7 @@ import numpy as np
 from .errors import DataError
 from .flightdata import TIME, check_period
 from .tables import LINE_KEY
+from .reading import shown
 
 # the rule (module docstring): at least this many convective times cbar/V and this many samples per maneuver
 MIN_CONVECTIVE_TIMES = 30.0
@@ -113,14 +114,14 @@ class LengthRules:
         if _count(value):
             return cls(float(value))
         if not isinstance(value, dict):
-            raise DataError(f"min_convective_times must be a number >= 0 or a table of them by kind, not {value!r}",
+            raise DataError(f"min_convective_times must be a number >= 0 or a table of them by kind, not {shown(value)}",
                             source=source, column="min_convective_times")
         for key, v in value.items():
             if key != "default" and key not in kinds:
-                raise DataError(f"[min_convective_times] has an unknown kind {key!r}; keys: default, "
+                raise DataError(f"[min_convective_times] has an unknown kind {shown(key)}; keys: default, "
                                 f"{', '.join(kinds)}", source=source, column=key)
             if not _count(v):
-                raise DataError(f"[min_convective_times] {key} must be a number >= 0, not {v!r}", source=source,
+                raise DataError(f"[min_convective_times] {key} must be a number >= 0, not {shown(v)}", source=source,
                                 column=key)
         return cls(float(value.get("default", MIN_CONVECTIVE_TIMES)),
                    {k: float(v) for k, v in value.items() if k != "default"})
@@ -139,7 +140,7 @@ def segment_request(entry: Mapping, source: str) -> str | None:
     """A [[maneuver]] entry's ``segment`` key ("cycles" or "none"; None when absent)."""
     value = entry.get("segment")
     if value is not None and value not in SEGMENT_CHOICES:
-        raise DataError(f"segment must be one of {', '.join(SEGMENT_CHOICES)}, not {value!r}", source=source,
+        raise DataError(f"segment must be one of {', '.join(SEGMENT_CHOICES)}, not {shown(value)}", source=source,
                         column="segment")
     return value
 
@@ -161,7 +162,7 @@ def with_cycle_time(columns: dict[str, np.ndarray], maneuver: str, frequency: fl
         return columns
     n = len(next((v for k, v in columns.items() if k != LINE_KEY), ()))
     if n == 0:
-        raise DataError(f"maneuver {maneuver!r}: the file has no samples", source=source)
+        raise DataError(f"maneuver {shown(maneuver)}: the file has no samples", source=source)
     return {TIME: np.arange(n, dtype=float) / (n * frequency), **columns}
 
 
@@ -174,7 +175,7 @@ def period(periodic: bool, frequency: float | None, t: np.ndarray, source: str, 
         return None
     t = np.asarray(t, float)
     value = 1.0 / frequency if frequency is not None else float(t[-1] - t[0] + np.median(np.diff(t)))
-    check_period(t, value, f"{source} (maneuver {maneuver!r})", "frequency" if frequency is not None else TIME)
+    check_period(t, value, f"{source} (maneuver {shown(maneuver)})", "frequency" if frequency is not None else TIME)
     return value
 
 
@@ -249,7 +250,7 @@ def cycles_from_alpha(t: np.ndarray, alpha: np.ndarray, source: str, record: str
     spacings = np.concatenate([np.diff(t[rows]) for rows in (minima, mean_crossings(alpha, True),
                                                                  mean_crossings(alpha, False))])
     if len(pieces) < 2 or not spacings.size:
-        raise DataError(f"record {record!r}: alpha does not fall through its mean to a minimum and rise again twice, "
+        raise DataError(f"record {shown(record)}: alpha does not fall through its mean to a minimum and rise again twice, "
                         "so it has no cycles to cut (name them with a `cycle` column, or do not segment this record)",
                         source=source, column="alpha")
     step = float(np.median(np.diff(t)))
@@ -258,7 +259,7 @@ def cycles_from_alpha(t: np.ndarray, alpha: np.ndarray, source: str, record: str
     irregular = max(spacings) > PERIOD_TOLERANCE * period or min(spacings) < period / PERIOD_TOLERANCE
     likeness = _lagged_correlation(alpha, int(round(period / step)))
     if irregular or not likeness >= PERIODIC_CORRELATION:
-        raise DataError(f"record {record!r}: alpha does not look periodic (its minima cut it into pieces of "
+        raise DataError(f"record {shown(record)}: alpha does not look periodic (its minima cut it into pieces of "
                         f"{', '.join(f'{d:.3g}' for d in durations)} s; alpha correlates {likeness:.2f} with itself "
                         f"one period, {period:.3g} s, later); name the cycles with a `cycle` column, or do not "
                         "segment this record", source=source, column="alpha", row=pieces[1][0])
@@ -268,7 +269,7 @@ def cycles_from_alpha(t: np.ndarray, alpha: np.ndarray, source: str, record: str
     if len(pieces) > 1 and durations[-1] < FRAGMENT_SHARE * period:
         pieces[-2:] = [(pieces[-2][0], pieces[-1][1])]
     if len(pieces) < 2:
-        raise DataError(f"record {record!r}: alpha completes fewer than two cycles in {float(t[-1] - t[0]):.3g} s, "
+        raise DataError(f"record {shown(record)}: alpha completes fewer than two cycles in {float(t[-1] - t[0]):.3g} s, "
                         "so there is nothing to cut", source=source, column="alpha")
     return Cycles(tuple(Cycle(i + 1, a, b) for i, (a, b) in enumerate(pieces)), "alpha")
 
@@ -288,7 +289,7 @@ def cycles_from_column(labels: np.ndarray, source: str, record: str) -> Cycles:
     labels = np.asarray(labels, float)
     broken = np.flatnonzero(labels != np.round(labels))
     if broken.size:
-        raise DataError(f"record {record!r}: cycle {labels[broken[0]]:g} is not a whole number", source=source,
+        raise DataError(f"record {shown(record)}: cycle {labels[broken[0]]:g} is not a whole number", source=source,
                         column=CYCLE_COLUMN, row=int(broken[0]))
     starts = np.concatenate([[0], np.flatnonzero(np.diff(labels) != 0) + 1]).astype(int)
     stops = np.append(starts[1:], len(labels))
@@ -297,7 +298,7 @@ def cycles_from_column(labels: np.ndarray, source: str, record: str) -> Cycles:
     for a, b in zip(starts, stops):
         label = int(labels[a])
         if label in seen:
-            raise DataError(f"record {record!r}: cycle {label} appears again after other cycles (first at row "
+            raise DataError(f"record {shown(record)}: cycle {label} appears again after other cycles (first at row "
                             f"{seen[label]}); each cycle must be one run of rows", source=source,
                             column=CYCLE_COLUMN, row=int(a))
         seen[label] = int(a)
@@ -320,7 +321,7 @@ def cut_record(columns: Mapping[str, np.ndarray], record: str, source: str, rule
         why = rule.problem(columns["t"][rows], columns["V"][rows], cbar)
         if why is not None:
             where = line_of(c.start) if line_of is not None else ""
-            raise DataError(f"cycle c{c.label} of record {record!r} (rows {c.start}-{c.stop - 1}{where}, found by "
+            raise DataError(f"cycle c{c.label} of record {shown(record)} (rows {c.start}-{c.stop - 1}{where}, found by "
                             f"{'its cycle column' if found.found_by == 'column' else 'alpha'}) is too short to fit "
                             f"separation dynamics: {why}", source=source, column="t", row=c.start)
         out.append((f"{record}.c{c.label}", {k: v[rows] for k, v in columns.items() if k != CYCLE_COLUMN}))

@@ -5,31 +5,38 @@ A CSV file's data rows carry their file lines (:class:`CsvLines`) for the error 
 from __future__ import annotations
 
 import functools
+import io
 from pathlib import Path
 
 import numpy as np
 
-from .errors import DataError
+from .errors import DataError, StructSearchError
+from .reading import MAX_TABLE_BYTES, excerpt, open_regular, read_bytes, regular_file
 
 
 def read_table(path: Path) -> dict[str, np.ndarray]:
     """The columns of one maneuver file by name (a CSV file's also its rows' file lines under LINE_KEY)."""
     suffix = path.suffix.lower()
-    if not path.is_file():
+    if not path.exists():
         raise DataError("maneuver file not found", source=str(path))
+    regular_file(path, MAX_TABLE_BYTES)   # a FIFO, a device or a huge (sparse) file is refused before it is opened
     import pandas as pd
     if suffix == ".csv":
         header = csv_header(path)
-        try:
-            frame = pd.read_csv(path)
+        try:   # read through a reader that stops at the size bound and at a NUL byte, wherever they come
+            with io.BufferedReader(open_regular(path, MAX_TABLE_BYTES, no_nul=True)) as raw:
+                frame = pd.read_csv(raw)
         except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as exc:
-            raise DataError(f"cannot read CSV: {' '.join(str(exc).split())}", source=str(path)) from None
+            if isinstance(exc, StructSearchError):
+                raise
+            raise DataError(f"cannot read CSV: {excerpt(' '.join(str(exc).split()), 200)}", source=str(path)) from None
         frame.columns = header if len(header) == len(frame.columns) else frame.columns
     elif suffix == ".parquet":
         try:
             frame = pd.read_parquet(path)
         except (ValueError, OSError) as exc:  # pyarrow's ArrowInvalid is a ValueError
-            raise DataError(f"cannot read Parquet: {' '.join(str(exc).split())}", source=str(path)) from None
+            raise DataError(f"cannot read Parquet: {excerpt(' '.join(str(exc).split()), 200)}",
+                            source=str(path)) from None
         except ImportError:
             raise DataError("reading Parquet needs the optional dependency pyarrow "
                             "(pip install 'structsearch[parquet]')", source=str(path)) from None
@@ -49,7 +56,7 @@ def read_table(path: Path) -> dict[str, np.ndarray]:
             bad = np.flatnonzero(numeric.isna() & values.notna())
             if bad.size:
                 where = f" (line {int(lines[bad[0]])})" if lines is not None and len(lines) else ""
-                raise DataError(f"value {values.iloc[bad[0]]!r} is not a number{where}", source=str(path),
+                raise DataError(f"value {excerpt(values.iloc[bad[0]])} is not a number{where}", source=str(path),
                                 column=str(col), row=int(bad[0]))
             values = numeric
         out[str(col)] = values.to_numpy(dtype=float)
@@ -66,7 +73,7 @@ def csv_header(path: Path) -> list[str]:
     """The column names of a CSV file's first line, after checking from its first kilobytes that it is text
     (no NUL byte, UTF-8) whose first line is a header of distinct names, not numbers: a binary or huge file is
     refused before it is read whole."""
-    with path.open("rb") as f:
+    with open_regular(path, MAX_TABLE_BYTES) as f:
         head = f.read(SNIFF_BYTES)
     if b"\0" in head:
         raise DataError("cannot read CSV: not a text file (it holds NUL bytes): a maneuver file is CSV text", source=str(path))
@@ -134,7 +141,7 @@ def _csv_lines(path: Path, n_rows: int) -> np.ndarray | None:
     """1-based file line of each data row: the non-blank lines after the header; None (no line numbers
     rather than wrong ones) when they do not match the rows pandas read one to one (quoted newlines,
     form feeds, lone carriage returns)."""
-    raw_lines = path.read_bytes().split(b"\n")
+    raw_lines = read_bytes(path, MAX_TABLE_BYTES).split(b"\n")
     if any(b"\r" in raw.rstrip(b"\r") or b'"' in raw for raw in raw_lines):
         return None
     filled = [i + 1 for i, raw in enumerate(raw_lines) if raw.strip(b" \t\r")]
@@ -147,10 +154,11 @@ def read_mat(path: Path | str) -> dict[str, np.ndarray]:
     """Columns of a MATLAB maneuver file: top-level variables, or the fields of its only struct."""
     from scipy.io import loadmat
     path = Path(path)
+    regular_file(path, MAX_TABLE_BYTES)
     try:
         raw = loadmat(path, squeeze_me=True, struct_as_record=False)
     except (ValueError, OSError, NotImplementedError) as exc:
-        raise DataError(f"cannot read MATLAB file: {exc}", source=str(path)) from None
+        raise DataError(f"cannot read MATLAB file: {excerpt(exc, 200)}", source=str(path)) from None
     variables = {k: v for k, v in raw.items() if not k.startswith("__")}
     if len(variables) == 1:
         (only,) = variables.values()

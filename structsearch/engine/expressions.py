@@ -44,7 +44,7 @@ _TOKEN = re.compile(r"""
   | (?P<number>(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?)
   | (?P<name>[A-Za-z_][A-Za-z0-9_]*)
   | (?P<op>\*\*|[-+*/(),])
-""", re.VERBOSE)
+""", re.VERBOSE | re.ASCII)   # ASCII: \d would take any script's digits (300 Arabic-Indic ones pass a digit count)
 
 
 class ExpressionError(DeclarationError):

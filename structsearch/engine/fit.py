@@ -28,16 +28,24 @@ def check_observed(y: np.ndarray, boundaries: np.ndarray, names, source: str, co
     return y
 
 
+# Beyond it a regressor's squares and their sums over a campaign overflow, or come close (``exp(1000*alpha)``): no
+# physical regressor of a coefficient does, and a fit of such a column is a fit of overflowed numbers.
+MAX_REGRESSOR = 1e100
+
+
 def _check_regressors(problem: SeparableProblem, phi: np.ndarray, boundaries: np.ndarray, segment_names,
                       source: str, at_start: bool) -> None:
-    """Raise a DataError naming the first regressor value that is NaN or infinite (``at_start``: evaluated at the
-    start of the nonlinear parameters)."""
-    bad = np.argwhere(~np.isfinite(phi))
+    """Raise a DataError naming the first regressor value that is NaN, infinite or beyond MAX_REGRESSOR
+    (``at_start``: evaluated at the start of the nonlinear parameters)."""
+    bad = np.argwhere(~(np.abs(phi) <= MAX_REGRESSOR))   # NaN fails the comparison too
     if bad.size:
         seg = int(np.searchsorted(boundaries, bad[0][0], side="right") - 1)
         inputs = (problem.regressor_inputs(int(bad[0][1]), int(bad[0][0]))
                   if hasattr(problem, "regressor_inputs") else "")
-        raise DataError(f"regressor {problem.linear_names[bad[0][1]]!r} is NaN or infinite"
+        value = phi[bad[0][0], bad[0][1]]
+        what = ("NaN or infinite" if not np.isfinite(value) else
+                f"{value:.3g}, beyond {MAX_REGRESSOR:g} (an overflow: its squares would overflow the fit)")
+        raise DataError(f"regressor {problem.linear_names[bad[0][1]]!r} is {what}"
                         f"{' at the start' if at_start else ''} (maneuver {segment_names[seg]!r}"
                         f"{'; inputs ' + inputs if inputs else ''})", source=source,
                         row=int(bad[0][0] - boundaries[seg]))

@@ -18,11 +18,12 @@ from __future__ import annotations
 import csv
 import io
 import dataclasses
-import json
 import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
+
+from ..data.reading import inside, parse_json, read_text
 
 # Fields that describe how a run went, not what it found: they differ between machines by design.
 RUN_FIELDS = frozenset({"seconds", "wall_seconds", "elapsed", "nfev", "evaluations", "njev", "message",
@@ -142,7 +143,7 @@ def _text(root: Path, name: str) -> str:
     a run writes into its own output (a discovered structure's spec file) names where it ran (relative to the
     working directory of the run, or absolute), not what it found, and the directory may be named here either
     way."""
-    text = (root / name).read_text(encoding="utf-8")
+    text = read_text(inside(root, name, str(root)))   # regular, bounded, UTF-8, and inside the directory
     text = text.replace(str(root.resolve()), OUTPUT_DIRECTORY)
     if not root.is_absolute() and str(root) != ".":
         text = text.replace(str(root) + "/", OUTPUT_DIRECTORY + "/")
@@ -207,7 +208,7 @@ def _as_float(text: str) -> float | None:
 
 def _compare_json(name: str, a: str, b: str, tol: Tolerances) -> list[Difference]:
     out: list[Difference] = []
-    _walk(name, "", json.loads(a), json.loads(b), 0.0, tol, out)
+    _walk(name, "", parse_json(a, name), parse_json(b, name), 0.0, tol, out)   # nesting bounded: _walk recurses
     return out
 
 

@@ -12,7 +12,9 @@ from ..data.errors import DeclarationError
 from ..engine.regressors import parse
 from ..engine.separation import SeparationState
 from ..engine.static_forms import check_form
+from .spec_types import ENTRY_TYPES, GRID_TYPES, check_types
 from .candidates import MOMENT_REFERENCES, Candidate, Grid, from_roman, roman
+from ..data.reading import shown
 
 
 def _blocks(doc: dict, names: Sequence[str], where: str) -> list[tuple[str, str]]:
@@ -20,10 +22,10 @@ def _blocks(doc: dict, names: Sequence[str], where: str) -> list[tuple[str, str]
     out: list[tuple[str, str]] = []
     for b in names:
         if b not in table:
-            raise DeclarationError(f"{where}: unknown block {b!r} (blocks: {', '.join(table)})")
+            raise DeclarationError(f"{where}: unknown block {shown(b)} (blocks: {', '.join(table)})")
         for reg, expr in table[b].items():
             if any(reg == r for r, _ in out):
-                raise DeclarationError(f"{where}: regressor {reg!r} appears twice")
+                raise DeclarationError(f"{where}: regressor {shown(reg)} appears twice")
             out.append((reg, str(expr)))
     return out
 
@@ -39,8 +41,8 @@ def check_keys(table: dict, known: Sequence[str], where: str) -> None:
     unknown = [k for k in table if k not in known]
     if unknown:
         close = difflib.get_close_matches(unknown[0], known, n=1, cutoff=0.6)
-        hint = f" (did you mean {close[0]!r}?)" if close else f" (known: {', '.join(known)})"
-        raise DeclarationError(f"{where}: unknown key {unknown[0]!r}{hint}")
+        hint = f" (did you mean {shown(close[0])}?)" if close else f" (known: {', '.join(known)})"
+        raise DeclarationError(f"{where}: unknown key {shown(unknown[0])}{hint}")
 
 
 def _check_grid(doc: dict, source: str) -> None:
@@ -49,32 +51,35 @@ def _check_grid(doc: dict, source: str) -> None:
     check_keys(doc, GRID_KEYS, source)
     for key in ("name", "coefficient", "entry"):
         if key not in doc:
-            raise DeclarationError(f"{source}: missing {key!r}")
+            raise DeclarationError(f"{source}: missing {shown(key)}")
     if not isinstance(doc["entry"], list) or not all(isinstance(e, dict) for e in doc["entry"]):
         raise DeclarationError(f"{source}: 'entry' must be a list of [[entry]] tables")
+    check_types(doc, GRID_TYPES, source)
+    for i, entry in enumerate(doc["entry"]):
+        check_types(entry, ENTRY_TYPES, f"{source} [[entry]] #{i + 1}")
 
 
 def _check_expressions(regs, where: str) -> None:
     """Parse every regressor's expression of a candidate, refusing one that is not a string or does not parse."""
     for reg_name, text in regs:   # parsed now (a grammar, never code): an error names the file and entry
         if not isinstance(text, str):
-            raise DeclarationError(f"{where}: regressor {reg_name!r}: an expression is a quoted string, "
-                                   f"not {text!r}")
+            raise DeclarationError(f"{where}: regressor {shown(reg_name)}: an expression is a quoted string, "
+                                   f"not {shown(text)}")
         try:
             parse(text, known=())
         except DeclarationError as exc:
-            raise DeclarationError(f"{where}: regressor {reg_name!r}: {exc}") from None
+            raise DeclarationError(f"{where}: regressor {shown(reg_name)}: {exc}") from None
 
 
 def _derived(entry: dict, candidates: Sequence[Candidate], where: str) -> tuple[Candidate, list]:
     """An entry ``from`` an earlier candidate: that candidate and its regressors less the entry's ``drop``."""
     base = next((c for c in candidates if c.name == entry["from"]), None)
     if base is None:
-        raise DeclarationError(f"{where}: 'from' names {entry['from']!r}, which is not declared before it")
+        raise DeclarationError(f"{where}: 'from' names {shown(entry['from'])}, which is not declared before it")
     drop = entry.get("drop", [])
     missing = [d for d in drop if d not in dict(base.regressors)]
     if missing:
-        raise DeclarationError(f"{where}: cannot drop {missing[0]!r}: not a regressor of {base.name}")
+        raise DeclarationError(f"{where}: cannot drop {shown(missing[0])}: not a regressor of {base.name}")
     return base, [r for r in base.regressors if r[0] not in drop]
 
 
@@ -98,11 +103,14 @@ def expand(doc: dict, source: str) -> Grid:
             if number is not None:
                 counter = number
         if any(c.name == cand_name for c in candidates):
-            raise DeclarationError(f"{where}: candidate name {cand_name!r} used twice")
+            raise DeclarationError(f"{where}: candidate name {shown(cand_name)} used twice")
         if not regs:
-            raise DeclarationError(f"{where}: candidate {cand_name!r} has no regressors")
+            raise DeclarationError(f"{where}: candidate {shown(cand_name)} has no regressors")
         _check_expressions(regs, where)
-        own = {p for k, kind in states for p in _state_params(k, kind, dict(forms).get(k, "tanh"))}
+        try:
+            own = {p for k, kind in states for p in _state_params(k, kind, dict(forms).get(k, "tanh"))}
+        except DeclarationError as exc:   # an unknown kind: named with the file and entry that declare it
+            raise DeclarationError(f"{where}: {exc}") from None
         used_bounds.update(b[0] for b in bounds if b[0] in own)
         candidates.append(Candidate(cand_name, name, coefficient, tuple(regs), tuple(states), lift, note,
                                     tuple(b for b in bounds if b[0] in own), tuple(forms),
@@ -125,12 +133,12 @@ def expand(doc: dict, source: str) -> Grid:
         _with_flight_effects(candidates, first_of_entry, entry, where)
         unused = [k for k, _ in own_bounds if k not in used_bounds]
         if unused:
-            raise DeclarationError(f"{where}: bounds for {unused[0]!r}, which no candidate of this entry has as a "
+            raise DeclarationError(f"{where}: bounds for {shown(unused[0])}, which no candidate of this entry has as a "
                                    "separation parameter")
         used_bounds.update(before)
     unused = [k for k in doc.get("bounds", {}) if k not in used_bounds]
     if unused:
-        raise DeclarationError(f"{source} [bounds]: bounds for {unused[0]!r}, which no candidate of the grid has as "
+        raise DeclarationError(f"{source} [bounds]: bounds for {shown(unused[0])}, which no candidate of the grid has as "
                                "a separation parameter")
     return Grid(name, coefficient, tuple(candidates), source)
 
@@ -158,7 +166,7 @@ def _declare_entry(doc: dict, entry: dict, where: str, candidates: list[Candidat
         combos = entry["combinations"]
         if isinstance(combos, str):
             if combos not in sets:
-                raise DeclarationError(f"{where}: unknown set {combos!r}")
+                raise DeclarationError(f"{where}: unknown set {shown(combos)}")
             combos = sets[combos]
         forms = _forms(entry, [n for n, _ in states], lift, where)
         for combo in combos:
@@ -188,7 +196,7 @@ def _moment_reference(entry: dict, coefficient: str, where: str) -> str | None:
     value = entry["moment_reference"]
     if value not in MOMENT_REFERENCES:
         raise DeclarationError(f"{where}: moment_reference must be one of "
-                               f"{', '.join(repr(r) for r in MOMENT_REFERENCES)}, not {value!r}")
+                               f"{', '.join(repr(r) for r in MOMENT_REFERENCES)}, not {shown(value)}")
     if value == "fixed" and coefficient != "Cm":
         raise DeclarationError(f"{where}: moment_reference = \"fixed\" takes C_m about a fixed point; this grid "
                                f"models {coefficient}")
@@ -203,7 +211,7 @@ def _bounds(table, where: str) -> tuple[tuple[str, tuple[float, float]], ...]:
               and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
               and all(np.isfinite(v) for v in value) and value[0] < value[1])
         if not ok:
-            raise DeclarationError(f"{where}: {key!r} must be [lo, hi] with finite numbers lo < hi, not {value!r}")
+            raise DeclarationError(f"{where}: {shown(key)} must be [lo, hi] with finite numbers lo < hi, not {shown(value)}")
         out.append((key, (float(value[0]), float(value[1]))))
     return tuple(out)
 
@@ -218,19 +226,19 @@ def _forms(entry: dict, states: Sequence[str], lift, where: str) -> tuple[tuple[
     table = entry.get("x0", {})
     if not isinstance(table, dict):
         raise DeclarationError(f"{where}: x0 is a table from state to form, such as x0 = {{ ss = \"goman\" }}, "
-                               f"not {table!r}")
+                               f"not {shown(table)}")
     if table and lift:
-        raise DeclarationError(f"{where}: x0: a structure fed the lift model {lift!r} takes its states' forms from "
+        raise DeclarationError(f"{where}: x0: a structure fed the lift model {shown(lift)} takes its states' forms from "
                                "that model")
     out = []
     for state, form in table.items():
         if state not in states:
             close = difflib.get_close_matches(state, list(states), n=1, cutoff=0.5)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise DeclarationError(f"{where}: x0 names the state {state!r}, which the entry does not declare "
+            hint = f" (did you mean {shown(close[0])}?)" if close else ""
+            raise DeclarationError(f"{where}: x0 names the state {shown(state)}, which the entry does not declare "
                                    f"(its states: {', '.join(states) or 'none'}){hint}")
         try:
             out.append((state, check_form(form)))
         except DeclarationError as exc:
-            raise DeclarationError(f"{where}: x0 of state {state!r}: {exc}") from None
+            raise DeclarationError(f"{where}: x0 of state {shown(state)}: {exc}") from None
     return tuple(out)

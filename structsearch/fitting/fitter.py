@@ -6,6 +6,7 @@ everywhere it fits (and one cache serves them)."""
 from __future__ import annotations
 
 import dataclasses
+import os
 import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -145,5 +146,5 @@ class Fitter:
 def temporary_fitter(campaign: Campaign, options: FitOptions = FitOptions(), **config) -> Iterator[Fitter]:
     """A fitter whose cache is a temporary directory, removed afterwards (a run that keeps nothing: a benchmark,
     a test); ``config``: the other fields of :class:`RunConfig`."""
-    with tempfile.TemporaryDirectory(prefix="structsearch-") as tmp:
+    with tempfile.TemporaryDirectory(prefix=f"structsearch-{os.getpid()}-") as tmp:
         yield Fitter(RunConfig(campaign, Path(tmp), options, **config))

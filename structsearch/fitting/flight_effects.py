@@ -43,6 +43,7 @@ from ..data.errors import DataError, DeclarationError
 from ..data.flightdata import FlightData
 from ..data.moment_transfer import TRANSFER_NAME
 from ..engine.regressors import declare, symbol_names
+from ..data.reading import shown
 
 EFFECTS = ("intercept", "x_cg")
 CG = "x_cg"
@@ -61,15 +62,15 @@ def parse_effects(value, where: str) -> tuple[str, ...]:
         return ()
     if isinstance(value, str) or not isinstance(value, (list, tuple)):
         raise DeclarationError(f"{where}: flight_effects is a list of names out of {', '.join(EFFECTS)} "
-                               f"(e.g. [\"x_cg\"]), not {value!r}")
+                               f"(e.g. [\"x_cg\"]), not {shown(value)}")
     out: list[str] = []
     for name in value:
         if not isinstance(name, str) or name not in EFFECTS:
             close = difflib.get_close_matches(str(name), EFFECTS, n=1, cutoff=0.5)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise DeclarationError(f"{where}: unknown flight effect {name!r}{hint}; known: {', '.join(EFFECTS)}")
+            hint = f" (did you mean {shown(close[0])}?)" if close else ""
+            raise DeclarationError(f"{where}: unknown flight effect {shown(name)}{hint}; known: {', '.join(EFFECTS)}")
         if name in out:
-            raise DeclarationError(f"{where}: flight effect {name!r} is named twice")
+            raise DeclarationError(f"{where}: flight effect {shown(name)} is named twice")
         out.append(name)
     return tuple(out)
 
@@ -192,8 +193,8 @@ class EffectDesign:
         """The expression the x_cg offset acts through: the cg term's regressor, or the model's known transfer."""
         if self.known:
             if model.offset is None or model.offset.name != self.cg_term:
-                raise DeclarationError(f"model {model.name!r}: the x_cg flight effect about the fixed reference point "
-                                       f"needs the known transfer {self.cg_term!r} as the model's offset")
+                raise DeclarationError(f"model {shown(model.name)}: the x_cg flight effect about the fixed reference point "
+                                       f"needs the known transfer {shown(self.cg_term)} as the model's offset")
             return model.offset.expr
         return next(r for r in model.regressors if r.name == self.cg_term).expr
 
@@ -201,7 +202,7 @@ class EffectDesign:
         """``model`` (a :class:`~structsearch.engine.stallmodel.StallModel`) with the effect regressors."""
         symbols = [s.symbol for s in model.states]
         extra = tuple(declare(name, expr, states=symbols, free_columns=True,
-                              context=f"model {model.name!r}, flight effect {name!r}")
+                              context=f"model {shown(model.name)}, flight effect {shown(name)}")
                       for name, expr in self.columns(model).items())
         return dataclasses.replace(model, regressors=model.regressors + extra)
 

@@ -9,6 +9,7 @@ from ..data.errors import DeclarationError
 from ..engine.separation import SeparationState
 from .candidates import Candidate
 from .models import used_states
+from ..data.reading import shown
 
 
 def check_joint(candidates: Sequence[Candidate]) -> tuple[Candidate | None, list[Candidate]]:
@@ -80,7 +81,7 @@ def joint_structures(spec: str) -> list[Candidate]:
         try:
             out.append(resolve_candidate(item))
         except DeclarationError as exc:
-            raise DeclarationError(f"{where}structure {item!r}: {exc}") from None
+            raise DeclarationError(f"{where}structure {shown(item)}: {exc}") from None
     try:
         check_joint(out)
     except DeclarationError as exc:

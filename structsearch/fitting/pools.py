@@ -3,10 +3,15 @@ whose workers survive between the calls of a command) or threads, or the dask cl
 opened. Every pool hands the task graph (:mod:`.task_graph`) the same futures interface."""
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
+import tempfile
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Iterator
 
+from ..data.atomic import remove_dead_runs
 from .task_graph import DaskPool, ExecutorPool, InlinePool, timed
 
 # Thread pools of numerical libraries a worker process must not multiply by the number of workers.
@@ -19,13 +24,17 @@ DASK_TASKS_PER_WORKER = 2
 _WATCHED: list[int] = []
 
 
-def watch_parent(poll_seconds: float = 1.0) -> None:
-    """In a worker process: end it when the process that started it is gone (killed with -9, it cannot stop
-    its workers; an orphan would go on fitting for minutes). Started once per process, a daemon thread."""
+def watch_parent(parent: int | None = None, poll_seconds: float = 1.0) -> None:
+    """In a worker process: end it when the process that started it (``parent``, else its parent now) is gone
+    (killed with -9, it cannot stop its workers; an orphan would go on fitting for minutes). Started once per
+    process, a daemon thread. The pool passes its pid: a worker whose parent died while the worker started up
+    has been adopted already, and must not take its new parent for the one to watch."""
     if _WATCHED:
         return
-    parent = os.getppid()
+    parent = os.getppid() if parent is None else parent
     _WATCHED.append(parent)
+    if os.getppid() != parent:
+        os._exit(70)
 
     def watch():
         import time
@@ -72,9 +81,31 @@ def task_pool(backend: str, n_jobs: int) -> Iterator[object]:
         with ThreadPoolExecutor(n_jobs) as executor:
             yield ExecutorPool(executor, n_jobs)
         return
+    yield ExecutorPool(local_executor(n_jobs), n_jobs, wrap=in_worker)
+
+
+def local_executor(n_jobs: int):
+    """joblib's reusable executor of ``n_jobs`` local worker processes: each watches its parent from its start
+    (a command killed the moment its workers exist leaves none behind), and joblib's memory-mapping folder is in a
+    folder of this run (:func:`run_folder`), not in /dev/shm where a killed run would leave it."""
     from joblib.executor import get_memmapping_executor
-    yield ExecutorPool(get_memmapping_executor(n_jobs, timeout=300, env=worker_environment(n_jobs)), n_jobs,
-                       wrap=in_worker)
+    return get_memmapping_executor(n_jobs, timeout=300, env=worker_environment(n_jobs), initializer=watch_parent,
+                                   initargs=(os.getpid(),), temp_folder=str(run_folder()))
+
+
+_RUN_FOLDER: list[Path] = []
+
+
+def run_folder() -> Path:
+    """``<tmp>/structsearch-<pid>-workers-*``: the temporary folder of this process's workers, removed at exit;
+    what runs killed with -9 left is removed first (:func:`~structsearch.data.atomic.remove_dead_runs`)."""
+    if not _RUN_FOLDER:
+        base = Path(tempfile.gettempdir())
+        remove_dead_runs(base)
+        folder = Path(tempfile.mkdtemp(prefix=f"structsearch-{os.getpid()}-workers-", dir=base))
+        _RUN_FOLDER.append(folder)
+        atexit.register(shutil.rmtree, folder, True)
+    return _RUN_FOLDER[0]
 
 
 def _ready() -> int:
@@ -88,7 +119,6 @@ def warm_workers(backend: str, n_jobs: int) -> None:
     the command reads its campaign, instead of after (the pool the command's first fit asks for is this one)."""
     if backend not in ("loky", "multiprocessing") or n_jobs <= 1:
         return
-    from joblib.executor import get_memmapping_executor
-    executor = get_memmapping_executor(n_jobs, timeout=300, env=worker_environment(n_jobs))
+    executor = local_executor(n_jobs)
     for _ in range(n_jobs):
         executor.submit(_ready)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import os
 from contextlib import ExitStack
 from functools import lru_cache
 from pathlib import Path
@@ -22,7 +23,10 @@ import numpy as np
 
 from ..data.atomic import write_json
 from ..data.campaign import Campaign
+from ..data.errors import StructSearchError
 from ..data.flightdata import FlightData
+from ..data.reading import MAX_CACHE_BYTES, load_json
+from .cache_signing import signature, signed
 from .candidate_result import JSON_LAYOUT, CandidateResult
 from .candidates import Candidate
 from .lift_fit import LiftFit
@@ -112,8 +116,12 @@ def cache_path(out: Path, c: Candidate, data_key: str, lift_params: dict | None,
                        "version": [__version__, code_fingerprint(), JSON_LAYOUT]},
                       sort_keys=True, default=float)
     key = hashlib.sha256(blob.encode()).hexdigest()
-    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in c.name)
-    return out / "cache" / c.grid / f"{safe}-{key[:16]}.json", key
+    return out / "cache" / _safe(c.grid) / f"{_safe(c.name)}-{key[:16]}.json", key
+
+
+def _safe(name: str) -> str:
+    """A name as one path component of the cache: never "..", "/" or empty (a grid's name comes from a file)."""
+    return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name)[:100] or "_"
 
 
 def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts: dict[str, LiftFit] | None = None,
@@ -191,9 +199,11 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
 
 
 # A cache entry proves itself: {"key": the full sha256 of its question, "digest": the sha256 of its content,
-# "content": the fit}. A file whose key is another question's, whose content was altered (a digest that does not
-# match), or that is not such an envelope at all (null, a list, an older layout) is a miss: refitted, said once.
-CACHE_ENVELOPE = ("key", "digest", "content")
+# "content": the fit, "signature": the HMAC of key and digest under the user's key (:mod:`.cache_signing`)}. A file
+# whose key is another question's, whose content was altered (a digest that does not match), that is not signed
+# under this user's key (edited and its digest recomputed, or written elsewhere), that is not a regular file of
+# bounded size, or that is not such an envelope at all (null, a list, an older layout) is a miss: refitted, said once.
+CACHE_ENVELOPE = ("key", "digest", "content", "signature")
 
 
 def content_digest(content) -> str:
@@ -204,23 +214,27 @@ def content_digest(content) -> str:
 
 def write_cached(path: Path, key: str, result: CandidateResult) -> None:
     content = json.loads(json.dumps(result.to_json(), default=float))   # as it will read back
-    write_json(path, {"key": key, "digest": content_digest(content), "content": content}, indent=1)
+    digest = content_digest(content)
+    write_json(path, {"key": key, "digest": digest, "content": content, "signature": signature(key, digest)},
+               indent=1)
 
 
 def read_cached(path: Path, key: str, say) -> CandidateResult | None:
-    """A cached result that proves itself (its key and content digest), or None (a miss, said once)."""
-    if not path.exists():
+    """A cached result that proves itself (its key, content digest and signature), or None (a miss, said once)."""
+    if not os.path.lexists(path):
         return None
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        return _miss(path, f"unreadable ({type(exc).__name__})", say)
+        doc = load_json(path, limit=MAX_CACHE_BYTES)
+    except StructSearchError as exc:
+        return _miss(path, f"unreadable ({str(exc).removeprefix(f'file {path}: ')})", say)
     if not isinstance(doc, dict) or set(doc) != set(CACHE_ENVELOPE):
         return _miss(path, "not a cache entry of this version", say)
     if doc["key"] != key:
         return _miss(path, "its key is another question's", say)
     if doc["digest"] != content_digest(doc["content"]):
         return _miss(path, "its content does not match its digest (altered)", say)
+    if not signed(key, doc["digest"], doc["signature"]):
+        return _miss(path, "not signed with this user's cache key (altered, or written elsewhere)", say)
     try:
         return CandidateResult.from_json(doc["content"])
     except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:

@@ -24,11 +24,12 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import tomllib
+import os
 from importlib import resources
 from pathlib import Path
 
 from ..data.errors import DeclarationError
+from ..data.reading import load_toml
 from .candidates import Candidate, Grid
 from .enumeration import expand
 
@@ -48,17 +49,17 @@ def suggestion(name: str, known) -> str:
     return f" (did you mean {by_lower[close[0]]!r}?)" if close else ""
 
 
+def declaration_error(source: str, message: str) -> DeclarationError:
+    return DeclarationError(f"{source}: {message}")
+
+
 def read_toml(path) -> dict:
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
+    """A spec or term file: a regular UTF-8 file of bounded size and nesting (:mod:`structsearch.data.reading`)."""
+    if not os.path.lexists(str(path)):
         hint = suggestion(str(path), BUILTIN_GRIDS) if Path(str(path)).suffix == "" else ""
         raise DeclarationError(f"model spec file {path} not found"
-                               + (hint + ": a shipped grid is named without a path" if hint else "")) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise DeclarationError(f"{path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise DeclarationError(f"{path}: not a UTF-8 text file: {exc}") from None
+                               + (hint + ": a shipped grid is named without a path" if hint else ""))
+    return load_toml(path, declaration_error)
 
 
 def grid_path(name_or_path: str):
@@ -75,8 +76,11 @@ def load_grid(name_or_path: str, lift_grid: Grid | None = None) -> Grid:
     if any(c.lift for c in grid.candidates):
         if lift_grid is None:
             lift_grid = load_grid("lift") if grid.name != "lift" else grid
-        grid = Grid(grid.name, grid.coefficient, tuple(_with_lift_states(c, lift_grid) for c in grid.candidates),
-                    grid.source, lift_grid)
+        try:
+            lifted = tuple(_with_lift_states(c, lift_grid) for c in grid.candidates)
+        except DeclarationError as exc:   # a lift model the lift grid lacks: named with the file that reads it
+            raise DeclarationError(f"{path}: {exc}") from None
+        grid = Grid(grid.name, grid.coefficient, lifted, grid.source, lift_grid)
     return grid
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
@@ -18,6 +19,7 @@ from typing import Mapping
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..data.manifest import check_set
+from ..data.reading import excerpt, read_text
 from ..fitting.candidates import Candidate
 from ..fitting.specs import find_candidate, load_grid
 from ..flight.reference import FINAL_MODEL_NAMES
@@ -71,13 +73,19 @@ def ranked_rows(out: Path) -> dict[str, list[dict]] | None:
     path = Path(out) / "ranking.csv"
     if not path.exists():
         return None
+    text = read_text(path)   # a regular UTF-8 file of bounded size, before its manifest hashes it
     check_set(Path(out), "search", "ranking.csv")
-    with path.open(newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
+    try:
+        reader = csv.DictReader(io.StringIO(text, newline=""))
         missing = [c for c in ("grid", "model", "rank") if c not in (reader.fieldnames or ())]
         if missing:
             raise DataError("a search ranking needs this column", source=str(path), column=missing[0], row=1)
         rows = list(reader)
+    except csv.Error as exc:
+        raise DataError(f"not a CSV table: {excerpt(exc)}", source=str(path)) from None
+    for i, row in enumerate(rows):
+        if not all(isinstance(row.get(k), str) for k in ("grid", "model", "rank")):
+            raise DataError("a row without its grid, model or rank", source=str(path), row=i + 2)
     by_grid: dict[str, list[dict]] = {}
     for row in rows:
         by_grid.setdefault(row["grid"], []).append(row)
@@ -133,16 +141,11 @@ def chosen_models(out: Path, overrides: tuple[str, ...] = (), searched: str | No
 
 def search_answers(out: Path) -> dict[str, dict]:
     """Per grid the search's answer in ``out/search_answer.json`` ({} when the search wrote none)."""
-    import json
+    from ..data.reading import load_json
     path = Path(out) / "search_answer.json"
     if not path.exists():
         return {}
-    if not path.is_file() or path.stat().st_size > ANSWERS_MAX_BYTES:
-        raise DataError(f"not a regular file of at most {ANSWERS_MAX_BYTES} bytes", source=str(path))
-    try:
-        doc = json.loads(path.read_bytes().decode("utf-8"))
-    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
-        raise DataError(f"not a JSON document ({type(exc).__name__})", source=str(path)) from None
+    doc = load_json(path, limit=ANSWERS_MAX_BYTES)   # regular, bounded, UTF-8, nesting bounded
     answers = doc.get("answers") if isinstance(doc, dict) else None
     if not isinstance(answers, dict) or not all(isinstance(a, dict) and isinstance(a.get("status"), str)
                                                 for a in answers.values()):

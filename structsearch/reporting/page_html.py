@@ -6,8 +6,11 @@ from __future__ import annotations
 import base64
 import csv
 import html
+import io
 from pathlib import Path
 
+from ..data.errors import DataError
+from ..data.reading import excerpt, read_text
 from ..diagnosis.results import Diagnosis
 from ..diagnosis.story import unexplained_sentence
 from ..engine.summary import PARAMETER_HEADERS, parameter_rows
@@ -80,8 +83,11 @@ def csv_table(path: Path, top: int, columns: tuple[str, ...] | None = None) -> s
     rounded; None when there is no such table."""
     if not path.exists():
         return None
-    with path.open(newline="", encoding="utf-8") as fh:
-        rows = [r for r in csv.reader(fh) if r and not r[0].startswith("# command:")]
+    try:
+        rows = [r for r in csv.reader(io.StringIO(read_text(path), newline=""))
+                if r and not r[0].startswith("# command:")]
+    except csv.Error as exc:
+        raise DataError(f"not a CSV table: {excerpt(exc)}", source=str(path)) from None
     if len(rows) < 2:
         return None
     keep = [i for i, h in enumerate(rows[0]) if columns is None or h in columns]
