@@ -43,6 +43,31 @@ class SimulatorBaseline:
     values: np.ndarray = field(repr=False)
     detail: Mapping[str, object] = field(default_factory=dict)
     column: str | None = None      # the campaign column it was read from (removed from the gap's campaign)
+    # the simulator's own terms, "sim:<function>" -> values, which sum to ``values`` (a grey box: each becomes a
+    # column the search may rescale, drop or replace; empty: the simulator is one black-box offset)
+    terms: Mapping[str, np.ndarray] = field(default_factory=dict, repr=False)
+
+    @property
+    def term_columns(self) -> dict[str, str]:
+        """Each term's campaign column in the gap's campaign: ``sim__`` and the function's last path component
+        (made unique), a name an expression can read."""
+        return term_columns(tuple(self.terms))
+
+
+TERM_COLUMN_PREFIX = "sim__"
+
+
+def term_columns(names) -> dict[str, str]:
+    """``sim:<function>`` -> a column name of :data:`TERM_COLUMN_PREFIX` and the function's last path component
+    (characters other than letters, digits and _ replaced by _; a repeat gets _2, _3, ...)."""
+    out: dict[str, str] = {}
+    for name in names:
+        tail = re.sub(r"\W", "_", name.rsplit("/", 1)[-1].split(":")[-1]) or "term"
+        column, k = TERM_COLUMN_PREFIX + tail, 2
+        while column in out.values():
+            column, k = f"{TERM_COLUMN_PREFIX}{tail}_{k}", k + 1
+        out[name] = column
+    return out
 
 
 def _where(campaign: Campaign, segment: int) -> str:
@@ -92,13 +117,15 @@ def check_coefficient(coefficient: str | None) -> None:
 
 def gap_campaign(campaign: Campaign, baseline: SimulatorBaseline) -> Campaign:
     """``campaign`` with its coefficient column replaced by flight minus simulator (and the simulator's own column
-    removed)."""
+    removed); a simulator's terms become columns (:attr:`SimulatorBaseline.term_columns`)."""
     c = baseline.coefficient
     if c not in campaign.data:
         raise DataError("the campaign has no column for the diagnosed coefficient",
                         source=str(campaign.directory) if campaign.directory else campaign.name, column=c)
     columns = {k: v for k, v in campaign.data.columns.items() if k != baseline.column}
     columns[c] = np.asarray(campaign.data[c], float) - baseline.values
+    for name, column in baseline.term_columns.items():
+        columns[column] = np.asarray(baseline.terms[name], float)
     # a new Campaign: its split cache (kept in the instance) starts empty
     return dataclasses.replace(campaign, data=campaign.data.with_columns(columns))
 
