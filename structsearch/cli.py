@@ -297,7 +297,7 @@ def _diagnose(args) -> int:
     diagnosis = diagnose(args.data, args.model, settings=_settings(args, "diagnose: "),
                          coefficient=args.coefficient, out=out, terms=args.terms, beam=args.beam,
                          max_steps=args.max_steps, baseline_column=args.baseline_column or None,
-                         simulator=args.simulator)
+                         simulator=args.simulator, simulator_inputs=tuple(args.simulator_input or ()))
     for line in diagnosis_console_lines(diagnosis, (out / "diagnosis.json", out / "diagnosis.md")):
         print(line)
     return 0

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
+from ..discovery.terms import SimulatorTerm
 from ..fitting.candidates import Candidate
 
 COEFFICIENTS = ("CL", "CD", "Cm")
@@ -46,6 +47,8 @@ class SimulatorBaseline:
     # the simulator's own terms, "sim:<function>" -> values, which sum to ``values`` (a grey box: each becomes a
     # column the search may rescale, drop or replace; empty: the simulator is one black-box offset)
     terms: Mapping[str, np.ndarray] = field(default_factory=dict, repr=False)
+    # per term, the campaign signals it reads (a library term that replaces it must read one of them)
+    term_signals: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
     @property
     def term_columns(self) -> dict[str, str]:
@@ -109,6 +112,13 @@ def column_baseline(campaign: Campaign, coefficient: str, column: str) -> Simula
     return SimulatorBaseline(coefficient, f"column {column}", "column", values, column=column)
 
 
+def library_terms(baseline: SimulatorBaseline) -> tuple[SimulatorTerm, ...]:
+    """The simulator's terms as the structure search's grey-box terms (none for a black-box simulator)."""
+    columns = baseline.term_columns
+    return tuple(SimulatorTerm(name, columns[name], tuple(baseline.term_signals.get(name, ())))
+                 for name in baseline.terms)
+
+
 def check_coefficient(coefficient: str | None) -> None:
     if coefficient not in COEFFICIENTS:
         raise DeclarationError("a simulator baseline needs --coefficient: the coefficient the simulator's values are "
@@ -153,6 +163,36 @@ def simulator_record(campaign: Campaign, baseline: SimulatorBaseline, bias: floa
                          f"it is refitted); the search starts from it plus the constant bias {c}_bias, and every "
                          "structure is fitted to flight minus simulator"),
             "state_level": "not replayed: the state-level replay needs the simulator's whole model in the loop"}
+
+
+def terms_record(baseline: SimulatorBaseline, final: Candidate, estimates) -> dict:
+    """What the final structure made of each simulator term (a grey box; empty for a black box): ``kept``,
+    ``rescaled`` (its factor 1 + c and the standard error of c: the flight's term is ``factor`` times the
+    simulator's), ``dropped`` or ``replaced`` (by the terms the structure added in its place), each with a
+    sentence that names the simulator's function."""
+    if not baseline.terms:
+        return {}
+    regressors, known = dict(final.regressors), dict(final.known)
+    params, stderr = dict(estimates.params), dict(estimates.stderr)
+    added = [n for n in regressors if n not in baseline.terms and n != f"{baseline.coefficient}_bias"]
+    out = {}
+    for name in baseline.terms:
+        function = name.removeprefix("sim:")
+        if f"-{name}" in known:
+            verdict = "replaced" if added else "dropped"
+            entry = {"verdict": verdict,
+                     "words": (f"the simulator's {function} is dropped: the flight shows none of it"
+                               if verdict == "dropped" else
+                               f"the simulator's {function} is dropped; the structure adds {', '.join(added)}")}
+        elif name in regressors:
+            factor, se = 1.0 + float(params[name]), float(stderr.get(name, float("nan")))
+            entry = {"verdict": "rescaled", "factor": factor, "stderr": se,
+                     "words": f"the simulator's {function} rescaled by {factor:.3g} ± {se:.2g}: the flight's is "
+                              f"{factor:.3g} times the simulator's"}
+        else:
+            entry = {"verdict": "kept", "words": f"the simulator's {function} kept as it is"}
+        out[name] = {"column": baseline.term_columns[name], **entry}
+    return out
 
 
 def without_bias_reasons(diagnosis, start: Candidate):

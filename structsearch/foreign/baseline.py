@@ -179,6 +179,34 @@ def terms(evaluation, coefficient: str, aircraft: AircraftFile, x_cg_ft: np.ndar
     return out
 
 
+def _signal(prop: str, record: Mapping) -> str | None:
+    """The campaign signal a property JSBSim reads stands for (None: geometry, air data, a constant)."""
+    if prop.startswith(("velocities/q", "velocities/q-aero")):
+        return "q"
+    if prop in ALPHADOT:
+        return "alpha_dot"
+    if prop.startswith("aero/alpha-") or prop == HYSTERESIS:
+        return "alpha"
+    if prop == ELEVATOR or prop in ELEVATOR_DERIVED:
+        return "de"
+    if prop.startswith(("aero/beta-", "aero/mag-beta-")):
+        return "beta"
+    if prop.startswith(("velocities/vt", "velocities/mach")):
+        return "V"
+    value = record.get(prop)
+    return value if isinstance(value, str) else None
+
+
+def term_signals(aircraft: AircraftFile, coefficient: str, record: Mapping) -> dict[str, tuple[str, ...]]:
+    """Per term, the campaign signals it reads (through the helper functions)."""
+    out = {}
+    for f in aircraft.functions(AXIS_OF[coefficient]):
+        out[TERM_PREFIX + f] = tuple(sorted({s for p in aircraft.leaves([f]) if (s := _signal(p, record))}))
+    if coefficient == "Cm":
+        out[TRANSFER] = ("CL", "x_cg")
+    return out
+
+
 def _check_cg(campaign: Campaign, x_cg_ft: np.ndarray, evaluation) -> None:
     g = evaluation.geometry
     far = float(np.max(np.abs(x_cg_ft - g["metrics/aero-rp-x-in"] / 12.0))) / g["metrics/cbarw-ft"]
@@ -189,9 +217,11 @@ def _check_cg(campaign: Campaign, x_cg_ft: np.ndarray, evaluation) -> None:
                         column="x_cg")
 
 
-def jsbsim_baseline(target: str, campaign: Campaign, coefficient: str,
-                    given: Mapping[str, str | float] | None = None) -> SimulatorBaseline:
-    """The JSBSim aircraft ``target``'s ``coefficient`` at every sample of ``campaign``, term by term."""
+def evaluate_campaign(target: str, campaign: Campaign, coefficient: str,
+                      given: Mapping[str, str | float] | None = None, scales: Mapping[str, float] | None = None,
+                      also=()):
+    """(the aircraft, JSBSim's evaluation at every sample of ``campaign``, what each property was taken from, the
+    axes evaluated) for ``coefficient`` (module docstring); ``also``: properties read besides (tests)."""
     given = dict(given or {})
     aircraft = read_aircraft(target)
     functions = list(check_axes(aircraft, coefficient))
@@ -204,19 +234,31 @@ def jsbsim_baseline(target: str, campaign: Campaign, coefficient: str,
     if missing:
         raise DeclarationError(f"--simulator jsbsim:{target}: the aircraft {aircraft.name} reads what the campaign "
                                f"does not give ({_source(campaign)}); supply each: " + "; ".join(missing))
-    evaluation = evaluate(aircraft, functions, states, inputs)
+    evaluation = evaluate(aircraft, functions, states, inputs, scales, also)
+    return aircraft, evaluation, {**state_record, **input_record}, axes
+
+
+def jsbsim_baseline(target: str, campaign: Campaign, coefficient: str,
+                    given: Mapping[str, str | float] | None = None,
+                    scales: Mapping[str, float] | None = None) -> SimulatorBaseline:
+    """The JSBSim aircraft ``target``'s ``coefficient`` at every sample of ``campaign``, term by term (``scales``:
+    function -> factor, a modified aircraft: :mod:`.modify`)."""
+    aircraft, evaluation, record, axes = evaluate_campaign(target, campaign, coefficient, given, scales)
     x_cg_ft = np.asarray(campaign.data["x_cg"], float) / FT if "x_cg" in campaign.data and coefficient == "Cm" \
         else None
     if x_cg_ft is not None:
         _check_cg(campaign, x_cg_ft, evaluation)
     parts = {k: check_values(campaign, v, k) for k, v in terms(evaluation, coefficient, aircraft, x_cg_ft).items()}
     detail = {"aircraft": aircraft.name, "aircraft_file": str(aircraft.file), "bundled": aircraft.bundled,
-              "jsbsim_version": evaluation.version, "inputs": {**state_record, **input_record},
+              "jsbsim_version": evaluation.version, "inputs": record,
               "functions": {f: a for a in axes for f in aircraft.functions(a)},
               "terms": sorted(parts), "coefficient_from": _from_text(coefficient, x_cg_ft is not None),
               "seconds_in_jsbsim": round(evaluation.seconds, 3), "samples": campaign.data.n_samples}
+    if scales:
+        detail["scales"] = dict(scales)
     total = np.sum(list(parts.values()), axis=0)
-    return SimulatorBaseline(coefficient, f"{PREFIX}{aircraft.name}", "jsbsim", total, detail, terms=parts)
+    return SimulatorBaseline(coefficient, f"{PREFIX}{aircraft.name}", "jsbsim", total, detail, terms=parts,
+                             term_signals=term_signals(aircraft, coefficient, record))
 
 
 def _from_text(coefficient: str, campaign_cg: bool) -> str:

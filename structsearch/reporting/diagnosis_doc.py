@@ -178,9 +178,19 @@ def _simulator_lines(sim) -> list[str]:
     mse = sim.get("mse", {})
     own = ", ".join(f"{k} {v:.4g}" for k, v in mse.items() if v is not None)
     bias = sim.get("bias", {})
-    return [f"**Baseline: the simulator {sim['source']}** ({own} without the bias; bias {bias.get('name')} = "
-            f"{bias.get('value', float('nan')):.3g}). {sim.get('baseline', '')}; state level "
-            f"{sim.get('state_level', '')}.", ""]
+    lines = [f"**Baseline: the simulator {sim['source']}** ({own} without the bias; bias {bias.get('name')} = "
+             f"{bias.get('value', float('nan')):.3g}). {sim.get('baseline', '')}; state level "
+             f"{sim.get('state_level', '')}.", ""]
+    return lines + simulator_term_lines(sim, "- ") + ([""] if sim.get("terms") else [])
+
+
+def simulator_term_lines(sim, prefix: str = "") -> list[str]:
+    """A line per simulator term the final structure changed (rescaled, dropped, replaced), naming its function;
+    one line for those kept."""
+    terms = (sim or {}).get("terms") or {}
+    changed = [f"{prefix}{t['words']}" for t in terms.values() if t.get("verdict") != "kept"]
+    kept = [n.removeprefix("sim:") for n, t in terms.items() if t.get("verdict") == "kept"]
+    return changed + ([f"{prefix}kept as the simulator has them: {', '.join(kept)}"] if kept else [])
 
 
 def markdown(doc: Diagnosis) -> str:
@@ -299,6 +309,7 @@ def diagnosis_console_lines(diagnosis: Diagnosis, written: tuple[Path, Path] | N
         # an error inside the command reaches the console, not only the json (issue 31)
         replay = [f"warning: {sl.words()}"]
     also = [f"{e.term}: {e.words()}" for e in d.equivalences]
+    also += [line for line in simulator_term_lines(d.simulator) if not line.startswith("kept as")]
     return [head] + [line for line in also + [unexplained_sentence(d)] + [f"warning: {w}" for w in d.warnings]
                      + replay if line]
 
