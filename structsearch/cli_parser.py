@@ -214,6 +214,11 @@ def _add_simulate(sub, handler: Callable) -> None:
                    help="citation (the thesis' Citation II, default) or transport (a twin-jet transport with one "
                         "separation state, no stall strips and no recorded cg: README)")
     s.add_argument("--out", required=True, help="campaign directory to write")
+    s.add_argument("--jsbsim", metavar="NAME_OR_DIR", default=None,
+                   help="fly the stall plan in JSBSim with this aircraft (one of JSBSim's own such as c172p, or an "
+                        "aircraft directory) instead of the built-in simulator: the aircraft model flown, not a flight")
+    s.add_argument("--modify", metavar="FILE", default=None,
+                   help="with --jsbsim: a TOML modification of the aircraft ([[scale]] function = ..., factor = ...)")
     s.add_argument("--seed", type=_non_negative, default=0, help="random seed (same seed, same campaign bit for bit)")
     s.add_argument("--withhold", action="append", choices=sorted(WITHHOLDABLE), metavar="EFFECT",
                    help="remove an effect from the truth model (repeatable): " + ", ".join(WITHHOLDABLE))

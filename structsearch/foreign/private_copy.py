@@ -101,9 +101,11 @@ def _link(source: Path, target: Path) -> None:
         shutil.copytree(source, target)
 
 
-def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None) -> tempfile.TemporaryDirectory:
+def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
+              rewrite: bool = True) -> tempfile.TemporaryDirectory:
     """A temporary JSBSim root holding the private copy of ``aircraft`` (module docstring); the caller keeps the
-    returned directory object alive while JSBSim reads from it."""
+    returned directory object alive while JSBSim reads from it. Without ``rewrite`` (an aircraft to fly, not to
+    evaluate at given states) the aerodynamics keep reading JSBSim's own properties."""
     holder = tempfile.TemporaryDirectory(prefix="structsearch-jsbsim-")
     root = Path(holder.name)
     target = root / "aircraft" / aircraft.name
@@ -114,7 +116,8 @@ def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None)
     for out in doc.findall("output"):
         doc.remove(out)
     aero = doc.find("aerodynamics")
-    _rewrite_reads(aero, set(aircraft.reads))
+    if rewrite:
+        _rewrite_reads(aero, set(aircraft.reads))
     _scale(aero, dict(scales or {}))
     ET.ElementTree(doc).write(target / f"{aircraft.name}.xml", encoding="utf-8", xml_declaration=True)
     return holder
