@@ -113,10 +113,11 @@ def column_baseline(campaign: Campaign, coefficient: str, column: str) -> Simula
 
 
 def library_terms(baseline: SimulatorBaseline) -> tuple[SimulatorTerm, ...]:
-    """The simulator's terms as the structure search's grey-box terms (none for a black-box simulator)."""
+    """The simulator's terms as the structure search's grey-box terms (none for a black-box simulator); a term that
+    is zero at every sample (flaps retracted all flight) is none: nothing of it can be rescaled or dropped."""
     columns = baseline.term_columns
     return tuple(SimulatorTerm(name, columns[name], tuple(baseline.term_signals.get(name, ())))
-                 for name in baseline.terms)
+                 for name, values in baseline.terms.items() if np.any(np.asarray(values) != 0))
 
 
 def check_coefficient(coefficient: str | None) -> None:
@@ -178,7 +179,9 @@ def terms_record(baseline: SimulatorBaseline, final: Candidate, estimates) -> di
     out = {}
     for name in baseline.terms:
         function = name.removeprefix("sim:")
-        if f"-{name}" in known:
+        if not np.any(np.asarray(baseline.terms[name]) != 0):
+            entry = {"verdict": "zero", "words": f"the simulator's {function} is zero along the flight (not searched)"}
+        elif f"-{name}" in known:
             verdict = "replaced" if added else "dropped"
             entry = {"verdict": verdict,
                      "words": (f"the simulator's {function} is dropped: the flight shows none of it"

@@ -154,12 +154,14 @@ def _inputs(campaign: Campaign, aircraft: AircraftFile, reads: set[str], given: 
     return inputs, record, missing
 
 
-def _check_given(given: Mapping, reads: set[str], target: str) -> None:
-    known = set(reads) | set(STATE_COLUMNS)
+def _check_given(given: Mapping, aircraft: AircraftFile, target: str) -> None:
+    """Every ``--simulator-input`` names a state or a property the aircraft's aerodynamics read (any axis: one the
+    diagnosed axis does not read is unused)."""
+    known = aircraft.leaves(list(aircraft.reads)) | set(STATE_COLUMNS)
     stray = [p for p in given if p not in known]
     if stray:
-        raise DeclarationError(f"--simulator-input {stray[0]}: the aircraft {target} does not read it for this "
-                               f"coefficient (it reads: {', '.join(sorted(p for p in known if not derived(p) or p == ELEVATOR))})")
+        raise DeclarationError(f"--simulator-input {stray[0]}: the aircraft {target} does not read it (it reads: "
+                               f"{', '.join(sorted(p for p in known if not derived(p) or p == ELEVATOR))})")
 
 
 def terms(evaluation, coefficient: str, aircraft: AircraftFile, x_cg_ft: np.ndarray | None) -> dict[str, np.ndarray]:
@@ -227,7 +229,7 @@ def evaluate_campaign(target: str, campaign: Campaign, coefficient: str,
     functions = list(check_axes(aircraft, coefficient))
     axes = [AXIS_OF[coefficient]] + (list(FORCE_AXES) if coefficient == "Cm" else [])
     reads = aircraft.leaves([f for a in axes for f in aircraft.functions(a)])
-    _check_given(given, reads, target)
+    _check_given(given, aircraft, target)
     states, state_record, missing = _states(campaign, given)
     inputs, input_record, missing_inputs = _inputs(campaign, aircraft, reads, given)
     missing += missing_inputs

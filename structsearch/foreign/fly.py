@@ -64,7 +64,7 @@ def plan(scale: float, seed: int) -> list[Planned]:
         for _ in range(max(1, round(count * scale))):
             k = len(out)
             out.append(Planned(f"j{k + 1:02d}", kind, "validation" if k % 4 == 3 else "train", duration,
-                               float(rng.uniform(70.0, 95.0)), float(rng.uniform(4000.0, 7000.0)),
+                               float(rng.uniform(60.0, 80.0)), float(rng.uniform(4000.0, 7000.0)),
                                float(rng.uniform(0.8, 1.25))))
     return out
 

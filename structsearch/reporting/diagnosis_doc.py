@@ -188,9 +188,11 @@ def simulator_term_lines(sim, prefix: str = "") -> list[str]:
     """A line per simulator term the final structure changed (rescaled, dropped, replaced), naming its function;
     one line for those kept."""
     terms = (sim or {}).get("terms") or {}
-    changed = [f"{prefix}{t['words']}" for t in terms.values() if t.get("verdict") != "kept"]
+    changed = [f"{prefix}{t['words']}" for t in terms.values() if t.get("verdict") not in ("kept", "zero")]
     kept = [n.removeprefix("sim:") for n, t in terms.items() if t.get("verdict") == "kept"]
-    return changed + ([f"{prefix}kept as the simulator has them: {', '.join(kept)}"] if kept else [])
+    zero = [n.removeprefix("sim:") for n, t in terms.items() if t.get("verdict") == "zero"]
+    return changed + ([f"{prefix}kept as the simulator has them: {', '.join(kept)}"] if kept else []) + \
+        ([f"{prefix}zero along the flight (not searched): {', '.join(zero)}"] if zero else [])
 
 
 def markdown(doc: Diagnosis) -> str:
@@ -309,7 +311,7 @@ def diagnosis_console_lines(diagnosis: Diagnosis, written: tuple[Path, Path] | N
         # an error inside the command reaches the console, not only the json (issue 31)
         replay = [f"warning: {sl.words()}"]
     also = [f"{e.term}: {e.words()}" for e in d.equivalences]
-    also += [line for line in simulator_term_lines(d.simulator) if not line.startswith("kept as")]
+    also += [line for line in simulator_term_lines(d.simulator) if not line.startswith(("kept as", "zero along"))]
     return [head] + [line for line in also + [unexplained_sentence(d)] + [f"warning: {w}" for w in d.warnings]
                      + replay if line]
 
