@@ -181,3 +181,52 @@ def test_rescale_drop_and_replace_act_on_the_simulators_terms(small):
 def test_a_black_box_simulator_has_no_grey_box_terms():
     b = offset.SimulatorBaseline("CL", "column x", "column", np.zeros(3))
     assert offset.library_terms(b) == () and b.term_columns == {}
+
+
+def test_a_modification_file_is_read_as_data_with_one_error_naming_file_and_entry(tmp_path):
+    from structsearch.foreign.modify import read_modify
+    good = tmp_path / "m.toml"
+    good.write_text('[[scale]]\nfunction = "aero/coefficient/CLq"\nfactor = 2\n')
+    assert read_modify(good) == {"aero/coefficient/CLq": 2.0}
+    for text, words in (('[[scale]]\nfunction = "a"\n', "entry 1: give exactly"),
+                        ('[[scale]]\nfunction = "a"\nfactor = nan\n', "finite number"),
+                        ('[[scale]]\nfunction = "a"\nfactor = true\n', "finite number"),
+                        ('[[scale]]\nfunction = "a"\nfactor = 1\n[[scale]]\nfunction = "a"\nfactor = 2\n', "twice"),
+                        ('[scales]\nx = 1\n', "unknown key 'scales'"), ("factor = ", "not a TOML file")):
+        bad = tmp_path / "bad.toml"
+        bad.write_text(text)
+        with pytest.raises(DeclarationError, match=words) as err:
+            read_modify(bad)
+        assert str(bad) in str(err.value)
+
+
+def test_a_campaign_flown_in_jsbsim_says_where_it_comes_from(tmp_path):
+    from structsearch.data.campaign import write_campaign
+    from structsearch.foreign.fly import fly_campaign
+    with pytest.raises(Exception, match="no axis function 'aero/coefficient/CLzz'"):
+        fly_campaign("c172p", {"aero/coefficient/CLzz": 2.0}, scale=0.04)
+    c = fly_campaign("c172p", {"aero/coefficient/CLq": 2.0}, scale=0.04, seed=1)
+    assert [m.kind for m in c.maneuvers] == ["quasi-steady", "dynamic", "deep-dynamic"]
+    source = c.extra["source"]
+    assert source["simulator"] == "jsbsim" and source["aircraft"] == "c172p"
+    assert source["jsbsim_version"] == jsbsim.__version__ and len(source["modify"]) == 16
+    back = read_campaign(write_campaign(c, tmp_path / "flown"))
+    assert back.extra["source"] == source
+    d = back.data
+    assert {"prop_induced_fps", "x_cg", "h", "theta", "CL_true", "Cm_true"} <= set(d.columns)
+    assert np.allclose(d["x_cg"], ARP_X_M, atol=0.5)        # JSBSim's cg station [m]
+    assert np.max(d["alpha"]) > 0.3 and np.max(np.abs(d["q"])) > 0.3   # through the stall, with pitch rate
+    assert "source = { simulator = \"jsbsim\"" in (tmp_path / "flown" / "campaign.toml").read_text()
+
+
+def test_the_command_line_lists_what_the_aircraft_needs_in_one_line(campaign_on_disk, run_cli, tmp_path):
+    data = campaign_on_disk(0, 0.05).directory
+    r = run_cli("diagnose", "--data", data, "--simulator", "jsbsim:c172p", "--coefficient", "CL", "--out",
+                tmp_path / "x", "--quiet")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "fcs/flap-pos-deg" in r.stderr and "--simulator-input" in r.stderr
+    r = run_cli("diagnose", "--data", data, "--simulator", "jsbsim:c172p", "--coefficient", "CL",
+                "--simulator-input", "flaps", "--out", tmp_path / "x", "--quiet")
+    assert r.returncode == 2 and "PROPERTY=COLUMN" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    r = run_cli("simulate", "--modify", tmp_path / "m.toml", "--out", tmp_path / "y")
+    assert r.returncode == 2 and "--modify goes with --jsbsim" in r.stderr

@@ -88,8 +88,8 @@ def _source(campaign: Campaign) -> str:
 
 def _given(campaign: Campaign, prop: str, value) -> np.ndarray:
     n = campaign.data.n_samples
-    if isinstance(value, float):
-        return np.full(n, value)
+    if not isinstance(value, str):
+        return np.full(n, float(value))
     if value not in campaign.data:
         raise DataError(f"--simulator-input {prop}={value}: the campaign has no column {value!r}",
                         source=_source(campaign), column=value)

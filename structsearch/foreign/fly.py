@@ -14,8 +14,9 @@ The truth histories (airspeed, alpha, q, theta, h, the elevator position, thrust
 C_L and C_D from the LIFT and DRAG axes, C_m from JSBSim's aerodynamic moment about its cg) go through
 :func:`structsearch.flight.measurement.measure` (sensor rates, noise and biases, buffet while JSBSim's stall latch is
 set, the pre-filter and the reconstruction of the coefficients from specific forces and pitch acceleration; the
-slow reconstruction errors are left out). The pitch acceleration measured is the aerodynamic moment's (the
-reduction removes the engine's moment as it removes its thrust). The campaign's ``x_cg`` is JSBSim's cg station
+slow reconstruction errors are left out). C_m is reconstructed from the measured pitch acceleration, less the
+engine's pitching moment (JSBSim's ``moments/m-prop-lbsft`` over q S cbar: the reduction removes the engine's moment
+as it removes its thrust). The campaign's ``x_cg`` is JSBSim's cg station
 [m] (structural frame, x aft), and the column ``prop_induced_fps`` records the propeller's induced velocity
 (``propulsion/engine/prop-induced-velocity_fps``), which some aircraft's elevator power reads.
 """
@@ -116,7 +117,7 @@ def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned) -> dict:
     names = ("velocities/vt-fps", "aero/alpha-rad", "velocities/q-rad_sec", "attitude/theta-rad", "position/h-sl-ft",
              "fcs/elevator-pos-rad", "propulsion/engine/thrust-lbs", "aero/qbar-psf", "inertia/mass-slugs",
              "inertia/cg-x-in", "moments/m-aero-lbsft", "inertia/iyy-slugs_ft2", "aero/stall-hyst-norm",
-             PROP_INDUCED)
+             PROP_INDUCED, "moments/m-prop-lbsft")
     rec = np.empty((len(names) + 2, n))
     for k in range(n):
         fdm["fcs/elevator-cmd-norm"] = command[k]
@@ -135,6 +136,7 @@ def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned) -> dict:
             "CL": rec[-2] / qs, "CD": rec[-1] / qs, "Cm": r["moments/m-aero-lbsft"] / (qs * cbar_ft),
             "q_dot": r["moments/m-aero-lbsft"] * LBFFT / iyy, "iyy": iyy,
             "states": {"X": 1.0 - r["aero/stall-hyst-norm"]}, "prop_induced_fps": r[PROP_INDUCED],
+            "engine_cm": r["moments/m-prop-lbsft"] / (qs * cbar_ft),
             "geometry": (s_ft2 * FT ** 2, cbar_ft * FT, float(fdm["metrics/bw-ft"]) * FT)}
 
 
@@ -166,8 +168,10 @@ def fly_campaign(target: str, scales: Mapping[str, float] | None = None, *, scal
             craft = craft or Aircraft(aircraft.name, f"JSBSim {aircraft.name}", s, cbar, b,
                                       float(truth["mass"][0]), 0.0, iyy, 0.0, 1.0, 0.0)
             t = truth.pop("t")
-            induced = truth.pop("prop_induced_fps")
+            induced, engine_cm = truth.pop("prop_induced_fps"), truth.pop("engine_cm")
             columns = measure(rng, t, truth, None, 1.0, craft)
+            # the reduction removes the engine's pitching moment as it removes its thrust (known, as the thrust is)
+            columns["Cm"] = columns["Cm"] - engine_cm
             columns["prop_induced_fps"] = induced
             maneuvers.append(Maneuver(p.id, f"{p.id}.csv", p.kind, p.split))
             segments.append(columns)
