@@ -230,3 +230,25 @@ def test_the_command_line_lists_what_the_aircraft_needs_in_one_line(campaign_on_
     assert r.returncode == 2 and "PROPERTY=COLUMN" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     r = run_cli("simulate", "--modify", tmp_path / "m.toml", "--out", tmp_path / "y")
     assert r.returncode == 2 and "--modify goes with --jsbsim" in r.stderr
+
+
+@pytest.mark.slow
+def test_a_doubled_clq_flown_in_jsbsim_is_found_and_the_stock_aircraft_is_not_changed():
+    """c172p flown with CLq x 2 and diagnosed against the stock c172p: the rescale of CLq is adopted, its factor
+    within two standard errors of 2; flown stock, no move is adopted (docs/guide/diagnose.md has the full-scale
+    figures)."""
+    from structsearch.api import diagnose
+    from structsearch.api.settings import Settings
+    from structsearch.foreign.fly import fly_campaign
+    fast = Settings(starts=1, jobs=1)
+    found = diagnose(fly_campaign("c172p", {"aero/coefficient/CLq": 2.0}, scale=0.5, seed=4), coefficient="CL",
+                     simulator="jsbsim:c172p", simulator_inputs=("fcs/flap-pos-deg=0",), settings=fast, max_steps=2)
+    assert found.rounds[0].adopted == "rescale sim:aero/coefficient/CLq"
+    term = found.simulator["terms"]["sim:aero/coefficient/CLq"]
+    assert term["verdict"] == "rescaled" and abs(term["factor"] - 2.0) < 2 * term["stderr"], term
+    assert found.simulator["inputs"]["fcs/flap-pos-deg"] == 0.0
+    assert found.simulator["functions"]["aero/coefficient/CLq"] == "LIFT"
+    stock = diagnose(fly_campaign("c172p", scale=0.5, seed=4), coefficient="CL", simulator="jsbsim:c172p",
+                     simulator_inputs=("fcs/flap-pos-deg=0",), settings=fast, max_steps=2)
+    assert stock.rounds[0].adopted is None
+    assert all(t["verdict"] in ("kept", "zero") for t in stock.simulator["terms"].values())
