@@ -254,7 +254,7 @@ def jsbsim_baseline(target: str, campaign: Campaign, coefficient: str,
     detail = {"aircraft": aircraft.name, "aircraft_file": str(aircraft.file), "bundled": aircraft.bundled,
               "jsbsim_version": evaluation.version, "inputs": record,
               "functions": {f: a for a in axes for f in aircraft.functions(a)},
-              "terms": sorted(parts), "coefficient_from": _from_text(coefficient, x_cg_ft is not None),
+              "coefficient_from": _from_text(coefficient, x_cg_ft is not None),
               "seconds_in_jsbsim": round(evaluation.seconds, 3), "samples": campaign.data.n_samples}
     if scales:
         detail["scales"] = dict(scales)
