@@ -252,3 +252,16 @@ def test_a_doubled_clq_flown_in_jsbsim_is_found_and_the_stock_aircraft_is_not_ch
                      simulator_inputs=("fcs/flap-pos-deg=0",), settings=fast, max_steps=2)
     assert stock.rounds[0].adopted is None
     assert all(t["verdict"] in ("kept", "zero") for t in stock.simulator["terms"].values())
+
+
+def test_an_export_of_structsearch_is_driven_as_before_and_any_other_aircraft_term_by_term(tmp_path):
+    from structsearch.export.jsbsim_baseline import exported_by_structsearch
+    assert not exported_by_structsearch("c172p")
+    plane = tmp_path / "export" / "aircraft" / "mine"
+    plane.mkdir(parents=True)
+    (plane / "mine.xml").write_text("<fdm_config/>")
+    assert not exported_by_structsearch(str(tmp_path / "export"))
+    (tmp_path / "export" / "systems").mkdir()
+    (tmp_path / "export" / "systems" / "structsearch_states.xml").write_text(
+        "<system><property>structsearch/fill-inputs</property></system>")
+    assert exported_by_structsearch(str(tmp_path / "export")) and exported_by_structsearch(str(plane))
