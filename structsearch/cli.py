@@ -58,6 +58,8 @@ def _bench(args) -> int:
 
 
 def _simulate(args) -> int:
+    if args.jsbsim is not None or args.modify is not None:
+        return _simulate_jsbsim(args)
     from .api import simulate
     from .data.campaign import write_campaign
     from .api.settings import FlightTestPlan
@@ -73,6 +75,20 @@ def _simulate(args) -> int:
     flown += f", {n_nominal} of them nominal" if n_nominal else ""
     print(f"wrote {out}: {len(campaign.maneuvers)} maneuvers ({n_val} validation){flown}, {d.n_samples} samples; "
           f"truth: {campaign.extra['truth']}")
+    return 0
+
+
+def _simulate_jsbsim(args) -> int:
+    from .api.simulating import simulate_jsbsim
+    if args.jsbsim is None:
+        raise_error("--modify goes with --jsbsim NAME_OR_DIR")
+    campaign, seconds = simulate_jsbsim(args.jsbsim, modify=args.modify, seed=args.seed, scale=args.scale,
+                                        out=args.out, format=args.format)
+    n_val = sum(m.split == "validation" for m in campaign.maneuvers)
+    source = campaign.extra["source"]
+    print(f"wrote {args.out}: {len(campaign.maneuvers)} maneuvers ({n_val} validation), {campaign.data.n_samples} "
+          f"samples flown in JSBSim {source['jsbsim_version']} by {source['aircraft']} (modify: {source['modify']}; "
+          f"{seconds:.1f} s)")
     return 0
 
 
@@ -312,7 +328,7 @@ def _diagnose(args) -> int:
     diagnosis = diagnose(args.data, args.model, settings=_settings(args, "diagnose: "),
                          coefficient=args.coefficient, out=out, terms=args.terms, beam=args.beam,
                          max_steps=args.max_steps, baseline_column=args.baseline_column or None,
-                         simulator=args.simulator)
+                         simulator=args.simulator, simulator_inputs=tuple(args.simulator_input or ()))
     for line in diagnosis_console_lines(diagnosis, (out / "diagnosis.json", out / "diagnosis.md")):
         print(line)
     return 0

@@ -24,9 +24,18 @@ def _benchmark_parts(text: str) -> str:
 
 
 def _simulator(text: str) -> str:
-    """``--simulator jsbsim:AIRCRAFT``: the prefix and a non-empty aircraft."""
+    """``--simulator jsbsim:NAME_OR_DIR``: the prefix and a non-empty aircraft."""
     if not text.startswith("jsbsim:") or not text[len("jsbsim:"):].strip():
-        raise argparse.ArgumentTypeError(f"{text!r}: give jsbsim:AIRCRAFT (an exported aircraft's directory or name)")
+        raise argparse.ArgumentTypeError(f"{text!r}: give jsbsim:NAME_OR_DIR (one of JSBSim's aircraft such as c172p, "
+                                         "an aircraft directory or an export directory)")
+    return text
+
+
+def _simulator_input(text: str) -> str:
+    """``--simulator-input PROPERTY=COLUMN|VALUE``: a non-empty property and value."""
+    prop, sep, value = text.partition("=")
+    if not sep or not prop.strip() or not value.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: give PROPERTY=COLUMN or PROPERTY=VALUE (e.g. fcs/flap-pos-deg=0)")
     return text
 
 
@@ -208,6 +217,11 @@ def _add_simulate(sub, handler: Callable) -> None:
                    help="citation (the thesis' Citation II, default) or transport (a twin-jet transport with one "
                         "separation state, no stall strips and no recorded cg: README)")
     s.add_argument("--out", required=True, help="campaign directory to write")
+    s.add_argument("--jsbsim", metavar="NAME_OR_DIR", default=None,
+                   help="fly the stall plan in JSBSim with this aircraft (one of JSBSim's own such as c172p, or an "
+                        "aircraft directory) instead of the built-in simulator: the aircraft model flown, not a flight")
+    s.add_argument("--modify", metavar="FILE", default=None,
+                   help="with --jsbsim: a TOML modification of the aircraft ([[scale]] function = ..., factor = ...)")
     s.add_argument("--seed", type=_non_negative, default=0, help="random seed (same seed, same campaign bit for bit)")
     s.add_argument("--withhold", action="append", choices=sorted(WITHHOLDABLE), metavar="EFFECT",
                    help="remove an effect from the truth model (repeatable): " + ", ".join(WITHHOLDABLE))
@@ -340,9 +354,14 @@ def _add_diagnose(sub, handler: Callable) -> None:
     g.add_argument("--baseline-column", metavar="NAME", default=None,
                    help="baseline: the simulator's coefficient along the flight, a column of the campaign's files "
                         "(a fixed offset; needs --coefficient)")
-    g.add_argument("--simulator", metavar="jsbsim:AIRCRAFT", type=_simulator, default=None,
-                   help="baseline: a JSBSim aircraft exported by `structsearch export --format jsbsim` (its "
-                        "directory or name), evaluated at the recorded states (a fixed offset; needs --coefficient)")
+    g.add_argument("--simulator", metavar="jsbsim:NAME_OR_DIR", type=_simulator, default=None,
+                   help="baseline: a JSBSim aircraft (one of JSBSim's own such as c172p, an aircraft directory, or an "
+                        "export of `structsearch export --format jsbsim`) evaluated at the recorded states (a fixed "
+                        "offset; its axis functions are columns sim:<function> the search may rescale, drop or "
+                        "replace; needs --coefficient)")
+    g.add_argument("--simulator-input", metavar="PROPERTY=COLUMN|VALUE", type=_simulator_input, action="append",
+                   default=None, help="what the JSBSim aircraft reads and the campaign does not give: a campaign "
+                                      "column or a constant, in the property's unit (repeatable)")
     g.add_argument("--benchmark", action="store_true",
                    help="run the withheld-effect benchmark on simulated campaigns instead")
     g.add_argument("--scale", type=_fraction, default=1.0, help="benchmark campaign scale")

@@ -140,9 +140,9 @@ def _synopsis():
 # required by the command unless another mode is chosen (diagnose --benchmark): checked when it runs
 # (bench --trace FILE chooses its mode with a value: written bare on its own synopsis line)
 # (export --model goes with its --data mode)
-# (diagnose's simulator baseline, --baseline-column or --simulator, is a mode of its own)
+# (diagnose's simulator baseline, --baseline-column or --simulator, is a mode of its own; so is simulate --jsbsim)
 REQUIRED_UNLESS_MODE = {("diagnose", "--data"), ("diagnose", "--model"), ("bench", "--trace"), ("export", "--model"),
-                        ("diagnose", "--baseline-column"), ("diagnose", "--simulator")}
+                        ("diagnose", "--baseline-column"), ("diagnose", "--simulator"), ("simulate", "--jsbsim")}
 # optional in one mode and required in another (diagnose --coefficient: a check with --model, the coefficient
 # diagnosed with a simulator baseline): either way is right, per synopsis line
 REQUIRED_IN_ONE_MODE = {("diagnose", "--coefficient")}

@@ -176,7 +176,7 @@ def test_the_command_line_refuses_bad_simulator_baselines_in_one_line(sim_column
         (("--baseline-column", "CL_nope", "--coefficient", "CL"), "column 'CL_nope'"),
         (("--baseline-column", "CL_sim"), "needs --coefficient"),
         (("--baseline-column", "CL_sim", "--model", "CL-I", "--coefficient", "CL"), "one baseline"),
-        (("--simulator", "c172x", "--coefficient", "CL"), "jsbsim:AIRCRAFT"),
+        (("--simulator", "c172x", "--coefficient", "CL"), "jsbsim:NAME_OR_DIR"),
         (("--simulator", f"jsbsim:{tmp_path / 'nowhere'}", "--coefficient", "CL"), "no such directory"),
     ]
     for args, words in bad:

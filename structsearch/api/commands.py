@@ -219,13 +219,14 @@ def refined_structures(ranking: Ranking) -> dict[str, list]:
 def diagnose(campaign: Campaign | str | os.PathLike, model: str | None = None, *, settings: Settings = Settings(),
              coefficient: str | None = None, out: str | os.PathLike | None = None,
              terms: str | os.PathLike | None = None, beam: int | None = None, max_steps: int | None = None,
-             baseline_column: str | None = None, simulator: str | None = None):
+             baseline_column: str | None = None, simulator: str | None = None, simulator_inputs=()):
     """Diagnose ``model`` (the baseline) as ``structsearch diagnose`` does: a structure search over moves from it
     (``terms``: a user's term file; ``beam``, ``max_steps``: the search's width and length); with ``out``, also
     write ``diagnosis.json`` and ``diagnosis.md`` there and cache the fits in ``out/cache``. Returns the
     diagnosis (``to_dict()``: diagnosis.json). Instead of ``model``, a simulator's ``coefficient`` as the baseline
     (a fixed offset): ``baseline_column`` names the campaign column it wrote, ``simulator`` is
-    "jsbsim:AIRCRAFT" (:func:`structsearch.api.diagnosing.diagnose_simulator`)."""
+    "jsbsim:NAME_OR_DIR" (``simulator_inputs``: "PROPERTY=COLUMN|VALUE" items;
+    :func:`structsearch.api.diagnosing.diagnose_simulator`)."""
     given = [o for o, v in (("--model", model), ("--baseline-column", baseline_column), ("--simulator", simulator))
              if v is not None]
     if len(given) != 1:
@@ -235,7 +236,7 @@ def diagnose(campaign: Campaign | str | os.PathLike, model: str | None = None, *
         from .diagnosing import diagnose_simulator
         return diagnose_simulator(campaign, coefficient=coefficient, baseline_column=baseline_column,
                                   simulator=simulator, settings=settings, out=out, terms=terms, beam=beam,
-                                  max_steps=max_steps)
+                                  max_steps=max_steps, simulator_inputs=simulator_inputs)
     from ..diagnosis.diagnose import diagnose as run_diagnosis
     from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS
     from ..fitting.specs import resolve_candidate

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
+from typing import Sequence
 
 from ..data.campaign import Campaign
 from ..data.errors import DeclarationError
@@ -21,10 +22,14 @@ def diagnose_simulator(campaign: Campaign | str | os.PathLike, *, coefficient: s
                        baseline_column: str | None = None, simulator: str | None = None,
                        settings: Settings = Settings(), out: str | os.PathLike | None = None,
                        terms: str | os.PathLike | None = None, beam: int | None = None,
-                       max_steps: int | None = None):
+                       max_steps: int | None = None, simulator_inputs: Sequence[str] = ()):
     """Diagnose the gap between a flight and a simulator's ``coefficient`` (exactly one of ``baseline_column``
     and ``simulator``); with ``out``, also write ``diagnosis.json`` and ``diagnosis.md`` there. Returns the
-    diagnosis, whose ``simulator`` block says what the baseline was."""
+    diagnosis, whose ``simulator`` block says what the baseline was. ``simulator`` "jsbsim:NAME_OR_DIR": an export
+    of ``structsearch export --format jsbsim`` is driven as ``export --check`` drives it; any other JSBSim aircraft
+    is evaluated term by term at the recorded states (:mod:`structsearch.foreign.baseline`; ``simulator_inputs``:
+    "PROPERTY=COLUMN|VALUE" items for what it reads and the campaign lacks), each term a column the search may
+    rescale, drop or replace."""
     from ..diagnosis import offset
     from ..diagnosis.diagnose import diagnose_search
     from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS
@@ -34,28 +39,44 @@ def diagnose_simulator(campaign: Campaign | str | os.PathLike, *, coefficient: s
     if (baseline_column is None) == (simulator is None):
         raise DeclarationError("a simulator baseline is either --baseline-column NAME or --simulator jsbsim:AIRCRAFT")
     offset.check_coefficient(coefficient)
-    target = None
+    target, given, foreign = None, {}, False
     if simulator is not None:   # a malformed value is answered before the campaign is read
-        from ..export.jsbsim_baseline import simulator_target
+        from ..export.jsbsim_baseline import exported_by_structsearch
+        from ..foreign.baseline import parse_inputs, simulator_target
         target = simulator_target(simulator)
+        given = parse_inputs(simulator_inputs)
+        foreign = not exported_by_structsearch(target)
+        if given and not foreign:
+            raise DeclarationError(f"--simulator-input: {simulator} is an export of structsearch, which reads the "
+                                   "campaign's own columns; the option is for other JSBSim aircraft")
+    elif simulator_inputs:
+        raise DeclarationError("--simulator-input goes with --simulator jsbsim:NAME_OR_DIR")
     check_box_names(fit_options("diagnose", settings).parameter_boxes,
                     [Candidate("addable states", "", coefficient, (), _ADDABLE_STATES)])
     campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     if target is None:
         baseline = offset.column_baseline(campaign, coefficient, baseline_column)
     else:
-        from ..export.jsbsim_baseline import jsbsim_baseline
         if settings.progress is not None:
             settings.progress(f"evaluating the JSBSim aircraft {target} at {campaign.data.n_samples} recorded samples")
-        baseline = jsbsim_baseline(target, campaign, coefficient)
+        if foreign:
+            from ..foreign.baseline import jsbsim_baseline as foreign_baseline
+            baseline = foreign_baseline(target, campaign, coefficient, given)
+        else:
+            from ..export.jsbsim_baseline import jsbsim_baseline
+            baseline = jsbsim_baseline(target, campaign, coefficient)
     start = offset.start_structure(baseline)
     with command_fitter("diagnose", offset.gap_campaign(campaign, baseline), settings, out) as fitter:
         result, search = diagnose_search(fitter, start, seed=settings.seed, states=False,
                                          terms=None if terms is None else str(terms), beam=beam or DEFAULT_BEAM,
-                                         max_rounds=max_steps or DEFAULT_MAX_STEPS)
+                                         max_rounds=max_steps or DEFAULT_MAX_STEPS,
+                                         simulator_terms=offset.library_terms(baseline))
     bias = search.final.path()[0].result.estimates.params[start.regressors[0][0]]
-    result = dataclasses.replace(offset.without_bias_reasons(result, start),
-                                 simulator=offset.simulator_record(campaign, baseline, bias))
+    record = offset.simulator_record(campaign, baseline, bias)
+    final = search.final.path()[-1]
+    if baseline.terms:
+        record["terms"] = offset.terms_record(baseline, final.candidate, final.result.estimates)
+    result = dataclasses.replace(offset.without_bias_reasons(result, start), simulator=record)
     if out is not None:
         from ..reporting.diagnosis_doc import write
         write(result, Path(out))

@@ -192,6 +192,8 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     name, aircraft, maneuvers = _parse_manifest(doc, toml)
     cutoffs = _parse_cutoffs(doc.get("cutoffs", {}), toml)
     extra = {k: v for k, v in doc.items() if k not in RESERVED_KEYS and not isinstance(v, (dict, list))}
+    if isinstance(doc.get("source"), dict):   # where a simulated campaign comes from (a simulator, its aircraft)
+        extra["source"] = dict(doc["source"])
     required, angles = (RAW_REQUIRED, RAW_ANGLES) if fmt == "raw" else (REQUIRED, ANGLES)
     if segment is not None and segment not in records.SEGMENT_CHOICES:
         raise DataError(f"segment must be one of {', '.join(records.SEGMENT_CHOICES)}, not {shown(segment)}")
@@ -318,6 +320,8 @@ def _pieces(m: Maneuver, columns: dict, path: Path, entry: dict, segment: str | 
 
 # ----- writing -----------------------------------------------------------------------------
 def _toml_value(v) -> str:
+    if isinstance(v, Mapping):   # an inline table (the [source] of a campaign flown in a simulator)
+        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
     if isinstance(v, (tuple, list)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, str):

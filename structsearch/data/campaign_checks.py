@@ -38,6 +38,9 @@ OPTIONAL_VECTORS = {"x_cg_range": 2, "accelerometer": 3, "V_range": 2}
 RESERVED_KEYS = ("name", "format", "aircraft", "maneuver", "cutoffs", "min_convective_times")
 
 
+# The one free table: ``source = { simulator = ..., aircraft = ..., ... }``, what flew a simulated campaign
+SOURCE_KEY = "source"
+
 # The keys a [[maneuver]] entry may hold (docs/interfaces.md 1, 6.4, 6.9): any other is a typo, refused.
 MANEUVER_KEYS = ("id", "file", "kind", "split", "flight", "record", "segment", "periodic", "frequency")
 
@@ -54,6 +57,9 @@ def _check_top_level(doc: dict, toml: str) -> None:
     for key, value in doc.items():
         if key in RESERVED_KEYS:
             continue
+        if key == SOURCE_KEY and isinstance(value, dict) and all(not isinstance(v, (dict, list))
+                                                                 for v in value.values()):
+            continue   # where a simulated campaign comes from: { simulator = "jsbsim", aircraft = ..., ... }
         close = difflib.get_close_matches(key, RESERVED_KEYS, n=1, cutoff=0.75)
         if isinstance(value, (dict, list)) or close:
             hint = f" (did you mean {shown(close[0])}?)" if close else f" (tables: {', '.join(RESERVED_KEYS[2:])})"

@@ -201,7 +201,8 @@ def diagnose(fitter: Fitter, baseline: Candidate, **settings) -> Diagnosis:
 
 def diagnose_search(fitter: Fitter, baseline: Candidate, *, max_rounds: int = DEFAULT_MAX_STEPS, seed: int = 0,
                     states: bool = True, terms: str | None = None, beam: int = DEFAULT_BEAM,
-                    alpha: float = DEFAULT_ALPHA, kinds=DIAGNOSE_KINDS, simplify: bool = False):
+                    alpha: float = DEFAULT_ALPHA, kinds=DIAGNOSE_KINDS, simplify: bool = False,
+                    simulator_terms=()):
     """Diagnose one coefficient, and the structure search it ran: a search over moves
     (:mod:`structsearch.discovery`) from ``baseline`` until no move passes the adoption test; each adopted move
     is a round, and the final structure is judged against the floor. A diagnosis adopts moves that close the
@@ -209,11 +210,12 @@ def diagnose_search(fitter: Fitter, baseline: Candidate, *, max_rounds: int = DE
     moves searched (a diagnosis' default leaves the static separation forms to ``discover``). ``to_dict()``
     of the result is the JSON document of docs/interfaces.md sections 3 and 5.4. ``fitter``'s lift models are
     lift models a drag or pitch structure may be fed besides its own (the story: the lift structure found for
-    C_L); ``terms`` a user's term file."""
+    C_L); ``terms`` a user's term file; ``simulator_terms`` the terms of a simulator baseline
+    (:class:`~structsearch.discovery.terms.SimulatorTerm`: a grey box whose terms the moves rescale, drop or replace)."""
     t0 = time.perf_counter()
     if max_rounds < 1:
         raise DeclarationError(f"a diagnosis needs at least one round, not {max_rounds}")
-    start = start_search(fitter, baseline, terms, kinds)
+    start = start_search(fitter, baseline, terms, kinds, simulator_terms)
     fitter = start.fitter
     train, val = fitter.splits()
     ctx = _Context(train, val, dict(fitter.lifts), seed)

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .offset import TERM_COLUMN_PREFIX
+
 from ..data.flightdata import FlightData
 from ..engine.ties import first_of_lowest
 
@@ -59,10 +61,12 @@ class SignalFit:
 
 
 def signals(data: FlightData, state: np.ndarray) -> dict[str, np.ndarray]:
-    """The measured signals: numeric campaign columns other than coefficients and truth columns, the
-    separation state ``state`` of the model's phases (``X``) and the time since the maneuver began."""
+    """The measured signals: numeric campaign columns other than coefficients, truth columns and a simulator's
+    terms (``sim__...``: the baseline's own parts, not measurements), the separation state ``state`` of the model's
+    phases (``X``) and the time since the maneuver began."""
     out = {k: np.asarray(v, float) for k, v in data.columns.items()
-           if k not in OUTPUT_COLUMNS and not k.endswith("_true") and np.issubdtype(np.asarray(v).dtype, np.number)}
+           if k not in OUTPUT_COLUMNS and not k.endswith("_true") and not k.startswith(TERM_COLUMN_PREFIX)
+           and np.issubdtype(np.asarray(v).dtype, np.number)}
     out["X"] = np.asarray(state, float)
     out["time_in_maneuver"] = np.concatenate([data["t"][sl] - data["t"][sl][0] for sl in data.segment_slices()])
     return dict(sorted(out.items()))

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
+from ..discovery.terms import SimulatorTerm
 from ..fitting.candidates import Candidate
 
 COEFFICIENTS = ("CL", "CD", "Cm")
@@ -43,6 +44,33 @@ class SimulatorBaseline:
     values: np.ndarray = field(repr=False)
     detail: Mapping[str, object] = field(default_factory=dict)
     column: str | None = None      # the campaign column it was read from (removed from the gap's campaign)
+    # the simulator's own terms, "sim:<function>" -> values, which sum to ``values`` (a grey box: each becomes a
+    # column the search may rescale, drop or replace; empty: the simulator is one black-box offset)
+    terms: Mapping[str, np.ndarray] = field(default_factory=dict, repr=False)
+    # per term, the campaign signals it reads (a library term that replaces it must read one of them)
+    term_signals: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+
+    @property
+    def term_columns(self) -> dict[str, str]:
+        """Each term's campaign column in the gap's campaign: ``sim__`` and the function's last path component
+        (made unique), a name an expression can read."""
+        return term_columns(tuple(self.terms))
+
+
+TERM_COLUMN_PREFIX = "sim__"
+
+
+def term_columns(names) -> dict[str, str]:
+    """``sim:<function>`` -> a column name of :data:`TERM_COLUMN_PREFIX` and the function's last path component
+    (characters other than letters, digits and _ replaced by _; a repeat gets _2, _3, ...)."""
+    out: dict[str, str] = {}
+    for name in names:
+        tail = re.sub(r"\W", "_", name.rsplit("/", 1)[-1].split(":")[-1]) or "term"
+        column, k = TERM_COLUMN_PREFIX + tail, 2
+        while column in out.values():
+            column, k = f"{TERM_COLUMN_PREFIX}{tail}_{k}", k + 1
+        out[name] = column
+    return out
 
 
 def _where(campaign: Campaign, segment: int) -> str:
@@ -84,6 +112,14 @@ def column_baseline(campaign: Campaign, coefficient: str, column: str) -> Simula
     return SimulatorBaseline(coefficient, f"column {column}", "column", values, column=column)
 
 
+def library_terms(baseline: SimulatorBaseline) -> tuple[SimulatorTerm, ...]:
+    """The simulator's terms as the structure search's grey-box terms (none for a black-box simulator); a term that
+    is zero at every sample (flaps retracted all flight) is none: nothing of it can be rescaled or dropped."""
+    columns = baseline.term_columns
+    return tuple(SimulatorTerm(name, columns[name], tuple(baseline.term_signals.get(name, ())))
+                 for name, values in baseline.terms.items() if np.any(np.asarray(values) != 0))
+
+
 def check_coefficient(coefficient: str | None) -> None:
     if coefficient not in COEFFICIENTS:
         raise DeclarationError("a simulator baseline needs --coefficient: the coefficient the simulator's values are "
@@ -92,13 +128,15 @@ def check_coefficient(coefficient: str | None) -> None:
 
 def gap_campaign(campaign: Campaign, baseline: SimulatorBaseline) -> Campaign:
     """``campaign`` with its coefficient column replaced by flight minus simulator (and the simulator's own column
-    removed)."""
+    removed); a simulator's terms become columns (:attr:`SimulatorBaseline.term_columns`)."""
     c = baseline.coefficient
     if c not in campaign.data:
         raise DataError("the campaign has no column for the diagnosed coefficient",
                         source=str(campaign.directory) if campaign.directory else campaign.name, column=c)
     columns = {k: v for k, v in campaign.data.columns.items() if k != baseline.column}
     columns[c] = np.asarray(campaign.data[c], float) - baseline.values
+    for name, column in baseline.term_columns.items():
+        columns[column] = np.asarray(baseline.terms[name], float)
     # a new Campaign: its split cache (kept in the instance) starts empty
     return dataclasses.replace(campaign, data=campaign.data.with_columns(columns))
 
@@ -126,6 +164,38 @@ def simulator_record(campaign: Campaign, baseline: SimulatorBaseline, bias: floa
                          f"it is refitted); the search starts from it plus the constant bias {c}_bias, and every "
                          "structure is fitted to flight minus simulator"),
             "state_level": "not replayed: the state-level replay needs the simulator's whole model in the loop"}
+
+
+def terms_record(baseline: SimulatorBaseline, final: Candidate, estimates) -> dict:
+    """What the final structure made of each simulator term (a grey box; empty for a black box): ``kept``,
+    ``rescaled`` (its factor 1 + c and the standard error of c: the flight's term is ``factor`` times the
+    simulator's), ``dropped`` or ``replaced`` (by the terms the structure added in its place), each with a
+    sentence that names the simulator's function."""
+    if not baseline.terms:
+        return {}
+    regressors, known = dict(final.regressors), dict(final.known)
+    params, stderr = dict(estimates.params), dict(estimates.stderr)
+    added = [n for n in regressors if n not in baseline.terms and n != f"{baseline.coefficient}_bias"]
+    out = {}
+    for name in baseline.terms:
+        function = name.removeprefix("sim:")
+        if not np.any(np.asarray(baseline.terms[name]) != 0):
+            entry = {"verdict": "zero", "words": f"the simulator's {function} is zero along the flight (not searched)"}
+        elif f"-{name}" in known:
+            verdict = "replaced" if added else "dropped"
+            entry = {"verdict": verdict,
+                     "words": (f"the simulator's {function} is dropped: the flight shows none of it"
+                               if verdict == "dropped" else
+                               f"the simulator's {function} is dropped; the structure adds {', '.join(added)}")}
+        elif name in regressors:
+            factor, se = 1.0 + float(params[name]), float(stderr.get(name, float("nan")))
+            entry = {"verdict": "rescaled", "factor": factor, "stderr": se,
+                     "words": f"the simulator's {function} rescaled by {factor:.3g} ± {se:.2g}: the flight's is "
+                              f"{factor:.3g} times the simulator's"}
+        else:
+            entry = {"verdict": "kept", "words": f"the simulator's {function} kept as it is"}
+        out[name] = {"column": baseline.term_columns[name], **entry}
+    return out
 
 
 def without_bias_reasons(diagnosis, start: Candidate):

@@ -42,8 +42,9 @@ from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.fitter import Fitter
 from .adoption import DEFAULT_ALPHA, move_test
-from .final_choice import (CONFIRMED, NESTED_KINDS, by_mse as _by_mse, choose, hard as _hard, lower as _lower,
-                           lowest_mse as _lowest_mse, preference as _preference, select_final, set_aside)
+from .final_choice import (CONFIRMED, NAMES_SIMULATOR_TERM, NESTED_KINDS, by_mse as _by_mse, choose,
+                           hard as _hard, lower as _lower, lowest_mse as _lowest_mse, preference as _preference,
+                           select_final, set_aside)
 from .moves import MOVE_KINDS, Move, generate, structure_key
 from .search_nodes import Exploration, Node, Status, Step, Stop
 from .terms import TermLibrary
@@ -164,7 +165,7 @@ def _nested_first(improved: list[Node], tried: list[Node], alpha: float) -> list
         return n is best or move_test(best.result, n.result, alpha, 1).within_one_se
 
     peers = [n for n in tried if n.parent is best.parent and n.anchor is best.anchor and n.status != Status.IMPROVES
-             and n.move.effect and not n.screened and n.status != Status.FAILED and n.test is not None
+             and (n.move.effect or n.move.kind in NAMES_SIMULATOR_TERM) and not n.screened and n.status != Status.FAILED and n.test is not None
              and n.test.pooled_gain > 0 and _lower(n.result.validation.mse, n.anchor.result.validation.mse)
              and not (_hard(n) - _hard(n.anchor))]
     near = [n for n in improved if n.parent is best.parent and near_best(n)] + [n for n in peers if near_best(n)]

@@ -21,7 +21,9 @@ from .moves import structure_key
 from .search_nodes import Node, SetAside, Status, Stop
 
 CONFIRMED = (Status.START, Status.IMPROVES, Status.SIMPLIFIES, Status.REPAIRS)
-NESTED_KINDS = ("effect", "add", "state kind", "add state")
+NESTED_KINDS = ("effect", "add", "state kind", "add state", "rescale")
+# a simulator's own term refitted (a grey box): the move that names the simulator's function that misses
+NAMES_SIMULATOR_TERM = ("rescale",)
 
 
 def hard(n: Node) -> set[Reason]:
@@ -30,13 +32,17 @@ def hard(n: Node) -> set[Reason]:
 
 
 def preference(n: Node) -> int:
-    """How a move explains a gap, simplest first: the library's whole effect, its share at one state, a move that
-    only adds to its parent (it keeps what the parent explained), any other move; the start last but one."""
+    """How a move explains a gap, simplest first: a simulator's own term rescaled (it names the simulator's function
+    that misses: a library term of the same signal fits alike), the library's whole effect, its share at one state,
+    a move that only adds to its parent (it keeps what the parent explained), any other move; the start last but
+    one."""
     if n.move is None:
-        return 4
+        return 5
+    if n.move.kind in NAMES_SIMULATOR_TERM:
+        return 0
     if n.move.effect:
-        return 0 if not n.move.at_one_state else 1
-    return 2 if n.move.kind in NESTED_KINDS else 3
+        return 1 if not n.move.at_one_state else 2
+    return 3 if n.move.kind in NESTED_KINDS else 4
 
 
 def by_mse(nodes, prefix=lambda n: ()) -> list[Node]:

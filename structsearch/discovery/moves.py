@@ -18,7 +18,12 @@
 * ``lift``: a drag or pitch candidate fed another lift model's states and C_L; each of its terms on a state
   is rewritten for every state of the new lift model (1 - X -> 1 - X_ss, 1 - X_w);
 * ``effect``: an entry of the effect library (:mod:`.effects`) as a named composite move. A structural move
-  that builds the same structure as an effect carries the effect's name.
+  that builds the same structure as an effect carries the effect's name;
+* on the terms of a simulator baseline (a grey box, ``TermLibrary.simulator``; each a column ``sim__...`` of the
+  gap's campaign, whose coefficient is flight minus simulator): ``rescale`` a term (its column added as a regressor
+  ``sim:<function>`` whose coefficient c makes the term (1 + c) times the simulator's: nested, c = 0 is the
+  parent), ``drop`` it (the known term ``-sim:<function>``, coefficient fixed at 1, takes it out of the simulator's
+  sum) or ``replace`` it by a library term that reads one of the signals it reads (dropped, and the term added).
 
 A move that leaves one of a candidate's own states without a regressor, or a candidate without a term, is not
 generated.
@@ -37,9 +42,9 @@ from ..engine.separation import SeparationState
 from ..fitting.candidates import Candidate
 from ..grid_search.refinement import structure_key  # noqa: F401  (what makes two structures the same model)
 from . import effects as fx
-from .terms import STATE_SYMBOL, TermLibrary, normalise, template_of, uses_state
+from .terms import STATE_SYMBOL, TermLibrary, columns_of, normalise, template_of, uses_state
 
-MOVE_KINDS = ("add", "drop", "replace", "state kind", "add state", "remove state", "lift", "effect", "form")
+MOVE_KINDS = ("add", "drop", "replace", "state kind", "add state", "remove state", "lift", "effect", "form", "rescale")
 # A diagnosis explains a gap by the effects it adds and the terms and states that carry them; another static curve
 # is a change of structure it does not search (and each form child costs a nonlinear fit of its own). ``discover``
 # explores structure: every kind.
@@ -110,7 +115,8 @@ def child_name(parent: Candidate, label: str, regressors, states, lift, forms=()
     return f"{root} [{digest}]"
 
 
-def _child(parent: Candidate, label: str, regressors, states=None, lift=..., bounds=None, forms=None) -> Candidate:
+def _child(parent: Candidate, label: str, regressors, states=None, lift=..., bounds=None, forms=None,
+           known=None) -> Candidate:
     states = parent.states if states is None else tuple(states)
     lift = parent.lift if lift is ... else lift
     regressors = tuple(regressors)
@@ -120,7 +126,8 @@ def _child(parent: Candidate, label: str, regressors, states=None, lift=..., bou
     return dataclasses.replace(parent, name=child_name(parent, label, regressors, states, lift, kept),
                                grid=parent.grid or "discover", regressors=regressors, states=states, lift=lift,
                                note=f"{parent.name} with {label}",
-                               bounds=parent.bounds if bounds is None else tuple(bounds), forms=kept)
+                               bounds=parent.bounds if bounds is None else tuple(bounds), forms=kept,
+                               known=parent.known if known is None else tuple(known))
 
 
 def _keep_bounds(bounds, states, forms=()) -> tuple:
@@ -139,9 +146,10 @@ def _term_moves(c: Candidate, library: TermLibrary) -> list[tuple[Move, Candidat
         name = _unique(name, names)
         label = f"add {name} = {expr}"
         out.append((Move("add", label, (name,)), _child(c, label, c.regressors + ((name, expr),))))
+    simulator = {t.name for t in library.simulator}
     for i, (name, expr) in enumerate(c.regressors):
-        if normalise(expr) == "1":
-            continue   # the intercept stays
+        if normalise(expr) == "1" or name in simulator:
+            continue   # the intercept stays; a simulator term's rescale is undone by its own moves
         rest = c.regressors[:i] + c.regressors[i + 1:]
         label = f"drop {name}"
         out.append((Move("drop", label), _child(c, label, rest)))
@@ -195,6 +203,34 @@ def modulated_pairs(options: tuple[tuple[str, str], ...]) -> tuple[tuple[tuple[s
                 continue
             out.append(((a_name, a_expr), (b_name, b_expr)))
     return tuple(out)
+
+
+def _simulator_moves(c: Candidate, library: TermLibrary, kinds) -> list[tuple[Move, Candidate]]:
+    """``rescale``, ``drop`` and ``replace`` of each simulator term the structure still has (module docstring)."""
+    have = {normalise(e) for _, e in c.regressors}
+    options = [(n, e) for n, e in library.instances(tuple(n for n, _ in c.states)) if normalise(e) not in have]
+    known, names = dict(c.known), {n for n, _ in c.regressors}
+    out = []
+    for t in library.simulator:
+        if t.dropped in known:
+            continue
+        if "rescale" in kinds and t.name not in names:
+            label = f"rescale {t.name}"
+            out.append((Move("rescale", label, (t.name,)), _child(c, label, c.regressors + ((t.name, t.column),))))
+        rest = tuple((n, e) for n, e in c.regressors if n != t.name)
+        without = c.known + ((t.dropped, f"-{t.column}"),)
+        if "drop" in kinds:
+            label = f"drop {t.name}"
+            out.append((Move("drop", label), _child(c, label, rest, known=without)))
+        if "replace" not in kinds:
+            continue
+        for name, expr in options:
+            if not columns_of(expr) & set(t.signals):
+                continue
+            name = _unique(name, {n for n, _ in rest})
+            label = f"replace {t.name} by {name} = {expr}"
+            out.append((Move("replace", label), _child(c, label, rest + ((name, expr),), known=without)))
+    return out
 
 
 def _state_of(expr: str) -> str:
@@ -312,6 +348,8 @@ def generate(c: Candidate, library: TermLibrary, lifts: Mapping[str, Candidate] 
     found: list[tuple[Move, Candidate]] = []
     if {"add", "drop", "replace"} & set(kinds):
         found += [(m, ch) for m, ch in _term_moves(c, library) if m.kind in kinds]
+    if library.simulator:
+        found += _simulator_moves(c, library, kinds)
     if {"state kind", "add state", "remove state"} & set(kinds):
         found += [(m, ch) for m, ch in _state_moves(c) if m.kind in kinds]
     if "lift" in kinds:

@@ -16,7 +16,7 @@ from ..flight.reference import FINAL_MODEL_NAMES
 from .explore import Judge
 from .judge import judge_for
 from .moves import MOVE_KINDS, generate
-from .terms import TermLibrary, library_for
+from .terms import SimulatorTerm, TermLibrary, library_for
 
 
 @dataclass(frozen=True)
@@ -33,15 +33,22 @@ class SearchStart:
 
 
 def start_search(fitter: Fitter, baseline: Candidate, terms: str | None = None,
-                 kinds=MOVE_KINDS) -> SearchStart:
+                 kinds=MOVE_KINDS, simulator_terms: tuple[SimulatorTerm, ...] = ()) -> SearchStart:
     """The search from ``baseline``: ``fitter``'s lift models are the ones given (the story's lift structure found
-    for C_L, discover's ``--lifts``); ``terms`` is a user's term file."""
+    for C_L, discover's ``--lifts``); ``terms`` is a user's term file; ``simulator_terms`` the terms of a simulator
+    baseline the moves may rescale, drop or replace."""
     train, val = fitter.splits()
     if baseline.coefficient not in val:
         raise DataError("the campaign has no column for the diagnosed coefficient",
                         source=str(fitter.campaign.directory), column=baseline.coefficient)
     # the term library first: a bad term file is an error before anything is fitted
     library = library_for(baseline.coefficient, train, terms)
+    if simulator_terms:
+        missing = [t.column for t in simulator_terms if t.column not in train]
+        if missing:
+            raise DataError("the campaign has no column for the simulator's term", source=str(fitter.campaign.directory),
+                            column=missing[0])
+        library = dataclasses.replace(library, simulator=tuple(simulator_terms))
     fitter = with_lift_models(fitter, baseline)
     if not generate(baseline, library, {n: lf.candidate for n, lf in fitter.lifts.items()}, kinds):
         raise DeclarationError(f"no move of the structure search applies to {baseline.name}")

@@ -53,12 +53,30 @@ class Term:
 
 
 @dataclass(frozen=True)
+class SimulatorTerm:
+    """A term of a simulator baseline taken as a grey box: ``name`` (``sim:<function>``, e.g.
+    ``sim:aero/coefficient/CLq``), the campaign ``column`` holding its values, and the campaign signals it reads
+    (a library term that replaces it must read one of them)."""
+
+    name: str
+    column: str
+    signals: tuple[str, ...] = ()
+
+    @property
+    def dropped(self) -> str:
+        """The name of the known term that takes it out of the simulator's sum (``-sim:...``)."""
+        return f"-{self.name}"
+
+
+@dataclass(frozen=True)
 class TermLibrary:
-    """The templates of one coefficient, and the shipped ones set aside for the campaign (with why)."""
+    """The templates of one coefficient, and the shipped ones set aside for the campaign (with why); ``simulator``:
+    the terms of a simulator baseline the search may rescale, drop or replace (:mod:`.moves`)."""
 
     coefficient: str
     terms: tuple[Term, ...]
     set_aside: tuple[tuple[str, str], ...] = field(default=())
+    simulator: tuple[SimulatorTerm, ...] = field(default=())
 
     def instances(self, states: tuple[str, ...]) -> list[tuple[str, str]]:
         out, seen = [], set()
@@ -71,8 +89,11 @@ class TermLibrary:
         return out
 
     def to_dict(self) -> dict:
-        return {"coefficient": self.coefficient, "terms": {t.name: t.expression for t in self.terms},
-                "set_aside": dict(self.set_aside)}
+        out = {"coefficient": self.coefficient, "terms": {t.name: t.expression for t in self.terms},
+               "set_aside": dict(self.set_aside)}
+        if self.simulator:
+            out["simulator"] = {t.name: {"column": t.column, "signals": list(t.signals)} for t in self.simulator}
+        return out
 
 
 def normalise(expression: str) -> str:

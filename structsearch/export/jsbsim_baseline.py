@@ -7,13 +7,9 @@ its aerodynamics and separation states read (alpha, alpha_dot, q, V, de, C_T, ..
 written from the recording and one frame is run; ``structsearch/<coefficient>`` is read back. Its separation
 states run along each maneuver from equilibrium at its first sample, as in the fits.
 
-Supported: an aircraft written by ``structsearch export --format jsbsim`` (``AIRCRAFT`` is the export directory,
-its ``aircraft/<name>`` directory, or the name of an aircraft under JSBSim's own root that carries the
-structsearch namespace). Refused with one error: any other aircraft, JSBSim's bundled ones among them. Their
-aerodynamics read JSBSim's own ``aero/alpha-rad``, ``aero/alphadot-rad_sec``, ``aero/qbar-psf`` and
-``velocities/q-rad_sec``, which JSBSim computes from its integrated state and which a program cannot set sample by
-sample (a write is ignored); the elevator position is an actuator's output. Their coefficients along a recorded
-flight are the user's simulator's job: written as a column, they are ``--baseline-column``.
+This module drives an aircraft written by ``structsearch export --format jsbsim`` (``AIRCRAFT`` is the export
+directory or its ``aircraft/<name>`` directory: :func:`exported_by_structsearch`). Any other aircraft, JSBSim's
+bundled ones among them, is evaluated term by term at the recorded states by :mod:`structsearch.foreign.baseline`.
 """
 from __future__ import annotations
 
@@ -59,6 +55,28 @@ def locate(target: str) -> tuple[Path | None, str]:
     if os.sep in target or "/" in target:
         raise DeclarationError(f"--simulator jsbsim:{target}: no such directory")
     return None, target
+
+
+def exported_by_structsearch(target: str) -> bool:
+    """Whether ``jsbsim:TARGET`` is an export directory of ``structsearch export --format jsbsim`` (an xml file of
+    its root declares the structsearch namespace's inputs); a name (one of JSBSim's own aircraft) is not."""
+    path = Path(target)
+    if not path.is_dir():
+        return False
+    try:
+        root, _ = locate(target)
+    except DeclarationError:
+        return False
+    marker = FILL_INPUTS.encode()
+    for k, f in enumerate(sorted(Path(root).rglob("*.xml"))):
+        if k >= 200:
+            break
+        try:
+            if f.stat().st_size < 5_000_000 and marker in f.read_bytes():
+                return True
+        except OSError:
+            continue
+    return False
 
 
 def jsbsim_baseline(target: str, campaign: Campaign, coefficient: str) -> SimulatorBaseline:

@@ -32,6 +32,9 @@ class Candidate:
     # per-flight nuisance parameters estimated with it (.flight_effects.EFFECTS; docs/interfaces.md 7.5)
     flight_effects: tuple[str, ...] = ()
     moment_reference: str = "cg"   # MOMENT_REFERENCES; "fixed" for a pitch candidate only
+    # known terms (name, expression) added to the output with their coefficient fixed at 1, never estimated (a
+    # simulator's term taken out of a fixed offset: structsearch.diagnosis.offset)
+    known: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self):
         given = dict(self.forms)
@@ -93,6 +96,8 @@ class Candidate:
             out["flight_effects"] = list(self.flight_effects)
         if self.moment_reference != "cg":
             out["moment_reference"] = self.moment_reference
+        if self.known:
+            out["known"] = dict(self.known)
         return out
 
     @classmethod
@@ -101,7 +106,7 @@ class Candidate:
         return cls(d["name"], d["grid"], d["coefficient"], tuple(d["regressors"].items()), tuple(d["states"].items()),
                    d["lift"], d.get("note", ""), tuple((k, tuple(v)) for k, v in d.get("bounds", {}).items()),
                    tuple(d.get("x0", {}).items()), flight_effects=tuple(d.get("flight_effects", ())),
-                   moment_reference=d.get("moment_reference", "cg"))
+                   moment_reference=d.get("moment_reference", "cg"), known=tuple(d.get("known", {}).items()))
 
 
 @dataclass(frozen=True)

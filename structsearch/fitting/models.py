@@ -47,9 +47,18 @@ def model_with_lift(c: Candidate, lift_params: Mapping[str, float] | None) -> St
                    if k in {p for n, kd in states.items() for p in SeparationState(n, kd, c.form_of(n)).parameters}}
     forms = {n: f for n, f in c.forms if n in states}
     # about the fixed reference point: C_m about the recorded cg is the model's plus the known transfer
-    offset = (TRANSFER_NAME, TRANSFER_EXPRESSION) if c.moment_reference == "fixed" else None
+    offset = known_offset(c)
     return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states, fixed=fixed,
                               bounds=free_bounds, forms=forms, offset=offset)
+
+
+def known_offset(c: Candidate) -> tuple[str, str] | None:
+    """The known term added to ``c``'s output with coefficient 1 (None: none): the moment transfer of a pitch
+    candidate about the fixed point, and the candidate's own known terms, summed into one expression."""
+    parts = ([(TRANSFER_NAME, TRANSFER_EXPRESSION)] if c.moment_reference == "fixed" else []) + list(c.known)
+    if len(parts) <= 1:
+        return parts[0] if parts else None
+    return " + ".join(n for n, _ in parts), " + ".join(f"({e})" for _, e in parts)
 
 
 def with_lift_prediction(data: FlightData, lift_params: Mapping[str, float], lift_candidate: Candidate) -> FlightData:

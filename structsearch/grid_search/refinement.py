@@ -117,9 +117,10 @@ def _refined(c: Candidate, drop: list[str], suffix: str, kinds: dict[str, str] |
 
 def structure_key(c: Candidate) -> tuple:
     """What makes two candidates the same model: regressor expressions, states (with their static forms), lift
-    model."""
+    model, known terms."""
     return (c.coefficient, tuple(sorted(t.replace(" ", "") for _, t in c.regressors)), tuple(sorted(c.states)),
-            c.lift) + ((tuple(sorted(c.forms)),) if c.forms else ())
+            c.lift) + ((tuple(sorted(c.forms)),) if c.forms else ()) + \
+        ((("known",) + tuple(sorted(e.replace(" ", "") for _, e in c.known)),) if c.known else ())
 
 
 def refinement_key(c: Candidate, widened: dict[str, tuple[float, float]] | None = None) -> tuple:

@@ -178,9 +178,21 @@ def _simulator_lines(sim) -> list[str]:
     mse = sim.get("mse", {})
     own = ", ".join(f"{k} {v:.4g}" for k, v in mse.items() if v is not None)
     bias = sim.get("bias", {})
-    return [f"**Baseline: the simulator {sim['source']}** ({own} without the bias; bias {bias.get('name')} = "
-            f"{bias.get('value', float('nan')):.3g}). {sim.get('baseline', '')}; state level "
-            f"{sim.get('state_level', '')}.", ""]
+    lines = [f"**Baseline: the simulator {sim['source']}** ({own} without the bias; bias {bias.get('name')} = "
+             f"{bias.get('value', float('nan')):.3g}). {sim.get('baseline', '')}; state level "
+             f"{sim.get('state_level', '')}.", ""]
+    return lines + simulator_term_lines(sim, "- ") + ([""] if sim.get("terms") else [])
+
+
+def simulator_term_lines(sim, prefix: str = "") -> list[str]:
+    """A line per simulator term the final structure changed (rescaled, dropped, replaced), naming its function;
+    one line for those kept."""
+    terms = (sim or {}).get("terms") or {}
+    changed = [f"{prefix}{t['words']}" for t in terms.values() if t.get("verdict") not in ("kept", "zero")]
+    kept = [n.removeprefix("sim:") for n, t in terms.items() if t.get("verdict") == "kept"]
+    zero = [n.removeprefix("sim:") for n, t in terms.items() if t.get("verdict") == "zero"]
+    return changed + ([f"{prefix}kept as the simulator has them: {', '.join(kept)}"] if kept else []) + \
+        ([f"{prefix}zero along the flight (not searched): {', '.join(zero)}"] if zero else [])
 
 
 def markdown(doc: Diagnosis) -> str:
@@ -299,6 +311,7 @@ def diagnosis_console_lines(diagnosis: Diagnosis, written: tuple[Path, Path] | N
         # an error inside the command reaches the console, not only the json (issue 31)
         replay = [f"warning: {sl.words()}"]
     also = [f"{e.term}: {e.words()}" for e in d.equivalences]
+    also += [line for line in simulator_term_lines(d.simulator) if not line.startswith(("kept as", "zero along"))]
     return [head] + [line for line in also + [unexplained_sentence(d)] + [f"warning: {w}" for w in d.warnings]
                      + replay if line]
 

@@ -9,22 +9,24 @@ from ..engine.equations import HELPER_MEANINGS, write_equations
 from ..engine.equations import helpers_used as _helpers_used
 from ..engine.equations import model_equation as _model_equation
 from ..engine.equations import state_equation
-from ..data.moment_transfer import TRANSFER_EXPRESSION, TRANSFER_NAME
 from ..fitting.candidates import Candidate
+from ..fitting.models import known_offset
 
 __all__ = ["HELPER_MEANINGS", "equations", "helpers_used", "model_equation", "state_equation", "latex_equations"]
 
 
 def _offset(c: Candidate) -> tuple[str, str] | None:
-    """The known term of a pitch candidate about the fixed reference point (docs/interfaces.md 7.5), else None."""
-    return (TRANSFER_NAME, TRANSFER_EXPRESSION) if c.moment_reference == "fixed" else None
+    """The known term of a pitch candidate about the fixed reference point (docs/interfaces.md 7.5) and the
+    candidate's own known terms, else None."""
+    return known_offset(c)
 
 
 def model_equation(c: Candidate) -> str:
-    """``c``'s coefficient as the sum of its parameters times their regressors (and the moment transfer of a
-    pitch candidate about the fixed point)."""
+    """``c``'s coefficient as the sum of its parameters times their regressors (and the known terms: the moment
+    transfer of a pitch candidate about the fixed point)."""
     line = _model_equation(c.coefficient, c.regressors)
-    return line.replace(" = ", f" = {TRANSFER_NAME} + ", 1) if _offset(c) else line
+    offset = _offset(c)
+    return line.replace(" = ", f" = {offset[0]} + ", 1) if offset else line
 
 
 def helpers_used(c: Candidate) -> list[str]:

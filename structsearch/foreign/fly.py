@@ -1,0 +1,185 @@
+"""``simulate --jsbsim NAME_OR_DIR``: a stall campaign flown in JSBSim, through the project's measurement chain.
+
+A campaign flown in JSBSim is the aircraft *model* flown, not a flight: what a diagnosis against the same aircraft
+finds is what the modification (``--modify``) changed, and nothing of the real aircraft.
+
+Each maneuver is flown by JSBSim itself (its integration, flight controls, engine and stall latch; the private
+copy only applies ``--modify`` and drops ``<output>`` directives) at 100 Hz: trimmed in level flight with the
+engine running at the maneuver's airspeed and altitude, then an open-loop elevator profile over the trim command
+(``fcs/elevator-cmd-norm``; negative pulls): ``quasi-steady`` a slow ramp to the stop, a hold and the recovery,
+``dynamic`` a faster ramp (to 70 % of the travel from trim to the stop) with a doublet after the recovery,
+``deep-dynamic`` a pull (to 85 %) in two seconds, a hold through the stall and a push to recover. The throttle stays at its trim setting.
+
+The truth histories (airspeed, alpha, q, theta, h, the elevator position, thrust, dynamic pressure, mass, cg,
+C_L and C_D from the LIFT and DRAG axes, C_m from JSBSim's aerodynamic moment about its cg) go through
+:func:`structsearch.flight.measurement.measure` (sensor rates, noise and biases, buffet while JSBSim's stall latch is
+set, the pre-filter and the reconstruction of the coefficients from specific forces and pitch acceleration; the
+slow reconstruction errors are left out). C_m is reconstructed from the measured pitch acceleration, less the
+engine's pitching moment (JSBSim's ``moments/m-prop-lbsft`` over q S cbar: the reduction removes the engine's moment
+as it removes its thrust). The campaign's ``x_cg`` is JSBSim's cg station
+[m] (structural frame, x aft), and the column ``prop_induced_fps`` records the propeller's induced velocity
+(``propulsion/engine/prop-induced-velocity_fps``), which some aircraft's elevator power reads.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from ..data.campaign import Campaign, Maneuver, make_campaign
+from ..data.errors import StructSearchError
+from ..flight.aircraft import Aircraft
+from ..flight.measurement import measure
+from .aircraft_xml import AircraftFile, read_aircraft
+from .evaluate import need_jsbsim
+from .private_copy import make_copy
+
+FT, LBF, SLUG, SLUGFT2, PSF, LBFFT = 0.3048, 4.4482216152605, 14.593902937, 1.3558179483, 47.880258889, 1.3558179483
+RATE_HZ = 100.0
+# maneuvers of each kind at scale 1, and their lengths [s]
+PLAN = {"quasi-steady": (8, 60.0), "dynamic": (10, 35.0), "deep-dynamic": (8, 25.0)}
+# the share of the travel from trim to the nose-up stop each kind pulls to (a fast pull to the stop departs)
+REACH = {"quasi-steady": 1.0, "dynamic": 0.7, "deep-dynamic": 0.85}
+PROP_INDUCED = "propulsion/engine/prop-induced-velocity_fps"
+
+
+@dataclass(frozen=True)
+class Planned:
+    id: str
+    kind: str
+    split: str
+    duration: float
+    v_kts: float
+    h_ft: float
+    pace: float        # the profile's time scale (1: nominal)
+
+
+def plan(scale: float, seed: int) -> list[Planned]:
+    """The maneuvers flown: at scale 1 :data:`PLAN`, at least one of each kind; every fourth one validates."""
+    rng = np.random.default_rng([seed, 53])
+    out = []
+    for kind, (count, duration) in PLAN.items():
+        for _ in range(max(1, round(count * scale))):
+            k = len(out)
+            out.append(Planned(f"j{k + 1:02d}", kind, "validation" if k % 4 == 3 else "train", duration,
+                               float(rng.uniform(60.0, 80.0)), float(rng.uniform(4000.0, 7000.0)),
+                               float(rng.uniform(0.8, 1.25))))
+    return out
+
+
+def elevator_profile(p: Planned, t: np.ndarray, trim: float) -> np.ndarray:
+    """The elevator command over trim (module docstring), from trim to the nose-up stop (-1) and back."""
+    full = (-1.0 - trim) * REACH[p.kind]
+    s = t / p.pace
+
+    def ramp(a, b):
+        return np.clip((s - a) / max(b - a, 1e-9), 0.0, 1.0)
+    if p.kind == "quasi-steady":
+        u = full * (ramp(3, 38) - ramp(43, 45))
+    elif p.kind == "dynamic":
+        u = full * (ramp(2, 12) - ramp(15, 16)) + 0.25 * (ramp(22, 22.5) - 2 * ramp(23.5, 24) + ramp(25, 25.5))
+    else:
+        u = full * (ramp(2, 4) - ramp(9, 10)) + 0.3 * (ramp(9, 10) - ramp(12, 13))
+    return np.clip(trim + u, -1.0, 1.0) - trim
+
+
+def _start(jsbsim, root: str, aircraft: AircraftFile, p: Planned):
+    fdm = jsbsim.FGFDMExec(root)
+    fdm.set_debug_level(0)
+    if not fdm.load_model(aircraft.name):
+        raise StructSearchError(f"JSBSim could not load the aircraft {aircraft.name!r} ({aircraft.file})")
+    fdm.set_dt(1.0 / RATE_HZ)
+    fdm["ic/h-sl-ft"] = p.h_ft
+    fdm["ic/vc-kts"] = p.v_kts
+    fdm["ic/gamma-deg"] = 0.0
+    fdm["propulsion/set-running"] = -1
+    fdm.run_ic()
+    try:
+        fdm["simulation/do_simple_trim"] = 1
+    except Exception as exc:   # JSBSim's trim failure
+        raise StructSearchError(f"JSBSim could not trim {aircraft.name} at {p.v_kts:.0f} kt, {p.h_ft:.0f} ft for "
+                                f"maneuver {p.id}: {exc}") from None
+    return fdm
+
+
+def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned) -> dict:
+    """The truth histories of one maneuver (module docstring), in SI units."""
+    fdm = _start(jsbsim, root, aircraft, p)
+    trim = float(fdm["fcs/elevator-cmd-norm"])
+    n = int(round(p.duration * RATE_HZ))
+    t = np.arange(n) / RATE_HZ
+    command = trim + elevator_profile(p, t, trim)
+    lift, drag = aircraft.functions("LIFT"), aircraft.functions("DRAG")
+    s_ft2, cbar_ft = float(fdm["metrics/Sw-sqft"]), float(fdm["metrics/cbarw-ft"])
+    names = ("velocities/vt-fps", "aero/alpha-rad", "velocities/q-rad_sec", "attitude/theta-rad", "position/h-sl-ft",
+             "fcs/elevator-pos-rad", "propulsion/engine/thrust-lbs", "aero/qbar-psf", "inertia/mass-slugs",
+             "inertia/cg-x-in", "moments/m-aero-lbsft", "inertia/iyy-slugs_ft2", "aero/stall-hyst-norm",
+             PROP_INDUCED, "moments/m-prop-lbsft")
+    rec = np.empty((len(names) + 2, n))
+    for k in range(n):
+        fdm["fcs/elevator-cmd-norm"] = command[k]
+        fdm.run()
+        for j, name in enumerate(names):
+            rec[j, k] = fdm[name]
+        rec[-2, k] = sum(fdm[f] for f in lift)
+        rec[-1, k] = sum(fdm[f] for f in drag)
+    r = dict(zip(names, rec))
+    qs = r["aero/qbar-psf"] * s_ft2
+    iyy = r["inertia/iyy-slugs_ft2"] * SLUGFT2
+    return {"t": t, "V": r["velocities/vt-fps"] * FT, "alpha": r["aero/alpha-rad"], "q": r["velocities/q-rad_sec"],
+            "theta": r["attitude/theta-rad"], "h": r["position/h-sl-ft"] * FT, "de": r["fcs/elevator-pos-rad"],
+            "thrust": r["propulsion/engine/thrust-lbs"] * LBF, "qbar": r["aero/qbar-psf"] * PSF,
+            "mass": r["inertia/mass-slugs"] * SLUG, "x_cg": r["inertia/cg-x-in"] * 0.0254,
+            "CL": rec[-2] / qs, "CD": rec[-1] / qs, "Cm": r["moments/m-aero-lbsft"] / (qs * cbar_ft),
+            "q_dot": r["moments/m-aero-lbsft"] * LBFFT / iyy, "iyy": iyy,
+            "states": {"X": 1.0 - r["aero/stall-hyst-norm"]}, "prop_induced_fps": r[PROP_INDUCED],
+            "engine_cm": r["moments/m-prop-lbsft"] / (qs * cbar_ft),
+            "geometry": (s_ft2 * FT ** 2, cbar_ft * FT, float(fdm["metrics/bw-ft"]) * FT)}
+
+
+def digest(scales: Mapping[str, float]) -> str:
+    """A short digest of a modification (function -> factor), "none" without one."""
+    if not scales:
+        return "none"
+    text = ";".join(f"{k}={float(v)!r}" for k, v in sorted(scales.items()))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def fly_campaign(target: str, scales: Mapping[str, float] | None = None, *, scale: float = 1.0,
+                 seed: int = 0) -> Campaign:
+    """The campaign flown in JSBSim (module docstring); ``scales``: function -> factor (``--modify``)."""
+    jsbsim = need_jsbsim()
+    jsbsim.FGJSBBase().debug_lvl = 0
+    aircraft = read_aircraft(target)
+    missing = [f for f in (scales or {}) if not any(f in aircraft.functions(a) for a in aircraft.axes)]
+    if missing:
+        raise StructSearchError(f"--modify: the aircraft {aircraft.name} has no axis function {missing[0]!r}")
+    holder = make_copy(aircraft, scales, rewrite=False)
+    rng = np.random.default_rng(seed)
+    maneuvers, segments, craft = [], [], None
+    try:
+        for p in plan(scale, seed):
+            truth = fly_one(jsbsim, holder.name, aircraft, p)
+            s, cbar, b = truth.pop("geometry")
+            iyy = float(np.median(truth.pop("iyy")))
+            craft = craft or Aircraft(aircraft.name, f"JSBSim {aircraft.name}", s, cbar, b,
+                                      float(truth["mass"][0]), 0.0, iyy, 0.0, 1.0, 0.0)
+            t = truth.pop("t")
+            induced, engine_cm = truth.pop("prop_induced_fps"), truth.pop("engine_cm")
+            columns = measure(rng, t, truth, None, 1.0, craft)
+            # the reduction removes the engine's pitching moment as it removes its thrust (known, as the thrust is)
+            columns["Cm"] = columns["Cm"] - engine_cm
+            columns["prop_induced_fps"] = induced
+            maneuvers.append(Maneuver(p.id, f"{p.id}.csv", p.kind, p.split))
+            segments.append(columns)
+    finally:
+        holder.cleanup()
+    manifest = {"S": craft.S, "cbar": craft.cbar, "b": craft.b, "Iyy": round(craft.iyy_empty, 1)}
+    source = {"simulator": "jsbsim", "aircraft": aircraft.name, "jsbsim_version": jsbsim.__version__,
+              "modify": digest(scales or {})}
+    name = f"JSBSim {aircraft.name} stall campaign (seed {seed}" + (", modified)" if scales else ")")
+    return make_campaign(name, manifest, maneuvers, segments, extra={"source": source, "seed": seed,
+                                                                     "scale": float(scale)})

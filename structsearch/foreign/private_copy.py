@@ -1,0 +1,123 @@
+"""The private copy of a JSBSim aircraft that JSBSim loads to be evaluated at recorded states.
+
+JSBSim computes some of what an aircraft's aerodynamics read from its own history, not from the state it is given:
+``aero/alphadot-rad_sec`` is the change of alpha since the previous frame, ``aero/stall-hyst-norm`` a latch set by
+the frames before, a propeller's induced velocity the engine's. Evaluated sample by sample, such values would
+depend on the order of evaluation. The copy (the aircraft directory copied into a temporary JSBSim root beside
+links to the original root's ``engine/`` and ``systems/``) rewrites every such read in its ``<aerodynamics>`` to a
+property of the ``structsearch/`` namespace that the evaluation writes from the recording:
+
+* ``aero/alphadot-rad_sec`` (``-deg_sec``) -> ``structsearch/alphadot-rad_sec`` (``-deg_sec``);
+* ``aero/stall-hyst-norm`` -> ``structsearch/stall-hyst-norm``;
+* every other property that is neither derived by JSBSim from the written state (:func:`derived`) nor the
+  elevator -> ``structsearch/input/<property>``: an input the campaign or ``--simulator-input`` supplies.
+
+The copy's top-level ``<output>`` directives are removed (JSBSim would write files), and each function a
+modification scales (``--modify``) is wrapped in a product with its factor.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Mapping
+
+from .aircraft_xml import READ_TAGS, AircraftFile, parse_file
+
+NAMESPACE = "structsearch/"
+ALPHADOT = {"aero/alphadot-rad_sec": "structsearch/alphadot-rad_sec",
+            "aero/alphadot-deg_sec": "structsearch/alphadot-deg_sec"}
+HYSTERESIS = "aero/stall-hyst-norm"
+HYSTERESIS_INPUT = "structsearch/stall-hyst-norm"
+INPUT_PREFIX = "structsearch/input/"
+# the elevator position the campaign's de gives (JSBSim's convention: positive trailing edge down, as de's), and
+# what JSBSim's flight-control system derives from it when it is written
+ELEVATOR = "fcs/elevator-pos-rad"
+ELEVATOR_DERIVED = ("fcs/elevator-pos-deg", "fcs/mag-elevator-pos-rad")
+# what JSBSim derives from the state written through ic/... and run_ic(): the flight condition, the geometry
+_DERIVED_PREFIXES = ("velocities/", "atmosphere/", "attitude/", "position/", "metrics/", "inertia/",
+                     "aero/alpha-", "aero/beta-", "aero/mag-beta-", "aero/qbar-psf", "aero/qbarUW", "aero/qbarUV",
+                     "aero/ci2vel", "aero/bi2vel", "aero/h_b-", "aero/Re", "aero/vt-")
+
+
+def derived(prop: str) -> bool:
+    """Whether JSBSim derives ``prop`` from the state the evaluation writes (or from the elevator)."""
+    return prop == ELEVATOR or prop in ELEVATOR_DERIVED or prop.startswith(_DERIVED_PREFIXES)
+
+
+def rewritten(prop: str) -> str:
+    """The property the private copy reads in place of ``prop``."""
+    if prop in ALPHADOT:
+        return ALPHADOT[prop]
+    if prop == HYSTERESIS:
+        return HYSTERESIS_INPUT
+    if derived(prop) or prop.startswith(NAMESPACE):
+        return prop
+    return INPUT_PREFIX + prop
+
+
+def namespace_reads(aircraft: AircraftFile) -> set[str]:
+    """Every ``structsearch/`` property the private copy's aerodynamics read (each must exist before JSBSim loads
+    the copy, whichever axis reads it)."""
+    reads = {p for ps in aircraft.reads.values() for p in ps if p not in aircraft.reads}
+    return {rewritten(p) for p in reads if rewritten(p).startswith(NAMESPACE)}
+
+
+def _rewrite_reads(aero: ET.Element, defined: set[str]) -> None:
+    for tag in READ_TAGS:
+        for e in aero.iter(tag):
+            text = (e.text or "").strip()
+            if not text:
+                continue
+            sign, prop = ("-", text[1:]) if text.startswith("-") else ("", text)
+            if prop not in defined:
+                e.text = sign + rewritten(prop)
+
+
+def _scale(aero: ET.Element, scales: Mapping[str, float]) -> None:
+    """Each function named in ``scales`` multiplied by its factor: its operation wrapped in a product."""
+    for f in aero.iter("function"):
+        factor = scales.get(f.get("name") or "")
+        if factor is None:
+            continue
+        body = [c for c in f if c.tag != "description"]
+        product = ET.Element("product")
+        value = ET.SubElement(product, "value")
+        value.text = repr(float(factor))
+        for c in body:
+            f.remove(c)
+            product.append(c)
+        f.append(product)
+
+
+def _link(source: Path, target: Path) -> None:
+    if not source.is_dir():
+        return
+    try:
+        os.symlink(source, target, target_is_directory=True)
+    except OSError:
+        shutil.copytree(source, target)
+
+
+def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
+              rewrite: bool = True) -> tempfile.TemporaryDirectory:
+    """A temporary JSBSim root holding the private copy of ``aircraft`` (module docstring); the caller keeps the
+    returned directory object alive while JSBSim reads from it. Without ``rewrite`` (an aircraft to fly, not to
+    evaluate at given states) the aerodynamics keep reading JSBSim's own properties."""
+    holder = tempfile.TemporaryDirectory(prefix="structsearch-jsbsim-")
+    root = Path(holder.name)
+    target = root / "aircraft" / aircraft.name
+    shutil.copytree(aircraft.directory, target, symlinks=False)
+    for sub in ("engine", "systems"):
+        _link(aircraft.root / sub, root / sub)
+    doc = parse_file(aircraft.file)
+    for out in doc.findall("output"):
+        doc.remove(out)
+    aero = doc.find("aerodynamics")
+    if rewrite:
+        _rewrite_reads(aero, set(aircraft.reads))
+    _scale(aero, dict(scales or {}))
+    ET.ElementTree(doc).write(target / f"{aircraft.name}.xml", encoding="utf-8", xml_declaration=True)
+    return holder
