@@ -148,7 +148,7 @@ def test_a_pitch_rate_in_degrees_per_second_is_refused(campaign_dir):
     assert np.abs(frame["q"]).max() < 1.0     # small values: the magnitude alone would not tell
     frame["q"] = np.degrees(frame["q"])
     frame.to_csv(target, index=False, float_format="%.17g")
-    with pytest.raises(DataError, match="column 'q': q is 5[0-9] times d\\((theta|alpha)\\)/dt") as err:
+    with pytest.raises(DataError, match="column 'q': q looks like degrees per second: the ratio of q to d\\((theta|alpha)\\)/dt is 5[0-9]") as err:
         read_campaign(campaign_dir)
     assert target.name in str(err.value)
 

@@ -275,7 +275,7 @@ def test_a_diagnosis_and_the_story_search_no_form_move_and_discover_does(monkeyp
     from structsearch.fitting.options import FitOptions
     asked = []
 
-    def spy(fitter, baseline, terms, kinds):   # where a search starts, before anything is fitted
+    def spy(fitter, baseline, terms, kinds, *simulator_terms):   # where a search starts, before anything is fitted
         asked.append(tuple(kinds))
         raise _Searched
 
