@@ -24,6 +24,7 @@ from scipy.signal import lfilter
 
 from ..data.errors import StructSearchError
 from ..data.flightdata import FlightData, from_segments
+from ..data.optional import need_jsbsim as need_optional_jsbsim
 from ..engine.separation import SeparationState, evaluate_state, is_lagged, static_separation
 from .card import ExportedModel
 from .jsbsim_files import DT, FILL_INPUTS, inputs_used
@@ -39,12 +40,7 @@ Predictor = Callable[[FlightData], Mapping[str, np.ndarray]]
 
 def need_jsbsim(what: str = "export --check drives JSBSim"):
     """The jsbsim module, or one error saying how to install it (``what`` needs it)."""
-    try:
-        import jsbsim
-    except ImportError:
-        raise StructSearchError(f"{what}: install it with `pip install structsearch[jsbsim]` "
-                                "(or `pip install jsbsim`)") from None
-    return jsbsim
+    return need_optional_jsbsim(what)
 
 
 @dataclass(frozen=True)

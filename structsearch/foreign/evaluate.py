@@ -20,6 +20,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..data.errors import StructSearchError
+from ..data.optional import need_jsbsim as need_optional_jsbsim
 from .aircraft_xml import AircraftFile
 from .private_copy import make_copy, namespace_reads
 
@@ -35,12 +36,7 @@ NEEDS = "evaluating a JSBSim aircraft needs the jsbsim package"
 
 def need_jsbsim():
     """The jsbsim module, or one error saying how to install it."""
-    try:
-        import jsbsim
-    except ImportError:
-        raise StructSearchError(f"{NEEDS}: install it with `pip install structsearch[jsbsim]` (or `pip install "
-                                "jsbsim`)") from None
-    return jsbsim
+    return need_optional_jsbsim(NEEDS)
 
 
 @dataclass(frozen=True)
