@@ -83,9 +83,10 @@ def test_the_first_screen_names_the_searchs_winners(page_of_a_search):
 
 def test_the_answer_writes_equations_rounded_to_their_uncertainty(page_of_a_search):
     fits, page = page_of_a_search
-    assert "CL = (" in page and " ± " in page
+    text = visible_text(page)
+    assert "CL = (" in text and " ± " in text
     # no estimate with more digits than its standard deviation carries
-    for est, sd in re.findall(r"\((-?[\d.]+) ± ([\d.]+)\)", page):
+    for est, sd in re.findall(r"\((-?[\d.]+) ± ([\d.]+)\)", text):
         assert len(est.split(".")[-1]) == len(sd.split(".")[-1]) if "." in sd else "." not in est
     assert not re.search(r"\d\.\d{9,}", visible_text(page))
 
@@ -213,3 +214,13 @@ def test_the_first_screen_gives_every_coefficients_verdict_and_simulator_gap():
                                     {"CL": _diagnosis(False)}))
     assert "The search's answers" in page and "No admissible structure within 25 %" in page
     assert "The simulator's gap: its model Cm-X against the flight data." in page and "Where it misses" in page
+
+
+def test_a_value_and_its_deviation_never_wrap_apart_nor_a_number_inside_a_cell():
+    """Equations wrap between terms, never inside "(estimate ± std. dev.)"; table cells break only a word that
+    cannot fit its column (a number keeps its digits together)."""
+    from structsearch.reporting.answer import _unbroken
+    from structsearch.reporting.page_html import STYLE
+    text = _unbroken("CD = (0.0204 ± 0.0027)*CL**2 + (-1.2e-5 ± 0.3e-5)*alpha")
+    assert text.count("<span class='value'>") == 2 and "<span class='value'>(0.0204 ± 0.0027)</span>*CL**2" in text
+    assert ".value{white-space:nowrap}" in STYLE and "overflow-wrap:anywhere" not in STYLE

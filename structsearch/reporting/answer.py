@@ -5,6 +5,7 @@ thesis' Van Ingen argument and named the fitted models in one line)."""
 from __future__ import annotations
 
 import html
+import re
 from typing import Mapping, Sequence
 
 from ..diagnosis.results import Diagnosis
@@ -72,6 +73,11 @@ def gap_story(doc: Diagnosis) -> list[str]:
     return [where, effect, rest]
 
 
+def _unbroken(text: str) -> str:
+    """Every "(estimate ± std. dev.)" of an escaped equation kept on one line where the equation wraps."""
+    return re.sub(r"\([^()\n]*±[^()\n]*\)", lambda m: f"<span class='value'>{m[0]}</span>", text)
+
+
 def verdict_text(verdict: Mapping | None) -> str:
     """The search's answer for one coefficient in words (docs/interfaces.md 8.1); "" without one."""
     if not verdict:
@@ -114,7 +120,7 @@ def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis 
                      + (f"<p class='verdict'>{html.escape(verdict_text(verdicts.get(coef)))}</p>"
                         if verdicts.get(coef) else "")
                      + f"<p class='fit'>{html.escape(fit_line(result))}</p>"
-                     f"<pre class='eq'>{html.escape(chr(10).join(lines))}</pre>")
+                     f"<pre class='eq'>{_unbroken(html.escape(chr(10).join(lines)))}</pre>")
         if coef in gaps:
             parts.append(f"<p class='source'>The simulator's gap: its model {html.escape(gaps[coef].baseline)} "
                          "against the flight data.</p><ul class='gap'>"

@@ -20,14 +20,14 @@ from .tables import render_table, signed_percent
 
 STYLE = """body{font-family:sans-serif;max-width:1100px;margin:1em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;font-size:12px;margin:0.5em 0 1.5em;max-width:100%;table-layout:auto}
-td,th{border:1px solid #ccc;padding:2px 6px;vertical-align:top}td{overflow-wrap:anywhere}th{hyphens:auto}
+td,th{border:1px solid #ccc;padding:2px 6px;vertical-align:top}td{overflow-wrap:break-word}th{hyphens:auto}
 td.reason{max-width:28em}details summary{cursor:pointer;color:#0645ad}
 figure{margin:1.5em 0}img{max-width:100%}figcaption{font-size:13px;color:#444}.note{color:#8a5a00}
 h1{margin:0.2em 0}.summary td,.summary th{font-size:14px;padding:3px 10px}.summary .name{font-weight:bold}
 .model{border-left:4px solid #4a7;padding:0 0 0 0.8em;margin:0.8em 0}.model h3{margin:0.2em 0}
 .model .name{font-family:monospace;font-size:1.1em}pre.eq{white-space:pre-wrap;font-size:12px;background:#f6f6f6;
 padding:0.4em;margin:0.3em 0}.fit{margin:0.2em 0}ul.gap{margin:0.2em 0;font-size:13px}
-nav#contents ol{columns:2;font-size:14px}.source{color:#555;font-size:13px}.verdict{font-weight:bold}"""
+nav#contents ol{columns:2;font-size:14px}.source{color:#555;font-size:13px}.verdict{font-weight:bold}.value{white-space:nowrap}"""
 
 # The study's tables the page shows (stem -> title).
 STUDY_TABLES = {"legacy_vs_snls": "The legacy estimator against SNLS (Table 7)",
