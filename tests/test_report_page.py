@@ -224,3 +224,15 @@ def test_a_value_and_its_deviation_never_wrap_apart_nor_a_number_inside_a_cell()
     text = _unbroken("CD = (0.0204 ± 0.0027)*CL**2 + (-1.2e-5 ± 0.3e-5)*alpha")
     assert text.count("<span class='value'>") == 2 and "<span class='value'>(0.0204 ± 0.0027)</span>*CL**2" in text
     assert ".value{white-space:nowrap}" in STYLE and "overflow-wrap:anywhere" not in STYLE
+
+
+def test_the_equations_are_mathematics_on_the_page_with_nothing_fetched():
+    """Each answer's equations as MathML (a browser renders it offline), one block per equation of the structure,
+    without a namespace address; the text equations with the estimates stay below it."""
+    pytest.importorskip("latex2mathml")
+    from structsearch.reporting.answer import mathml
+    from structsearch.reporting.equations import latex_equations
+    c = find_candidate("CL-VI")
+    block = mathml(c)
+    assert block.startswith("<div class='math'>") and block.count("<math display=\"block\">") == len(latex_equations(c))
+    assert "http" not in block and "<msub><mi>C</mi><mi>L</mi></msub>" in block

@@ -10,7 +10,7 @@ from typing import Mapping, Sequence
 
 from ..diagnosis.results import Diagnosis
 from ..diagnosis.story import unexplained_sentence
-from .equations import equations
+from .equations import equations, latex_equations
 from .numbers import estimate_text, share, sig
 
 COEF_WORDS = {"CL": "Lift, C_L", "CD": "Drag, C_D", "Cm": "Pitching moment, C_m"}
@@ -73,6 +73,24 @@ def gap_story(doc: Diagnosis) -> list[str]:
     return [where, effect, rest]
 
 
+def mathml(c) -> str:
+    """``c``'s equations as MathML, which a browser renders as mathematics with nothing fetched at view time
+    (latex2mathml converts the LaTeX the project writes; "" without it, or for an equation it cannot convert:
+    the text equations below carry the same structure with its estimates)."""
+    try:
+        from latex2mathml.converter import convert
+    except ImportError:
+        return ""
+    blocks = []
+    for latex in latex_equations(c):
+        try:
+            # HTML5 knows <math> without its namespace, and the page names no address
+            blocks.append(convert(latex, display="block").replace(' xmlns="http://www.w3.org/1998/Math/MathML"', ""))
+        except Exception:   # noqa: BLE001 - a converter's failure costs the rendering, never the page
+            return ""
+    return "<div class='math'>" + "".join(blocks) + "</div>"
+
+
 def _unbroken(text: str) -> str:
     """Every "(estimate ± std. dev.)" of an escaped equation kept on one line where the equation wraps."""
     return re.sub(r"\([^()\n]*±[^()\n]*\)", lambda m: f"<span class='value'>{m[0]}</span>", text)
@@ -120,7 +138,7 @@ def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis 
                      + (f"<p class='verdict'>{html.escape(verdict_text(verdicts.get(coef)))}</p>"
                         if verdicts.get(coef) else "")
                      + f"<p class='fit'>{html.escape(fit_line(result))}</p>"
-                     f"<pre class='eq'>{_unbroken(html.escape(chr(10).join(lines)))}</pre>")
+                     + mathml(c) + f"<pre class='eq'>{_unbroken(html.escape(chr(10).join(lines)))}</pre>")
         if coef in gaps:
             parts.append(f"<p class='source'>The simulator's gap: its model {html.escape(gaps[coef].baseline)} "
                          "against the flight data.</p><ul class='gap'>"

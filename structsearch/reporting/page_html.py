@@ -27,7 +27,7 @@ h1{margin:0.2em 0}.summary td,.summary th{font-size:14px;padding:3px 10px}.summa
 .model{border-left:4px solid #4a7;padding:0 0 0 0.8em;margin:0.8em 0}.model h3{margin:0.2em 0}
 .model .name{font-family:monospace;font-size:1.1em}pre.eq{white-space:pre-wrap;font-size:12px;background:#f6f6f6;
 padding:0.4em;margin:0.3em 0}.fit{margin:0.2em 0}ul.gap{margin:0.2em 0;font-size:13px}
-nav#contents ol{columns:2;font-size:14px}.source{color:#555;font-size:13px}.verdict{font-weight:bold}.value{white-space:nowrap}"""
+nav#contents ol{columns:2;font-size:14px}.source{color:#555;font-size:13px}.verdict{font-weight:bold}.value{white-space:nowrap}.math{overflow-x:auto;font-size:15px}"""
 
 # The study's tables the page shows (stem -> title).
 STUDY_TABLES = {"legacy_vs_snls": "The legacy estimator against SNLS (Table 7)",
