@@ -1,5 +1,6 @@
 import functools
 import os
+import shutil
 import subprocess
 import sys
 
@@ -201,3 +202,12 @@ def _restated(base, stated: dict, train):
 
 def _nan(v) -> float:
     return float("nan") if v is None else float(v)
+
+
+@pytest.fixture
+def campaign_dir(campaign_on_disk, tmp_path):
+    """A copy of a small written campaign, free to spoil (the hostile-input tests alter its files)."""
+    source = campaign_on_disk(seed=1, scale=0.05, slow_errors=0.0).directory
+    target = tmp_path / "campaign"
+    shutil.copytree(source, target)
+    return target

@@ -3,7 +3,6 @@ by the command itself); every one is one project error naming the file (and the 
 safely: no traceback, no content of a file outside its directory, bounded time and size, nothing left behind."""
 import json
 import os
-import shutil
 import re
 import signal
 import subprocess
@@ -19,15 +18,6 @@ from structsearch.data.errors import DataError, DeclarationError, StructSearchEr
 
 SECRET = "top-secret-line-of-another-file"
 SPEC_HEAD = 'name = "g"\ncoefficient = "CL"\nprefix = "G-"\n'
-
-
-@pytest.fixture
-def campaign_dir(campaign_on_disk, tmp_path):
-    """A copy of a small written campaign, free to spoil."""
-    source = campaign_on_disk(seed=1, scale=0.05, slow_errors=0.0).directory
-    target = tmp_path / "campaign"
-    shutil.copytree(source, target)
-    return target
 
 
 @contextmanager

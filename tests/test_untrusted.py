@@ -2,7 +2,6 @@
 2), run no code and write nothing wrong; interrupted runs leave no process and no temporary file behind."""
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -19,15 +18,6 @@ from structsearch.data.errors import DataError, DeclarationError
 
 CANARY = Path(tempfile.gettempdir()) / "structsearch-untrusted-canary"
 HOSTILE = f"__import__('os').system('touch {CANARY}')"
-
-
-@pytest.fixture
-def campaign_dir(campaign_on_disk, tmp_path):
-    """A copy of a small written campaign, free to spoil."""
-    source = campaign_on_disk(seed=1, scale=0.05, slow_errors=0.0).directory
-    target = tmp_path / "campaign"
-    shutil.copytree(source, target)
-    return target
 
 
 def _one_line_error(proc, *words):

@@ -108,6 +108,8 @@ def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
     evaluate at given states) the aerodynamics keep reading JSBSim's own properties."""
     holder = tempfile.TemporaryDirectory(prefix="structsearch-jsbsim-")
     root = Path(holder.name)
+    # the name is an existing aircraft directory's own name (aircraft_xml.locate refuses '/', '\\' and '..'), never
+    # a name read from a file: the copy stays under root
     target = root / "aircraft" / aircraft.name
     shutil.copytree(aircraft.directory, target, symlinks=False)
     for sub in ("engine", "systems"):

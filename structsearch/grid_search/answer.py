@@ -65,14 +65,10 @@ def _percent(x: float | None) -> str:
     return "an unknown amount" if x is None or not math.isfinite(x) else f"{x:+.1%}"
 
 
-def _scores(s: CandidateResult, use_cv: bool):
-    return s.cv if use_cv else s.validation
-
-
 def answer_of(ranked: list[CandidateResult]) -> Answer | None:
     """The answer of a ranking (:func:`structsearch.grid_search.ranking.rank`'s output); None when nothing
     was fitted."""
-    from .ranking import _best_fitting, _use_cv
+    from .ranking import _best_fitting, _scores, _use_cv   # the ranking's own comparison, not a copy
     fitted = [s for s in ranked if not s.failed and s.identifiable]
     if not fitted:
         return None
