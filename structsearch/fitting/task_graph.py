@@ -13,7 +13,9 @@ from __future__ import annotations
 import heapq
 import itertools
 import os
+import threading
 import time
+from contextlib import contextmanager
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
@@ -79,16 +81,41 @@ class ExecutorPool:
         if interrupted and hasattr(self.executor, "shutdown"):
             # Ctrl-C or SIGTERM: the tasks still running are lost anyway (the finished fits are cached); the workers
             # end now, before the caller removes the shared splits they read
-            try:
-                self.executor.shutdown(wait=True, kill_workers=True)
-            except TypeError:
-                self.executor.shutdown(wait=True)
+            with _executor_threads_quiet():
+                try:
+                    self.executor.shutdown(wait=True, kill_workers=True)
+                except TypeError:
+                    self.executor.shutdown(wait=True)
             return
         # a failed task: nothing more starts; the caller then removes the shared splits, so wait for the tasks
         # already running rather than pull their data from under them
         for future in futures:
             future.cancel()
         wait(futures)
+
+
+@contextmanager
+def _executor_threads_quiet():
+    """Within the block, an exception that ends one of the executor's own threads is not printed. Killing the
+    workers of joblib's (loky's) executor while its manager thread queues the next task can end that thread
+    with a KeyError on the task it was about to hand out: the run is being abandoned on purpose, so that
+    traceback would be noise under the one-line 'interrupted' message. Any other thread's exception is printed
+    as usual."""
+    previous = threading.excepthook
+
+    def hook(args):
+        if args.thread is not None and type(args.thread).__module__.startswith(_EXECUTOR_THREAD_MODULES):
+            return
+        previous(args)
+
+    threading.excepthook = hook
+    try:
+        yield
+    finally:
+        threading.excepthook = previous
+
+
+_EXECUTOR_THREAD_MODULES = ("joblib.externals.loky", "loky", "concurrent.futures")
 
 
 class DaskPool:
