@@ -126,3 +126,26 @@ def test_band_coverage_pools_the_points_of_every_campaign():
     assert cal.band_campaign_coverage["CL"] == (0.25, 0.75)
     # no draw with bands (the default covariance was not among the kinds): NaN, never 0
     assert all(np.isnan(v) for v in summarise(_draws([0.0, 0.1]), 0.1).band_coverage.values())
+
+
+def test_a_parameters_coverage_is_judged_against_its_binomial_monte_carlo_error():
+    """Of 20 campaigns, 95 % intervals cover the truth at least 15 times but for a 0.1 % chance
+    (P(count <= 14) = 3.3e-4, P(count <= 15) = 2.6e-3): 20 of 20 and 15 of 20 pass, 14 of 20 fails."""
+    from structsearch.experiments.calibration import ParameterCalibration
+    from scipy import stats
+    assert stats.binom.cdf(14, 20, 0.95) < 0.001 < stats.binom.cdf(15, 20, 0.95)
+
+    def row(covered):
+        return ParameterCalibration("m", "p", 0.0, 0.0, 1.0, 1.0, 0.7, covered / 20, 20)
+    assert [row(c).binomial_floor95 for c in (20, 15, 14)] == [15, 15, 15]
+    assert [row(c).coverage95_consistent for c in (20, 15, 14)] == [True, True, False]
+
+
+def test_a_kind_meets_its_goals_only_with_every_parameter_within_its_binomial_error():
+    # 20 campaigns, offsets inside the 95 % interval (|z| < 1.96) in all but k of them
+    def kind(k):
+        offsets = [0.3 * ((-1) ** i) for i in range(20 - k)] + [3.0] * k
+        return summarise(_draws(offsets), scale=0.1).kinds[0]
+    assert all(p.covered95 == 20 for p in kind(0).parameters) and not kind(0).below_binomial
+    assert all(p.covered95 == 14 for p in kind(6).parameters)
+    assert len(kind(6).below_binomial) == len(kind(6).parameters) and not kind(6).meets_goals

@@ -89,8 +89,9 @@ def test_only_periodic_maneuvers_change_and_the_others_stay_bit_for_bit():
 
 
 @pytest.mark.parametrize("uniform", [True, False])
+@pytest.mark.parametrize("kind", ["U", "V"])
 @pytest.mark.parametrize("tau1", [0.02, 0.41, 30.0])
-def test_periodic_sensitivities_match_finite_differences(uniform, tau1):
+def test_periodic_sensitivities_match_finite_differences(uniform, kind, tau1):
     """dX/dtheta and dX/dtau1 include the derivative of the periodic start (a cycle beside a record that is not
     periodic and a record of two cycles)."""
     period = 0.9
@@ -104,8 +105,9 @@ def test_periodic_sensitivities_match_finite_differences(uniform, tau1):
                                 np.gradient(alpha[245:], t3)])
     bounds = np.array([0, 45, 245, 345])
     periods = [period, np.nan, period]
-    state = SeparationState("ss", "U")
-    theta = np.array([tau1, 0.05, 40.0, 0.21])
+    state = SeparationState("ss", kind)
+    # U: tau1, tau2, a1, a_star; V: tau1, tau_v, a1, a_star
+    theta = np.array([tau1, 0.05 if kind == "U" else 0.3, 40.0, 0.21])
 
     def value(th):
         return evaluate_state(state, dict(zip(state.base_parameters, th)), alpha, alpha_dot, t, bounds,

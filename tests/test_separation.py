@@ -107,7 +107,7 @@ def test_state_sensitivities_match_finite_differences(kind, uniform):
     alpha_dot[n:] = np.gradient(alpha[n:], t[n:])
     bounds = np.array([0, n, 2 * n])
     state = SeparationState("ss", kind)
-    truth = {"tau1": 0.41, "tau2": 0.33, "a1": 40.0, "a_star": 0.21}
+    truth = {"tau1": 0.41, "tau2": 0.33, "tau_v": 0.27, "a1": 40.0, "a_star": 0.21}
     theta = np.array([truth[p] for p in state.base_parameters])
 
     def value(th):  # the value-only path a prediction takes
@@ -162,3 +162,46 @@ def test_a_lag_at_tau1_zero_is_the_quasi_steady_state_and_its_derivative_is_the_
     x_tiny, _, _ = first_order_lag(t, u, u[:, None].copy(), tiny, bounds)
     # the limit derivative is the one-sided difference quotient at 0, to O(tau1 / dt)
     np.testing.assert_allclose((x_tiny - x) / tiny, dtau, rtol=1e-3, atol=1e-3 * np.max(np.abs(dtau)))
+
+
+def test_a_vortex_builds_while_the_flow_separates_and_convects_away_after():
+    """V (the dynamic-stall vortex): zero in steady flow; positive while alpha ramps through stall, peaking
+    before the ramp ends when tau_v is short; decaying as exp(-t/tau_v) once alpha holds; and the difference
+    of the two lags it is defined by (checked against a plain Euler integration on a fine grid)."""
+    dt, tau1, tau_v = 1e-4, 0.05, 0.08
+    t = np.arange(0, 1.5, dt)
+    alpha = np.clip(0.1 + 0.5 * t, 0.1, 0.4)            # ramp from 0.1 to 0.4 rad in 0.6 s, then hold
+    alpha_dot = np.gradient(alpha, t)
+    bounds = np.array([0, len(t)])
+    values = {"tau1": tau1, "tau_v": tau_v, "a1": 30.0, "a_star": 0.25}
+    v = evaluate_state(SeparationState("v", "V"), values, alpha, alpha_dot, t, bounds, sensitivities=False)[0]
+    x0 = sep.static_separation(alpha, 30.0, 0.25)
+    xs, y = np.empty_like(t), np.empty_like(t)
+    xs[0] = y[0] = x0[0]
+    for k in range(1, len(t)):
+        xs[k] = xs[k - 1] + dt * (x0[k - 1] - xs[k - 1]) / tau1
+        y[k] = y[k - 1] + dt * (xs[k - 1] - y[k - 1]) / tau_v
+    assert np.max(np.abs(v - (y - xs))) < 2e-3        # Euler's error at dt/tau = 1e-3
+    assert v[0] == 0.0 and np.all(v[t < 0.1] < 1e-3)  # attached (X0 > 0.99): no vortex
+    peak = int(np.argmax(v))
+    assert v[peak] > 0.1 and 0.3 < t[peak] < 0.7
+    late = (t > 1.0)
+    assert np.all(v[late] >= 0) and v[late][-1] < 0.01 * v[peak]
+    steady = evaluate_state(SeparationState("v", "V"), values, np.full(50, 0.3), np.zeros(50),
+                            np.arange(50) * 0.01, np.array([0, 50]), sensitivities=False)[0]
+    assert np.max(np.abs(steady)) < 1e-15
+
+
+def test_which_kind_holds_which():
+    """A richer kind holds a simpler one it reaches at a zero time constant; Q and L do not hold each other,
+    and a vortex state holds, and is held by, no other kind (staging warm-starts a structure only from one it
+    holds)."""
+    from structsearch.engine.separation import nests
+    from structsearch.fitting.candidates import Candidate
+    from structsearch.fitting.staging import contains
+    assert nests("S", "Q") and nests("S", "L") and nests("Q", "U") and nests("L", "U") and nests("V", "V")
+    assert not nests("Q", "L") and not nests("L", "Q") and not nests("U", "L")
+    assert not any(nests("V", k) or nests(k, "V") for k in ("S", "Q", "L", "U"))
+    regs = (("CL_KL", "K_L(X)"),)
+    q, lag = (Candidate(f"c{k}", "g", "CL", regs, (("", k),)) for k in ("Q", "L"))
+    assert not contains(lag, q) and not contains(q, lag)

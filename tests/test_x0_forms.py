@@ -14,7 +14,7 @@ from structsearch.fitting.candidates import Candidate
 from structsearch.fitting.specs import find_candidate, load_grid
 
 FORMS = ("tanh", "goman", "two_break", "spline:4")
-VALUES = {"tau1": 0.3, "tau2": 0.05, "a1": 30.0, "a_star": 0.25, "k_e": 25.0, "x_star": 0.4, "k1": 40.0,
+VALUES = {"tau1": 0.3, "tau2": 0.05, "tau_v": 0.2, "a1": 30.0, "a_star": 0.25, "k_e": 25.0, "x_star": 0.4, "k1": 40.0,
           "a_k1": 0.18, "k2": 20.0, "da_k2": 0.1, "x_mid": 0.6, "a_sp": 0.12, "h_sp": 0.04, "r1": 0.9, "r2": 0.7,
           "r3": 0.5, "r4": 0.3}
 

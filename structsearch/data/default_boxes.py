@@ -18,6 +18,7 @@ MAX_SPLINE_KNOTS = 12
 DEFAULT_BOUNDS = {
     "tau1": (0.0, 2.0),
     "tau2": (0.0, 1.0),
+    "tau_v": (0.0, 2.0),
     "a1": (2.0, 200.0),
     "a_star": (0.05, 0.45),
     "k_e": (2.0, 200.0),
@@ -31,9 +32,11 @@ DEFAULT_BOUNDS = {
     "h_sp": (0.005, 0.1),
     **{f"r{j}": (0.0, 1.0) for j in range(1, MAX_SPLINE_KNOTS + 1)},
 }
-DEFAULT_START = {"tau1": 0.2, "tau2": 0.05, "a1": 30.0, "a_star": 0.25, "k_e": 30.0, "x_star": 0.5,
+DEFAULT_START = {"tau1": 0.2, "tau2": 0.05, "tau_v": 0.1, "a1": 30.0, "a_star": 0.25, "k_e": 30.0, "x_star": 0.5,
                  "k1": 30.0, "a_k1": 0.2, "k2": 30.0, "da_k2": 0.08, "x_mid": 0.5, "a_sp": 0.15, "h_sp": 0.04,
                  **{f"r{j}": 0.6 for j in range(1, MAX_SPLINE_KNOTS + 1)}}
+# The separation time constants [s]: their boxes scale with the aerodynamic time of the data.
+TIME_CONSTANTS = ("tau1", "tau2", "tau_v")
 # The angles at which a static curve breaks: their boxes widen to the alpha range flown.
 BREAK_ANGLES = ("a_star", "a_k1", "a_sp")
 # The time constants above are the Citation II's (cbar 2.013 m at 73 m/s, the median airspeed of its
@@ -58,7 +61,7 @@ def data_bounds(data) -> dict[str, tuple[float, float]]:
                          max(hi, float(np.max(alpha)) + ALPHA_STAR_MARGIN))
     if "V" in data and "cbar" in data.constants and data.n_samples:
         scale = max(float(data.constants["cbar"] / np.median(data["V"])) / REFERENCE_TIME, 1.0)
-        for kind in ("tau1", "tau2"):
+        for kind in TIME_CONSTANTS:
             lo, hi = DEFAULT_BOUNDS[kind]
             out[kind] = (lo, hi * scale)
     return out

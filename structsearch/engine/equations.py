@@ -23,7 +23,7 @@ from typing import Mapping, Sequence
 import sympy as sp
 
 from .expressions import parse_expression
-from .separation import SeparationState, is_delayed, is_lagged
+from .separation import SeparationState, is_delayed, is_lagged, is_vortex
 from .static_forms import DEFAULT_FORM, form_parameters
 
 # What each helper of the regressor language stands for (regressors.HELPERS), in words a reader checks.
@@ -104,8 +104,8 @@ def _form_key(form: str) -> str:
 
 
 def state_equation(name: str, kind: str, form: str = DEFAULT_FORM) -> str:
-    """The equation of separation state ``X_name`` of ``kind`` (S, Q, U or L) and static ``form`` in its own
-    parameters' names."""
+    """The equation of separation state ``X_name`` of ``kind`` (S, Q, U, L or V) and static ``form`` in its own
+    parameters' names (a vortex state: the separation it follows, then the vortex, ``;`` between them)."""
     s = SeparationState(name, kind, form)
     p, x = s.parameter_name, s.symbol
     shift = f" - {p('tau2')}*alpha_dot" if is_delayed(kind) else ""
@@ -113,6 +113,10 @@ def state_equation(name: str, kind: str, form: str = DEFAULT_FORM) -> str:
         static = f"0.5*(1 - tanh({p('a1')}*(alpha{shift} - {p('a_star')})))"
     else:
         static = f"X0_{_form_key(form)}(alpha{shift}; {', '.join(p(b) for b in form_parameters(form))})"
+    if is_vortex(kind):
+        xs, y = f"Xs_{name or 'v'}", f"Y_{name or 'v'}"
+        return (f"{p('tau1')}*d{xs}/dt + {xs} = {static}; {p('tau_v')}*d{y}/dt + {y} = {xs}; "
+                f"{x} = {y} - {xs}")
     return f"{p('tau1')}*d{x}/dt + {x} = {static}" if is_lagged(kind) else f"{x} = {static}"
 
 
@@ -174,6 +178,10 @@ def latex_state(name: str, kind: str, form: str = DEFAULT_FORM) -> str:
         args = ", ".join(p(b) for b in form_parameters(form))
         label = _form_key(form).replace("_", r"\_")
         static = rf"X_0^{{\mathrm{{{label}}}}}\left(\alpha{shift};\ {args}\right)"
+    if is_vortex(kind):
+        xs, y = rf"X^{{s}}_{{{name or 'v'}}}", rf"Y_{{{name or 'v'}}}"
+        return (rf"{p('tau1')}\,\dot{{{xs}}} + {xs} = {static},\quad {p('tau_v')}\,\dot{{{y}}} + {y} = {xs},"
+                rf"\quad {x} = {y} - {xs}")
     return rf"{p('tau1')}\,\dot{{{x}}} + {x} = {static}" if is_lagged(kind) else f"{x} = {static}"
 
 

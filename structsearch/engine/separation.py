@@ -6,10 +6,18 @@
 X0 above is the default static curve (form ``tanh``); a state may take another form of
 :mod:`.static_forms` (``goman``, ``two_break``, ``spline:K``), whose parameters replace a1 and a_star.
 
-Four kinds: steady ``S`` (X = X0(alpha)), quasi-steady ``Q`` (X = X0(alpha -
-tau2*alpha_dot)), unsteady ``U`` (first-order lag of the quasi-steady value) and lagged ``L`` (a first-order lag
+Five kinds: steady ``S`` (X = X0(alpha)), quasi-steady ``Q`` (X = X0(alpha -
+tau2*alpha_dot)), unsteady ``U`` (first-order lag of the quasi-steady value), lagged ``L`` (a first-order lag
 of X0(alpha) without the alpha_dot delay: U with tau2 = 0, the state a pitching airfoil's data often support
-when tau2 and tau1 cannot be told apart).
+when tau2 and tau1 cannot be told apart) and vortex ``V``: the strength of the dynamic-stall vortex,
+
+    tau1 * dXs/dt + Xs = X0(alpha)        (the flow separating, as L)
+    tau_v * dY/dt + Y = Xs,   V = Y - Xs  (what separated lately and has not convected away)
+
+V grows while the flow separates faster than the vortex convects (Xs falling), peaks, and decays with tau_v once
+the separation stops: the lift overshoot and collapse of deep dynamic stall, the vortex lift that the
+Beddoes-Leishman model adds as a high-pass of its circulatory lift deficit and decays with its vortex time
+constant. V is linear in Xs, so its sensitivities follow through the same two lags; it is zero in steady flow.
 
 The lag is discretised exactly for an input that is linear between samples
 (first-order hold), on any strictly increasing time grid. Every maneuver starts
@@ -29,15 +37,16 @@ from scipy.signal import lfilter
 from ..data.errors import DeclarationError
 from .static_forms import DEFAULT_FORM, check_form, form_parameters, static_gradient, tanh_curve
 
-KINDS = ("S", "Q", "U", "L")
+KINDS = ("S", "Q", "U", "L", "V")
 PARAMETERS_OF_KIND = {
     "S": ("a1", "a_star"),
     "Q": ("tau2", "a1", "a_star"),
     "U": ("tau1", "tau2", "a1", "a_star"),
     "L": ("tau1", "a1", "a_star"),
+    "V": ("tau1", "tau_v", "a1", "a_star"),
 }
 # the time constants of each kind, before the static curve's parameters
-TIME_PARAMETERS_OF_KIND = {"S": (), "Q": ("tau2",), "U": ("tau1", "tau2"), "L": ("tau1",)}
+TIME_PARAMETERS_OF_KIND = {"S": (), "Q": ("tau2",), "U": ("tau1", "tau2"), "L": ("tau1",), "V": ("tau1", "tau_v")}
 
 
 def is_lagged(kind: str) -> bool:
@@ -48,6 +57,27 @@ def is_lagged(kind: str) -> bool:
 def is_delayed(kind: str) -> bool:
     """Whether a state of ``kind`` reads alpha - tau2 alpha_dot (has tau2): Q and U."""
     return "tau2" in TIME_PARAMETERS_OF_KIND[kind]
+
+
+def is_vortex(kind: str) -> bool:
+    """Whether a state of ``kind`` is a vortex strength (the high-pass of a lagged separation, has tau_v): V."""
+    return "tau_v" in TIME_PARAMETERS_OF_KIND[kind]
+# (simpler, richer): the richer kind reaches the simpler at a time constant of zero (S is Q at tau2 = 0, L at
+# tau1 = 0; Q and L are U at tau1 = 0 and tau2 = 0). Q and L do not nest each other, and a vortex state nests no
+# other kind (its value is a high-pass of the separation, zero where the others are X0).
+_NESTS = frozenset({("S", "Q"), ("S", "L"), ("S", "U"), ("Q", "U"), ("L", "U")})
+
+
+def nests(inner: str, outer: str) -> bool:
+    """Whether a state of kind ``outer`` holds one of kind ``inner`` (the same kind, or one it reaches)."""
+    return inner == outer or (inner, outer) in _NESTS
+
+
+def vortex_symbols(states) -> frozenset[str]:
+    """The symbols of the vortex states among ``states`` ((name, kind) pairs)."""
+    return frozenset(SeparationState(n, k).symbol for n, k in states if is_vortex(k))
+
+
 # A step of a uniform grid may differ from the first by this relative amount.
 _UNIFORM_RTOL = 1e-9
 # Largest log-decay inside one block of the time-varying recursion (small blocks keep the
@@ -370,7 +400,8 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
     if not sensitivities:
         if not lagged:
             return x0, None
-        return first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0], None
+        x = first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0]
+        return (_vortex(t, x, None, values["tau_v"], bounds, step, periods)[0] if is_vortex(state.kind) else x), None
     slope = -2.0 * x0 * (1.0 - x0)  # dX0 / d(a1 (alpha_eff - a_star))
     inner = ("tau2", "a1", "a_star") if delayed else ("a1", "a_star")
     du = np.empty((len(alpha), len(inner)), order="F")
@@ -384,6 +415,8 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
     out = np.empty((len(alpha), 1 + len(inner)), order="F")
     out[:, 0] = dtau1
     out[:, 1:] = dx  # U order: tau1, tau2, a1, a_star; L: tau1, a1, a_star
+    if is_vortex(state.kind):
+        return _vortex(t, x, out, values["tau_v"], bounds, step, periods)
     return x, out
 
 
@@ -398,7 +431,8 @@ def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alph
     if not sensitivities:
         if not lagged:
             return x0, None
-        return first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0], None
+        x = first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0]
+        return (_vortex(t, x, None, values["tau_v"], bounds, step, periods)[0] if is_vortex(state.kind) else x), None
     lead = 1 if delayed else 0
     du = np.empty((len(alpha), lead + grads.shape[1]), order="F")
     if lead:
@@ -410,4 +444,19 @@ def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alph
     out = np.empty((len(alpha), 1 + du.shape[1]), order="F")
     out[:, 0] = dtau1
     out[:, 1:] = dx
+    if is_vortex(state.kind):
+        return _vortex(t, x, out, values["tau_v"], bounds, step, periods)
     return x, out
+
+
+def _vortex(t, xs, dxs, tau_v, bounds, step, periods):
+    """V = Y - Xs with tau_v dY/dt + Y = Xs, from the lagged separation ``xs`` and its sensitivities ``dxs``
+    (columns tau1, then the static curve's); returns V and dV in the V kind's order: tau1, tau_v, the curve's."""
+    y, dy, dtau_v = first_order_lag(t, xs, dxs, tau_v, bounds, step, periods)
+    if dxs is None:
+        return y - xs, None
+    out = np.empty((len(xs), dxs.shape[1] + 1), order="F")
+    out[:, 0] = dy[:, 0] - dxs[:, 0]
+    out[:, 1] = dtau_v
+    out[:, 2:] = dy[:, 1:] - dxs[:, 1:]
+    return y - xs, out

@@ -28,7 +28,7 @@ COLUMN_UNITS: Mapping[str, Mapping[str, int]] = {
 }
 # the separation parameters of every state (their names carry the state's suffix: tau1_ss, a_star_w)
 SEPARATION_UNITS: Mapping[str, Mapping[str, int]] = {
-    "tau1": {"s": 1}, "tau2": {"s": 1}, "a1": {"rad": -1}, "a_star": {"rad": 1},
+    "tau1": {"s": 1}, "tau2": {"s": 1}, "tau_v": {"s": 1}, "a1": {"rad": -1}, "a_star": {"rad": 1},
     # the other static curves' (static_forms): rates per rad, angles in rad, levels and ratios dimensionless
     "k_e": {"rad": -1}, "x_star": {}, "k1": {"rad": -1}, "a_k1": {"rad": 1}, "k2": {"rad": -1},
     "da_k2": {"rad": 1}, "x_mid": {}, "a_sp": {"rad": 1}, "h_sp": {"rad": 1},

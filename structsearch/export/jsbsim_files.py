@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
-from ..engine.separation import INSTANT_LAG, SeparationState, is_delayed, is_lagged
+from ..data.errors import DeclarationError
+from ..engine.separation import INSTANT_LAG, SeparationState, is_delayed, is_lagged, is_vortex
 from .card import ExportedModel, StateModel
 from .xml_functions import (INPUTS, NAMESPACE, Symbols, element, output_property, prop, regressor_xml,
                             state_property, term_property, value)
@@ -117,6 +118,9 @@ def _static(state: StateModel) -> ET.Element:
 
 
 def _state_components(state: StateModel) -> list[ET.Element]:
+    if is_vortex(state.kind):
+        raise DeclarationError(f"separation state {state.symbol} is a dynamic-stall vortex (kind V), which the "
+                               "JSBSim export does not write: export a structure without it, or --format json")
     x = state_property(state.symbol)
     static = f"{x}-static"
     state_eq = SeparationState(state.name, state.kind)

@@ -25,7 +25,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..engine.separation import SeparationState
+from ..engine.separation import SeparationState, nests
 from ..engine.ties import first_of_lowest
 from .candidate_result import CandidateResult
 from .candidates import Candidate
@@ -123,7 +123,7 @@ def contains(outer: Candidate, inner: Candidate) -> bool:
     if not _regressors(inner) <= _regressors(outer):
         return False
     kinds = dict(outer.states)
-    return all(n in kinds and KIND_ORDER[k] <= KIND_ORDER[kinds[n]] and inner.form_of(n) == outer.form_of(n)
+    return all(n in kinds and nests(k, kinds[n]) and inner.form_of(n) == outer.form_of(n)
                for n, k in inner.states)
 
 
@@ -156,8 +156,9 @@ def best_contained(c: Candidate, fitted: Sequence[tuple[Candidate, DonorEstimate
 
 
 def demoted(c: Candidate, highest: str) -> Candidate:
-    """``c`` with every state's kind lowered to at most ``highest`` (S or Q)."""
-    states = tuple((n, min(k, highest, key=KIND_ORDER.get)) for n, k in c.states)
+    """``c`` with every state's kind lowered to at most ``highest`` (S or Q); a vortex state stays one (it lowers
+    to no other kind: a steady one would be the static curve, not a vortex)."""
+    states = tuple((n, k if k not in KIND_ORDER else min(k, highest, key=KIND_ORDER.get)) for n, k in c.states)
     own = {p for n, k in states for p in SeparationState(n, k, c.form_of(n)).parameters}
     return dataclasses.replace(c, name=f"{c.name} [{highest}]", states=states, note=f"stage of {c.name}",
                                bounds=tuple(b for b in c.bounds if b[0] in own))

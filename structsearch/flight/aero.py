@@ -20,7 +20,7 @@ from ..data.errors import DeclarationError
 from .names import WITHHOLDABLE  # noqa: F401  (re-exported: truth_model's effects)
 from .reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH, final_drag_model, final_lift_model, final_pitch_model
 from ..engine.regressors import compile_expression, parse
-from ..engine.separation import SeparationState
+from ..engine.separation import SeparationState, is_lagged, is_vortex
 from ..engine.static_forms import static_value
 from ..engine.stallmodel import StallModel
 from .transport import (TRANSPORT_DRAG, TRANSPORT_LIFT, TRANSPORT_PITCH, TRANSPORT_ZEROED, transport_drag_model,
@@ -101,6 +101,10 @@ class AeroModel:
                 missing = [s.parameter_name(p) for p, v in get.items() if v is None]
                 if missing:
                     raise DeclarationError(f"{name}: no value for separation parameter {missing[0]!r}")
+                if is_vortex(s.kind):
+                    raise DeclarationError(f"{name}: separation state {s.symbol} is a dynamic-stall vortex (kind V), "
+                                           "which the flight simulator does not fly: fit and diagnose it on "
+                                           "records, or fly a structure without it")
                 shape = tuple((p, float(get[p])) for p in s.base_parameters if p not in ("tau1", "tau2"))
                 spec = StateSpec(s.symbol, s.kind, get.get("tau1", 0.0), get.get("tau2", 0.0),
                                  float(get.get("a1", np.nan)), float(get.get("a_star", np.nan)), s.form, shape)
@@ -144,7 +148,7 @@ class AeroModel:
 
     @property
     def unsteady(self) -> tuple[StateSpec, ...]:
-        return tuple(s for s in self.states if s.kind == "U")
+        return tuple(s for s in self.states if is_lagged(s.kind))
 
     def separation_targets(self, alpha, alpha_dot, h=None, states=None) -> dict[str, np.ndarray]:
         """X0(alpha - tau2 alpha_dot) of every state (the value a lagged state relaxes to), or of the

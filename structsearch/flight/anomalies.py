@@ -23,7 +23,7 @@ import numpy as np
 
 from ..data.errors import DeclarationError
 from ..data.prefilter import derivative
-from ..engine.separation import first_order_lag
+from ..engine.separation import first_order_lag, is_lagged
 from .aero import AeroModel, StateSpec, truth_model
 from .reference import FINAL_LIFT
 
@@ -178,7 +178,7 @@ def flown_states(model: AeroModel, data, alpha: np.ndarray | None = None,
     out = {}
     for s in model.states:
         x = targets[s.symbol]
-        if s.kind == "U":
+        if is_lagged(s.kind):
             x = first_order_lag(data["t"], x, np.zeros((len(x), 1)), s.tau1, data.bounds)[0]
         out[s.symbol] = x
     return out

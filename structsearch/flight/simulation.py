@@ -15,6 +15,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from . import aircraft as ac
+from ..engine.separation import is_lagged
 from .aero import AeroModel
 from .aircraft import CITATION, Aircraft
 
@@ -69,10 +70,10 @@ def _rates(model, aircraft, V, alpha, q, theta, h, de, throttle, mass, x_cg, X, 
 def algebraic_states(model: AeroModel, alpha, alpha_dot, lagged: dict, h=None) -> dict:
     """Separation states: lagged ones from the state vector, the others from alpha (and alpha_dot; the
     altitude ``h`` for a truth with an anomaly that depends on it)."""
-    targets = model.separation_targets(alpha, alpha_dot, h, [s for s in model.states if s.kind != "U"])
+    targets = model.separation_targets(alpha, alpha_dot, h, [s for s in model.states if not is_lagged(s.kind)])
     # a lagged state integrated with a time constant near the step may overshoot [0, 1] by a hair; sqrt(X)
     # in K_L must not see it
-    return {s.symbol: (np.clip(lagged[s.symbol], 0.0, 1.0) if s.kind == "U" else targets[s.symbol])
+    return {s.symbol: (np.clip(lagged[s.symbol], 0.0, 1.0) if is_lagged(s.kind) else targets[s.symbol])
             for s in model.states}
 
 

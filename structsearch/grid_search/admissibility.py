@@ -27,8 +27,8 @@ from functools import lru_cache
 import numpy as np
 import sympy
 
-from ..engine.regressors import parse
-from ..engine.separation import SeparationState
+from ..engine.regressors import parse, symbol_names
+from ..engine.separation import SeparationState, vortex_symbols
 from ..engine.static_forms import CURVE_SHAPE_PARAMETERS
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
@@ -159,10 +159,15 @@ def _physics_reasons(result: CandidateResult, candidate: Candidate, rules: Admis
     params = result.estimates.params or {}
     out = []
     if candidate.coefficient == "CL":
+        vortices = vortex_symbols(candidate.states)
         for name, text in candidate.regressors:
             if ("K_L(" in text.replace(" ", "") or text.strip() == "alpha") and not params.get(name, 1.0) > 0:
                 what = "Kirchhoff" if "K_L" in text else "lift-slope"
                 out.append(f"{what} term {name} = {params[name]:.3g} is not positive")
+            elif vortices & set(symbol_names(text)) and not params.get(name, 1.0) > 0:
+                # the dynamic-stall vortex adds lift while it lies over the section; a negative one is a state
+                # mimicking something else (a collapse the lag misses)
+                out.append(f"vortex lift term {name} = {params[name]:.3g} is not positive")
     if candidate.coefficient == "Cm" and rules.cg_range is not None and rules.cbar:
         slope = _pitch_slopes(candidate, params, rules)
         if slope is not None:

@@ -41,7 +41,7 @@ from typing import Callable
 import numpy as np
 
 from ..engine.regressors import symbol_names
-from ..engine.separation import SeparationState
+from ..engine.separation import SeparationState, is_vortex
 from ..engine.static_forms import LOCATION_PARAMETERS
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
@@ -249,6 +249,9 @@ def _wrong_sign(current: Candidate, state: SeparationState, summary: CandidateRe
     if current.coefficient != "CL":
         return []
     params = summary.estimates.params
+    if is_vortex(state.kind):   # its lift is the vortex's, positive while the vortex lies over the section
+        return [f"vortex lift term {n} = {params[n]:.3g} not positive" for n, t in current.regressors
+                if state.symbol in symbol_names(t) and n in params and not params[n] > 0]
     return [f"Kirchhoff term {n} = {params[n]:.3g} not positive" for n, t in current.regressors
             if f"K_L({state.symbol})" in t.replace(" ", "") and n in params and not params[n] > 0]
 
