@@ -192,3 +192,28 @@ def test_every_kind_of_reason_is_told_from_its_words():
     assert all(Reason.of(w) is kind for w, kind in words.items())
     assert Reason.of("a judge's own words") is None
     assert not HARD_REASONS & FIXABLE_REASONS
+
+
+def test_a_term_without_a_standard_deviation_is_named_so_never_given_a_p_value_above_one():
+    from types import SimpleNamespace
+    from structsearch.grid_search.refinement import _insignificant_why
+    summary = SimpleNamespace(estimates=SimpleNamespace(p_values={"CL_vortex": float("nan"), "CL0": 0.82}))
+    assert _insignificant_why(summary, "CL_vortex") == "no standard deviation (p-value not estimable)"
+    assert _insignificant_why(summary, "CL0") == "t-test accepts 0, p = 0.82"
+
+
+def test_a_vortex_lift_below_zero_is_not_admissible():
+    """The dynamic-stall vortex adds lift while it lies over the section: a negative vortex lift is a state
+    mimicking something else, named as such."""
+    from types import SimpleNamespace
+    from structsearch.grid_search.admissibility import _physics_reasons
+    from structsearch.fitting.candidates import Candidate
+    c = Candidate("A-V", "airfoil", "CL", (("CL_KL", "K_L(X)"), ("CL_vortex", "X_vortex")),
+                  (("", "L"), ("vortex", "V")))
+    rules = SimpleNamespace(cg_range=None, cbar=None)
+
+    def reasons(value):
+        return _physics_reasons(SimpleNamespace(estimates=SimpleNamespace(params={"CL_KL": 6.0, "CL_vortex": value})),
+                                c, rules)
+    assert reasons(0.8) == []
+    assert reasons(-2.5) == ["vortex lift term CL_vortex = -2.5 is not positive"]

@@ -144,6 +144,11 @@ def _p(summary: CandidateResult, name: str) -> float:
     return p if np.isfinite(p) else 2.0
 
 
+def _insignificant_why(summary: CandidateResult, name: str) -> str:
+    p = summary.estimates.p_values.get(name, float("nan"))
+    return f"t-test accepts 0, p = {p:.2g}" if np.isfinite(p) else "no standard deviation (p-value not estimable)"
+
+
 def _correlated_pairs(summary: CandidateResult, linear: list[str]) -> list[tuple[str, str, float]]:
     """Pairs of ``linear`` correlated above REFINE_CORRELATION, most correlated first, read as admissibility reads
     them (data columns centred where that keeps the model, else as estimated)."""
@@ -165,7 +170,7 @@ def _options(current: Candidate, summary: CandidateResult) -> list[tuple[str, st
     # the insignificant terms without a correlated partner first (their t-tests are not inflated by one: the
     # thesis' q* before C_L in CD-IX), then those with one, each least significant first; the constant last
     ordered = sorted(weak, key=lambda n: (n == constant, n in paired, -_p(summary, n)))
-    out = [(n, f"t-test accepts 0, p = {_p(summary, n):.2g}") for n in ordered]
+    out = [(n, _insignificant_why(summary, n)) for n in ordered]
     for a, b, rho in pairs:
         # the less significant member first; the other when that one was tried already (as insignificant)
         tried = {o for o, _ in out}
