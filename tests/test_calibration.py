@@ -149,3 +149,29 @@ def test_a_kind_meets_its_goals_only_with_every_parameter_within_its_binomial_er
     assert all(p.covered95 == 20 for p in kind(0).parameters) and not kind(0).below_binomial
     assert all(p.covered95 == 14 for p in kind(6).parameters)
     assert len(kind(6).below_binomial) == len(kind(6).parameters) and not kind(6).meets_goals
+
+
+def test_the_calibration_the_guide_quotes_is_the_committed_one():
+    """The flight-effect calibration the guides quote is a committed results file made by the command they
+    name, with its flight effects; every quoted figure is read from it, and each parameter's count is judged
+    against its binomial Monte Carlo error."""
+    import json
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    doc = json.loads((root / "results" / "calibration_cg_transfer" / "calibration.json").read_text())
+    assert doc["flight_effects"] == ["x_cg"] and doc["cg_moment"] == "transfer" and doc["scale"] == 1.0
+    assert len(doc["seeds"]["values"]) == 20 and doc["seeds"]["held_out"]
+    kind = doc["kinds"]["hac-maneuver"]
+    rows = {f"{p['model']} {p['parameter']}": p for p in kind["parameters"]}
+    assert len(rows) == 25 and all(p["binomial_floor95"] == 15 for p in rows.values())
+    assert kind["below_binomial_floor"] == [] and all(p["coverage95_consistent"] for p in rows.values())
+    guide = (root / "docs" / "guide" / "flight-effects.md").read_text()
+    pooled = f"{kind['pooled_coverage95']:.3f}"
+    cm_cl = rows["Cm-XXXIIIf Cm_CL"]
+    worst = min(rows.values(), key=lambda p: p["coverage95"])
+    assert f"pooled (25 parameters)   {pooled}" in guide
+    assert f"{cm_cl['coverage95']:.2f} ({cm_cl['covered95']}/20; sd ratio {cm_cl['sd_ratio']:.2f})" in guide
+    assert f"{worst['coverage95']:.2f} ({worst['covered95']}/20, {worst['model']} {worst['parameter']})" in guide
+    rejected = round(kind["gap_test_rejection_rate"] * kind["gap_tests"])
+    assert f"{rejected}/{kind['gap_tests']} ({kind['gap_tests_not_estimable']} not estimable)" in guide
+    assert f"pool at {pooled}" in (root / "docs" / "guide" / "moment-reference.md").read_text()
