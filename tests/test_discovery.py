@@ -651,19 +651,3 @@ def test_a_structure_the_search_ends_on_that_is_not_admissible_is_repaired(tmp_p
                    simplify=False)
     assert kept.final is kept.start and len(kept.steps) == 1
 
-
-def test_the_vortex_lift_effect_adds_one_vortex_state_to_a_lift_structure():
-    from structsearch.data.errors import DeclarationError
-    from structsearch.discovery import effects as fx
-    from structsearch.fitting.candidates import Candidate
-    lift = Candidate("CL-II", "lift", "CL", (("CL0", "1"), ("CL_KL", "K_L(X)")), (("", "U"),))
-    vortex = fx.get("vortex_lift", "CL")
-    changed = vortex.apply(lift)
-    assert changed.states == (("", "U"), ("vortex", "V"))
-    assert changed.regressors[-1] == ("CL_vortex", "X_vortex") and vortex.new_parameters(lift, changed) == ("CL_vortex",)
-    with pytest.raises(DeclarationError, match="already contains"):
-        vortex.apply(changed)
-    with pytest.raises(DeclarationError, match="needs a separation state"):
-        vortex.apply(Candidate("CL-lin", "lift", "CL", (("CL_a", "alpha"),), ()))
-    with pytest.raises(DeclarationError, match="does not apply to Cm"):
-        fx.get("vortex_lift", "Cm")

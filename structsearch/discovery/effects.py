@@ -134,30 +134,10 @@ def _second_state() -> Effect:
     return Effect(name, "a second separation state with its own K term", ALL, apply, _last_term)
 
 
-# The vortex state's name: X_vortex, tau1_vortex, tau_v_vortex, a1_vortex, a_star_vortex and the lift CL_vortex.
-VORTEX_STATE = "vortex"
-
-
-def _vortex_lift() -> Effect:
-    name = "vortex_lift"
-
-    def apply(c: Candidate) -> Candidate:
-        if any(k == "V" for _, k in c.states):
-            raise DeclarationError(f"baseline {c.name} already contains the effect {name!r}")
-        if not c.states and not c.lift:
-            raise DeclarationError(f"effect {name!r} needs a separation state whose stall sheds the vortex; "
-                                   f"{c.name} has none")
-        return _with_state(c, name, (VORTEX_STATE, "V"), _symbol(VORTEX_STATE),
-                           term_name=f"{c.coefficient}_{VORTEX_STATE}")
-    return Effect(name, "the dynamic-stall vortex's lift: a state that grows while the flow separates and "
-                  "decays as the vortex convects away (tau_v)", ("CL",), apply, _last_term)
-
-
 LIBRARY: dict[str, Effect] = {e.name: e for e in [
     _kind_change("unsteady_lag", "tau1 on a separation state (Q -> U)", "Q", "U", "tau1"),
     _kind_change("separation_delay", "tau2 on a separation state (S -> Q)", "S", "Q", "tau2"),
     _second_state(),
-    _vortex_lift(),
     _regressor_effect("pitch_rate", "q* regressor", ALL, lambda c: [(f"{c.coefficient}_qstar", "qstar")]),
     replace(_regressor_effect("alpha_dot", "alpha_dot regressor (distinct from q*)", ALL,
                               lambda c: [(f"{c.coefficient}_alphadot", ALPHA_DOT_TERM)]), equivalents=(VANE_LAG,)),
