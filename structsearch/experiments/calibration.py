@@ -46,6 +46,7 @@ from ..fitting.candidate_fit import fit_candidate
 from ..fitting.lift_fit import LiftFit
 from ..thesis_study.thesis_estimator import fit_final_models
 from .calibration_models import TRUTH, final_models
+from .calibration_parameters import BINOMIAL_QUANTILE, ParameterCalibration  # noqa: F401
 
 LARGE_DOF = 10 ** 9  # a draw without dof: the normal quantiles
 GAP_LEVEL = 0.01
@@ -53,10 +54,6 @@ GAP_LEVEL = 0.01
 COVERAGE_RANGE = (0.92, 0.98)
 # goal of issue 29: the static curves' 95 % confidence bands cover the truth at 90-99 % of the points
 BAND_COVERAGE_RANGE = (0.90, 0.99)
-# A parameter's 95 % coverage fails when its count of covered campaigns lies below this quantile of the binomial
-# count of n campaigns at 0.95: a shortfall its Monte Carlo error explains passes (20 of 20 always does; 15 of
-# 20 passes, 14 fails, where a fixed floor of 0.85 would have failed 16 of 20 for chance alone).
-BINOMIAL_QUANTILE = 0.001
 REJECTION_CEILING = 0.03
 # the seeds every default was chosen on (the covariance kind, the few-maneuvers flag: bench --calibration with
 # its former first seed 1000 and 50 campaigns), and the first seed of the held-out ones the calibration uses
@@ -204,45 +201,6 @@ def band_coverage(finals, train, truth: Mapping[str, Mapping[str, float]] = TRUT
         hits[coef] = tuple(bool(h) for h in (curve >= b.band.confidence_low) & (curve <= b.band.confidence_high))
         widths[coef] = float(np.nanmean(b.band.confidence_half_width))
     return hits, widths
-
-
-@dataclass(frozen=True)
-class ParameterCalibration:
-    model: str
-    parameter: str
-    truth: float
-    mean: float
-    mc_sd: float                # spread of the estimates over the campaigns
-    reported_sd: float          # mean reported standard deviation
-    coverage68: float
-    coverage95: float
-    n: int                      # campaigns with a finite reported standard deviation
-    centred95: float = float("nan")  # coverage of the Monte Carlo mean: the standard deviation alone
-
-    @property
-    def ratio(self) -> float:
-        return self.reported_sd / self.mc_sd if self.mc_sd > 0 else float("nan")
-
-    @property
-    def bias_in_sd(self) -> float:
-        return (self.mean - self.truth) / self.mc_sd if self.mc_sd > 0 else float("nan")
-
-    @property
-    def covered95(self) -> int:
-        """The campaigns whose 95 % interval covers the truth (0 when none had a standard deviation)."""
-        return int(round(self.coverage95 * self.n)) if self.n else 0
-
-    @property
-    def binomial_floor95(self) -> int:
-        """The fewest covered campaigns of ``n`` that 95 % intervals reach but for a chance of
-        :data:`BINOMIAL_QUANTILE`: the binomial quantile of the count."""
-        return int(stats.binom.ppf(BINOMIAL_QUANTILE, self.n, 0.95)) if self.n else 0
-
-    @property
-    def coverage95_consistent(self) -> bool:
-        """Whether the count covered is within the Monte Carlo error of 95 % (not below the binomial floor); a
-        parameter no campaign estimated is not judged here (``n`` 0: :attr:`KindCalibration.estimable`)."""
-        return self.covered95 >= self.binomial_floor95
 
 
 @dataclass(frozen=True)
