@@ -115,7 +115,8 @@ def test_the_exported_aircraft_computes_structsearch_s_prediction_at_the_recorde
 
 def test_only_aircraft_exported_by_structsearch_are_driven(on_disk, tmp_path):
     _jsbsim()
-    from structsearch.export.jsbsim_baseline import jsbsim_baseline, simulator_target
+    from structsearch.diagnosis.offset import simulator_target
+    from structsearch.export.jsbsim_baseline import jsbsim_baseline
     with pytest.raises(DeclarationError, match="not an aircraft exported by structsearch.*--baseline-column"):
         jsbsim_baseline("c172x", on_disk, "CL")
     with pytest.raises(DeclarationError, match="could not load the aircraft 'no_such_plane'"):
@@ -125,7 +126,7 @@ def test_only_aircraft_exported_by_structsearch_are_driven(on_disk, tmp_path):
     with pytest.raises(DeclarationError, match="no such directory"):
         jsbsim_baseline(str(tmp_path / "gone" / "x"), on_disk, "CL")
     for bad in ("c172x", "jsbsim:", "xplane:c172x"):
-        with pytest.raises(DeclarationError, match="give jsbsim:AIRCRAFT"):
+        with pytest.raises(DeclarationError, match="give jsbsim:NAME_OR_DIR"):
             simulator_target(bad)
 
 

@@ -42,7 +42,8 @@ def diagnose_simulator(campaign: Campaign | str | os.PathLike, *, coefficient: s
     target, given, foreign = None, {}, False
     if simulator is not None:   # a malformed value is answered before the campaign is read
         from ..export.jsbsim_baseline import exported_by_structsearch
-        from ..foreign.baseline import parse_inputs, simulator_target
+        from ..diagnosis.offset import simulator_target
+        from ..foreign.baseline import parse_inputs
         target = simulator_target(simulator)
         given = parse_inputs(simulator_inputs)
         foreign = not exported_by_structsearch(target)

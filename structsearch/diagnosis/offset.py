@@ -29,6 +29,18 @@ from ..discovery.terms import SimulatorTerm
 from ..fitting.candidates import Candidate
 
 COEFFICIENTS = ("CL", "CD", "Cm")
+# --simulator jsbsim:NAME_OR_DIR: the prefix of a JSBSim aircraft as the diagnosis baseline
+JSBSIM_PREFIX = "jsbsim:"
+
+
+def simulator_target(text: str) -> str:
+    """The aircraft of ``--simulator jsbsim:NAME_OR_DIR``; one error for anything else."""
+    if not text.startswith(JSBSIM_PREFIX) or not text[len(JSBSIM_PREFIX):].strip():
+        raise DeclarationError(f"--simulator {text!r}: give jsbsim:NAME_OR_DIR (one of JSBSim's aircraft such as "
+                               "c172p, an aircraft directory, or an export directory of `structsearch export "
+                               "--format jsbsim`); a simulator's coefficient written into the campaign is "
+                               "--baseline-column")
+    return text[len(JSBSIM_PREFIX):].strip()
 GRID = "simulator"
 
 

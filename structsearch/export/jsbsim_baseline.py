@@ -19,22 +19,12 @@ from pathlib import Path
 
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
-from ..diagnosis.offset import SimulatorBaseline, check_values
+from ..diagnosis.offset import JSBSIM_PREFIX, SimulatorBaseline, check_values
 from .check import drive, load_aircraft, need_jsbsim
 from .jsbsim_files import FILL_INPUTS
 from .xml_functions import INPUTS, output_property
 
-PREFIX = "jsbsim:"
 NEEDS = "diagnose --simulator jsbsim:... evaluates a JSBSim aircraft"
-
-
-def simulator_target(text: str) -> str:
-    """The aircraft of ``--simulator jsbsim:AIRCRAFT`` (a directory or a name); one error for anything else."""
-    if not text.startswith(PREFIX) or not text[len(PREFIX):].strip():
-        raise DeclarationError(f"--simulator {text!r}: give jsbsim:AIRCRAFT (an export directory of "
-                               "`structsearch export --format jsbsim`, its aircraft/<name> directory, or an aircraft "
-                               "name); a simulator's coefficient written into the campaign is --baseline-column")
-    return text[len(PREFIX):].strip()
 
 
 def locate(target: str) -> tuple[Path | None, str]:
@@ -104,8 +94,8 @@ def jsbsim_baseline(target: str, campaign: Campaign, coefficient: str) -> Simula
             source = str(campaign.directory / "campaign.toml") if campaign.directory is not None else campaign.name
             raise DataError(f"the aircraft {name} reads this column ({INPUTS[c].property}), which the campaign lacks",
                             source=source, column=c)
-    values = check_values(campaign, drive(fdm, campaign.data, columns, [out])[0], f"{PREFIX}{name} {out}")
+    values = check_values(campaign, drive(fdm, campaign.data, columns, [out])[0], f"{JSBSIM_PREFIX}{name} {out}")
     detail = {"aircraft": name, "root": None if root is None else str(root), "property": out,
               "inputs": columns, "jsbsim_version": need_jsbsim(NEEDS).__version__,
               "seconds": round(time.perf_counter() - started, 2)}
-    return SimulatorBaseline(coefficient, f"{PREFIX}{name}", "jsbsim", values, detail)
+    return SimulatorBaseline(coefficient, f"{JSBSIM_PREFIX}{name}", "jsbsim", values, detail)

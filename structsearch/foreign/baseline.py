@@ -33,12 +33,11 @@ import numpy as np
 
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
-from ..diagnosis.offset import SimulatorBaseline, check_values
+from ..diagnosis.offset import JSBSIM_PREFIX, SimulatorBaseline, check_values
 from .aircraft_xml import AXIS_OF, FORCE_AXES, AircraftFile, check_axes, read_aircraft
 from .evaluate import STATE_IC, evaluate
 from .private_copy import ALPHADOT, ELEVATOR, ELEVATOR_DERIVED, HYSTERESIS, INPUT_PREFIX, derived, rewritten
 
-PREFIX = "jsbsim:"
 TERM_PREFIX = "sim:"
 TRANSFER = "sim:transfer"
 FT = 0.3048
@@ -49,15 +48,6 @@ STATE_COLUMNS = {"ic/h-sl-ft": ("h", 1.0 / FT, None), "ic/vt-fps": ("V", 1.0 / F
                  "ic/theta-rad": ("theta", 1.0, "alpha"), "ic/phi-rad": ("phi", 1.0, 0.0),
                  "ic/p-rad_sec": ("p", 1.0, 0.0), "ic/q-rad_sec": ("q", 1.0, None), "ic/r-rad_sec": ("r", 1.0, 0.0)}
 MAX_CHORDS = 2.0
-
-
-def simulator_target(text: str) -> str:
-    """The aircraft of ``--simulator jsbsim:NAME_OR_DIR``; one error for anything else."""
-    if not text.startswith(PREFIX) or not text[len(PREFIX):].strip():
-        raise DeclarationError(f"--simulator {text!r}: give jsbsim:NAME_OR_DIR (one of JSBSim's aircraft such as "
-                               "c172p, or an aircraft directory); a simulator's coefficient written into the "
-                               "campaign is --baseline-column")
-    return text[len(PREFIX):].strip()
 
 
 def parse_inputs(items: Sequence[str]) -> dict[str, str | float]:
@@ -259,7 +249,7 @@ def jsbsim_baseline(target: str, campaign: Campaign, coefficient: str,
     if scales:
         detail["scales"] = dict(scales)
     total = np.sum(list(parts.values()), axis=0)
-    return SimulatorBaseline(coefficient, f"{PREFIX}{aircraft.name}", "jsbsim", total, detail, terms=parts,
+    return SimulatorBaseline(coefficient, f"{JSBSIM_PREFIX}{aircraft.name}", "jsbsim", total, detail, terms=parts,
                              term_signals=term_signals(aircraft, coefficient, record))
 
 
