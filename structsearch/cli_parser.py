@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 from typing import Callable, Mapping
 
+from .data.coefficients import COEFFICIENTS
 from ._version import __version__
 from .cli_help import command_parser, top_level
 from .cli_options import (COVARIANCE_KINDS, CV_METHODS, DEFAULT_COVARIANCE, MAX_CORRELATION, PROFILE_CAMPAIGNS,
@@ -349,7 +350,7 @@ def _add_diagnose(sub, handler: Callable) -> None:
     g = command_parser(sub, "diagnose")
     _campaign_options(g, starts=2, data_required=False)
     g.add_argument("--model", help="baseline candidate name or spec file")
-    g.add_argument("--coefficient", choices=("CL", "CD", "Cm"),
+    g.add_argument("--coefficient", choices=tuple(COEFFICIENTS),
                    help="check that the baseline models this (with a simulator baseline: the coefficient diagnosed)")
     g.add_argument("--baseline-column", metavar="NAME", default=None,
                    help="baseline: the simulator's coefficient along the flight, a column of the campaign's files "
@@ -384,7 +385,7 @@ def _add_discover(sub, handler: Callable) -> None:
     """The ``discover`` command."""
     d = command_parser(sub, "discover")
     _campaign_options(d, starts=2)
-    d.add_argument("--coefficient", choices=("CL", "CD", "Cm"), required=True, help="the coefficient to model")
+    d.add_argument("--coefficient", choices=tuple(COEFFICIENTS), required=True, help="the coefficient to model")
     d.add_argument("--from", dest="start", default="minimal",
                    help="the structure to start from: 'minimal' (default), a candidate name or a spec file")
     d.add_argument("--lift", action="append", default=[], metavar="NAME",

@@ -16,6 +16,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..data.campaign import Campaign, read_campaign
+from ..data.coefficients import coefficient as coefficient_record
 from ..data.errors import DataError, DeclarationError
 from ..engine.separation import SeparationState, evaluate_state
 from ..export.card import (CoefficientModel, ExportedModel, StateModel, aircraft_record, ordered, validity)
@@ -68,7 +69,7 @@ def _model_names(models: str | Sequence[str]) -> list[Candidate]:
 def _lift_of(candidates: Sequence[Candidate]) -> Candidate:
     """The lift structure of an export: the one named, else the one drag and pitch read (the same for both)."""
     from ..fitting.specs import load_grid
-    named = [c for c in candidates if c.coefficient == "CL"]
+    named = [c for c in candidates if coefficient_record(c.coefficient).owns_states]
     read = {c.lift for c in candidates if c.lift}
     if len(read) > 1:
         raise DeclarationError(f"--model: the drag and pitch models read different lift models ({', '.join(sorted(read))}); "
@@ -134,7 +135,7 @@ def read_fit_directory(directory: str | os.PathLike) -> tuple[list[Fitted], dict
 def _complete(f: Fitted, fields: Fields) -> None:
     """Every parameter an export writes is in the document: each regressor's, and a lift model's states'."""
     needed = [name for name, _ in f.candidate.regressors]
-    if f.candidate.coefficient == "CL":
+    if coefficient_record(f.candidate.coefficient).owns_states:
         needed += list(f.candidate.state_parameters)
     missing = [p for p in needed if p not in f.params]
     if missing:
@@ -155,7 +156,7 @@ def _single_fitted(doc: Mapping, fields: Fields) -> list[Fitted]:
                  _sd(fields.number(doc.get("mse", {}).get("train") if isinstance(doc.get("mse"), dict) else None,
                                    "mse.train")),
                  "" if matrix is not None else "fit.json records no covariance matrix (a fit of an older version)")
-    if c.coefficient == "CL" or not doc.get("lift"):
+    if coefficient_record(c.coefficient).owns_states or not doc.get("lift"):
         return [own]
     lift = fields.table(doc, "lift")
     lift_c = _candidate(lift, fields, "lift.")
@@ -206,7 +207,7 @@ def exported_model(fitted: Sequence[Fitted], campaign: Campaign, data: Mapping) 
     from ..fitting.models import used_states
     for f in fitted:
         _check_exportable(f.candidate)
-    lift = next(f for f in fitted if f.candidate.coefficient == "CL")
+    lift = next(f for f in fitted if coefficient_record(f.candidate.coefficient).owns_states)
     states = tuple(StateModel(n, k, {p: lift.params[p] for p in SeparationState(n, k, lift.candidate.form_of(n)).parameters},
                               lift.candidate.form_of(n))
                    for n, k in lift.candidate.states)
@@ -214,7 +215,8 @@ def exported_model(fitted: Sequence[Fitted], campaign: Campaign, data: Mapping) 
     for f in fitted:
         linear = dict(f.candidate.regressors)
         symbols = tuple(SeparationState(n, k).symbol for n, k in
-                        (f.candidate.states if f.candidate.coefficient == "CL" else used_states(f.candidate).items()))
+                        (f.candidate.states if coefficient_record(f.candidate.coefficient).owns_states
+                         else used_states(f.candidate).items()))
         cov = None if f.covariance is None else tuple(tuple(float(v) for v in row) for row in f.covariance)
         coefficients.append(CoefficientModel(
             f.candidate.coefficient, f.candidate.name, tuple(linear.items()), {p: f.params[p] for p in linear},
@@ -260,7 +262,7 @@ def _predictor(fitted: Sequence[Fitted], model: ExportedModel):
     """structsearch's own prediction of the fit: each coefficient by :func:`predict_candidate` (drag and pitch
     reading the lift model's output and states) and each state by the engine."""
     from ..fitting.models import predict_candidate
-    lift = next(f for f in fitted if f.candidate.coefficient == "CL")
+    lift = next(f for f in fitted if coefficient_record(f.candidate.coefficient).owns_states)
     lift_at = LiftAt(lift.candidate, dict(lift.params))
 
     def predict(data) -> dict[str, np.ndarray]:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
+from ..data.coefficients import LIFT, coefficient
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.fitter import Fitter
@@ -17,7 +18,8 @@ from ..grid_search.refinement import structure_key
 def needs_discovery(ranked: list[CandidateResult]) -> bool:
     """Whether a ranking of a lift grid holds no admissible structure (and something was fitted)."""
     fitted = [r for r in ranked if not r.failed]
-    return bool(fitted) and fitted[0].coefficient == "CL" and not any(r.placement.admissible for r in fitted)
+    return (bool(fitted) and coefficient(fitted[0].coefficient).owns_states
+            and not any(r.placement.admissible for r in fitted))
 
 
 def discover_beside(fitter: Fitter, grid: str, ranked: list[CandidateResult], known: list[Candidate],
@@ -27,7 +29,7 @@ def discover_beside(fitter: Fitter, grid: str, ranked: list[CandidateResult], kn
     from ..diagnosis.diagnose import diagnose_search
     from ..discovery.discover import discover_structures
     fitter.say(f"grid {grid}: no admissible structure; the structure search goes on from the minimal structure")
-    found = discover_structures(fitter.quiet(), "CL", diagnose_search, start="minimal", max_steps=max_steps)
+    found = discover_structures(fitter.quiet(), LIFT.name, diagnose_search, start="minimal", max_steps=max_steps)
     seen = {structure_key(c) for c in known}
     new = []
     for node in found.exploration.fitted():

@@ -23,12 +23,12 @@ from typing import Mapping
 
 import numpy as np
 
+from ..data.coefficients import COEFFICIENTS
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..discovery.terms import SimulatorTerm
 from ..fitting.candidates import Candidate
 
-COEFFICIENTS = ("CL", "CD", "Cm")
 # --simulator jsbsim:NAME_OR_DIR: the prefix of a JSBSim aircraft as the diagnosis baseline
 JSBSIM_PREFIX = "jsbsim:"
 

@@ -13,11 +13,12 @@ import dataclasses
 from dataclasses import dataclass, replace
 from typing import Callable
 
+from ..data.coefficients import COEFFICIENTS
 from ..data.errors import DeclarationError
 from ..fitting.candidates import Candidate
 from .equivalents import ALPHA_DOT_TERM, VANE_LAG, Equivalent
 
-ALL = ("CL", "CD", "Cm")
+ALL = tuple(COEFFICIENTS)
 
 
 @dataclass(frozen=True)
@@ -98,7 +99,7 @@ def _kind_change(name: str, description: str, from_kind: str, to_kind: str, para
     def new(base: Candidate, changed: Candidate) -> tuple[str, ...]:
         s = target(base)
         return (f"{parameter}_{s}" if s else parameter,)
-    return Effect(name, description, ("CL", "CD", "Cm"), apply, new)
+    return Effect(name, description, ALL, apply, new)
 
 
 def _with_state(c: Candidate, effect: str, state: tuple[str, str], term: str, bounds=(),

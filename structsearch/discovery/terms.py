@@ -21,12 +21,12 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..data.coefficients import COEFFICIENTS
 from ..data.errors import DeclarationError
 from ..engine.regressors import HELPERS, NAMED_EXPRESSIONS, parse, symbol_names
 from ..fitting.candidates import Candidate
 from ..fitting.specs import BUILTIN_GRIDS, load_grid, read_toml
 
-COEFFICIENTS = ("CL", "CD", "Cm")
 # a separation state's symbol in an expression: X (the single state) or X_<name>
 STATE_SYMBOL = re.compile(r"\bX(?:_([A-Za-z0-9]+))?\b")
 _PLACEHOLDER = "{X}"

@@ -12,9 +12,11 @@ from __future__ import annotations
 import time
 from typing import Callable
 
+from ..data.coefficients import COEFFICIENTS
+
 
 def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
-                        progress: Callable[[str], None] | None = None, coefficients=("CL", "CD", "Cm")) -> dict:
+                        progress: Callable[[str], None] | None = None, coefficients=tuple(COEFFICIENTS)) -> dict:
     from ..diagnosis.diagnose import diagnose_search
     from ..diagnosis.story import van_ingen_story
     from ..discovery.discover import discover_structures

@@ -14,13 +14,14 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ..data.coefficients import COEFFICIENTS
 from ..data.errors import DeclarationError
 from ..engine.equations import helpers_used, model_equation, state_equation
 from ..engine.separation import SeparationState
 
 CARD_FORMAT = "structsearch-model-card/1"
 STATIC_FORMS = ("tanh",)     # the static separation forms an export writes
-ORDER = ("CL", "CD", "Cm")
+ORDER = tuple(COEFFICIENTS)
 GAMMA_AIR, GAS_CONSTANT = 1.4, 287.053
 
 

@@ -22,6 +22,7 @@ from typing import Callable, Mapping
 import numpy as np
 from scipy.signal import lfilter
 
+from ..data.coefficients import COEFFICIENTS
 from ..data.errors import StructSearchError
 from ..data.flightdata import FlightData, from_segments
 from ..data.optional import need_jsbsim as need_optional_jsbsim
@@ -93,7 +94,7 @@ def static_points(model: ExportedModel, data: FlightData) -> FlightData:
     median = {c: float(np.median(data[c])) for c in columns if c in data}
     median.update(q=0.0, alpha_dot=0.0)
     # the measured coefficients are not inputs (drag and pitch read the lift model's C_L): placeholders
-    median.update({c: 0.0 for c in ("CL", "CD", "Cm") if c in data})
+    median.update({c: 0.0 for c in COEFFICIENTS if c in data})
     des = np.quantile(data["de"], [0.0, 0.5, 1.0]) if "de" in data else [0.0]
     segments = []
     for de in des:
@@ -148,7 +149,7 @@ def _jsbsim_run(directory: Path, aircraft: str, model: ExportedModel, data: Flig
     if fdm is None:
         raise StructSearchError(f"JSBSim could not load the exported aircraft {aircraft!r} from {directory}")
     names = [c.coefficient for c in model.coefficients] + [s.symbol for s in model.states]
-    read = [output_property(n) if n in ("CL", "CD", "Cm") else state_property(n) for n in names]
+    read = [output_property(n) if n in COEFFICIENTS else state_property(n) for n in names]
     out = drive(fdm, data, inputs_used(model), read)
     return dict(zip(names, out)), need_jsbsim().__version__
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
+from ..data.coefficients import coefficient as coefficient_record
 from ..data.errors import DeclarationError
 from ..engine.separation import INSTANT_LAG, SeparationState, is_delayed, is_lagged, is_vortex
 from .card import ExportedModel, StateModel
@@ -34,8 +35,8 @@ from ..engine.regressors import symbol_names
 SYSTEM_NAME = "structsearch_states"
 FILL_INPUTS = f"{NAMESPACE}/fill-inputs"
 DT = f"{NAMESPACE}/dt-sec"
-AXES = {"CL": ("LIFT", ("aero/qbar-psf", "metrics/Sw-sqft")), "CD": ("DRAG", ("aero/qbar-psf", "metrics/Sw-sqft")),
-        "Cm": ("PITCH", ("aero/qbar-psf", "metrics/Sw-sqft", "metrics/cbarw-ft"))}
+FORCE_FACTORS = ("aero/qbar-psf", "metrics/Sw-sqft")
+MOMENT_FACTORS = FORCE_FACTORS + ("metrics/cbarw-ft",)
 
 
 def symbols_of(model: ExportedModel) -> Symbols:
@@ -82,12 +83,13 @@ def aerodynamics_xml(model: ExportedModel) -> str:
         root.append(element("function", element("description", text=f"{c.model}: {c.equation}"), total,
                             name=output_property(c.coefficient)))
     for c in model.coefficients:
-        axis, factors = AXES[c.coefficient]
+        record = coefficient_record(c.coefficient)
+        axis, factors = record.jsbsim_axis, (MOMENT_FACTORS if record.moment else FORCE_FACTORS)
         functions = []
         for parameter, text in c.terms:
-            kind = "moment" if axis == "PITCH" else "force"
-            scale = "qbar*S*cbar" if axis == "PITCH" else "qbar*S"
-            attributes = {} if axis == "PITCH" else {"apply_at_cg": "true"}
+            kind = "moment" if record.moment else "force"
+            scale = "qbar*S*cbar" if record.moment else "qbar*S"
+            attributes = {} if record.moment else {"apply_at_cg": "true"}
             functions.append(element(
                 "function", element("description", text=f"{scale} * {parameter} * ({text})"),
                 element("product", *[prop(f) for f in factors], prop(term_property(parameter))),

@@ -18,6 +18,7 @@ from typing import Callable, Mapping
 
 import sympy as sp
 
+from ..data.coefficients import COEFFICIENTS
 from ..data.errors import DeclarationError
 from ..engine.regressors import X_FLOOR, parse
 
@@ -171,7 +172,7 @@ def _symbol(name: str, symbols: Symbols, fail) -> ET.Element:
         return value(symbols.constants[name])
     if name in INPUTS:
         return prop(INPUTS[name].property)
-    if name in ("CL", "CD", "Cm"):
+    if name in COEFFICIENTS:
         fail(f"it reads the measured {name}, which a simulator does not have (only the lift model's C_L is "
              "exported as an input of drag and pitch)")
     if name in ("cbar", "S", "b"):

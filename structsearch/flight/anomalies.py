@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..data.coefficients import COEFFICIENTS
 from ..data.errors import DeclarationError
 from ..data.prefilter import derivative
 from ..engine.separation import first_order_lag, is_lagged
@@ -265,7 +266,7 @@ def truth_difference(campaign, effect: str, coefficient: str | None = None) -> n
     withheld = _withheld_of(extra)
     flown_anomaly = extra.get("anomaly")
     coef = coefficient or effect_coefficient(effect)
-    if coef not in ("CL", "CD", "Cm"):
+    if coef not in COEFFICIENTS:
         raise DeclarationError(f"no coefficient {coef!r}: truth differences are of CL, CD or Cm")
     data = campaign.data
     if effect in ANOMALIES:

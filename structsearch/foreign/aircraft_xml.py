@@ -13,11 +13,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
+from ..data.coefficients import FORCES, coefficient as coefficient_record
 from ..data.errors import DeclarationError
 
 # the axis that carries each coefficient (wind axes for the forces, the body pitch axis for the moment)
-AXIS_OF = {"CL": "LIFT", "CD": "DRAG", "Cm": "PITCH"}
-FORCE_AXES = ("LIFT", "DRAG")
 # the elements of a JSBSim function that name a property it reads
 READ_TAGS = ("property", "p", "independentVar")
 MAX_BYTES = 20_000_000
@@ -158,11 +157,18 @@ def read_aircraft(target: str) -> AircraftFile:
 def check_axes(aircraft: AircraftFile, coefficient: str) -> tuple[str, ...]:
     """The functions of the axis that carries ``coefficient`` (for C_m also the force axes, whose forces the
     moment transfer to the cg reads); one error when the aircraft lacks them."""
-    need = [AXIS_OF[coefficient]] + (list(FORCE_AXES) if coefficient == "Cm" else [])
+    need = axes_read(coefficient)
     missing = [a for a in need if not aircraft.functions(a)]
     if missing:
         have = ", ".join(sorted(aircraft.axes)) or "none"
         raise DeclarationError(f"{aircraft.file}: no function in the aerodynamic axis {' and '.join(missing)} (the "
                                f"axes it has: {have}); {coefficient} is read from the LIFT, DRAG and PITCH axes, not "
                                "from body-axis (X, Z) forces")
-    return aircraft.functions(AXIS_OF[coefficient])
+    return aircraft.functions(coefficient_record(coefficient).jsbsim_axis)
+
+
+def axes_read(coefficient: str) -> list[str]:
+    """The aerodynamic axes ``coefficient`` is evaluated from: its own, and for a moment the force axes too
+    (the transfer of the moment to the cg reads the forces)."""
+    record = coefficient_record(coefficient)
+    return [record.jsbsim_axis] + ([f.jsbsim_axis for f in FORCES] if record.moment else [])

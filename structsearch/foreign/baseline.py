@@ -34,7 +34,8 @@ import numpy as np
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..diagnosis.offset import JSBSIM_PREFIX, SimulatorBaseline, check_values
-from .aircraft_xml import AXIS_OF, FORCE_AXES, AircraftFile, check_axes, read_aircraft
+from ..data.coefficients import coefficient as coefficient_record
+from .aircraft_xml import AircraftFile, axes_read, check_axes, read_aircraft
 from .evaluate import STATE_IC, evaluate
 from .private_copy import ALPHADOT, ELEVATOR, ELEVATOR_DERIVED, HYSTERESIS, INPUT_PREFIX, derived, rewritten
 
@@ -159,9 +160,10 @@ def terms(evaluation, coefficient: str, aircraft: AircraftFile, x_cg_ft: np.ndar
     ``sim:<function>``; for C_m also ``sim:transfer``."""
     g = evaluation.geometry
     qs = evaluation.qbar * g["metrics/Sw-sqft"]
-    scale = qs * (g["metrics/cbarw-ft"] if coefficient == "Cm" else 1.0)
-    out = {TERM_PREFIX + f: evaluation.functions[f] / scale for f in aircraft.functions(AXIS_OF[coefficient])}
-    if coefficient == "Cm":
+    record = coefficient_record(coefficient)
+    scale = qs * (g["metrics/cbarw-ft"] if record.moment else 1.0)
+    out = {TERM_PREFIX + f: evaluation.functions[f] / scale for f in aircraft.functions(record.jsbsim_axis)}
+    if record.moment:
         cbar = g["metrics/cbarw-ft"]
         x_cg = g["inertia/cg-x-in"] / 12.0 if x_cg_ft is None else x_cg_ft
         c_n = -evaluation.body["forces/fbz-aero-lbs"] / qs
@@ -192,9 +194,9 @@ def _signal(prop: str, record: Mapping) -> str | None:
 def term_signals(aircraft: AircraftFile, coefficient: str, record: Mapping) -> dict[str, tuple[str, ...]]:
     """Per term, the campaign signals it reads (through the helper functions)."""
     out = {}
-    for f in aircraft.functions(AXIS_OF[coefficient]):
+    for f in aircraft.functions(coefficient_record(coefficient).jsbsim_axis):
         out[TERM_PREFIX + f] = tuple(sorted({s for p in aircraft.leaves([f]) if (s := _signal(p, record))}))
-    if coefficient == "Cm":
+    if coefficient_record(coefficient).moment:
         out[TRANSFER] = ("CL", "x_cg")
     return out
 
@@ -217,7 +219,7 @@ def evaluate_campaign(target: str, campaign: Campaign, coefficient: str,
     given = dict(given or {})
     aircraft = read_aircraft(target)
     functions = list(check_axes(aircraft, coefficient))
-    axes = [AXIS_OF[coefficient]] + (list(FORCE_AXES) if coefficient == "Cm" else [])
+    axes = axes_read(coefficient)
     reads = aircraft.leaves([f for a in axes for f in aircraft.functions(a)])
     _check_given(given, aircraft, target)
     states, state_record, missing = _states(campaign, given)

@@ -10,6 +10,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from ..data.coefficients import COEFFICIENTS
 from .._version import __version__
 from ..data.campaign import Campaign, make_campaign
 from ..data.errors import DataError, DeclarationError
@@ -31,7 +32,6 @@ NOISE_BAND_HZ = (10.0, 25.0)
 # Stalled flow for the spectra, by default: above the angle of attack of maximum normal force less this margin.
 STALL_MARGIN_RAD = np.deg2rad(1.0)
 MIN_STALLED_SHARE = 0.02
-COEFFICIENTS = ("CL", "CD", "Cm")
 RECONSTRUCTION_CHANNELS = ("ax", "az", "q", "r", "phi", "V", "alpha", "theta", "h")
 
 

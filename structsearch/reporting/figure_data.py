@@ -22,7 +22,8 @@ from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..engine.scores import ManeuverScores
 
-from ..thesis_study.model_set import COEFFICIENTS, ModelSet
+from ..data.coefficients import COEFFICIENTS
+from ..thesis_study.model_set import ModelSet
 
 # Stall stages on the static separation curve (thesis Fig. 6)
 STAGES = (("flow starts to separate", 0.9), ("half separated (alpha*)", 0.5), ("fully stalled", 0.1))

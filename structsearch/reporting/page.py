@@ -16,6 +16,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from ..data.coefficients import COEFFICIENTS
 from . import figures as fg
 from . import figure_data as rd
 from ..data.campaign import Campaign
@@ -108,7 +109,7 @@ def _with_answers(fits: ReportFits) -> ReportFits:
     import dataclasses
     ms = fits.identified
     answers = {coef: (ms.candidates[coef], ms.summaries[coef], None if coef == "CL" else ms.lift)
-               for coef in ("CL", "CD", "Cm")}
+               for coef in COEFFICIENTS}
     return dataclasses.replace(fits, answers=answers, source=fits.source or "shown in the figures")
 
 

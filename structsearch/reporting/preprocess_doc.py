@@ -10,7 +10,8 @@ import numpy as np
 from tabulate import tabulate
 
 from ..data.atomic import write_text
-from ..preprocessing.pipeline import CHANNEL_GROUPS, COEFFICIENTS, Preprocessed, truth_agreement
+from ..data.coefficients import COEFFICIENTS
+from ..preprocessing.pipeline import CHANNEL_GROUPS, Preprocessed, truth_agreement
 from ..preprocessing.reconstruction import Reconstruction
 
 

@@ -10,7 +10,8 @@ import numpy as np
 from tabulate import tabulate
 
 from ..data.atomic import write_text
-from ..thesis_study.comparison import COEFFICIENTS, comparison_rows
+from ..data.coefficients import COEFFICIENTS
+from ..thesis_study.comparison import comparison_rows
 from ..thesis_study.dynamic_stalls import THESIS_TAU_CORRELATION
 from ..thesis_study.legacy import LEGACY, SNLS
 from ..thesis_study.study import FINAL, VAN_INGEN_PUBLISHED, VAN_INGEN_REFITTED, Study

@@ -11,6 +11,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..data.coefficients import COEFFICIENTS
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.reduction import body_from_lift_drag
@@ -71,7 +72,7 @@ def score_set(label: str, predict: Callable[[str, FlightData], np.ndarray | None
     out = []
     for split in SPLITS:
         data = campaign.split(split)
-        predicted: dict[str, np.ndarray | None] = {c: predict(c, data) for c in ("CL", "CD", "Cm")}
+        predicted: dict[str, np.ndarray | None] = {c: predict(c, data) for c in COEFFICIENTS}
         if predicted["CL"] is not None and predicted["CD"] is not None:
             predicted["CX"], predicted["CZ"] = body_from_lift_drag(predicted["CL"], predicted["CD"], data["alpha"])
         for coefficient in COEFFICIENTS:

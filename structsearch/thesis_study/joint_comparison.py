@@ -11,7 +11,8 @@ import numpy as np
 from ..data.campaign import Campaign
 from ..fitting.joint import fit_joint
 from ..fitting.options import FitOptions
-from .model_set import COEFFICIENTS, ModelSet
+from ..data.coefficients import COEFFICIENTS
+from .model_set import ModelSet
 
 TAU_PAIR = ("tau1_ss", "tau2_ss")
 

@@ -9,6 +9,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..data.coefficients import COEFFICIENTS
 from ..data.errors import DeclarationError
 from ..data.flightdata import FlightData
 from ..flight.aero import AeroModel
@@ -19,7 +20,6 @@ from ..fitting.models import build_model, predict_candidate
 from ..fitting.fitter import Fitter
 from ..fitting.specs import find_candidate
 
-COEFFICIENTS = ("CL", "CD", "Cm")
 
 
 @dataclass(frozen=True)

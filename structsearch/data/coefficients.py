@@ -1,0 +1,48 @@
+"""The aerodynamic coefficients the project models: one record each, the registry every layer reads what a
+coefficient is from (its grid, its JSBSim axis, whether it is a moment, whether its structures own the
+separation states) instead of comparing names.
+
+>>> COEFFICIENTS["Cm"].moment, LIFT.name, coefficient("CD").jsbsim_axis
+(True, 'CL', 'DRAG')
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+
+from .errors import DeclarationError
+
+
+@dataclass(frozen=True)
+class Coefficient:
+    """One aerodynamic coefficient.
+
+    ``grid``: its shipped grid; ``jsbsim_axis``: the axis of a JSBSim aircraft that builds it; ``moment``: a
+    moment coefficient (qbar S cbar C; it reads the forces too, where the moment is taken about a point);
+    ``owns_states``: its structures declare the separation states (the lift model's), where the others take
+    theirs, and C_L, from a lift model."""
+
+    name: str
+    quantity: str
+    grid: str
+    jsbsim_axis: str
+    moment: bool = False
+    owns_states: bool = False
+
+
+COEFFICIENTS = MappingProxyType({c.name: c for c in (
+    Coefficient("CL", "lift", "lift", "LIFT", owns_states=True),
+    Coefficient("CD", "drag", "drag", "DRAG"),
+    Coefficient("Cm", "pitching moment", "pitch", "PITCH", moment=True),
+)})
+LIFT = COEFFICIENTS["CL"]
+# the coefficients that are forces, in the registry's order (a moment about a point reads them)
+FORCES = tuple(c for c in COEFFICIENTS.values() if not c.moment)
+
+
+def coefficient(name: str) -> Coefficient:
+    """The record of coefficient ``name``; one error naming the known ones otherwise."""
+    try:
+        return COEFFICIENTS[name]
+    except KeyError:
+        raise DeclarationError(f"coefficient {name!r} is not one of {', '.join(COEFFICIENTS)}") from None
