@@ -361,10 +361,8 @@ def test_rooms_stay_small_and_the_api_takes_one_settings_value():
 def test_coefficients_are_named_once_in_their_registry():
     """What a coefficient is (its grid, JSBSim axis, whether it is a moment or owns the separation states) is
     read from structsearch.data.coefficients: no module spells the three names as a tuple of its own."""
-    from structsearch.data.coefficients import COEFFICIENTS, FORCES, LIFT, coefficient
+    from structsearch.data.coefficients import coefficient
     from structsearch.data.errors import DeclarationError
-    assert tuple(COEFFICIENTS) == ("CL", "CD", "Cm") and LIFT.owns_states and [f.name for f in FORCES] == ["CL", "CD"]
-    assert [c.jsbsim_axis for c in COEFFICIENTS.values()] == ["LIFT", "DRAG", "PITCH"]
     with pytest.raises(DeclarationError, match="'CY' is not one of CL, CD, Cm"):
         coefficient("CY")
     spelled = [str(p.relative_to(ROOT)) for p in sorted((ROOT / "structsearch").rglob("*.py"))
