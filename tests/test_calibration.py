@@ -175,3 +175,9 @@ def test_the_calibration_the_guide_quotes_is_the_committed_one():
     rejected = round(kind["gap_test_rejection_rate"] * kind["gap_tests"])
     assert f"{rejected}/{kind['gap_tests']} ({kind['gap_tests_not_estimable']} not estimable)" in guide
     assert f"pool at {pooled}" in (root / "docs" / "guide" / "moment-reference.md").read_text()
+
+
+def test_a_parameter_no_campaign_estimated_has_no_count_not_zero():
+    from structsearch.experiments.calibration import ParameterCalibration
+    p = ParameterCalibration("m", "p", 0.0, 0.0, 1.0, float("nan"), float("nan"), float("nan"), 0)
+    assert p.covered95 is None and p.binomial_floor95 is None and p.coverage95_consistent is None

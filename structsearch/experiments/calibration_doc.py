@@ -151,7 +151,7 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
             continue
         rows = [[p.model, p.parameter, f"{p.truth:.5g}", f"{p.bias_in_sd:+.2f}", f"{p.mc_sd:.3g}",
                  f"{p.reported_sd:.3g}", f"{p.ratio:.2f}", f"{p.coverage68:.2f}", f"{p.coverage95:.2f}",
-                 f"{p.covered95}/{p.n} / {p.binomial_floor95}" + ("" if p.coverage95_consistent else " (below)"),
+                 _count(p),
                  f"{p.centred95:.2f}"]
                 for p in k.parameters]
         lines += [f"## {k.kind}", "",
@@ -160,6 +160,13 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
                                           "95 % coverage", "covered / floor", "95 % coverage of the MC mean"],
                            tablefmt="github"), ""]
     return "\n".join(lines)
+
+
+def _count(p) -> str:
+    """Covered of n / the binomial floor, or why there is no count."""
+    if p.covered95 is None:
+        return "n/a (no standard deviation in any campaign)"
+    return f"{p.covered95}/{p.n} / {p.binomial_floor95}" + ("" if p.coverage95_consistent else " (below)")
 
 
 def _in(x: float, bounds) -> bool:

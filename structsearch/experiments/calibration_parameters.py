@@ -34,18 +34,19 @@ class ParameterCalibration:
         return (self.mean - self.truth) / self.mc_sd if self.mc_sd > 0 else float("nan")
 
     @property
-    def covered95(self) -> int:
-        """The campaigns whose 95 % interval covers the truth (0 when none had a standard deviation)."""
-        return int(round(self.coverage95 * self.n)) if self.n else 0
+    def covered95(self) -> int | None:
+        """The campaigns whose 95 % interval covers the truth; None when no campaign had a standard deviation
+        (nothing was counted)."""
+        return int(round(self.coverage95 * self.n)) if self.n else None
 
     @property
-    def binomial_floor95(self) -> int:
+    def binomial_floor95(self) -> int | None:
         """The fewest covered campaigns of ``n`` that 95 % intervals reach but for a chance of
-        :data:`BINOMIAL_QUANTILE`: the binomial quantile of the count."""
-        return int(stats.binom.ppf(BINOMIAL_QUANTILE, self.n, 0.95)) if self.n else 0
+        :data:`BINOMIAL_QUANTILE`: the binomial quantile of the count (None without a campaign)."""
+        return int(stats.binom.ppf(BINOMIAL_QUANTILE, self.n, 0.95)) if self.n else None
 
     @property
-    def coverage95_consistent(self) -> bool:
-        """Whether the count covered is within the Monte Carlo error of 95 % (not below the binomial floor); a
-        parameter no campaign estimated is not judged here (``n`` 0: :attr:`KindCalibration.estimable`)."""
-        return self.covered95 >= self.binomial_floor95
+    def coverage95_consistent(self) -> bool | None:
+        """Whether the count covered is within the Monte Carlo error of 95 % (not below the binomial floor); None
+        for a parameter no campaign estimated (:attr:`KindCalibration.estimable` leaves it out)."""
+        return None if self.covered95 is None else self.covered95 >= self.binomial_floor95
