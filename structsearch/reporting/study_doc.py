@@ -10,8 +10,7 @@ import numpy as np
 from tabulate import tabulate
 
 from ..data.atomic import write_text
-from ..data.coefficients import COEFFICIENTS
-from ..thesis_study.comparison import comparison_rows
+from ..thesis_study.comparison import COMPARED, comparison_rows
 from ..thesis_study.dynamic_stalls import THESIS_TAU_CORRELATION
 from ..thesis_study.legacy import LEGACY, SNLS
 from ..thesis_study.study import FINAL, VAN_INGEN_PUBLISHED, VAN_INGEN_REFITTED, Study
@@ -171,5 +170,5 @@ def write(study: Study, out: Path, command: str, figures: bool = True) -> list[P
         fg.require()
         r2 = {(s.model, s.coefficient, s.split): s.r2 for s in study.scores}
         models = [FINAL, VAN_INGEN_REFITTED, VAN_INGEN_PUBLISHED]
-        written.append(fg.save(fg.r2_boxes(r2, COEFFICIENTS, models), out / "r2_boxes.png"))
+        written.append(fg.save(fg.r2_boxes(r2, COMPARED, models), out / "r2_boxes.png"))
     return written

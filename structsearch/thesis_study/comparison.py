@@ -11,12 +11,12 @@ from typing import Callable
 
 import numpy as np
 
-from ..data.coefficients import COEFFICIENTS
+from ..data.coefficients import COEFFICIENTS as MODELLED
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.reduction import body_from_lift_drag
 
-COEFFICIENTS = ("CL", "CD", "CX", "CZ", "Cm")
+COMPARED = ("CL", "CD", "CX", "CZ", "Cm")   # the modelled coefficients and the body-axis ones they give
 SPLITS = ("train", "validation")
 
 
@@ -72,10 +72,10 @@ def score_set(label: str, predict: Callable[[str, FlightData], np.ndarray | None
     out = []
     for split in SPLITS:
         data = campaign.split(split)
-        predicted: dict[str, np.ndarray | None] = {c: predict(c, data) for c in COEFFICIENTS}
+        predicted: dict[str, np.ndarray | None] = {c: predict(c, data) for c in MODELLED}
         if predicted["CL"] is not None and predicted["CD"] is not None:
             predicted["CX"], predicted["CZ"] = body_from_lift_drag(predicted["CL"], predicted["CD"], data["alpha"])
-        for coefficient in COEFFICIENTS:
+        for coefficient in COMPARED:
             p = predicted.get(coefficient)
             if p is None:
                 continue
@@ -94,7 +94,7 @@ def comparison_rows(scores: list[CoefficientScores], model: str, reference: str)
     """Per coefficient and split: both models' MSE and R^2 mean/min/max and the MSE's % difference."""
     index = {(s.model, s.coefficient, s.split): s for s in scores}
     rows = []
-    for coefficient in COEFFICIENTS:
+    for coefficient in COMPARED:
         for split in SPLITS:
             a, b = index.get((model, coefficient, split)), index.get((reference, coefficient, split))
             if a is None or b is None:
