@@ -651,3 +651,14 @@ def test_a_structure_the_search_ends_on_that_is_not_admissible_is_repaired(tmp_p
                    simplify=False)
     assert kept.final is kept.start and len(kept.steps) == 1
 
+
+
+def test_with_nothing_admissible_the_final_choice_stays_within_the_answers_tolerance_of_the_best_fit():
+    """The fewest reasons against a structure decide only among those that fit within 25 % of the best adopted one:
+    a start with one flaw that fits 50 % worse is not chosen over a structure with two flaws that fits best."""
+    from structsearch.discovery.explore import choose
+    best = _node("best", [1.0] * 5, [1.0] * 5, 6, reasons=("t-test accepts 0 at 5%: p5", "p4 at its upper bound"))
+    start = _node("start", [1.5] * 5, [1.6] * 5, 1, reasons=("t-test accepts 0 at 5%: p0",))
+    close = _node("close", [1.2] * 5, [1.2] * 5, 4, reasons=("t-test accepts 0 at 5%: p3",))
+    assert choose([best, start], admissible_first=True) is best
+    assert choose([best, start, close], admissible_first=True) is close

@@ -10,7 +10,11 @@ and weighted by samples, over every maneuver that has one: the training maneuver
 maneuver-grouped cross-validation and the validation maneuvers (only these when a fit has no folds, or when the
 two were cross-validated by different methods: a structure with another static separation form has refitted folds,
 :func:`structsearch.discovery.explore.refits_folds`, and a form move is tested against its parent refitted alike).
-Pooling both doubles the pairs the test has; each error is still a prediction of data the fit did not see. A
+Pooling both doubles the pairs the test has; each error is still a prediction of data the fit did not see. A split
+of fewer than :data:`~structsearch.fitting.folds.UNITS_BELOW_MANEUVERS` held-out units (a few long records) is
+paired by units smaller than a maneuver instead: the cycles of a periodic record, or contiguous blocks as long as
+the shortest maneuver worth fitting (:func:`structsearch.fitting.folds.score_units`); the test's ``basis`` says
+so ("cv+validation, paired by blocks") and ``n_maneuvers`` counts the pairs. A
 non-nested move *improves* when the one-sided paired t-test of ``1 - child/parent`` > 0 rejects at ``alpha / m``;
 a nested move when its Wald test rejects at ``alpha / m`` and the pooled held-out MSE (the samples' mean, what the
 search compares) falls. The relative gain weighs every maneuver alike, so it can be negative for a term that a
@@ -95,13 +99,29 @@ class MoveTest:
                 "stands_for": self.stands_for or None, "reason": self.reason or None}
 
 
+def _paired_units(scores) -> tuple[np.ndarray, np.ndarray, str]:
+    """A split's out-of-sample MSE and samples per unit the test pairs: per unit smaller than a maneuver (cycles,
+    blocks) where the split has too few maneuvers and kept them (``SplitScores.units``), else per maneuver."""
+    if scores.units:
+        return np.array(scores.mse_units, float), np.array(scores.n_units, float), scores.units
+    return np.array(scores.mse_maneuvers, float), np.array(scores.n_maneuvers, float), ""
+
+
+def _labelled(basis: str, units: list[str]) -> str:
+    """The basis with the smaller units it pairs, if any ("cv+validation, paired by blocks")."""
+    used = sorted({u for u in units if u})
+    return f"{basis}, paired by {' and '.join(used)}" if used else basis
+
+
 def _per_maneuver(result: CandidateResult) -> tuple[str, np.ndarray, np.ndarray]:
-    """Out-of-sample MSE and samples of every maneuver: the training maneuvers held out by the folds, then the
-    validation maneuvers (fitted on all training maneuvers); the validation ones alone without folds."""
+    """Out-of-sample MSE and samples of every unit: the training maneuvers held out by the folds, then the
+    validation maneuvers (fitted on all training maneuvers); the validation ones alone without folds. A split of
+    few maneuvers is paired by its smaller units (:func:`_paired_units`), and the basis says so."""
     parts = [("cv", result.cv)] if result.cv is not None else []
     parts.append(("validation", result.validation))
-    return ("+".join(n for n, _ in parts), np.concatenate([np.array(s.mse_maneuvers, float) for _, s in parts]),
-            np.concatenate([np.array(s.n_maneuvers, float) for _, s in parts]))
+    units = [_paired_units(s) for _, s in parts]
+    return (_labelled("+".join(n for n, _ in parts), [u[2] for u in units]),
+            np.concatenate([u[0] for u in units]), np.concatenate([u[1] for u in units]))
 
 
 def move_test(parent: CandidateResult, child: CandidateResult, alpha: float, n_moves: int,
@@ -134,11 +154,14 @@ def _paired(parent: CandidateResult, child: CandidateResult, alpha: float, n_mov
         return MoveTest("", float("nan"), float("nan"), 0, float("nan"), threshold, "a fit failed")
     basis, before, _ = _per_maneuver(parent)
     child_basis, after, samples = _per_maneuver(child)
-    if child_basis != basis or _methods_differ(parent, child):
+    if child_basis != basis or len(after) != len(before) or _methods_differ(parent, child):
         # one of them without folds, or folds of another method (one-step and refitted: a structure with another
         # static form is cross-validated by refitted folds): compare what both have alike
-        basis, before, after, samples = "validation", np.array(parent.validation.mse_maneuvers), \
-            np.array(child.validation.mse_maneuvers), np.array(child.validation.n_maneuvers, float)
+        (before, _, unit), (after, samples, other) = _paired_units(parent.validation), _paired_units(child.validation)
+        if unit != other:   # one kept its smaller units and the other not: both per maneuver
+            before, after = np.array(parent.validation.mse_maneuvers), np.array(child.validation.mse_maneuvers)
+            samples, unit = np.array(child.validation.n_maneuvers, float), ""
+        basis = _labelled("validation", [unit])
     gain_each = 1.0 - after / before
     # a move that leaves the structure's fit as it was (a term it already has) changes each MSE by rounding
     # only: those gains are zero, so that no test or sign follows the processor's rounding

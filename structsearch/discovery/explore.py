@@ -261,7 +261,7 @@ def explore(start: Candidate, fitter: Fitter, library: TermLibrary, *,
         # comes at the end; a look-ahead may lead nowhere), and a line that named it contradicted the documents
         say(f"step {index}: {n_tried} structures tried ({run.n_fitted} in all), "
             f"{f'{len(nxt)} carried to the next step' if nxt else 'none carried on: the search stops'}, "
-            f"{time.perf_counter() - t0:.0f} s")
+            f"{time.perf_counter() - t0:.0f} s{_pairing(step)}")
         if not nxt:
             stopped = why
             break
@@ -270,6 +270,14 @@ def explore(start: Candidate, fitter: Fitter, library: TermLibrary, *,
             break
         current = nxt
     return _finish(run, root, confirmed, steps, stopped, max_steps, simplify, t0)
+
+
+def _pairing(step: Step) -> str:
+    """What the step's adoption tests paired, when not whole maneuvers (a campaign of few long records)."""
+    tests = [n.test for n in step.tried if n.test is not None and "paired by" in n.test.basis]
+    if not tests:
+        return ""
+    return f"; moves tested on {tests[0].n_maneuvers} units ({tests[0].basis.split('paired by ')[1]}: too few maneuvers)"
 
 
 def _finish(run: _Search, root: Node, confirmed: list[Node], steps: list[Step], stopped: Stop, max_steps: int,

@@ -15,6 +15,7 @@ from __future__ import annotations
 from typing import Sequence
 
 from ..engine.ties import is_tie, sort_by
+from ..fitting.comparison import ANSWER_TOLERANCE
 from ..grid_search.admissibility import HARD_REASONS, Reason
 from .adoption import DEFAULT_ALPHA, move_test
 from .moves import structure_key
@@ -66,9 +67,14 @@ def choose(confirmed: Sequence[Node], alpha: float = DEFAULT_ALPHA, admissible_f
     """Of ``confirmed``, the fewest parameters within one standard error of the lowest held-out MSE (the ranking's
     one-standard-error rule), then the move that names the effect (:func:`preference`), then the lower MSE. With
     ``admissible_first``, among the admissible structures when there are any, as the ranking ranks admissible
-    candidates first; when none is, among those with the fewest reasons against them."""
+    candidates first; when none is, among those with the fewest reasons against them of those that fit within the
+    answer's tolerance of the best (:data:`~structsearch.fitting.comparison.ANSWER_TOLERANCE`): a structure with fewer
+    flaws that fits far worse (the start, say) is no answer to present."""
     pool = [n for n in confirmed if not n.result.failed]
     if admissible_first:
+        if not any(n.admissible for n in pool):
+            best_fit = lowest_mse(pool)
+            pool = [n for n in pool if n is best_fit or n.mse <= best_fit.mse * (1.0 + ANSWER_TOLERANCE)]
         fewest = min(len(n.reasons) for n in pool)
         pool = [n for n in pool if len(n.reasons) == fewest]
     best = lowest_mse(pool)
@@ -89,7 +95,8 @@ def select_final(fitted: Sequence[Node], confirmed: Sequence[Node], alpha: float
     if admissible_first:
         return choose(confirmed, alpha, True), ("no structure fitted is admissible: the fewest parameters within "
                                                 "one standard error of the lowest held-out MSE among the adopted "
-                                                "structures with the fewest reasons against them")
+                                                "structures with the fewest reasons against them, of those within "
+                                                f"{ANSWER_TOLERANCE:.0%} of the best adopted fit")
     return choose(confirmed, alpha), ("the fewest parameters within one standard error of the lowest held-out MSE "
                                       "among the adopted structures (a move is adopted when its test passes)")
 

@@ -22,7 +22,7 @@ from .flight_effects import missing_effects_warning
 from .flight_effects_fit import EffectFit, effects_of, prepare
 from .flight_effects_fit import cross_validate as cross_validate_effects
 from .flight_effects_fit import split as split_effects
-from .folds import FoldPlan, plan_folds
+from .folds import UNITS_BELOW_MANEUVERS, FoldPlan, plan_folds, score_units
 from .lift_context import lift_context
 from .lift_fit import LiftFit
 from .lift_uncertainty import with_lift_uncertainty
@@ -166,13 +166,15 @@ def _scored(c: Candidate, setup: _Setup, result, plan: FoldPlan, options: FitOpt
                                       fixed=c.moment_reference == "fixed")
     scores = {}
     if cv is not None:
-        scores["cv"] = SplitScores.of(ManeuverScores.of(train[c.coefficient], cv, plan.slices()), None)
+        scores["cv"] = SplitScores.of(ManeuverScores.of(train[c.coefficient], cv, plan.slices()), None,
+                                      _unit_scores(train, train[c.coefficient], cv, options, len(plan.units)))
     for split, data in (("train", train), ("validation", setup.validation)):
         y = data[c.coefficient]
         pred = model.predict(data, result.params)
         other = data["CL"] if c.lift and c.coefficient == "CD" else None  # the lift model's output
+        units = _unit_scores(data, y, y - pred, options, data.n_segments) if split == "validation" else None
         scores[split] = SplitScores.of(ManeuverScores.of(y, y - pred, data.segment_slices()),
-                                       body_axis_errors(c.coefficient, pred, data, other))
+                                       body_axis_errors(c.coefficient, pred, data, other), units)
     record = CandidateResult.from_fit(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
                                       result=result, train=scores["train"], validation=scores["validation"],
                                       cv=scores.get("cv"), cv_folds=plan.n_folds,
@@ -184,6 +186,19 @@ def _scored(c: Candidate, setup: _Setup, result, plan: FoldPlan, options: FitOpt
                                       centred_correlation(c, correlation_model, train, estimates))
     return dataclasses.replace(record, estimates=estimates, flight_effects=flight_effects,
                                warnings=(warning,) if warning else ())
+
+
+def _unit_scores(data: FlightData, y: np.ndarray, residual: np.ndarray, options: FitOptions,
+                 n_units: int) -> tuple[ManeuverScores, str] | None:
+    """The scores per unit smaller than a maneuver of a split whose held-out units are fewer than
+    UNITS_BELOW_MANEUVERS (:func:`.folds.score_units`), and what the units are; None otherwise (or when no
+    maneuver can be cut)."""
+    if n_units >= UNITS_BELOW_MANEUVERS:
+        return None
+    rows, label = score_units(data, options.cv_block_convective_times)
+    if not rows:
+        return None
+    return ManeuverScores.of(y, residual, [slice(a, b) for a, b in rows]), label
 
 
 def start_points(c: Candidate, train: FlightData, options: FitOptions, spec: StartSpec) -> np.ndarray:
@@ -205,13 +220,15 @@ def fold_residual(c: Candidate, train: FlightData, options: FitOptions, params: 
 
 
 def with_folds(result: CandidateResult, train: FlightData, plan: FoldPlan,
-               parts: Sequence[tuple[np.ndarray, np.ndarray]], seconds: float) -> CandidateResult:
+               parts: Sequence[tuple[np.ndarray, np.ndarray]], seconds: float,
+               options: FitOptions) -> CandidateResult:
     """``result`` (fitted with ``folds_apart``) with its cross-validation scores from the folds' ``parts``."""
     y = train[result.coefficient]
     residual = np.full_like(y, np.nan)
     for rows, values in parts:
         residual[rows] = values
-    cv = SplitScores.of(ManeuverScores.of(y, residual, plan.slices()), None)
+    cv = SplitScores.of(ManeuverScores.of(y, residual, plan.slices()), None,
+                        _unit_scores(train, y, residual, options, len(plan.units)))
     return dataclasses.replace(result, cv=cv, seconds=result.seconds + seconds)
 
 

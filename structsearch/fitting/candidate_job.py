@@ -259,7 +259,8 @@ class CandidateJob:
         self.finished = True
         if not self.parts:
             return self.ctx.finished(self.i, _plus(self.result, self.work))
-        return self.ctx.finished(self.i, with_folds(self.result, self.ctx.train, self.plan, self.parts, self.work))
+        return self.ctx.finished(self.i, with_folds(self.result, self.ctx.train, self.plan, self.parts, self.work,
+                                                               self.ctx.options))
 
 
 def _plus(result: CandidateResult, seconds: float) -> CandidateResult:

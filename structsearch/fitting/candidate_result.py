@@ -28,8 +28,9 @@ if TYPE_CHECKING:
 # Version of the JSON layout below; part of the cache key, so a cache of another layout is refitted.
 # 7: the parameters' estimates and covariance as one object (ParameterEstimates.to_dict); 8: the ranking's
 # fields as one placement; 9: the optimizer's account as one report; 10: a fit that did not converge withholds
-# its statistics (``ParameterEstimates.withheld``); 12: the flight effects and the fit's warnings
-JSON_LAYOUT = 12
+# its statistics (``ParameterEstimates.withheld``); 12: the flight effects and the fit's warnings; 13: scores per
+# unit smaller than a maneuver on splits of few maneuvers
+JSON_LAYOUT = 13
 
 
 def _nan_if_none(v) -> float:
@@ -46,17 +47,27 @@ class SplitScores:
     r2: R2Summary                       # per-maneuver R^2: mean / min / max
     mse_cx: float | None = None         # derived body-axis coefficients (lift and drag candidates)
     mse_cz: float | None = None
+    # on a split of few maneuvers, the MSE and samples per unit smaller than a maneuver and what the units are
+    # (fitting.folds.score_units: "cycles", "blocks"); empty otherwise
+    mse_units: tuple[float, ...] = ()
+    n_units: tuple[int, ...] = ()
+    units: str = ""
 
     @classmethod
-    def of(cls, scores: ManeuverScores, derived: tuple[float, float] | None) -> "SplitScores":
+    def of(cls, scores: ManeuverScores, derived: tuple[float, float] | None,
+           units: tuple[ManeuverScores, str] | None = None) -> "SplitScores":
         cx, cz = derived if derived else (None, None)
+        per_unit = {} if units is None else {"mse_units": tuple(map(float, units[0].mse)),
+                                             "n_units": tuple(map(int, units[0].counts)), "units": units[1]}
         return cls(scores.pooled_mse, tuple(map(float, scores.mse)), tuple(map(int, scores.counts)),
-                   scores.r2_summary(), cx, cz)
+                   scores.r2_summary(), cx, cz, **per_unit)
 
     def to_json(self) -> dict:
+        units = {"mse_units": list(self.mse_units), "n_units": list(self.n_units), "units": self.units} \
+            if self.units else {}
         return {"mse": self.mse, "mse_maneuvers": list(self.mse_maneuvers), "n_maneuvers": list(self.n_maneuvers),
                 "r2": self.r2.as_dict(),
-                "mse_cx": self.mse_cx, "mse_cz": self.mse_cz}
+                "mse_cx": self.mse_cx, "mse_cz": self.mse_cz, **units}
 
     @classmethod
     def from_json(cls, doc: dict) -> "SplitScores":
@@ -64,7 +75,8 @@ class SplitScores:
         return cls(_nan_if_none(doc["mse"]), tuple(map(_nan_if_none, doc["mse_maneuvers"])), tuple(map(int, doc["n_maneuvers"])),
                    R2Summary(_nan_if_none(r2["mean"]), _nan_if_none(r2["min"]), _nan_if_none(r2["max"]),
                              _nan_if_none(r2.get("pooled"))),
-                   doc.get("mse_cx"), doc.get("mse_cz"))
+                   doc.get("mse_cx"), doc.get("mse_cz"), tuple(map(_nan_if_none, doc.get("mse_units", ()))),
+                   tuple(map(int, doc.get("n_units", ()))), str(doc.get("units", "")))
 
 
 NOT_APPLICABLE = "not applicable: "

@@ -151,3 +151,44 @@ def fold_size_for(maneuvers: Sequence) -> int:
     if train and "" not in records and min(records.values()) >= 2:
         return 1
     return CV_MIN_MANEUVERS
+
+
+# Fewer maneuvers than this in a split: its scores are also kept per unit smaller than a maneuver
+# (:func:`score_units`), so that a paired comparison of two structures has pairs enough to estimate a spread.
+UNITS_BELOW_MANEUVERS = 8
+
+
+def score_units(data: FlightData, convective_times: float = MIN_CONVECTIVE_TIMES) -> tuple[tuple[tuple[int, int], ...], str]:
+    """Row ranges smaller than a maneuver that a paired test can compare two structures on, and what they are
+    (``"cycles"``, ``"blocks"``, ``"cycles and blocks"``); ``((), "")`` when no maneuver can be cut.
+
+    A periodic maneuver of two or more whole cycles is cut into its cycles (repetitions of one motion: the
+    natural units); any other maneuver into the most contiguous blocks, up to :data:`~.options.CV_FOLDS`, that
+    each last the shortest maneuver worth fitting (``convective_times`` cbar/V and MIN_SAMPLES samples), the
+    blocked folds' rule: a block holds whole separation transients, and the residual correlation across its
+    edges lasts a few time constants, a small part of it. The units depend on the data alone, so every structure
+    fitted to the same data is scored on the same units."""
+    units, kinds = [], set()
+    periods = data.period_array
+    t = data["t"]
+    for i, rows in enumerate(data.segment_slices()):
+        period = float(periods[i]) if periods is not None else float("nan")
+        # whole cycles: the record's span plus its last sample's step (a cycle of n samples spans n - 1 steps)
+        span = t[rows.stop - 1] - t[rows.start] + (float(np.median(np.diff(t[rows]))) if rows.stop - rows.start > 1 else 0)
+        cycles = math.floor(span / period + 1e-9) if np.isfinite(period) else 0
+        if cycles >= 2:
+            edges = [rows.start] + [rows.start + int(np.searchsorted(t[rows], t[rows.start] + k * period))
+                                    for k in range(1, cycles)] + [rows.stop]
+            kinds.add("cycles")
+        else:
+            k = min(CV_FOLDS, _most_blocks(data, rows, convective_times))
+            if k < 2:
+                units.append((rows.start, rows.stop))
+                continue
+            split = np.array_split(np.arange(rows.start, rows.stop), k)
+            edges = [int(r[0]) for r in split] + [rows.stop]
+            kinds.add("blocks")
+        units += list(zip(edges[:-1], edges[1:]))
+    if not kinds:
+        return (), ""
+    return tuple((int(a), int(b)) for a, b in units), " and ".join(sorted(kinds))
