@@ -366,10 +366,7 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
     effective_alpha = alpha - tau2 * alpha_dot if delayed else alpha
     x0 = static_separation(effective_alpha, a1, a_star)
     if not sensitivities:
-        if not lagged:
-            return x0, None
-        x = first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0]
-        return (_vortex(t, x, None, values["tau_v"], bounds, step, periods)[0] if is_vortex(state.kind) else x), None
+        return _through_lags(state, values, t, x0, None, bounds, step, periods) if lagged else (x0, None)
     slope = -2.0 * x0 * (1.0 - x0)  # dX0 / d(a1 (alpha_eff - a_star))
     inner = ("tau2", "a1", "a_star") if delayed else ("a1", "a_star")
     du = np.empty((len(alpha), len(inner)), order="F")
@@ -379,13 +376,7 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
         du[:, 0] = slope * (-a1 * alpha_dot)
     if not lagged:
         return x0, du  # S and Q: columns already in state.base_parameters order
-    x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step, periods)
-    out = np.empty((len(alpha), 1 + len(inner)), order="F")
-    out[:, 0] = dtau1
-    out[:, 1:] = dx  # U order: tau1, tau2, a1, a_star; L: tau1, a1, a_star
-    if is_vortex(state.kind):
-        return _vortex(t, x, out, values["tau_v"], bounds, step, periods)
-    return x, out
+    return _through_lags(state, values, t, x0, du, bounds, step, periods)
 
 
 def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alpha_dot, t, bounds, step,
@@ -397,10 +388,7 @@ def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alph
     effective_alpha = alpha - tau2 * alpha_dot if delayed else alpha
     x0, dalpha, grads = static_gradient(state.form, effective_alpha, values, sensitivities)
     if not sensitivities:
-        if not lagged:
-            return x0, None
-        x = first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0]
-        return (_vortex(t, x, None, values["tau_v"], bounds, step, periods)[0] if is_vortex(state.kind) else x), None
+        return _through_lags(state, values, t, x0, None, bounds, step, periods) if lagged else (x0, None)
     lead = 1 if delayed else 0
     du = np.empty((len(alpha), lead + grads.shape[1]), order="F")
     if lead:
@@ -408,8 +396,18 @@ def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alph
     du[:, lead:] = grads
     if not lagged:
         return x0, du
+    return _through_lags(state, values, t, x0, du, bounds, step, periods)
+
+
+def _through_lags(state: SeparationState, values: dict[str, float], t, x0, du, bounds, step, periods):
+    """A lagged state from its static value ``x0`` and that value's sensitivities ``du`` (None: the value alone):
+    the lag by tau1 (its derivative first: U order tau1, tau2, the curve's; L tau1, the curve's), then for a
+    vortex state the vortex's own lag (:func:`_vortex`)."""
+    if du is None:
+        x = first_order_lag(t, x0, None, values["tau1"], bounds, step, periods)[0]
+        return (_vortex(t, x, None, values["tau_v"], bounds, step, periods)[0] if is_vortex(state.kind) else x), None
     x, dx, dtau1 = first_order_lag(t, x0, du, values["tau1"], bounds, step, periods)
-    out = np.empty((len(alpha), 1 + du.shape[1]), order="F")
+    out = np.empty((len(x0), 1 + du.shape[1]), order="F")
     out[:, 0] = dtau1
     out[:, 1:] = dx
     if is_vortex(state.kind):
