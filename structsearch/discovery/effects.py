@@ -102,28 +102,14 @@ def _kind_change(name: str, description: str, from_kind: str, to_kind: str, para
     return Effect(name, description, ALL, apply, new)
 
 
-def _with_state(c: Candidate, effect: str, state: tuple[str, str], term: str, bounds=(),
-                term_name: str | None = None) -> Candidate:
-    """``c`` with the separation ``state`` (name, kind) and its ``term``, named ``term_name`` (default
-    ``{coefficient}_{X}``); a drag or pitch structure takes its states from its lift model and gets none."""
-    if c.lift:
-        raise DeclarationError(f"effect {effect!r} adds a separation state, which {c.name} takes from its "
-                               f"lift model {c.lift}: diagnose the lift coefficient instead")
-    x = _symbol(state[0])
-    return dataclasses.replace(c, name=f"{c.name} + {effect}", states=c.states + (state,),
-                               regressors=c.regressors + ((term_name or f"{c.coefficient}_{x}", term),),
-                               note=f"{c.name} with {effect}", bounds=c.bounds + tuple(bounds))
-
-
-def _last_term(base: Candidate, changed: Candidate) -> tuple[str, ...]:
-    return (changed.regressors[-1][0],)
-
-
 def _second_state() -> Effect:
     name = "second_separation_state"
 
     def apply(c: Candidate) -> Candidate:
-        if len(c.states) != 1 and not c.lift:
+        if c.lift:
+            raise DeclarationError(f"effect {name!r} adds a separation state, which {c.name} takes from its "
+                                   f"lift model {c.lift}: diagnose the lift coefficient instead")
+        if len(c.states) != 1:
             raise DeclarationError(f"baseline {c.name} already contains the effect {name!r} "
                                    f"({len(c.states)} separation states)" if len(c.states) > 1 else
                                    f"effect {name!r} needs one separation state to add a second to")
@@ -131,8 +117,15 @@ def _second_state() -> Effect:
         state = "w" if "w" not in _state_names(c) else "w2"
         x = _symbol(state)
         term = {"CL": f"K_L({x})", "CD": f"1 - {x}", "Cm": f"(1 - {x})*CL"}[c.coefficient]
-        return _with_state(c, name, (state, "S"), term, ((f"a_star_{state}", (0.22, 0.45)),))
-    return Effect(name, "a second separation state with its own K term", ALL, apply, _last_term)
+        states = c.states + ((state, "S"),)
+        bounds = c.bounds + ((f"a_star_{state}", (0.22, 0.45)),)
+        return dataclasses.replace(c, name=f"{c.name} + {name}",
+                                   regressors=c.regressors + ((f"{c.coefficient}_{x}", term),), states=states,
+                                   note=f"{c.name} with {name}", bounds=bounds)
+
+    def new(base, changed):
+        return (changed.regressors[-1][0],)
+    return Effect(name, "a second separation state with its own K term", ALL, apply, new)
 
 
 LIBRARY: dict[str, Effect] = {e.name: e for e in [
