@@ -39,3 +39,15 @@ def test_a_vortex_state_is_refused_by_the_simulator_by_name():
     params = dict(truth.params, tau1_v=0.1, tau_v_v=0.2, a1_v=30.0, a_star_v=0.25, CL_v=0.5, CL_KL=lift and 5.0)
     with pytest.raises(DeclarationError, match=r"X_v is a dynamic-stall vortex \(kind V\)"):
         AeroModel(vortex, truth.models["CD"], truth.models["Cm"], params, name="vortex truth")
+
+
+def test_a_vortex_state_is_refused_by_the_jsbsim_export_by_name():
+    from structsearch.export.card import StateModel
+    from structsearch.export.jsbsim_files import _state_components
+    state = StateModel("vortex", "V", {"tau1_vortex": 0.1, "tau_v_vortex": 0.2, "a1_vortex": 30.0,
+                                       "a_star_vortex": 0.25})
+    with pytest.raises(DeclarationError, match=r"X_vortex is a dynamic-stall vortex \(kind V\).*--format json"):
+        _state_components(state)
+    lagged = StateModel("ss", "L", {"tau1_ss": 0.1, "a1_ss": 30.0, "a_star_ss": 0.25})
+    names = [part.get("name") for part in _state_components(lagged)]
+    assert any(n.endswith("lag/X_ss/a") for n in names)   # an L state is written lagged (a lag without the delay)
