@@ -175,6 +175,7 @@ def _fit_doc(campaign_dir, **changes):
     ("deeply nested", ["nested"]),
     ("not utf-8", ["byte offset"]),
     ("a parameter missing", ["params.CL0", "missing"]),
+    ("an unknown coefficient", ["structure.coefficient", "must be one of CL, CD, Cm"]),
 ])
 def test_a_hostile_fit_json_is_one_error_naming_the_key(campaign_dir, tmp_path, case, words):
     from structsearch.api.exporting import read_fit_directory
@@ -190,6 +191,8 @@ def test_a_hostile_fit_json_is_one_error_naming_the_key(campaign_dir, tmp_path, 
         doc["parameter_covariance"] = {"names": ["CL0", "CL_KL"], "matrix": [[1.0, 0.0]]}
     elif case == "a parameter missing":
         del doc["params"]["CL0"]
+    elif case == "an unknown coefficient":
+        doc["structure"]["coefficient"] = "CY"
     text = json.dumps(doc)
     if case == "deeply nested":
         text = text[:-1] + ', "x": ' + "[" * 100_000 + "]" * 100_000 + "}"

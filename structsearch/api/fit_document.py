@@ -13,6 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..data.coefficients import COEFFICIENTS
 from ..data.errors import DataError, DeclarationError
 from ..data.reading import excerpt, load_json, shown
 from ..fitting.candidates import Candidate
@@ -81,6 +82,8 @@ class Fields:
         d = self.table(entry, "structure", where)
         for field in ("name", "coefficient"):
             self.string(d, field, key + ".")
+        if d["coefficient"] not in COEFFICIENTS:
+            self.fail(f"{key}.coefficient", f"must be one of {', '.join(COEFFICIENTS)}, not {shown(d['coefficient'])}")
         if grid_name_problem(d.get("grid")):
             self.fail(f"{key}.grid", grid_name_problem(d.get("grid")))
         for field in ("regressors", "states", "lift", "note", "bounds", "x0"):
