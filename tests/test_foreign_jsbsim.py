@@ -1,6 +1,7 @@
 """A simulator no one here wrote (docs/interfaces.md 8.2): one of JSBSim's own aircraft (c172p) evaluated exactly at
 recorded states, term by term, as the baseline of `diagnose` (a grey box whose terms the search may rescale, drop or
 replace)."""
+import os
 import dataclasses
 from pathlib import Path
 
@@ -265,3 +266,17 @@ def test_an_export_of_structsearch_is_driven_as_before_and_any_other_aircraft_te
     (tmp_path / "export" / "systems" / "structsearch_states.xml").write_text(
         "<system><property>structsearch/fill-inputs</property></system>")
     assert exported_by_structsearch(str(tmp_path / "export")) and exported_by_structsearch(str(plane))
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
+def test_a_modification_file_from_anyone_is_read_within_bounds(tmp_path):
+    """A named pipe is refused without waiting on it; a file nested past the bound is refused before parsing."""
+    from structsearch.foreign.modify import read_modify
+    pipe = tmp_path / "pipe.toml"
+    os.mkfifo(pipe)
+    with pytest.raises(DeclarationError, match="pipe.toml.*not a regular file"):
+        read_modify(pipe)
+    deep = tmp_path / "deep.toml"
+    deep.write_text("x = " + "[" * 500 + "]" * 500 + "\n")
+    with pytest.raises(DeclarationError, match="deep.toml.*nested"):
+        read_modify(deep)

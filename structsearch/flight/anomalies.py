@@ -213,11 +213,11 @@ def flown_with(campaign) -> dict:
     of its ``campaign.toml``."""
     if campaign.extra or campaign.directory is None:
         return dict(campaign.extra)
-    import tomllib
-    path = Path(campaign.directory) / "campaign.toml"
+    from ..data.errors import StructSearchError
+    from ..data.reading import load_toml
     try:
-        doc = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError):
+        doc = load_toml(Path(campaign.directory) / "campaign.toml")
+    except (OSError, StructSearchError):   # the campaign reader already refused or accepted it, by name
         return {}
     return {k: v for k, v in doc.items() if not isinstance(v, (dict, list))}
 

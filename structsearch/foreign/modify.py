@@ -9,24 +9,31 @@ Each error names the file and the entry.
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 
 from ..data.errors import DeclarationError
+from ..data.reading import parse_toml, read_text
 
 KEYS = ("scale",)
 SCALE_KEYS = ("function", "factor")
 
 
+def _refused(source: str, message: str) -> DeclarationError:
+    return DeclarationError(f"{source}: {' '.join(message.split())}")
+
+
+def _not_toml(source: str, message: str) -> DeclarationError:
+    return DeclarationError(f"{source}: not a TOML file ({' '.join(message.removeprefix('not valid TOML: ').split())})")
+
+
 def read_modify(path: str | Path) -> dict[str, float]:
     """The modification in ``path`` as function -> factor."""
     path = Path(path)
+    # a file from anyone: a regular file of bounded size, UTF-8, its nesting bounded (structsearch.data.reading)
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        doc = parse_toml(read_text(path, error=_refused), path, _not_toml)
     except OSError as exc:
         raise DeclarationError(f"{path}: cannot read the modification ({exc.strerror})") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise DeclarationError(f"{path}: not a TOML file ({' '.join(str(exc).split())})") from None
     unknown = [k for k in doc if k not in KEYS]
     if unknown:
         raise DeclarationError(f"{path}: unknown key {unknown[0]!r} (a modification holds [[scale]] entries)")
