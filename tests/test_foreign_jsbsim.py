@@ -1,8 +1,8 @@
 """A simulator no one here wrote (docs/interfaces.md 8.2): one of JSBSim's own aircraft (c172p) evaluated exactly at
 recorded states, term by term, as the baseline of `diagnose` (a grey box whose terms the search may rescale, drop or
 replace)."""
-import os
 import dataclasses
+import os
 from pathlib import Path
 
 import numpy as np
