@@ -36,6 +36,9 @@ COEFFICIENTS = MappingProxyType({c.name: c for c in (
     Coefficient("Cm", "pitching moment", "pitch", "PITCH", moment=True),
 )})
 LIFT = COEFFICIENTS["CL"]
+# each coefficient's shipped grid, and each grid's coefficient
+GRID_OF = MappingProxyType({c.name: c.grid for c in COEFFICIENTS.values()})
+COEFFICIENT_OF_GRID = MappingProxyType({c.grid: c.name for c in COEFFICIENTS.values()})
 # the coefficients that are forces, in the registry's order (a moment about a point reads them)
 FORCES = tuple(c for c in COEFFICIENTS.values() if not c.moment)
 

@@ -10,7 +10,8 @@ from typing import Any, Callable
 
 from ..data.errors import DeclarationError
 from ..fitting.fitter import Fitter
-from .discovered import GRIDS, Discovery, build_discovery
+from ..data.coefficients import GRID_OF
+from .discovered import Discovery, build_discovery
 from .explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, Exploration
 from .moves import DISCOVER_KINDS, MOVE_KINDS
 
@@ -51,8 +52,8 @@ def discover_structures(fitter: Fitter, coefficient: str, diagnose_search: Diagn
     from ..fitting.options import check_box_names
     from ..fitting.specs import load_grid
     from ..flight.reference import FINAL_MODEL_NAMES
-    if coefficient not in GRIDS:
-        raise DeclarationError(f"--coefficient {coefficient}: one of {', '.join(GRIDS)}")
+    if coefficient not in GRID_OF:
+        raise DeclarationError(f"--coefficient {coefficient}: one of {', '.join(GRID_OF)}")
     unknown = [k for k in kinds if k not in MOVE_KINDS]
     if unknown or not kinds:
         raise DeclarationError(f"move kinds {', '.join(map(repr, unknown)) or '(none)'}: each one of "

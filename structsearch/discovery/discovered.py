@@ -11,6 +11,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..data.coefficients import GRID_OF
 from ..fitting.fitter import Fitter
 from .adoption import move_test
 from .explore import CONFIRMED, Exploration
@@ -176,10 +177,6 @@ class Discovery:
                 "answer": self.answer.to_dict() if self.answer is not None else None}
 
 
-# The grid each coefficient's rank-1 candidate comes from.
-GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
-
-
 def _cv(result) -> float | None:
     return result.cv.mse if result.cv is not None else None
 
@@ -222,13 +219,13 @@ def build_discovery(fitter: Fitter, diagnosis, exploration: Exploration, seconds
                            final_node.result.validation.mse, _cv(final_node.result), final_node.admissible,
                            final_node.reasons)
     coef = final_node.candidate.coefficient
-    say(f"the {GRIDS[coef]} grid's rank-1 candidate and the thesis' final model, for comparison")
+    say(f"the {GRID_OF[coef]} grid's rank-1 candidate and the thesis' final model, for comparison")
     rows = [_row("discovered", final_node.candidate, final_node.result, final_node.result, judge)]
-    grid = search(dataclasses.replace(fitter.quiet(), lifts={}), GRIDS[coef], do_refine=False)
-    ranked = grid.grids[GRIDS[coef]]
+    grid = search(dataclasses.replace(fitter.quiet(), lifts={}), GRID_OF[coef], do_refine=False)
+    ranked = grid.grids[GRID_OF[coef]]
     if ranked and not ranked[0].failed:
-        rank1 = load_grid(GRIDS[coef])[ranked[0].name]
-        rows.append(_row(f"{GRIDS[coef]} grid rank 1", rank1, ranked[0], final_node.result, judge))
+        rank1 = load_grid(GRID_OF[coef])[ranked[0].name]
+        rows.append(_row(f"{GRID_OF[coef]} grid rank 1", rank1, ranked[0], final_node.result, judge))
     thesis = find_candidate(FINAL_MODEL_NAMES[coef])
     thesis_result = fitter.quiet().fit_one(thesis)
     rows.append(_row("thesis final", thesis, thesis_result, final_node.result, judge))

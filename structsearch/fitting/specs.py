@@ -28,6 +28,7 @@ import os
 from importlib import resources
 from pathlib import Path
 
+from ..data.coefficients import COEFFICIENT_OF_GRID
 from ..data.errors import DeclarationError
 from ..data.reading import load_toml
 from .candidates import Candidate, Grid
@@ -39,7 +40,7 @@ BUILTIN_GRIDS = ("separation", "lift", "drag", "pitch")
 # The global models (one grid per coefficient in one file, model_specs/global.toml): found by name like the
 # candidates of the grids above, but no grid of ``search`` (they read the air-data columns Mach and qbar)
 GLOBAL_SPEC = "global"
-GLOBAL_TABLES = {"lift": "CL", "drag": "CD", "pitch": "Cm"}
+GLOBAL_TABLES = COEFFICIENT_OF_GRID
 
 
 def suggestion(name: str, known) -> str:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
+from ..data.coefficients import GRID_OF
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..data.manifest import check_set
@@ -25,7 +26,7 @@ from ..fitting.specs import find_candidate, load_grid
 from ..flight.reference import FINAL_MODEL_NAMES
 from .refined import load_refined
 
-GRIDS = {"CL": "lift", "CD": "drag", "Cm": "pitch"}
+
 ANSWERS_MAX_BYTES = 1 << 20   # a search's answers are a few hundred bytes a grid
 
 
@@ -115,10 +116,10 @@ def chosen_models(out: Path, overrides: tuple[str, ...] = (), searched: str | No
                          "to rank your own).")
     else:
         winners = {coef: resolve(rows[grid][0]["model"]) if grid in rows else find_candidate(FINAL_MODEL_NAMES[coef])
-                   for coef, grid in GRIDS.items()}
+                   for coef, grid in GRID_OF.items()}
         source = searched or f"ranked first by the search in {Path(out) / 'ranking.csv'}"
         notes += [f"No {grid} grid in the ranking: the report shows the thesis' {FINAL_MODEL_NAMES[coef]}."
-                  for coef, grid in GRIDS.items() if grid not in rows]
+                  for coef, grid in GRID_OF.items() if grid not in rows]
     if overrides:
         chosen = [resolve(n) for n in overrides]
         winners.update({c.coefficient: c for c in chosen})
@@ -127,16 +128,16 @@ def chosen_models(out: Path, overrides: tuple[str, ...] = (), searched: str | No
     if campaign is not None:
         # a coefficient the search did not rank shows the thesis' structure; a campaign that cannot fit it
         # (a wind-tunnel airfoil has no thrust coefficient) leaves it out instead
-        unranked = set(GRIDS) if rows is None else {coef for coef, grid in GRIDS.items() if grid not in rows}
+        unranked = set(GRID_OF) if rows is None else {coef for coef, grid in GRID_OF.items() if grid not in rows}
         winners = applicable_models(winners, campaign, notes, optional=unranked - set(overrides_of(overrides)))
-        notes = [n for n in notes if not any(n.startswith(f"No {GRIDS[coef]} grid in the ranking")
-                                             for coef in set(GRIDS) - set(winners))]
+        notes = [n for n in notes if not any(n.startswith(f"No {GRID_OF[coef]} grid in the ranking")
+                                             for coef in set(GRID_OF) - set(winners))]
     choice = consistent(winners, rows or {}, resolve, source, notes)
     verdicts = search_answers(out) if rows is not None else {}
-    return dataclasses.replace(choice, verdicts={coef: verdicts[GRIDS[coef]] for coef, c in winners.items()
-                                                 if GRIDS.get(coef) in verdicts
-                                                 and verdicts[GRIDS[coef]].get("best_admissible", c.name) in
-                                                 (c.name, None) and rows[GRIDS[coef]][0]["model"] == c.name})
+    return dataclasses.replace(choice, verdicts={coef: verdicts[GRID_OF[coef]] for coef, c in winners.items()
+                                                 if GRID_OF.get(coef) in verdicts
+                                                 and verdicts[GRID_OF[coef]].get("best_admissible", c.name) in
+                                                 (c.name, None) and rows[GRID_OF[coef]][0]["model"] == c.name})
 
 
 def search_answers(out: Path) -> dict[str, dict]:
@@ -160,7 +161,7 @@ def consistent(winners: Mapping[str, Candidate], rows: Mapping[str, list[dict]],
     shown = dict(winners)
     other = {coef: c for coef, c in lifts.items() if c.name != winners["CL"].name}
     for coef, lift in other.items():
-        notes.append(f"The {GRIDS[coef]} winner {winners[coef].name} takes its separation states from {lift.name}, "
+        notes.append(f"The {GRID_OF[coef]} winner {winners[coef].name} takes its separation states from {lift.name}, "
                      f"not from the lift winner {winners['CL'].name}: it is shown with {lift.name}, fitted too.")
     if other:
         pitch_lift = lifts.get("Cm", winners["CL"])
@@ -214,21 +215,21 @@ def applicable_models(winners: Mapping[str, Candidate], campaign: Campaign, note
         missing = missing_columns(c, campaign)
         if not missing:
             continue
-        grid = lift_grid if coef == "CL" else load_grid(GRIDS[coef], lift_grid)
+        grid = lift_grid if coef == "CL" else load_grid(GRID_OF[coef], lift_grid)
         lift = None if coef == "CL" else (c.lift or out["CL"].name)
         substitute = next((s for s in grid.candidates
                            if not missing_columns(s, campaign) and (lift is None or s.lift == lift)), None)
         if substitute is None and coef in optional:
             del out[coef]
-            notes.append(f"No {GRIDS[coef]} structure is shown: the search ranked none, and {c.name} (the thesis') "
+            notes.append(f"No {GRID_OF[coef]} structure is shown: the search ranked none, and {c.name} (the thesis') "
                          f"needs {', '.join(missing)}, which the campaign does not have; so does every structure of "
-                         f"the {GRIDS[coef]} grid on {lift}.")
+                         f"the {GRID_OF[coef]} grid on {lift}.")
             continue
         if substitute is None:
-            raise DataError(f"no {GRIDS[coef]} structure can be shown: {c.name} needs column {missing[0]} and "
+            raise DataError(f"no {GRID_OF[coef]} structure can be shown: {c.name} needs column {missing[0]} and "
                             "every other one needs a column the campaign lacks too", source=str(campaign.directory),
                             column=missing[0])
         out[coef] = substitute
         notes.append(f"{c.name} needs {', '.join(missing)}, which the campaign does not have; the report shows "
-                     f"{substitute.name}, the first {GRIDS[coef]} structure that does not.")
+                     f"{substitute.name}, the first {GRID_OF[coef]} structure that does not.")
     return out
