@@ -25,7 +25,7 @@ from .tables import LINE_KEY, read_mat, read_table as _read_table  # noqa: F401 
 from .moment_transfer import REFERENCE_KEY, check_reference_point, check_transfer_datum
 from .campaign_checks import (AIRCRAFT_KEYS, ANGLES, MANEUVER_KEYS, RAW_ANGLES, RAW_REQUIRED, REQUIRED,
                               RESERVED_KEYS, _check_top_level, _close_match, _flight, _parse_aircraft, _parse_cutoffs,
-                              _number, _periodic, validate_maneuver)
+                              _number, _periodic, _steady, validate_maneuver)
 from . import units
 from .reading import shown
 
@@ -59,6 +59,9 @@ class Maneuver:
     # period is 1/frequency [Hz], else the record is one cycle (records.period)
     periodic: bool = False
     frequency: float | None = None
+    # steady points (docs/interfaces.md 8): each sample an equilibrium of the separation states (a static polar,
+    # trim points), no rate, no time constant acting (flightdata.STEADY)
+    steady: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,7 +153,7 @@ def _parse_manifest(doc: dict, toml: str) -> tuple[str, dict, list[Maneuver]]:
                             source=where, column="split")
         periodic, frequency = _periodic(e, where)
         maneuvers.append(Maneuver(e["id"], e["file"], e["kind"], e["split"], _flight(e, where), "", periodic,
-                                  frequency))
+                                  frequency, _steady(e, where, periodic)))
     return str(doc.get("name", "")), parsed, maneuvers
 
 
@@ -202,10 +205,10 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     segments, pieces, steps = [], [], []
     for i, m in enumerate(maneuvers):
         path = inside(directory, m.file, f"{toml} [[maneuver]] #{i + 1}", "file")
-        columns = records.with_cycle_time(_read_table(path), m.id, m.frequency, str(path))
+        columns = _with_time(_read_table(path), m, str(path), fmt, f"{toml} [[maneuver]] #{i + 1}")
         validate_maneuver(columns, path, required, angles, cbar=aircraft["cbar"], rule=rules.for_kind(m.kind),
-                          sample_rate=sample_rate, v_range=aircraft.get("V_range"))
-        steps.append(units.median_step(columns["t"]))
+                          sample_rate=sample_rate, v_range=aircraft.get("V_range"), steady=m.steady)
+        steps.append(float("nan") if m.steady else units.median_step(columns["t"]))
         for piece, cut in _pieces(m, columns, path, doc["maneuver"][i], segment, rules, aircraft["cbar"],
                                   f"{toml} [[maneuver]] #{i + 1}", derive_alpha_dot=fmt != "raw"):
             pieces.append(piece)
@@ -222,7 +225,7 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     # keep only the columns every maneuver has: optional columns must be all-or-nothing
     common = set.intersection(*(set(s) for s in segments))
     _same_columns_everywhere(maneuvers, segments, common, directory)
-    periods = [records.period(m.periodic, m.frequency, s["t"], str(directory / m.file), m.id)
+    periods = [records.period(m.periodic, m.frequency, s["t"], str(directory / m.file), m.id, m.steady)
                for m, s in zip(maneuvers, segments)]
     data = from_segments([{k: s[k] for k in sorted(common)} for s in segments],
                          names=[m.id for m in maneuvers], source=str(directory),
@@ -293,6 +296,17 @@ def _join_written_cycles(maneuvers: list, segments: list, toml: str) -> tuple[li
     return out_m, out_s
 
 
+def _with_time(columns: dict, m: Maneuver, path: str, fmt: str, where: str) -> dict:
+    """A maneuver file's columns with its time column (its own, a cycle's from its frequency, steady points'
+    order); steady points are coefficients, so a raw campaign (recorded channels) has none."""
+    if not m.steady:
+        return records.with_cycle_time(columns, m.id, m.frequency, path)
+    if fmt == "raw":
+        raise DataError(f"maneuver {shown(m.id)}: steady points are given as coefficients (a standard campaign), not "
+                        "as recorded channels", source=where, column="steady")
+    return records.with_steady_order(columns, m.id, path)
+
+
 def _pieces(m: Maneuver, columns: dict, path: Path, entry: dict, segment: str | None, rules: records.LengthRules,
             cbar: float, where: str, derive_alpha_dot: bool = True) -> list[tuple[Maneuver, dict]]:
     """A validated record as the maneuvers it gives: itself, or its cycles (:mod:`structsearch.data.records`).
@@ -306,6 +320,9 @@ def _pieces(m: Maneuver, columns: dict, path: Path, entry: dict, segment: str | 
                             column="record")
         m = replace(m, record=entry["record"])
     asked = records.segment_request(entry, where)
+    if m.steady:
+        columns.pop(records.CYCLE_COLUMN, None)
+        return [(m, columns)]
     if m.record or not records.wants_cycles(segment, asked, records.CYCLE_COLUMN in columns):
         columns.pop(records.CYCLE_COLUMN, None)
         return [(m, columns)]
@@ -372,6 +389,8 @@ def write_campaign(campaign: Campaign, directory: Path | str, fmt: str = "csv") 
                 lines.append("periodic = true")
             if m.frequency is not None:
                 lines.append(f"frequency = {_toml_value(m.frequency)}")
+            if m.steady:
+                lines.append("steady = true")
             frame = pd.DataFrame({k: v[sl] for k, v in campaign.data.columns.items()})
             ordered = [c for c in ("t",) + REQUIRED[1:] if c in frame] + sorted(
                 c for c in frame if c not in REQUIRED)
@@ -415,7 +434,7 @@ def make_campaign(name: str, aircraft: Mapping[str, float], maneuvers: Sequence[
                          constants=scalar_constants(aircraft),
                          derive_alpha_dot=(extra or {}).get("format") != "raw",  # raw: recorded channels only
                          flights=[m.flight for m in maneuvers],
-                         periods=[records.period(m.periodic, m.frequency, s["t"], f"{name}:{m.id}", m.id)
-                                  for m, s in zip(maneuvers, segments)])
+                         periods=[records.period(m.periodic, m.frequency, s["t"], f"{name}:{m.id}", m.id,
+                                                 m.steady) for m, s in zip(maneuvers, segments)])
     check_transfer_datum(data.columns.get("x_cg"), aircraft, name)
     return Campaign(name, dict(aircraft), tuple(maneuvers), data, None, dict(extra or {}))

@@ -42,7 +42,7 @@ RESERVED_KEYS = ("name", "format", "aircraft", "maneuver", "cutoffs", "min_conve
 SOURCE_KEY = "source"
 
 # The keys a [[maneuver]] entry may hold (docs/interfaces.md 1, 6.4, 6.9): any other is a typo, refused.
-MANEUVER_KEYS = ("id", "file", "kind", "split", "flight", "record", "segment", "periodic", "frequency")
+MANEUVER_KEYS = ("id", "file", "kind", "split", "flight", "record", "segment", "periodic", "frequency", "steady")
 
 
 def _close_match(key: str, known) -> str:
@@ -95,6 +95,33 @@ def _periodic(entry: dict, where: str) -> tuple[bool, float | None]:
         raise DataError(f"maneuver {shown(entry['id'])}: a frequency makes the maneuver periodic; remove periodic = false "
                         "or the frequency", source=where, column="frequency")
     return True, float(frequency)
+
+
+def _steady(entry: dict, where: str, periodic: bool) -> bool:
+    """A maneuver's optional ``steady`` (true or false): its samples are steady points (a static polar, trim
+    points), each an equilibrium of the separation states; a cycle (``periodic``, ``frequency``) is not."""
+    steady = entry.get("steady", False)
+    if not isinstance(steady, bool):
+        raise DataError(f"maneuver {shown(entry['id'])}: steady must be true or false, not {shown(steady)}",
+                        source=where, column="steady")
+    if steady and periodic:
+        raise DataError(f"maneuver {shown(entry['id'])}: steady points are no cycle; remove steady = true or the "
+                        "periodic and frequency keys", source=where, column="steady")
+    if steady and "segment" in entry:
+        raise DataError(f"maneuver {shown(entry['id'])}: steady points are not cut into cycles; remove its segment "
+                        "key", source=where, column="segment")
+    return steady
+
+
+def check_steady(columns: Mapping[str, np.ndarray], source: str) -> None:
+    """Steady points hold alpha still: an ``alpha_dot`` column, where the file has one, is zero."""
+    rate = columns.get("alpha_dot")
+    moving = np.flatnonzero(rate != 0) if rate is not None else np.array([], int)
+    if moving.size:
+        raise DataError(f"alpha_dot is {rate[moving[0]]:g} at a steady point; steady points are equilibria (alpha "
+                        "held): give alpha_dot = 0 or drop the column, or declare the maneuver as a time series"
+                        + _row_message(columns, int(moving[0])), source=source, column="alpha_dot",
+                        row=int(moving[0]))
 
 
 def _number(v) -> bool:
@@ -154,12 +181,14 @@ MAX_MAGNITUDE = 1e15
 
 def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=REQUIRED, angles=ANGLES, *,
                       cbar: float | None = None, rule: records.LengthRule | None = None,
-                      sample_rate: float | None = None, v_range: tuple[float, float] | None = None) -> None:
+                      sample_rate: float | None = None, v_range: tuple[float, float] | None = None,
+                      steady: bool = False) -> None:
     """One clear error for the first problem found in a maneuver's columns (``required`` and ``angles``: those
     of the standard format, or RAW_REQUIRED and RAW_ANGLES for a raw campaign). With the aircraft's ``cbar``, a
     maneuver shorter than ``rule`` (default: :class:`structsearch.data.records.LengthRule`) in convective times
     cbar/V is an error too. The units of time, pitch rate and airspeed are read from the file's redundant
-    channels, the declared ``sample_rate`` [Hz] and the aircraft's ``v_range`` [m/s] (:mod:`.units`)."""
+    channels, the declared ``sample_rate`` [Hz] and the aircraft's ``v_range`` [m/s] (:mod:`.units`). ``steady``
+    points have no time step, duration or rate to check; their alpha_dot, where given, is zero."""
     source = str(path)
     names = [c for c in columns if c != LINE_KEY]
     for col in required:
@@ -172,7 +201,7 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
                     "entry)" if col == "t" else "")
             raise DataError(f"required column is missing{hint}", source=source, column=col)
     n = len(columns["t"])
-    if n < MIN_SAMPLES:
+    if n < MIN_SAMPLES and not steady:   # steady points are each an equilibrium: no dynamics to follow
         raise DataError(f"maneuver has {n} samples; it needs at least {MIN_SAMPLES} to fit separation dynamics",
                         source=source, column="t")
     for col in names:
@@ -196,8 +225,9 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
     if slow.size:
         raise DataError(f"airspeed {columns['V'][slow[0]]:g} m/s is not positive"
                         + _row_message(columns, int(slow[0])), source=source, column="V", row=int(slow[0]))
-    units.check_step(t, source, sample_rate)
-    why = None if cbar is None else (rule or records.LengthRule()).problem(t, columns["V"], cbar)
+    if not steady:
+        units.check_step(t, source, sample_rate)
+    why = None if cbar is None or steady else (rule or records.LengthRule()).problem(t, columns["V"], cbar)
     if why is not None:
         raise DataError(f"maneuver is too short to fit separation dynamics: {why}", source=source, column="t")
     for col in angles:
@@ -208,7 +238,10 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
                                 f"radians" + _row_message(columns, int(big[0])), source=source, column=col,
                                 row=int(big[0]))
     _check_rates(columns, source)
-    units.check_rate_units(columns, source)
+    if steady:
+        check_steady(columns, source)
+    else:
+        units.check_rate_units(columns, source)
     units.check_airspeed_units(columns, source, v_range)
 
 

@@ -12,7 +12,7 @@ from .records import SEGMENT_CHOICES, cut_record
 def segmented(campaign: Campaign, segment: str | None) -> Campaign:
     """``campaign`` with every whole record cut into its cycles found from alpha (``segment="cycles"``), or as it
     is (``None`` or ``"none"``: a campaign in memory was segmented, or not, when it was read). Maneuvers that are
-    cycles already (``record`` set) stay as they are. A cycle too short for the campaign's rule is an error."""
+    cycles already (``record`` set) and steady points stay as they are. A cycle too short for the campaign's rule is an error."""
     if segment is not None and segment not in SEGMENT_CHOICES:
         raise DataError(f"segment must be one of {', '.join(SEGMENT_CHOICES)}, not {segment!r}")
     if segment != "cycles":
@@ -21,7 +21,7 @@ def segmented(campaign: Campaign, segment: str | None) -> Campaign:
     maneuvers, pieces = [], []
     for m, rows in zip(campaign.maneuvers, campaign.data.segment_slices()):
         columns = {k: v[rows] for k, v in campaign.data.columns.items()}
-        if m.record:
+        if m.record or m.steady:   # a cycle already, or steady points (no cycle to cut)
             maneuvers.append(m)
             pieces.append(columns)
             continue

@@ -7,6 +7,7 @@ those boundaries.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
@@ -26,7 +27,8 @@ class FlightData:
     ``flights``, when the campaign records them, names each maneuver's flight (None: a maneuver whose flight
     is not recorded, a flight of its own); None when no maneuver's flight is recorded.
     ``periods``: each maneuver's period [s] where it is periodic (its separation states start at their periodic
-    solution: docs/interfaces.md 7.5), None where it is not; None when no maneuver is periodic.
+    solution: docs/interfaces.md 7.5), :data:`STEADY` (infinite) where its samples are steady points, None where it
+    is neither; None when no maneuver is periodic or steady.
     """
 
     columns: Mapping[str, np.ndarray]
@@ -39,8 +41,8 @@ class FlightData:
 
     @property
     def period_array(self) -> np.ndarray | None:
-        """The periods as floats, NaN where a maneuver is not periodic (None when none is): what the separation
-        states read (:func:`structsearch.engine.separation.first_order_lag`)."""
+        """The periods as floats, NaN where a maneuver is not periodic, infinite where it is steady (None when no
+        maneuver is either): what the separation states read (:func:`structsearch.engine.separation.first_order_lag`)."""
         if self.periods is None:
             return None
         return np.array([np.nan if p is None else p for p in self.periods], dtype=float)
@@ -184,13 +186,21 @@ def from_segments(segments: Sequence[Mapping[str, np.ndarray]], *, names: Sequen
 
 def derivative(values: np.ndarray, t: np.ndarray, period: float | None = None) -> np.ndarray:
     """d(values)/dt, second-order accurate on any grid; a record of one cycle (shorter than its ``period``) is
-    differentiated across its ends as the periodic signal it is, else one-sided differences end it."""
+    differentiated across its ends as the periodic signal it is, else one-sided differences end it. Steady points
+    (``period`` :data:`STEADY`) are each an equilibrium: their rates are zero, whatever order they are listed in."""
+    if period is not None and math.isinf(period):
+        return np.zeros_like(np.asarray(values, float))
     if period is None or t[-1] - t[0] >= period:
         return np.gradient(values, t, edge_order=2)
     wrapped_t = np.concatenate([[t[-1] - period], t, [t[0] + period]])
     wrapped = np.concatenate([[values[-1]], values, [values[0]]])
     return np.gradient(wrapped, wrapped_t)[1:-1]
 
+
+# The period of a maneuver of steady points (a static polar, trim points): each sample is an equilibrium of the
+# separation states, the zero-frequency limit of a cycle. Its states equal their static value X0(alpha) and have no
+# rate, so alpha_dot is zero and neither time constant acts on them (docs/interfaces.md section 8).
+STEADY = math.inf
 
 # a periodic record shorter than its period may miss this many sample steps at its end (one: the step from the
 # last sample back to the first, one period on; a little more for a record whose steps vary)
@@ -204,7 +214,9 @@ def check_period(t: np.ndarray, period: float, source: str, column: str = TIME) 
     least :data:`MIN_PERIOD_STEPS` median sample steps, and,
     where the record is shorter than one period, covering it but for the step back to its first sample (at most
     :data:`PERIOD_GAP_STEPS` median steps). A record longer than its period is several cycles: the states start
-    at the state one period later, on the record's own samples."""
+    at the state one period later, on the record's own samples. :data:`STEADY` fits any record of steady points."""
+    if period == STEADY:
+        return
     if not (np.isfinite(period) and period > 0):
         raise DataError(f"the period of a periodic maneuver must be a positive number of seconds, not {period!r}",
                         source=source, column=column)

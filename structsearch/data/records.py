@@ -40,7 +40,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .errors import DataError
-from .flightdata import TIME, check_period
+from .flightdata import STEADY, TIME, check_period
 from .tables import LINE_KEY
 from .reading import shown
 
@@ -166,11 +166,26 @@ def with_cycle_time(columns: dict[str, np.ndarray], maneuver: str, frequency: fl
     return {TIME: np.arange(n, dtype=float) / (n * frequency), **columns}
 
 
-def period(periodic: bool, frequency: float | None, t: np.ndarray, source: str, maneuver: str) -> float | None:
-    """A maneuver's period [s]: None when it is not periodic; 1/frequency when the manifest gives one; else the
+def with_steady_order(columns: dict[str, np.ndarray], maneuver: str, source: str) -> dict[str, np.ndarray]:
+    """A file of steady points with a time column: its own (it orders the points only), else t = 0, 1, 2 ... s
+    (:data:`~.flightdata.STEADY`: no state or rate reads the time of a steady point)."""
+    if TIME in columns:
+        return columns
+    n = len(next((v for k, v in columns.items() if k != LINE_KEY), ()))
+    if n == 0:
+        raise DataError(f"maneuver {shown(maneuver)}: the file has no samples", source=source)
+    return {TIME: np.arange(n, dtype=float), **columns}
+
+
+def period(periodic: bool, frequency: float | None, t: np.ndarray, source: str, maneuver: str,
+           steady: bool = False) -> float | None:
+    """A maneuver's period [s]: :data:`~.flightdata.STEADY` for steady points; None when it is not periodic;
+    1/frequency when the manifest gives one; else the
     record is one cycle, its period its duration and one median sample step (from the last sample back to the
     first). An error naming the file, the maneuver and the key when a record shorter than its period does not
     cover it (:func:`~.flightdata.check_period`)."""
+    if steady:
+        return STEADY
     if not periodic:
         return None
     t = np.asarray(t, float)

@@ -232,25 +232,37 @@ def first_order_lag(t: np.ndarray, u: np.ndarray, du: np.ndarray, tau1: float,
     ``du`` (n, p) holds du/dtheta for the parameters inside u; returns ``X`` (n,),
     ``dX`` (n, p) = dX/dtheta and ``dX_dtau1`` (n,); with ``du`` None, only ``X`` (the others None). ``step`` may pass in the
     result of :func:`common_step` for this grid (it is found here otherwise). ``periods``: per maneuver its period
-    T [s] where it is periodic, NaN (or None) where not (None: no maneuver is periodic); see
-    :func:`_periodic_start`.
+    T [s] where it is periodic, infinite where its samples are steady points (each its own equilibrium: X = u, no
+    dependence on tau1), NaN (or None) where neither (None: no maneuver is either); see :func:`_periodic_start`.
     """
     bounds = np.asarray(bounds, dtype=np.int64)
     periodic = _periodic_segments(periods, len(bounds) - 1)
     out = _lag_from_equilibrium(t, u, du, tau1, bounds, step)
     for i, period in periodic:
-        _periodic_start(t, u, du, tau1, int(bounds[i]), int(bounds[i + 1]), period, *out)
+        if np.isinf(period):
+            _steady(u, du, int(bounds[i]), int(bounds[i + 1]), *out)
+        else:
+            _periodic_start(t, u, du, tau1, int(bounds[i]), int(bounds[i + 1]), period, *out)
     return out
 
 
+def _steady(u, du, s, e, x, dx, dtau) -> None:
+    """Maneuver ``s:e`` as steady points, in place: the lag's equilibrium X = u at every sample (the limit of an
+    infinitely slow cycle), its sensitivities those of u, none to tau1. Its samples' times order them only."""
+    x[s:e] = u[s:e]
+    if du is not None:
+        dx[s:e] = du[s:e]
+        dtau[s:e] = 0.0
+
+
 def _periodic_segments(periods, n_segments: int) -> list[tuple[int, float]]:
-    """(maneuver index, period) of every periodic maneuver."""
+    """(maneuver index, period) of every periodic maneuver and every maneuver of steady points (period inf)."""
     if periods is None:
         return []
     periods = np.asarray(periods, dtype=float)
     if periods.shape != (n_segments,):
         raise ValueError(f"{periods.shape[0] if periods.ndim else 'no'} periods for {n_segments} maneuvers")
-    return [(int(i), float(periods[i])) for i in np.flatnonzero(np.isfinite(periods))]
+    return [(int(i), float(periods[i])) for i in np.flatnonzero(~np.isnan(periods))]
 
 
 def _periodic_start(t, u, du, tau1, s, e, period, x, dx, dtau) -> None:

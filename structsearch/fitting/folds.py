@@ -176,6 +176,9 @@ def score_units(data: FlightData, convective_times: float = MIN_CONVECTIVE_TIMES
         # whole cycles: the record's span plus its last sample's step (a cycle of n samples spans n - 1 steps)
         span = t[rows.stop - 1] - t[rows.start] + (float(np.median(np.diff(t[rows]))) if rows.stop - rows.start > 1 else 0)
         cycles = math.floor(span / period + 1e-9) if np.isfinite(period) else 0
+        if np.isinf(period):   # steady points: one unit (their order is no time, so no block is a transient)
+            units.append((rows.start, rows.stop))
+            continue
         if cycles >= 2:
             edges = [rows.start] + [rows.start + int(np.searchsorted(t[rows], t[rows.start] + k * period))
                                     for k in range(1, cycles)] + [rows.stop]
