@@ -139,7 +139,7 @@ def test_a_lag_at_tau1_zero_is_the_input_and_stays_periodic():
 def test_a_state_of_another_static_form_starts_periodic_too(form):
     """The periodic start is the lag's, whatever static curve feeds it: a goman, two-break or spline state on one
     cycle starts where it is one period later."""
-    from structsearch.data.default_boxes import DEFAULT_START
+    from structsearch.engine.static_forms import SEPARATION_STARTS as DEFAULT_START
     period = 0.9
     t = np.arange(72) * period / 72 + 1.0
     alpha = 0.2 + 0.12 * np.sin(2 * np.pi * t / period)

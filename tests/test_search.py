@@ -486,8 +486,12 @@ def test_cli_bound_sets_the_box_and_rejects_unknown_names(tiny, tmp_path):
 def test_default_boxes_follow_the_data():
     """alpha* widened to the alpha range flown (2 deg margin), never narrowed; time constants scaled by
     cbar/V when the aircraft is larger or slower than the Citation (2.5 x cbar at the Citation's speed)."""
-    from structsearch.data.default_boxes import DEFAULT_BOUNDS, data_bounds
+    from structsearch.data.default_boxes import data_bounds as boxes_for
+    from structsearch.engine.static_forms import LOCATION_PARAMETERS, SEPARATION_BOUNDS as DEFAULT_BOUNDS
     from structsearch.flight.synthetic import campaign
+
+    def data_bounds(data):
+        return boxes_for(data, DEFAULT_BOUNDS, LOCATION_PARAMETERS)
     base = campaign({"quasi-steady": 1}, duration=10.0, seed=2)
     alpha = np.linspace(0.0, 0.5, base.n_samples)
     v = np.full(base.n_samples, 73.0)

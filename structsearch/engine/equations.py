@@ -24,7 +24,7 @@ import sympy as sp
 
 from .expressions import parse_expression
 from .separation import SeparationState, is_delayed, is_lagged, is_vortex
-from .static_forms import DEFAULT_FORM, form_parameters
+from .static_forms import DEFAULT_FORM, FORMS, form_parameters, parse_form
 
 # What each helper of the regressor language stands for (regressors.HELPERS), in words a reader checks.
 HELPER_MEANINGS = {
@@ -35,15 +35,8 @@ HELPER_MEANINGS = {
     "max_half": "max_half(X) = max(1/2, X) (Van Ingen's elevator effectiveness)",
     "pos": "pos(x) = max(x, 0)",
 }
-# What each static form other than the tanh stands for (static_forms), in the base names of its parameters.
-FORM_MEANINGS = {
-    "goman": "X0_goman(a; a_star, k_e, x_star) = x_star*exp(-k_e*(a - a_star)) for a >= a_star, "
-             "1 - (1 - x_star)*exp(k_e*x_star/(1 - x_star)*(a - a_star)) below",
-    "two_break": "X0_two_break(a; k1, a_k1, k2, da_k2, x_mid) = (1 - x_mid)*0.5*(1 - tanh(k1*(a - a_k1))) "
-                 "+ x_mid*0.5*(1 - tanh(k2*(a - a_k1 - da_k2)))",
-    "spline": "X0_spline(a; a_sp, h_sp, r1..rK) = sum_j c_j*N((a - a_sp)/h_sp - j), c_j = 1 (j <= 0), "
-              "r1*...*rj (1 <= j <= K), c_K (j > K), N the centred quadratic B-spline",
-}
+# What each static form other than the tanh stands for (its record's meaning), in the base names of its parameters.
+FORM_MEANINGS = {f.name: f.meaning for f in FORMS.values() if f.meaning}
 # Regressor texts that are the constant 1: the parameter alone.
 _ONE = {"1", "1.0"}
 # How the data columns and states read in LaTeX; any other name is set upright with sympy's subscripts.
@@ -100,7 +93,7 @@ def model_equation(coefficient: str, regressors: Sequence[tuple[str, str]]) -> s
 
 
 def _form_key(form: str) -> str:
-    return "spline" if form.startswith("spline:") else form
+    return parse_form(form)[0].name
 
 
 def state_equation(name: str, kind: str, form: str = DEFAULT_FORM) -> str:

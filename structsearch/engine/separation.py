@@ -370,31 +370,13 @@ def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.n
     where it is periodic (NaN where not; :func:`first_order_lag`): an unsteady state starts there at its
     periodic solution.
     """
-    if state.form != DEFAULT_FORM:
-        return _evaluate_form(state, values, alpha, alpha_dot, t, bounds, step, sensitivities, periods)
-    a1, a_star = values["a1"], values["a_star"]
-    delayed, lagged = is_delayed(state.kind), is_lagged(state.kind)
-    tau2 = values.get("tau2", 0.0)
-    effective_alpha = alpha - tau2 * alpha_dot if delayed else alpha
-    x0 = static_separation(effective_alpha, a1, a_star)
-    if not sensitivities:
-        return _through_lags(state, values, t, x0, None, bounds, step, periods) if lagged else (x0, None)
-    slope = -2.0 * x0 * (1.0 - x0)  # dX0 / d(a1 (alpha_eff - a_star))
-    inner = ("tau2", "a1", "a_star") if delayed else ("a1", "a_star")
-    du = np.empty((len(alpha), len(inner)), order="F")
-    du[:, inner.index("a1")] = slope * (effective_alpha - a_star)
-    du[:, inner.index("a_star")] = slope * (-a1)
-    if delayed:
-        du[:, 0] = slope * (-a1 * alpha_dot)
-    if not lagged:
-        return x0, du  # S and Q: columns already in state.base_parameters order
-    return _through_lags(state, values, t, x0, du, bounds, step, periods)
+    return _evaluate_form(state, values, alpha, alpha_dot, t, bounds, step, sensitivities, periods)
 
 
 def _evaluate_form(state: SeparationState, values: dict[str, float], alpha, alpha_dot, t, bounds, step,
                    sensitivities: bool, periods=None):
-    """:func:`evaluate_state` for a static curve other than the tanh: the chain rule through alpha - tau2 alpha_dot
-    (dX0/dtau2 = -dX0/dalpha alpha_dot), then the same lag."""
+    """:func:`evaluate_state`: the static curve of the state's form (its record in :mod:`.static_forms`), the chain
+    rule through alpha - tau2 alpha_dot (dX0/dtau2 = -dX0/dalpha alpha_dot), then the lag."""
     tau2 = values.get("tau2", 0.0)
     delayed, lagged = is_delayed(state.kind), is_lagged(state.kind)
     effective_alpha = alpha - tau2 * alpha_dot if delayed else alpha

@@ -28,8 +28,9 @@ from .fit import fit_problem
 from .identifiability import SATURATION, check_parameter_names, collinear_with, join_names
 from .regressors import X_FLOOR, Regressor, declare
 from .results import FitResult
-from ..data.default_boxes import DEFAULT_BOUNDS, DEFAULT_START, data_bounds
+from ..data.default_boxes import data_bounds
 from .separation import SeparationState, common_step, evaluate_state
+from .static_forms import LOCATION_PARAMETERS, SEPARATION_BOUNDS, SEPARATION_STARTS
 from .ols import ols
 from .snls import BoundProblem, Evaluation, MultistartOutcome, model_jacobian, multistart, solve_recorded, start_list
 from .defaults import STALL_DEFAULTS
@@ -146,12 +147,13 @@ class StallModel:
             elif name in self.bounds:
                 out.append(0.5 * (self.bounds[name][0] + self.bounds[name][1]))
             else:
-                out.append(DEFAULT_START[p])
+                out.append(SEPARATION_STARTS[p])
         return np.array(out, float)
 
     def bound_vectors(self, data: FlightData | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Declared bounds, else the default box of the parameter kind (derived from ``data`` when given)."""
-        defaults = data_bounds(data) if data is not None else DEFAULT_BOUNDS
+        defaults = (data_bounds(data, SEPARATION_BOUNDS, LOCATION_PARAMETERS) if data is not None
+                    else SEPARATION_BOUNDS)
         pairs = [self.bounds.get(s.parameter_name(p), defaults[p]) for s, p in self._free()]
         return np.array([p[0] for p in pairs], float), np.array([p[1] for p in pairs], float)
 

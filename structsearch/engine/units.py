@@ -14,7 +14,7 @@ from typing import Mapping
 
 import sympy as sp
 
-from ..data.default_boxes import MAX_SPLINE_KNOTS
+from .static_forms import FORMS
 
 Unit = dict  # base unit -> exponent (Fraction); {} is dimensionless
 
@@ -26,13 +26,11 @@ COLUMN_UNITS: Mapping[str, Mapping[str, int]] = {
     "r": {"rad": 1, "s": -1}, "da": {"rad": 1}, "dr": {"rad": 1},
     "cbar": {"m": 1}, "S": {"m": 2}, "b": {"m": 1},
 }
-# the separation parameters of every state (their names carry the state's suffix: tau1_ss, a_star_w)
+# the separation parameters of every state (their names carry the state's suffix: tau1_ss, a_star_w): the time
+# constants in s, then every static curve's (its record in static_forms)
 SEPARATION_UNITS: Mapping[str, Mapping[str, int]] = {
-    "tau1": {"s": 1}, "tau2": {"s": 1}, "tau_v": {"s": 1}, "a1": {"rad": -1}, "a_star": {"rad": 1},
-    # the other static curves' (static_forms): rates per rad, angles in rad, levels and ratios dimensionless
-    "k_e": {"rad": -1}, "x_star": {}, "k1": {"rad": -1}, "a_k1": {"rad": 1}, "k2": {"rad": -1},
-    "da_k2": {"rad": 1}, "x_mid": {}, "a_sp": {"rad": 1}, "h_sp": {"rad": 1},
-    **{f"r{j}": {} for j in range(1, MAX_SPLINE_KNOTS + 1)}}
+    "tau1": {"s": 1}, "tau2": {"s": 1}, "tau_v": {"s": 1},
+    **{p: unit for form in FORMS.values() for p, unit in form.units.items()}}
 _ORDER = ("rad", "s", "m")
 # a pure number: it takes the unit of whatever it is added to (alpha - 6 deg is an angle)
 _NUMBER = "number"

@@ -18,9 +18,10 @@ from ..data.coefficients import COEFFICIENTS
 from ..data.errors import DeclarationError
 from ..engine.equations import helpers_used, model_equation, state_equation
 from ..engine.separation import SeparationState
+from ..engine.static_forms import EXPORTED_FORMS
 
 CARD_FORMAT = "structsearch-model-card/1"
-STATIC_FORMS = ("tanh",)     # the static separation forms an export writes
+STATIC_FORMS = EXPORTED_FORMS     # the static separation forms an export writes (their records say)
 ORDER = tuple(COEFFICIENTS)
 GAMMA_AIR, GAS_CONSTANT = 1.4, 287.053
 
