@@ -188,7 +188,7 @@ def test_a_modification_file_is_read_as_data_with_one_error_naming_file_and_entr
     from structsearch.foreign.modify import read_modify
     good = tmp_path / "m.toml"
     good.write_text('[[scale]]\nfunction = "aero/coefficient/CLq"\nfactor = 2\n')
-    assert read_modify(good) == {"aero/coefficient/CLq": 2.0}
+    assert read_modify(good).scales == {"aero/coefficient/CLq": 2.0} and read_modify(good).lags == ()
     for text, words in (('[[scale]]\nfunction = "a"\n', "entry 1: give exactly"),
                         ('[[scale]]\nfunction = "a"\nfactor = nan\n', "finite number"),
                         ('[[scale]]\nfunction = "a"\nfactor = true\n', "finite number"),

@@ -16,8 +16,8 @@ def simulate_jsbsim(aircraft: str, *, modify: str | os.PathLike | None = None, s
     from ..foreign.fly import fly_campaign
     from ..foreign.modify import read_modify
     started = time.perf_counter()
-    scales = read_modify(modify) if modify is not None else None
-    campaign = fly_campaign(aircraft, scales, scale=scale, seed=seed)
+    modification = read_modify(modify) if modify is not None else None
+    campaign = fly_campaign(aircraft, modification, scale=scale, seed=seed)
     if out is not None:
         write_campaign(campaign, out, fmt=format)
     return campaign, time.perf_counter() - started

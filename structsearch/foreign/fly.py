@@ -22,11 +22,9 @@ as it removes its thrust). The campaign's ``x_cg`` is JSBSim's cg station
 """
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Mapping
-
+from pathlib import Path
 import numpy as np
 
 from ..data.campaign import Campaign, Maneuver, make_campaign
@@ -35,6 +33,7 @@ from ..flight.aircraft import Aircraft
 from ..flight.measurement import measure
 from .aircraft_xml import AircraftFile, read_aircraft
 from .evaluate import need_jsbsim
+from .modify import LAG_ACTIVE, Lag, Modification
 from .private_copy import make_copy
 
 FT, LBF, SLUG, SLUGFT2, PSF, LBFFT = 0.3048, 4.4482216152605, 14.593902937, 1.3558179483, 47.880258889, 1.3558179483
@@ -86,9 +85,12 @@ def elevator_profile(p: Planned, t: np.ndarray, trim: float) -> np.ndarray:
     return np.clip(trim + u, -1.0, 1.0) - trim
 
 
-def _start(jsbsim, root: str, aircraft: AircraftFile, p: Planned):
+def _start(jsbsim, root: str, aircraft: AircraftFile, p: Planned, lags: tuple[Lag, ...] = ()):
     fdm = jsbsim.FGFDMExec(root)
     fdm.set_debug_level(0)
+    manager = fdm.get_property_manager()
+    for prop in [LAG_ACTIVE] * bool(lags) + [lag.lagged for lag in lags]:   # read by the copy: made before it loads
+        manager.get_node(prop, True).set_double_value(0.0)
     if not fdm.load_model(aircraft.name):
         raise StructSearchError(f"JSBSim could not load the aircraft {aircraft.name!r} ({aircraft.file})")
     fdm.set_dt(1.0 / RATE_HZ)
@@ -102,12 +104,22 @@ def _start(jsbsim, root: str, aircraft: AircraftFile, p: Planned):
     except Exception as exc:   # JSBSim's trim failure
         raise StructSearchError(f"JSBSim could not trim {aircraft.name} at {p.v_kts:.0f} kt, {p.h_ft:.0f} ft for "
                                 f"maneuver {p.id}: {exc}") from None
+    if lags:   # trimmed without the lags (in equilibrium a lagged input is the input): they start there
+        for lag in lags:
+            fdm[lag.lagged] = float(fdm[lag.input])
+        fdm[LAG_ACTIVE] = 1.0
     return fdm
 
 
-def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned) -> dict:
-    """The truth histories of one maneuver (module docstring), in SI units."""
-    fdm = _start(jsbsim, root, aircraft, p)
+def _hold_lags(fdm, lags: tuple[Lag, ...]) -> None:
+    """Each lag's value of the frame just run, kept for the next (:func:`.private_copy.make_copy` steps it)."""
+    for lag in lags:
+        fdm[lag.lagged] = fdm[lag.read]
+
+
+def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned, lags: tuple[Lag, ...] = ()) -> dict:
+    """The truth histories of one maneuver (module docstring), in SI units; ``lags`` those of ``--modify``."""
+    fdm = _start(jsbsim, root, aircraft, p, lags)
     trim = float(fdm["fcs/elevator-cmd-norm"])
     n = int(round(p.duration * RATE_HZ))
     t = np.arange(n) / RATE_HZ
@@ -122,6 +134,7 @@ def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned) -> dict:
     for k in range(n):
         fdm["fcs/elevator-cmd-norm"] = command[k]
         fdm.run()
+        _hold_lags(fdm, lags)
         for j, name in enumerate(names):
             rec[j, k] = fdm[name]
         rec[-2, k] = sum(fdm[f] for f in lift)
@@ -140,29 +153,25 @@ def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned) -> dict:
             "geometry": (s_ft2 * FT ** 2, cbar_ft * FT, float(fdm["metrics/bw-ft"]) * FT)}
 
 
-def digest(scales: Mapping[str, float]) -> str:
-    """A short digest of a modification (function -> factor), "none" without one."""
-    if not scales:
-        return "none"
-    text = ";".join(f"{k}={float(v)!r}" for k, v in sorted(scales.items()))
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-def fly_campaign(target: str, scales: Mapping[str, float] | None = None, *, scale: float = 1.0,
-                 seed: int = 0) -> Campaign:
-    """The campaign flown in JSBSim (module docstring); ``scales``: function -> factor (``--modify``)."""
+def fly_campaign(target: str, modification: Modification | Mapping[str, float] | None = None, *,
+                 scale: float = 1.0, seed: int = 0) -> Campaign:
+    """The campaign flown in JSBSim (module docstring), with the aircraft changed by ``modification``
+    (``--modify``: :mod:`.modify`; a mapping function -> factor scales functions alone)."""
+    if modification is not None and not isinstance(modification, Modification):
+        modification = Modification(dict(modification))
     jsbsim = need_jsbsim()
     jsbsim.FGJSBBase().debug_lvl = 0
     aircraft = read_aircraft(target)
-    missing = [f for f in (scales or {}) if not any(f in aircraft.functions(a) for a in aircraft.axes)]
+    modification = modification or Modification()
+    missing = [f for f in modification.functions if not any(f in aircraft.functions(a) for a in aircraft.axes)]
     if missing:
         raise StructSearchError(f"--modify: the aircraft {aircraft.name} has no axis function {missing[0]!r}")
-    holder = make_copy(aircraft, scales, rewrite=False)
+    holder = make_copy(aircraft, modification.scales, rewrite=False, lags=modification.lags, frame_s=1.0 / RATE_HZ)
     rng = np.random.default_rng(seed)
     maneuvers, segments, craft = [], [], None
     try:
         for p in plan(scale, seed):
-            truth = fly_one(jsbsim, holder.name, aircraft, p)
+            truth = fly_one(jsbsim, holder.name, aircraft, p, modification.lags)
             s, cbar, b = truth.pop("geometry")
             iyy = float(np.median(truth.pop("iyy")))
             craft = craft or Aircraft(aircraft.name, f"JSBSim {aircraft.name}", s, cbar, b,
@@ -179,7 +188,7 @@ def fly_campaign(target: str, scales: Mapping[str, float] | None = None, *, scal
         holder.cleanup()
     manifest = {"S": craft.S, "cbar": craft.cbar, "b": craft.b, "Iyy": round(craft.iyy_empty, 1)}
     source = {"simulator": "jsbsim", "aircraft": aircraft.name, "jsbsim_version": jsbsim.__version__,
-              "modify": digest(scales or {})}
-    name = f"JSBSim {aircraft.name} stall campaign (seed {seed}" + (", modified)" if scales else ")")
+              "modify": modification.digest()}
+    name = f"JSBSim {aircraft.name} stall campaign (seed {seed}" + (", modified)" if modification else ")")
     return make_campaign(name, manifest, maneuvers, segments, extra={"source": source, "seed": seed,
                                                                      "scale": float(scale)})

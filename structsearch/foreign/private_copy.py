@@ -12,8 +12,9 @@ property of the ``structsearch/`` namespace that the evaluation writes from the 
 * every other property that is neither derived by JSBSim from the written state (:func:`derived`) nor the
   elevator -> ``structsearch/input/<property>``: an input the campaign or ``--simulator-input`` supplies.
 
-The copy's top-level ``<output>`` directives are removed (JSBSim would write files), and each function a
-modification scales (``--modify``) is wrapped in a product with its factor.
+The copy's top-level ``<output>`` directives are removed (JSBSim would write files), each function a
+modification scales (``--modify``) is wrapped in a product with its factor, and each input a modification lags is
+read by its function through a property of its own (:func:`_lag`; the flight writes the lagged value).
 """
 from __future__ import annotations
 
@@ -22,9 +23,11 @@ import shutil
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import Mapping
+from typing import Mapping, Sequence
 
+from ..data.errors import DeclarationError
 from .aircraft_xml import READ_TAGS, AircraftFile, parse_file
+from .modify import LAG_ACTIVE, Lag
 
 NAMESPACE = "structsearch/"
 ALPHADOT = {"aero/alphadot-rad_sec": "structsearch/alphadot-rad_sec",
@@ -92,6 +95,32 @@ def _scale(aero: ET.Element, scales: Mapping[str, float]) -> None:
         f.append(product)
 
 
+def _lag(aero: ET.Element, lag: Lag, aircraft: str, frame_s: float) -> None:
+    """``lag.function`` reads ``lag.read`` where it read ``lag.input``; that property is a function ahead of the
+    axes, evaluated in the frame after JSBSim has computed the frame's input: the exact step of tau dy/dt + y = u
+    from the value of the frame before (``lag.lagged``, which the flight writes back after each frame),
+    y = u + A (y_before - u) with A = exp(-frame/tau) while :data:`~.modify.LAG_ACTIVE` is 1, and the input itself
+    while it is 0 (JSBSim trims the aircraft so: in equilibrium a lagged input is the input)."""
+    reads = [e for f in aero.iter("function") if f.get("name") == lag.function
+             for tag in READ_TAGS for e in f.iter(tag) if (e.text or "").strip().lstrip("-") == lag.input]
+    if not reads:
+        raise DeclarationError(f"--modify: the function {lag.function} of {aircraft} does not read {lag.input}; a "
+                               "[[lag]] lags a property its function reads")
+    for e in reads:
+        e.text = ("-" if e.text.strip().startswith("-") else "") + lag.read
+    switched = ET.Element("function", name=lag.read)
+    total = ET.SubElement(switched, "sum")
+    ET.SubElement(total, "property").text = lag.input
+    product = ET.SubElement(total, "product")
+    ET.SubElement(product, "property").text = LAG_ACTIVE
+    ET.SubElement(product, "value").text = repr(lag.retained(frame_s))
+    difference = ET.SubElement(product, "difference")
+    ET.SubElement(difference, "property").text = lag.lagged
+    ET.SubElement(difference, "property").text = lag.input
+    first = next((i for i, c in enumerate(aero) if c.tag in ("function", "axis")), len(aero))
+    aero.insert(first, switched)
+
+
 def _link(source: Path, target: Path) -> None:
     if not source.is_dir():
         return
@@ -102,10 +131,14 @@ def _link(source: Path, target: Path) -> None:
 
 
 def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
-              rewrite: bool = True) -> tempfile.TemporaryDirectory:
+              rewrite: bool = True, lags: Sequence[Lag] = (), frame_s: float = 0.01) -> tempfile.TemporaryDirectory:
     """A temporary JSBSim root holding the private copy of ``aircraft`` (module docstring); the caller keeps the
     returned directory object alive while JSBSim reads from it. Without ``rewrite`` (an aircraft to fly, not to
-    evaluate at given states) the aerodynamics keep reading JSBSim's own properties."""
+    evaluate at given states) the aerodynamics keep reading JSBSim's own properties; only such an aircraft may
+    carry ``lags`` (a lag acts over time), stepped in frames of ``frame_s`` seconds."""
+    if lags and rewrite:
+        raise DeclarationError("--modify: a [[lag]] acts over time: it modifies an aircraft that is flown "
+                               "(simulate --jsbsim), not one evaluated at recorded states")
     holder = tempfile.TemporaryDirectory(prefix="structsearch-jsbsim-")
     root = Path(holder.name)
     # the name is an existing aircraft directory's own name (aircraft_xml.locate refuses '/', '\\' and '..'), never
@@ -121,5 +154,7 @@ def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
     if rewrite:
         _rewrite_reads(aero, set(aircraft.reads))
     _scale(aero, dict(scales or {}))
+    for lag in lags:
+        _lag(aero, lag, aircraft.name, frame_s)
     ET.ElementTree(doc).write(target / f"{aircraft.name}.xml", encoding="utf-8", xml_declaration=True)
     return holder
