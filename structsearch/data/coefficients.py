@@ -20,20 +20,25 @@ class Coefficient:
     ``grid``: its shipped grid; ``jsbsim_axis``: the axis of a JSBSim aircraft that builds it; ``moment``: a
     moment coefficient (qbar S cbar C; it reads the forces too, where the moment is taken about a point);
     ``owns_states``: its structures declare the separation states (the lift model's), where the others take
-    theirs, and C_L, from a lift model."""
+    theirs, and C_L, from a lift model. ``latex``: its symbol in equations. ``k_term``: the (name, expression)
+    templates of the term a new separation state brings into its structure (``{c}`` the coefficient, ``{s}`` the
+    state's suffix, ``{X}`` its symbol: Kirchhoff's lift, the separation drag 1 - X, the centre-of-pressure
+    shift (1 - X) C_L)."""
 
     name: str
     quantity: str
     grid: str
     jsbsim_axis: str
+    latex: str
+    k_term: tuple[str, str]
     moment: bool = False
     owns_states: bool = False
 
 
 COEFFICIENTS = MappingProxyType({c.name: c for c in (
-    Coefficient("CL", "lift", "lift", "LIFT", owns_states=True),
-    Coefficient("CD", "drag", "drag", "DRAG"),
-    Coefficient("Cm", "pitching moment", "pitch", "PITCH", moment=True),
+    Coefficient("CL", "lift", "lift", "LIFT", "C_L", ("{c}_KL{s}", "K_L({X})"), owns_states=True),
+    Coefficient("CD", "drag", "drag", "DRAG", "C_D", ("{c}_1mX{s}", "1 - {X}")),
+    Coefficient("Cm", "pitching moment", "pitch", "PITCH", "C_m", ("{c}_1mX{s}CL", "(1 - {X})*CL"), moment=True),
 )})
 LIFT = COEFFICIENTS["CL"]
 # each coefficient's shipped grid, and each grid's coefficient

@@ -42,10 +42,10 @@ from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..fitting.fitter import Fitter
 from .adoption import DEFAULT_ALPHA, move_test
-from .final_choice import (CONFIRMED, NAMES_SIMULATOR_TERM, NESTED_KINDS, by_mse as _by_mse, choose,
+from .final_choice import (CONFIRMED, by_mse as _by_mse, choose,
                            hard as _hard, lower as _lower, lowest_mse as _lowest_mse, preference as _preference,
                            select_final, set_aside)
-from .moves import MOVE_KINDS, Move, generate, structure_key
+from .moves import MOVE_KINDS, NAMES_SIMULATOR_TERM, NESTED_KINDS, REPAIR_KINDS, Move, generate, structure_key
 from .search_nodes import Exploration, Node, Status, Step, Stop
 from .terms import TermLibrary
 
@@ -53,8 +53,6 @@ __all__ = ["explore", "choose", "donors", "adds_state", "Exploration", "Node", "
            "CONFIRMED", "NESTED_KINDS", "REPAIR_KINDS"]
 
 STATUSES = tuple(Status)
-# the moves that may repair admissibility: they remove or simplify, never add
-REPAIR_KINDS = ("drop", "replace", "state kind", "remove state")
 DEFAULT_BEAM = 3
 DEFAULT_MAX_STEPS = 20
 # screened children that may simplify and are fitted in full (the simplest first)

@@ -18,13 +18,10 @@ from ..engine.ties import is_tie, sort_by
 from ..fitting.comparison import ANSWER_TOLERANCE
 from ..grid_search.admissibility import HARD_REASONS, Reason
 from .adoption import DEFAULT_ALPHA, move_test
-from .moves import structure_key
+from .moves import NAMES_SIMULATOR_TERM, NESTED_KINDS, structure_key
 from .search_nodes import Node, SetAside, Status, Stop
 
 CONFIRMED = (Status.START, Status.IMPROVES, Status.SIMPLIFIES, Status.REPAIRS)
-NESTED_KINDS = ("effect", "add", "state kind", "add state", "rescale")
-# a simulator's own term refitted (a grey box): the move that names the simulator's function that misses
-NAMES_SIMULATOR_TERM = ("rescale",)
 
 
 def hard(n: Node) -> set[Reason]:

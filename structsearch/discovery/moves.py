@@ -34,28 +34,24 @@ import dataclasses
 import hashlib
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Mapping
+from typing import Callable, Mapping
 
+from ..data.coefficients import coefficient
 from ..data.errors import DeclarationError
 from ..engine.regressors import parse, symbol_names
 from ..engine.separation import SeparationState
+from ..engine.static_forms import DEFAULT_FORM, FORMS
 from ..fitting.candidates import Candidate
 from ..grid_search.refinement import structure_key  # noqa: F401  (what makes two structures the same model)
 from . import effects as fx
 from .terms import STATE_SYMBOL, TermLibrary, columns_of, normalise, template_of, uses_state
 
-MOVE_KINDS = ("add", "drop", "replace", "state kind", "add state", "remove state", "lift", "effect", "form", "rescale")
-# A diagnosis explains a gap by the effects it adds and the terms and states that carry them; another static curve
-# is a change of structure it does not search (and each form child costs a nonlinear fit of its own). ``discover``
-# explores structure: every kind.
-DIAGNOSE_KINDS = tuple(k for k in MOVE_KINDS if k != "form")
-DISCOVER_KINDS = MOVE_KINDS
-# the static curves a tanh state may take in one move (every other form's move is back to the tanh)
-FORM_STEPS = ("goman", "two_break", "spline:4")
+# the static curves a tanh state may take in one move (every registered form; a knotted one with four knots; every
+# other form's move is back to the tanh)
+FORM_STEPS = tuple(f.name + (":4" if f.knotted else "") for f in FORMS.values() if f.name != DEFAULT_FORM)
 KIND_STEPS = {"S": ("Q",), "Q": ("S", "U"), "U": ("Q",)}
-# The K term of a coefficient's own new separation state, and the states' default boxes (docs/catalogue.md:
-# the stall strip separates first, then the wing).
-K_TERMS = {"CL": ("{c}_KL{s}", "K_L({X})"), "CD": ("{c}_1mX{s}", "1 - {X}"), "Cm": ("{c}_1mX{s}CL", "(1 - {X})*CL")}
+# The states a move adds (each with its coefficient's K term: data.coefficients) and their default boxes
+# (docs/catalogue.md: the stall strip separates first, then the wing).
 NEW_STATES = (("ss", (0.05, 0.27)), ("w", (0.22, 0.45)), ("w2", (0.22, 0.45)))
 # A structure a search reaches is named by its path from the start (``Cm-I + cp_shift + elevator``), readable in
 # every table and line; only a path longer than a console line (fitting.fitter.CONSOLE_WIDTH) is named by its root
@@ -260,7 +256,7 @@ def _state_moves(c: Candidate) -> list[tuple[Move, Candidate]]:
     if "" not in taken:
         fresh = [(s, box) for s, box in NEW_STATES if s not in taken][:1]
         for s, box in fresh:
-            name_t, expr_t = K_TERMS[c.coefficient]
+            name_t, expr_t = coefficient(c.coefficient).k_term
             name = name_t.format(c=c.coefficient, s=f"_{s}")
             expr = expr_t.replace("{X}", _symbol(s))
             states = c.states + ((s, "S"),)
@@ -340,22 +336,83 @@ def _per_state_effect_terms(c: Candidate) -> dict[str, str]:
     return out
 
 
+# ----- the registry of move kinds -----------------------------------------------------------------------------
+Generator = Callable[[Candidate, TermLibrary, Mapping[str, Candidate]], list[tuple[Move, Candidate]]]
+
+
+@dataclass(frozen=True)
+class MoveKind:
+    """One kind of move: its ``generators`` (each yields moves of one or more kinds from a structure, its term
+    library and the lift models), ``nested`` (its child holds its parent, which is the child with the move's new
+    parameters at zero: the Wald test judges it; otherwise the out-of-sample test), ``repairs`` (it removes or
+    simplifies, never adds, so it may repair an inadmissible structure), ``in_diagnose`` (a diagnosis makes it:
+    a diagnosis explains a gap by what it adds and the terms and states that carry them) and
+    ``names_simulator_term`` (it names the simulator's own function that misses: the preferred explanation)."""
+
+    name: str
+    generators: tuple[Generator, ...]
+    nested: bool
+    repairs: bool
+    in_diagnose: bool = True
+    names_simulator_term: bool = False
+
+
+def _terms(c, library, lifts):
+    return _term_moves(c, library)
+
+
+def _simulator(c, library, lifts):
+    return _simulator_moves(c, library, MOVE_KINDS) if library.simulator else []
+
+
+def _states(c, library, lifts):
+    return _state_moves(c)
+
+
+def _lifts(c, library, lifts):
+    return _lift_moves(c, lifts)
+
+
+def _forms(c, library, lifts):
+    return _form_moves(c)
+
+
+REGISTRY: Mapping[str, MoveKind] = {k.name: k for k in (
+    MoveKind("add", (_terms,), nested=True, repairs=False),
+    MoveKind("drop", (_terms, _simulator), nested=False, repairs=True),
+    MoveKind("replace", (_terms, _simulator), nested=False, repairs=True),
+    MoveKind("state kind", (_states,), nested=True, repairs=True),
+    MoveKind("add state", (_states,), nested=True, repairs=False),
+    MoveKind("remove state", (_states,), nested=False, repairs=True),
+    MoveKind("lift", (_lifts,), nested=False, repairs=False),
+    # the effect library's composite moves (.effects) are built for every structure, to name the structural moves
+    # that equal one; as moves of their own only when asked
+    MoveKind("effect", (), nested=True, repairs=False),
+    # another static curve is a change of structure a diagnosis does not search (and each form child costs a
+    # nonlinear fit of its own); not nested: the tanh is no form's special case with some parameters at zero
+    MoveKind("form", (_forms,), nested=False, repairs=False, in_diagnose=False),
+    MoveKind("rescale", (_simulator,), nested=True, repairs=False, names_simulator_term=True),
+)}
+MOVE_KINDS = tuple(REGISTRY)
+DIAGNOSE_KINDS = tuple(k.name for k in REGISTRY.values() if k.in_diagnose)
+DISCOVER_KINDS = MOVE_KINDS
+NESTED_KINDS = tuple(k.name for k in REGISTRY.values() if k.nested)
+REPAIR_KINDS = tuple(k.name for k in REGISTRY.values() if k.repairs)
+NAMES_SIMULATOR_TERM = tuple(k.name for k in REGISTRY.values() if k.names_simulator_term)
+
+
 def generate(c: Candidate, library: TermLibrary, lifts: Mapping[str, Candidate] | None = None,
              kinds=MOVE_KINDS) -> list[tuple[Move, Candidate]]:
-    """Every valid move of ``kinds`` from ``c``, one per child structure (an effect's name wins)."""
+    """Every valid move of ``kinds`` from ``c``, one per child structure (an effect's name wins): each generator
+    of the kinds asked, once, in the registry's order."""
     if library.coefficient != c.coefficient:
         raise DeclarationError(f"the term library is for {library.coefficient}, and {c.name} models {c.coefficient}")
-    found: list[tuple[Move, Candidate]] = []
-    if {"add", "drop", "replace"} & set(kinds):
-        found += [(m, ch) for m, ch in _term_moves(c, library) if m.kind in kinds]
-    if library.simulator:
-        found += _simulator_moves(c, library, kinds)
-    if {"state kind", "add state", "remove state"} & set(kinds):
-        found += [(m, ch) for m, ch in _state_moves(c) if m.kind in kinds]
-    if "lift" in kinds:
-        found += _lift_moves(c, lifts or {})
-    if "form" in kinds:
-        found += _form_moves(c)
+    unknown = [k for k in kinds if k not in REGISTRY]
+    if unknown:
+        raise DeclarationError(f"unknown move kind {unknown[0]!r}; the kinds are {', '.join(MOVE_KINDS)}")
+    generators = dict.fromkeys(g for k in REGISTRY.values() if k.name in kinds for g in k.generators)
+    found: list[tuple[Move, Candidate]] = [(m, ch) for g in generators for m, ch in g(c, library, lifts or {})
+                                           if m.kind in kinds]
     # the effect library names the structural moves that equal an effect, whichever kinds are asked
     effect_moves = _effect_moves(c)
     by_key: dict[tuple, tuple[Move, Candidate]] = {}

@@ -22,6 +22,7 @@ from typing import Mapping, Sequence
 
 import sympy as sp
 
+from ..data.coefficients import COEFFICIENTS
 from .expressions import parse_expression
 from .separation import SeparationState, is_delayed, is_lagged, is_vortex
 from .static_forms import DEFAULT_FORM, FORMS, form_parameters, parse_form
@@ -41,7 +42,7 @@ FORM_MEANINGS = {f.name: f.meaning for f in FORMS.values() if f.meaning}
 _ONE = {"1", "1.0"}
 # How the data columns and states read in LaTeX; any other name is set upright with sympy's subscripts.
 _LATEX_NAMES = {"alpha": r"\alpha", "alpha_dot": r"\dot{\alpha}", "qstar": r"q^{*}", "de": r"\delta_e",
-                "CL": "C_L", "CD": "C_D", "Cm": "C_m", "CT": "C_T", "cbar": r"\bar{c}", "x_cg": r"x_{cg}",
+                **{c.name: c.latex for c in COEFFICIENTS.values()}, "CT": "C_T", "cbar": r"\bar{c}", "x_cg": r"x_{cg}",
                 "V": "V", "q": "q"}
 
 
