@@ -62,7 +62,7 @@ def test_import_and_parser_load_no_numeric_library():
 
 
 def test_light_choices_equal_their_owners():
-    from structsearch import cli_options
+    from structsearch.cli import options as cli_options
     from structsearch.engine.statistics import COVARIANCE_KINDS, DEFAULT_COVARIANCE
     from structsearch.fitting.options import CV_METHODS
     from structsearch.flight import aero, anomalies, names

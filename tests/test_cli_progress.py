@@ -5,7 +5,7 @@ import re
 
 import pytest
 
-from structsearch.cli_progress import TerminalProgress
+from structsearch.cli.progress import TerminalProgress
 
 # what a line per candidate used to look like ("[3/12] separation X S: 0.6 s (14 s elapsed)")
 PER_CANDIDATE = re.compile(r"^\[\d+/\d+\] ", re.M)
@@ -78,7 +78,7 @@ def test_the_command_line_passes_the_bar_to_the_fitter_as_its_meter(tty, tiny, t
     only on a terminal; never a line per candidate."""
     import sys
 
-    from structsearch import cli_progress
+    from structsearch.cli import progress as cli_progress
     from structsearch.cli import main
     stream = FakeTerminal() if tty else io.StringIO()
     monkeypatch.setattr(sys, "stderr", stream)

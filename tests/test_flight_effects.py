@@ -91,7 +91,7 @@ def test_a_bad_flight_effects_entry_is_one_clear_error(entry, message):
 
 
 def test_the_option_refuses_an_unknown_name():
-    from structsearch.cli_parser import _flight_effects
+    from structsearch.cli.parser import _flight_effects
     assert _flight_effects("x_cg, intercept") == ("x_cg", "intercept")
     with pytest.raises(argparse.ArgumentTypeError, match="known: intercept, x_cg"):
         _flight_effects("x_cg,thrust")

@@ -183,7 +183,7 @@ def test_the_calibration_on_the_transfer_truth_fits_its_structure_about_the_fixe
 def test_the_bench_options_parse_and_refuse_an_unknown_kind():
     import argparse
 
-    from structsearch.cli_parser import _covariance_kinds
+    from structsearch.cli.parser import _covariance_kinds
     assert _covariance_kinds("hac-maneuver, hac-flight") == ("hac-maneuver", "hac-flight")
     with pytest.raises(argparse.ArgumentTypeError, match="unknown covariance kind 'hac-man'"):
         _covariance_kinds("hac-maneuver,hac-man")

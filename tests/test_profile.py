@@ -231,6 +231,6 @@ def test_profile_calibration_rows_from_known_draws():
 
 
 def test_the_light_default_equals_its_owner():
-    from structsearch import cli_options
+    from structsearch.cli import options as cli_options
     from structsearch.experiments.calibration_profile import PROFILE_CAMPAIGNS
     assert cli_options.PROFILE_CAMPAIGNS == PROFILE_CAMPAIGNS

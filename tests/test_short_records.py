@@ -357,6 +357,6 @@ def test_cli_a_record_shorter_than_the_rule_is_one_line_naming_file_column_and_r
 
 
 def test_segment_choices_of_the_command_line_equal_their_owner():
-    from structsearch import cli_options
+    from structsearch.cli import options as cli_options
     from structsearch.data.records import SEGMENT_CHOICES
     assert tuple(cli_options.SEGMENT_CHOICES) == SEGMENT_CHOICES

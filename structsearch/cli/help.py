@@ -1,7 +1,7 @@
 """What ``structsearch <command> --help`` says beyond the options: a one-line summary (the top-level ``--help``
 lists it), a paragraph (what the command does, what it reads and what it writes) and runnable examples.
 
-Kept apart from :mod:`.cli_parser` so that the parser stays a list of options; like it, imports nothing heavy.
+Kept apart from :mod:`.parser` so that the parser stays a list of options; like it, imports nothing heavy.
 """
 from __future__ import annotations
 

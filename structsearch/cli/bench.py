@@ -4,13 +4,13 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .cli_options import PROFILE_CAMPAIGNS, _bounds, _jobs
+from .options import PROFILE_CAMPAIGNS, _bounds, _jobs
 
 
 def _calibration(args) -> int:
-    from .experiments.calibration import run
-    from .data.atomic import write_json, write_text
-    from .experiments.calibration_doc import calibration_dict, calibration_markdown
+    from ..experiments.calibration import run
+    from ..data.atomic import write_json, write_text
+    from ..experiments.calibration_doc import calibration_dict, calibration_markdown
     say = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     cal = run(n_campaigns=args.campaigns, scale=args.scale, n_jobs=_jobs(args), progress=say, seeds=args.seeds,
               profile_campaigns=args.profile_campaigns, flight_errors=args.flight_errors,
@@ -46,8 +46,8 @@ def _calibration(args) -> int:
 
 
 def _reading_bench(args) -> int:
-    from .data.atomic import write_json, write_text
-    from .experiments.bench_reading import reading_markdown, run_reading
+    from ..data.atomic import write_json, write_text
+    from ..experiments.bench_reading import reading_markdown, run_reading
     scale = 1.0 if args.scale == 0.1 else args.scale   # --scale's default is the calibration's
     doc = run_reading(scale=scale, progress=lambda m: print(f"bench: {m}", file=sys.stderr, flush=True))
     out = Path(args.out)
@@ -62,7 +62,7 @@ def _reading_bench(args) -> int:
 def _bench_doc(path: Path) -> dict:
     """The figures ``bench.json`` holds already (none when it does not exist); one clear error if it is not one."""
     import json
-    from .data.errors import DataError
+    from ..data.errors import DataError
     if not path.exists():
         return {}
     try:
@@ -78,8 +78,8 @@ def _bench_doc(path: Path) -> dict:
 def _trace_bench(args) -> int:
     """``bench --trace FILE``: the recorded task graph's work, critical path and predicted walls."""
     import json
-    from .data.atomic import write_text
-    from .experiments.trace_bench import analyse, markdown, read_trace
+    from ..data.atomic import write_text
+    from ..experiments.trace_bench import analyse, markdown, read_trace
     out = Path(args.out)
     fig = {"file": str(args.trace), **analyse(read_trace(args.trace))}
     bench_json = out / "bench.json"
@@ -109,7 +109,7 @@ def _bench(args) -> int:
         return _discovery_bench(args)
     if args.joint:
         return _joint_bench(args)
-    from .experiments.bench import BenchConfig, run, write
+    from ..experiments.bench import BenchConfig, run, write
     config = BenchConfig(samples=args.samples, repeats=args.repeats, random_starts=args.starts,
                          seed=args.seed, n_jobs=_jobs(args))
     say = lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True)  # noqa: E731
@@ -117,11 +117,11 @@ def _bench(args) -> int:
     # written after every part, so that a part that fails late leaves the earlier ones' figures
     md, js = write(fig, Path(args.out))
     if not args.no_search:
-        from .experiments.bench import run_search
+        from ..experiments.bench import run_search
         fig["search"] = run_search(n_jobs=_jobs(args), progress=say)
         md, js = write(fig, Path(args.out))
     if args.staged:
-        from .experiments.bench import run_staged
+        from ..experiments.bench import run_staged
         fig["staged"] = run_staged(campaigns=args.staged, n_jobs=_jobs(args), progress=say)
         md, js = write(fig, Path(args.out))
     o, r = fig["one_start"], fig["random_starts"]
@@ -153,9 +153,9 @@ def _bench(args) -> int:
 def _diagnose_benchmark(args) -> int:
     """``diagnose --benchmark``: the withheld-effect benchmark on simulated campaigns."""
     out = Path(args.out)
-    from .diagnosis import withheld
-    from .fitting.options import FitOptions
-    from .engine.statistics import DEFAULT_COVARIANCE
+    from ..diagnosis import withheld
+    from ..fitting.options import FitOptions
+    from ..engine.statistics import DEFAULT_COVARIANCE
     options = FitOptions(n_starts=args.starts, covariance=args.covariance, parameter_boxes=_bounds(args),
                          cv_method="one-step")
     parts = set(args.parts.split(",")) if args.parts else {"withheld", "anomalies", "null"}
@@ -173,7 +173,7 @@ def _diagnose_benchmark(args) -> int:
                        + ([f"--starts {args.starts}"] if args.starts != 2 else [])
                        + ([f"--covariance {args.covariance}"] if args.covariance != DEFAULT_COVARIANCE else [])
                        + [f"--bound {n}={lo:g}:{hi:g}" for n, (lo, hi) in args.bound])
-    from .reporting.diagnosis_doc import benchmark_console_line, write_benchmark
+    from ..reporting.diagnosis_doc import benchmark_console_line, write_benchmark
     _, md = write_benchmark(res, out, command)
     print(benchmark_console_line(res, md))
     return 0
@@ -182,8 +182,8 @@ def _diagnose_benchmark(args) -> int:
 def _discovery_bench(args) -> int:
     """``bench --discovery``: the story's and discover's cost at full scale (experiments.bench_discovery)."""
     import json
-    from .data.atomic import write_json, write_text
-    from .experiments.bench_discovery import markdown, run_discovery_bench
+    from ..data.atomic import write_json, write_text
+    from ..experiments.bench_discovery import markdown, run_discovery_bench
     out = Path(args.out)
     say = lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True)  # noqa: E731
     fig = run_discovery_bench(n_jobs=_jobs(args), seed=args.seed if args.seed != 2025 else 0, progress=say)
@@ -201,8 +201,8 @@ def _discovery_bench(args) -> int:
 def _joint_bench(args) -> int:
     """``bench --joint``: a joint fit of the final models against the sequential ones (experiments.bench_joint)."""
     import json
-    from .data.atomic import write_json, write_text
-    from .experiments.bench_joint import markdown, run_joint_bench
+    from ..data.atomic import write_json, write_text
+    from ..experiments.bench_joint import markdown, run_joint_bench
     out = Path(args.out)
     say = lambda msg: print(f"bench: {msg}", file=sys.stderr, flush=True)  # noqa: E731
     fig = run_joint_bench(seed=args.seed if args.seed != 2025 else 0, progress=say)

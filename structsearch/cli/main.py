@@ -1,6 +1,6 @@
 """Command line: ``structsearch <command>`` (also ``python -m structsearch``).
 
-Each command parses its options (:mod:`.cli_parser`), calls the public API (:mod:`structsearch.api`,
+Each command parses its options (:mod:`.parser`), calls the public API (:mod:`structsearch.api`,
 :mod:`structsearch.workflows`) and prints; the work and the files are the API's.
 """
 from __future__ import annotations
@@ -16,17 +16,17 @@ import argparse  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from .cli_grids import _grids  # noqa: E402
-from .cli_options import _bounds, _jobs  # noqa: E402
+from .grids import _grids  # noqa: E402
+from .options import _bounds, _jobs  # noqa: E402
 
 
 def _progress(args, prefix: str = ""):
-    """The command's progress on stderr (lines, and a bar on a terminal: :mod:`.cli_progress`), None with
+    """The command's progress on stderr (lines, and a bar on a terminal: :mod:`.progress`), None with
     --quiet; one per run, closed by :func:`main` (a bar an interrupted run left open is erased)."""
     if getattr(args, "quiet", False):
         return None
     if getattr(args, "progress_sink", None) is None:
-        from .cli_progress import TerminalProgress
+        from .progress import TerminalProgress
         args.progress_sink = TerminalProgress(prefix=prefix)
     return args.progress_sink
 
@@ -34,8 +34,8 @@ def _progress(args, prefix: str = ""):
 def _settings(args, prefix: str = "", progress: bool = True):
     """The fitting settings the command line gives (structsearch.api.Settings), options a command lacks at
     their defaults."""
-    from .api.settings import Settings
-    from .cli_options import DEFAULT_COVARIANCE
+    from ..api.settings import Settings
+    from .options import DEFAULT_COVARIANCE
     sink = _progress(args, prefix) if progress else None
     return Settings(starts=getattr(args, "starts", None), seed=getattr(args, "seed", 0),
                     covariance=getattr(args, "covariance", DEFAULT_COVARIANCE), bounds=_bounds(args),
@@ -48,21 +48,21 @@ def _settings(args, prefix: str = "", progress: bool = True):
 
 
 def raise_error(message: str):
-    from .data.errors import DeclarationError
+    from ..data.errors import DeclarationError
     raise DeclarationError(message)
 
 
 def _bench(args) -> int:
-    from .cli_bench import _bench
+    from .bench import _bench
     return _bench(args)
 
 
 def _simulate(args) -> int:
     if args.jsbsim is not None or args.modify is not None:
         return _simulate_jsbsim(args)
-    from .api import simulate
-    from .data.campaign import write_campaign
-    from .api.settings import FlightTestPlan
+    from ..api import simulate
+    from ..data.campaign import write_campaign
+    from ..api.settings import FlightTestPlan
     plan = FlightTestPlan(aircraft=args.aircraft, withhold=tuple(args.withhold or ()), anomaly=args.anomaly,
                           extras=args.extras, raw=args.raw, slow_errors=args.slow_errors, flights=args.flights,
                           nominal=args.nominal, cg_spread=args.cg_spread, cg_moment=args.cg_moment)
@@ -79,7 +79,7 @@ def _simulate(args) -> int:
 
 
 def _simulate_jsbsim(args) -> int:
-    from .api.simulating import simulate_jsbsim
+    from ..api.simulating import simulate_jsbsim
     if args.jsbsim is None:
         raise_error("--modify goes with --jsbsim NAME_OR_DIR")
     campaign, seconds = simulate_jsbsim(args.jsbsim, modify=args.modify, seed=args.seed, scale=args.scale,
@@ -93,7 +93,7 @@ def _simulate_jsbsim(args) -> int:
 
 
 def _preprocess(args) -> int:
-    from .api import preprocess
+    from ..api import preprocess
     last = {}
 
     def progress(stage: str, fraction: float) -> None:
@@ -118,7 +118,7 @@ def _preprocess(args) -> int:
 
 
 def _study(args) -> int:
-    from .api import study
+    from ..api import study
     command = (f"structsearch study --data {args.data} --out {args.out}" + (f" --cache {args.cache}" if args.cache
                                                                             else "")
                + (f" --starts {args.starts}" if args.starts != 4 else ""))
@@ -129,9 +129,9 @@ def _study(args) -> int:
 
 
 def _fit(args) -> int:
-    from .api import fit
-    from .data.atomic import write_json, write_text
-    from .reporting.tables import parameter_table
+    from ..api import fit
+    from ..data.atomic import write_json, write_text
+    from ..reporting.tables import parameter_table
     if args.by_kind:
         return _fit_by_kind(args)
     if args.joint:
@@ -146,9 +146,9 @@ def _fit(args) -> int:
     for warning in summary.warnings + (summary.flight_effects.warnings if summary.flight_effects else ()):
         print(f"warning: {warning}", file=sys.stderr)
     write_json(out / "fit.json", res.to_dict())
-    from .reporting.documents import bands_table, covariance_sentence, held_out_phrase
-    from .reporting.equations import equations
-    from .reporting.profile_doc import profile_table
+    from ..reporting.documents import bands_table, covariance_sentence, held_out_phrase
+    from ..reporting.equations import equations
+    from ..reporting.profile_doc import profile_table
     model = ("## The model\n\n```\n" + "\n".join(equations(res.candidate)) + "\n```\n\nWith the estimates:\n\n```\n"
              + "\n".join(equations(res.candidate, summary.estimates.params)) + "\n```\n\n")
     write_text(out / "fit.md", f"# {res.candidate.name}\n\n" + model
@@ -167,9 +167,9 @@ def _fit(args) -> int:
 
 
 def _fit_joint(args) -> int:
-    from .api import fit_joint
-    from .data.atomic import write_json, write_text
-    from .reporting.documents import joint_markdown
+    from ..api import fit_joint
+    from ..data.atomic import write_json, write_text
+    from ..reporting.documents import joint_markdown
     res = fit_joint(args.data, args.joint, settings=_settings(args), band_samples=args.band_samples,
                     replay_maneuver=args.replay_maneuver)
     out = Path(args.out)
@@ -185,8 +185,8 @@ def _fit_joint(args) -> int:
 
 
 def _fit_by_kind(args) -> int:
-    from .api.by_kind import fit_by_kind
-    from .reporting.by_kind_doc import console_table, write
+    from ..api.by_kind import fit_by_kind
+    from ..reporting.by_kind_doc import console_table, write
     if args.joint or args.profile or args.band_samples or args.replay_maneuver is not None:
         raise_error("--by-kind goes with --model only (not --joint, --profile, --band-samples or --replay-maneuver)")
     res = fit_by_kind(args.data, args.model, settings=_settings(args), out=args.out)
@@ -197,7 +197,7 @@ def _fit_by_kind(args) -> int:
 
 
 def _search(args) -> int:
-    from .api import search
+    from ..api import search
     ranking = search(args.data, args.grid, settings=_settings(args), out=args.out, cv_method=args.cv_method,
                      scheduler=args.scheduler, max_correlation=args.max_correlation, joint_lift=args.joint_lift)
     if ranking.joint is not None:
@@ -219,7 +219,7 @@ def _held_out(s) -> str:
 
 
 def _clip(line: str) -> str:
-    from .fitting.fitter import console_line   # imported late: the command line's start stays light
+    from ..fitting.fitter import console_line   # imported late: the command line's start stays light
     return console_line(line)
 
 
@@ -229,8 +229,8 @@ def _named(names: list[str], shown: int = 3) -> str:
 
 
 def _print_winners(result) -> None:
-    from .grid_search.answer import answer_of
-    from .grid_search.ranking import passed_over
+    from ..grid_search.answer import answer_of
+    from ..grid_search.ranking import passed_over
     for grid, ranked in result.grids.items():
         ok = [s for s in ranked if not s.failed]
         skipped = [s for s in ranked if s.not_applicable]
@@ -270,7 +270,7 @@ def _print_winners(result) -> None:
 
 def _print_skipped(skipped) -> None:
     """One line per reason: the candidates the campaign cannot fit by their nature (not failures)."""
-    from .fitting.candidate_result import NOT_APPLICABLE
+    from ..fitting.candidate_result import NOT_APPLICABLE
     by_reason: dict[str, list[str]] = {}
     for s in skipped:
         by_reason.setdefault(s.error[len(NOT_APPLICABLE):], []).append(s.name)
@@ -281,12 +281,12 @@ def _print_skipped(skipped) -> None:
 def _change(x: float) -> str:
     """A relative change as a signed percentage that never reads "-0.0%": below 0.1% at two significant
     digits (a structure passed over for a change this small is why the line is printed)."""
-    from .reporting.tables import signed_percent   # the tables' "gap to best" reads the same
+    from ..reporting.tables import signed_percent   # the tables' "gap to best" reads the same
     return signed_percent(x)
 
 
 def _demo(args) -> int:
-    from .workflows import demo
+    from ..workflows import demo
     sink = _progress(args)
     # stdout's lines go through the sink too: on a terminal they must not land on a line the bar is drawn on
     say = (lambda m: sink.write(m, sys.stdout)) if sink is not None else (lambda m: print(m, flush=True))
@@ -299,7 +299,7 @@ def _demo(args) -> int:
 
 
 def _report(args) -> int:
-    from .api import report
+    from ..api import report
     res = report(args.data, args.out, settings=_settings(args),
                  diagnose=None if args.diagnose == "none" else args.diagnose, models=tuple(args.model or ()))
     _print_report(res)
@@ -315,15 +315,15 @@ def _print_report(res) -> None:
 
 def _diagnose(args) -> int:
     if args.benchmark:
-        from .cli_bench import _diagnose_benchmark
+        from .bench import _diagnose_benchmark
         return _diagnose_benchmark(args)
     baselines = [o for o, v in (("--model", args.model), ("--baseline-column", args.baseline_column),
                                 ("--simulator", args.simulator)) if v]
     if not args.data or len(baselines) != 1:
         raise_error("diagnose needs --data and one baseline: --model NAME, --baseline-column NAME or --simulator "
                     "jsbsim:AIRCRAFT (or --benchmark)" + (f"; given {', '.join(baselines)}" if baselines else ""))
-    from .api import diagnose
-    from .reporting.diagnosis_doc import diagnosis_console_lines
+    from ..api import diagnose
+    from ..reporting.diagnosis_doc import diagnosis_console_lines
     out = Path(args.out)
     diagnosis = diagnose(args.data, args.model, settings=_settings(args, "diagnose: "),
                          coefficient=args.coefficient, out=out, terms=args.terms, beam=args.beam,
@@ -335,8 +335,8 @@ def _diagnose(args) -> int:
 
 
 def _discover(args) -> int:
-    from .api import discover
-    from .reporting.discovery_doc import discovery_console_lines
+    from ..api import discover
+    from ..reporting.discovery_doc import discovery_console_lines
     out = Path(args.out)
     found = discover(args.data, args.coefficient, settings=_settings(args, "discover: "), start=args.start,
                      lifts=args.lift, terms=args.terms, beam=args.beam, max_steps=args.max_steps, out=out,
@@ -347,8 +347,8 @@ def _discover(args) -> int:
 
 
 def _compare(args) -> int:
-    from .api import Tolerances, compare_outputs
-    from .data.atomic import write_json
+    from ..api import Tolerances, compare_outputs
+    from ..data.atomic import write_json
     for d in (args.first, args.second):
         if not Path(d).is_dir():
             raise_error(f"{d}: not a directory")
@@ -360,7 +360,7 @@ def _compare(args) -> int:
 
 
 def _export(args) -> int:
-    from .api.exporting import export
+    from ..api.exporting import export
     settings = _settings(args, progress=False)
     res = export(fit_dir=args.fit, campaign=args.data, models=args.model, fmt=args.format, out=args.out,
                  check=args.check, settings=settings)
@@ -382,7 +382,7 @@ HANDLERS = {"bench": _bench, "simulate": _simulate, "preprocess": _preprocess, "
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line's parser (imports nothing heavy: ``structsearch --help`` stays fast)."""
-    from .cli_parser import build_parser as build
+    from .parser import build_parser as build
     return build(HANDLERS)
 
 
@@ -405,12 +405,12 @@ RESUMABLE = ("search", "fit", "diagnose", "discover", "report", "demo", "study")
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from .data.errors import StructSearchError
+    from ..data.errors import StructSearchError
     import signal
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, _terminate)
     import tempfile
-    from .data.atomic import remove_dead_runs
+    from ..data.atomic import remove_dead_runs
     remove_dead_runs(Path(tempfile.gettempdir()))   # what a run killed with -9 left (it could not clean up)
     try:
         return _run(args)

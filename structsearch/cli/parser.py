@@ -4,14 +4,14 @@ from __future__ import annotations
 import argparse
 from typing import Callable, Mapping
 
-from .data.coefficients import COEFFICIENTS
-from ._version import __version__
-from .cli_help import command_parser, top_level
-from .cli_options import (COVARIANCE_KINDS, CV_METHODS, DEFAULT_COVARIANCE, MAX_CORRELATION, PROFILE_CAMPAIGNS,
+from ..data.coefficients import COEFFICIENTS
+from .._version import __version__
+from .help import command_parser, top_level
+from .options import (COVARIANCE_KINDS, CV_METHODS, DEFAULT_COVARIANCE, MAX_CORRELATION, PROFILE_CAMPAIGNS,
                           SEGMENT_CHOICES, CG_MOMENTS, MOMENT_REFERENCES, _Parser, _angle_degrees, _bound, _count,
                           _cutoff, _finite_float, _fraction, _non_negative, _non_negative_float, _positive_float,
                           _seed_range)
-from .flight.names import AIRCRAFT_NAMES, ANOMALY_NAMES, WITHHOLDABLE
+from ..flight.names import AIRCRAFT_NAMES, ANOMALY_NAMES, WITHHOLDABLE
 
 BENCHMARK_PARTS = ("withheld", "anomalies", "null")
 
@@ -52,8 +52,8 @@ def _covariance_kinds(text: str) -> tuple[str, ...]:
 
 def _flight_effects(text: str) -> tuple[str, ...]:
     """``--flight-effects x_cg,intercept``: names out of structsearch.fitting.flight_effects.EFFECTS."""
-    from .data.errors import DeclarationError
-    from .fitting.flight_effects import parse_effects
+    from ..data.errors import DeclarationError
+    from ..fitting.flight_effects import parse_effects
     try:
         return parse_effects([t.strip() for t in text.split(",")], "--flight-effects")
     except DeclarationError as exc:

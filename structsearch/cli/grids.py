@@ -3,10 +3,10 @@ from __future__ import annotations
 
 
 def _grids(args) -> int:
-    from .data.errors import DeclarationError
-    from .fitting.specs import BUILTIN_GRIDS, find_candidate, load_grid
-    from .grid_search.pipeline import grids_for
-    from .reporting.equations import equations, model_equation
+    from ..data.errors import DeclarationError
+    from ..fitting.specs import BUILTIN_GRIDS, find_candidate, load_grid
+    from ..grid_search.pipeline import grids_for
+    from ..reporting.equations import equations, model_equation
     name = args.name
     if name is None:
         for grid in grids_for("all"):

@@ -1,6 +1,6 @@
 """Option types and choices of the command line, importable without numpy, scipy, sympy or pandas.
 
-``structsearch --help`` builds the parser from this module and :mod:`.cli_parser` only, so it starts
+``structsearch --help`` builds the parser from this module and :mod:`.parser` only, so it starts
 fast; the heavy modules that own these choices are checked against the copies here by
 tests/test_api.py (the engine's covariance kinds, the admissibility's correlation limit, the
 cross-validation methods).
