@@ -1,7 +1,7 @@
 """A grid with no admissible structure at all: the structure search (``discover``'s moves over the grid's term
 library) goes on from the minimal structure, and the admissible structures it fits in full are ranked beside the
-grid, marked "discovered" (docs/interfaces.md 8.1). Lift grids only: a drag or pitch structure search needs a
-lift model, which such a search would first have to find."""
+grid, marked "discovered" (docs/interfaces.md 8.1). A drag or pitch search is fed the lift model the grid's best
+fit is fed (its states and C_L), which must be one of the lift grid's structures."""
 from __future__ import annotations
 
 import dataclasses
@@ -16,10 +16,22 @@ from ..grid_search.refinement import structure_key
 
 
 def needs_discovery(ranked: list[CandidateResult]) -> bool:
-    """Whether a ranking of a lift grid holds no admissible structure (and something was fitted)."""
+    """Whether a ranking holds no admissible structure (and something was fitted)."""
     fitted = [r for r in ranked if not r.failed]
-    return (bool(fitted) and coefficient(fitted[0].coefficient).owns_states
-            and not any(r.placement.admissible for r in fitted))
+    return bool(fitted) and not any(r.placement.admissible for r in fitted)
+
+
+def _lift_of(fitter: Fitter, grid: str, ranked: list[CandidateResult]) -> tuple[tuple[str, ...], bool]:
+    """The lift model a drag or pitch search is fed (none for a lift search), and whether the search can run."""
+    best = next(r for r in ranked if not r.failed)
+    if coefficient(best.coefficient).owns_states:
+        return (), True
+    from ..fitting.specs import load_grid
+    if best.lift in {c.name for c in load_grid(LIFT.grid).candidates}:
+        return (best.lift,), True
+    fitter.say(f"grid {grid}: no admissible structure; the structure search needs a lift model of the lift grid to "
+               f"feed, and the best fit is fed {best.lift}")
+    return (), False
 
 
 def discover_beside(fitter: Fitter, grid: str, ranked: list[CandidateResult], known: list[Candidate],
@@ -28,8 +40,14 @@ def discover_beside(fitter: Fitter, grid: str, ranked: list[CandidateResult], kn
     (origin "discovered"), ranked again; and their candidates (named in the ranking, written beside it)."""
     from ..diagnosis.diagnose import diagnose_search
     from ..discovery.discover import discover_structures
-    fitter.say(f"grid {grid}: no admissible structure; the structure search goes on from the minimal structure")
-    found = discover_structures(fitter.quiet(), LIFT.name, diagnose_search, start="minimal", max_steps=max_steps)
+    lifts, possible = _lift_of(fitter, grid, ranked)
+    if not possible:
+        return ranked, []
+    fed = f" fed {lifts[0]}" if lifts else ""
+    fitter.say(f"grid {grid}: no admissible structure; the structure search goes on from the minimal structure{fed}")
+    modelled = next(r for r in ranked if not r.failed).coefficient
+    found = discover_structures(fitter.quiet(), modelled, diagnose_search, start="minimal", lifts=lifts,
+                                max_steps=max_steps)
     seen = {structure_key(c) for c in known}
     new = []
     for node in found.exploration.fitted():
