@@ -338,11 +338,30 @@ def _discover(args) -> int:
     from ..api import discover
     from ..reporting.discovery_doc import discovery_console_lines
     out = Path(args.out)
+    if args.exhaustive:
+        return _exhaustive(args, out)
     found = discover(args.data, args.coefficient, settings=_settings(args, "discover: "), start=args.start,
                      lifts=args.lift, terms=args.terms, beam=args.beam, max_steps=args.max_steps, out=out,
                      command="structsearch " + " ".join(sys.argv[1:]))
     for line in discovery_console_lines(found, out):
         print(line)
+    return 0
+
+
+def _exhaustive(args, out: Path) -> int:
+    from ..api.discovering import discover_exhaustive
+    from ..data.errors import DeclarationError
+    moves_only = [f for f, v in (("--from", args.start != "minimal"), ("--beam", args.beam is not None),
+                                 ("--max-steps", args.max_steps is not None)) if v]
+    if moves_only:
+        raise DeclarationError(f"{moves_only[0]} belongs to the search move by move, not to --exhaustive")
+    if len(args.lift) > 1:
+        raise DeclarationError("--exhaustive feeds drag and pitch structures one lift model: give --lift once")
+    ranking = discover_exhaustive(args.data, args.coefficient, settings=_settings(args, "discover: "),
+                                  max_terms=args.max_terms, lift=args.lift[0] if args.lift else None,
+                                  terms=args.terms, out=out)
+    _print_winners(ranking)
+    print(f"wrote {out / 'ranking.csv'}, the grid {out / ('exhaustive_' + args.coefficient + '.toml')} and its tables")
     return 0
 
 

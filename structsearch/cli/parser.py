@@ -398,6 +398,12 @@ def _add_discover(sub, handler: Callable) -> None:
                    help="write every task (start, end, worker, the tasks it waited for) to FILE as Chrome "
                         "trace-event JSON (opens in Perfetto; structsearch bench --trace FILE analyses it)")
     _structure_search_options(d)
+    d.add_argument("--exhaustive", action="store_true",
+                   help="instead of a search move by move: every structure of the term library of 1 to --max-terms "
+                        "terms (C_L: on two states of its own, kind U; C_D, C_m: fed --lift, default CL-VI), fitted "
+                        "as one grid of independent tasks and ranked like a grid")
+    d.add_argument("--max-terms", type=_count, default=3,
+                   help="with --exhaustive: the most terms a structure has (default 3)")
     d.add_argument("--quiet", action="store_true", help="no progress on stderr, lines or bar")
     _moment_reference_options(d)
     d.set_defaults(func=handler)
