@@ -52,12 +52,12 @@ def discover_exhaustive(campaign: Campaign | str | os.PathLike, coefficient: str
     campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     library = library_for(coefficient_record(coefficient).name, campaign.data, terms)
     fed = None if coefficient_record(coefficient).owns_states else load_grid("lift")[lift or FINAL_MODEL_NAMES["CL"]]
-    n = len(library_terms(library, fed))
+    terms = library_terms(library, fed)
     candidates = structures(library, max_terms, fed)
     if settings.progress is not None:
-        settings.progress(f"discover --exhaustive: {len(candidates)} structures of 1 to {min(max_terms, n)} of "
-                          f"{n} terms ({count(n, n)} with every number of terms)"
-                          + (f", fed {fed.name}" if fed is not None else ""))
+        settings.progress(f"discover --exhaustive: {len(candidates)} structures of 1 to {min(max_terms, len(terms))} "
+                          f"of {len(terms)} terms ({count(terms, len(terms), fed is not None)} with every number of "
+                          "terms)" + (f", fed {fed.name}" if fed is not None else ", each state S, Q or U"))
     Path(out).mkdir(parents=True, exist_ok=True)
     spec = Path(out) / f"exhaustive_{coefficient}.toml"
     write_text(spec, grid_text(candidates, f"written by structsearch discover --exhaustive (up to {max_terms} terms)"))
