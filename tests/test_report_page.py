@@ -205,6 +205,9 @@ def test_the_first_screen_gives_every_coefficients_verdict_and_simulator_gap():
     assert "CL_KL_w = -4.14" in text and "B, fits +113.7 % worse" in text and "not an answer" in text
     assert page_title({"CL": near, "CD": near}) == "identified models"
     assert page_title({"CL": far, "CD": near}) == "search results, no admissible structure near the best fit for CL"
+    # a lift-only search shown beside the thesis' drag and pitch: they have no verdict, and the title says so
+    assert page_title({"CL": near}, ["CL", "CD", "Cm"]) == "search results, CD, Cm shown without a search's verdict"
+    assert page_title({"CL": near, "CD": near, "Cm": near}, ["CL", "CD", "Cm"]) == "identified models"
     # a row per coefficient: the verdict, then the simulator's gap where a story diagnosed it
     c = find_candidate("CL-I")
     result = SimpleNamespace(estimates=SimpleNamespace(params={}, stderr={}, names=()), comparison=SimpleNamespace(mse=1.0),
@@ -212,7 +215,7 @@ def test_the_first_screen_gives_every_coefficients_verdict_and_simulator_gap():
                              mse_validation=1.0, n_params=7)
     page = visible_text(answer_html({"CL": (c, result, None)}, "ranked first", None, None, {"CL": far},
                                     {"CL": _diagnosis(False)}))
-    assert "The search's answers" in page and "No admissible structure within 25 %" in page
+    assert "The models shown" in page and "No admissible structure within 25 %" in page
     assert "The simulator's gap: its model Cm-X against the flight data." in page and "Where it misses" in page
 
 

@@ -211,6 +211,10 @@ def _search(args) -> int:
     return 0
 
 
+def _parameters(n: int) -> str:
+    return f"{n} parameter" + ("" if n == 1 else "s")
+
+
 def _held_out(s) -> str:
     if s.cv is None:
         return "validation"
@@ -243,7 +247,7 @@ def _print_winners(result) -> None:
         # without cross-validation the held-out MSE is the validation MSE: said once
         scores = f"{_held_out(best)} MSE {best.comparison.mse:.4g}" + (
             f", validation MSE {best.mse_validation:.4g}" if best.cv is not None else "")
-        parts = [f"{grid}: {best.name} ({best.n_params} parameters, {scores})"]
+        parts = [f"{grid}: {best.name} ({_parameters(best.n_params)}, {scores})"]
         n_admissible = sum(bool(s.placement.admissible) for s in ok)
         parts.append(f"{n_admissible} of {len(ok)} admissible" if best.placement.admissible else
                      f"NOT admissible (none of {len(ok)} is)")
@@ -254,7 +258,7 @@ def _print_winners(result) -> None:
         if not_converged:
             parts.append(f"optimizer did not converge for {_named(not_converged)}")
         if runner_up is not None:
-            parts.append(f"next {runner_up.name} ({runner_up.n_params} parameters, "
+            parts.append(f"next {runner_up.name} ({_parameters(runner_up.n_params)}, "
                          f"{_change(runner_up.comparison.mse / best.comparison.mse - 1)})")
         parts.append(f"{result.seconds[grid]:.1f} s")
         print(_clip("; ".join(parts)))

@@ -114,9 +114,11 @@ def verdict_text(verdict: Mapping | None) -> str:
             f"is not admissible ({reasons}); {other}. The structure below is not an answer.")
 
 
-def answered(verdicts: Mapping[str, Mapping]) -> bool:
-    """Whether every coefficient with a verdict has an admissible answer."""
-    return all(v.get("status") == "admissible" for v in verdicts.values())
+def answered(verdicts: Mapping[str, Mapping], shown=None) -> bool:
+    """Whether every coefficient with a verdict has an admissible answer, and every coefficient ``shown`` (default:
+    those with a verdict) has a verdict."""
+    return all(v.get("status") == "admissible" for v in verdicts.values()) and all(
+        c in verdicts for c in (shown if shown is not None else verdicts))
 
 
 def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis | None,
@@ -125,7 +127,7 @@ def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis 
     """The first section of the page (module docstring); ``gaps``: per coefficient a diagnosis of the simulator's
     model (the demo's story), whose gap story each coefficient's row gives."""
     verdicts, gaps = verdicts or {}, gaps or {}
-    title = "The identified models" if answered(verdicts) else "The search's answers"
+    title = "The identified models" if answered(verdicts, answers) else "The models shown"
     parts = [f"<section id='answer'><h2>{title}</h2>",
              f"<p class='source'>Each coefficient's structure {html.escape(source)}; estimates ± one standard "
              "deviation, rounded to it.</p>"]

@@ -78,7 +78,7 @@ def _compare(ax, model_xy, van_ingen_xy, names, points_xy=None) -> None:
     if points_xy is not None:
         ax.scatter(*points_xy, s=2, color=COLOURS["measured"], alpha=0.35, rasterized=True,
                    label="measured, corrected to the static condition")
-    ax.plot(*model_xy, color=COLOURS["model"], lw=2.2, label=f"{names[0]} (identified)")
+    ax.plot(*model_xy, color=COLOURS["model"], lw=2.2, label=f"{names[0]} (fitted)")
     if van_ingen_xy is not None:
         ax.plot(*van_ingen_xy, color=COLOURS["van_ingen"], lw=1.8, ls="--", label=f"{names[1]} (Van Ingen structure)")
 

@@ -130,7 +130,7 @@ def _static_figures(emit: Emit, campaign: Campaign, names: Mapping[str, str], ms
          "separate (X_0 = 0.9), half separated (alpha*, X_0 = 0.5), fully stalled (X_0 = 0.1) (thesis Fig. 6).")
     bands = {coef: static_bands(ms.candidates[coef], ms.summaries[coef], train, ms.lift if coef != "CL" else None)
              for coef in ("CL", "Cm")}
-    band_text = ("Shaded: the identified curve's 95 % confidence band (where the true static curve lies: the delta "
+    band_text = ("Shaded: the fitted curve's 95 % confidence band (where the true static curve lies: the delta "
                  "method on the parameters' covariance, each point's t quantile with its own effective maneuvers) "
                  "and, lighter, its 95 % prediction band (where a new measurement at that alpha lies: plus the "
                  "training residual's variance in its alpha band), over the flown alpha range.")

@@ -167,19 +167,26 @@ def diagnosis_html(diagnosis: dict) -> str:
     return "".join(parts)
 
 
-def page_title(verdicts) -> str:
-    """The page's title: "identified models" only when the search answers every coefficient it judged."""
-    missing = [c for c, v in (verdicts or {}).items() if v.get("status") != "admissible"]
-    if not missing:
+def page_title(verdicts, shown=None) -> str:
+    """The page's title: "identified models" only when the search answers every coefficient it judged and judged
+    every coefficient the page shows (``shown``; default those judged): a structure shown without the search's
+    verdict (a grid not searched, a model named with --model) is said to be one."""
+    verdicts = verdicts or {}
+    missing = [c for c, v in verdicts.items() if v.get("status") != "admissible"]
+    unjudged = [c for c in (shown if shown is not None else verdicts) if c not in verdicts]
+    if not missing and not unjudged:
         return "identified models"
-    return f"search results, no admissible structure near the best fit for {', '.join(missing)}"
+    parts = ([f"no admissible structure near the best fit for {', '.join(missing)}"] if missing else []) + (
+        [f"{', '.join(unjudged)} shown without a search's verdict"] if unjudged else [])
+    return "search results, " + "; ".join(parts)
 
 
 def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, story=None, gaps=None) -> str:
     """The page (module docstring)."""
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
-    sections = [("answer", "The identified models" if answered(fits.verdicts) else "The search's answers"), ("notes", "How the models were chosen"),
+    sections = [("answer", "The identified models" if answered(fits.verdicts, fits.answers) else "The models shown"),
+                ("notes", "How the models were chosen"),
                 ("parameters", "Identified parameters")] + ([("figures", "Figures")] if written else [])
     if diagnosis is not None:
         sections.append(("diagnosis", f"Diagnosis of {diagnosis['baseline']}"))
@@ -195,7 +202,7 @@ def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, st
         sections.append(("rankings", "Search rankings"))
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>structsearch report: "
              f"{html.escape(campaign.name)}</title><style>{STYLE}</style></head><body>",
-             f"<h1>{html.escape(campaign.name)}: {page_title(fits.verdicts)}</h1>",
+             f"<h1>{html.escape(campaign.name)}: {page_title(fits.verdicts, list(fits.answers))}</h1>",
              summary_html(fits.answers, fits.verdicts),
              answer_html(fits.answers, fits.source, None if diagnosis is None else Diagnosis.from_dict(diagnosis),
                          fits.diagnosis_coefficient, fits.verdicts, gaps),
