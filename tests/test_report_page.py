@@ -239,3 +239,24 @@ def test_the_equations_are_mathematics_on_the_page_with_nothing_fetched():
     block = mathml(c)
     assert block.startswith("<div class='math'>") and block.count("<math display=\"block\">") == len(latex_equations(c))
     assert "http" not in block and "<msub><mi>C</mi><mi>L</mi></msub>" in block
+
+
+def test_the_first_screen_names_the_effects_adopted_never_one_that_costs():
+    """A look-ahead move listed first in round 1 that raises the validation MSE (closes -23 % of the gap), and an
+    effect adopted in round 2 that closes most of it: the gap story's line names the adopted effect with its share
+    of the first round's gap, and not the move that costs."""
+    from structsearch.diagnosis.results import Diagnosis, EffectRow, Round, TrainValidation, Unexplained
+    from structsearch.reporting.answer import gap_story
+    floor = 1.0
+    ahead = EffectRow("lift CL-I -> CL-story", None, 2.23, 2.23, None, 1.0, {}, False, "m + lift")
+    cheap = EffectRow("second_state", None, 1.5, 1.5, None, 1e-9, {}, False, "m + state")
+    shift = EffectRow("cp_shift", None, 1.27, 1.27, None, 1e-9, {}, False, "m + state + cp")
+    first = Round("Cm-I", TrainValidation(2.0, 2.0), floor, "saturated", floor, 0.1, (), (ahead, cheap), False, 1.0,
+                  0.1, 1e-9, "second_state", floor, 1.0)
+    second = Round("Cm-I + second_state", TrainValidation(1.5, 1.5), floor, "saturated", floor, 0.1, (), (shift,),
+                   False, 0.5, 0.1, 1e-9, "cp_shift", floor, 0.5)
+    d = Diagnosis("Cm", "Cm-I", floor, "saturated", floor, False, 0.27, 0.05, (first, second), "Cm-I + cp", 1.27,
+                  Unexplained(0.27, 0, 0.0), seconds=1.0)
+    line = gap_story(d)[1]
+    assert line == "Which effect: adopted second_state (closes 50% of the gap), then cp_shift (closes 23% of the gap)."
+    assert "CL-story" not in line

@@ -74,7 +74,7 @@ def _simulate(args) -> int:
     n_nominal = sum(m.kind == "nominal" for m in campaign.maneuvers)
     flown += f", {n_nominal} of them nominal" if n_nominal else ""
     print(f"wrote {out}: {len(campaign.maneuvers)} maneuvers ({n_val} validation){flown}, {d.n_samples} samples; "
-          f"truth: {campaign.extra['truth']}")
+          f"truth: {_truth_words(campaign.extra['truth'])}")
     return 0
 
 
@@ -209,6 +209,11 @@ def _search(args) -> int:
     _print_winners(ranking)
     print(f"wrote {Path(args.out) / 'ranking.csv'} and the tables of each grid")
     return 0
+
+
+def _truth_words(name: str) -> str:
+    """The simulated truth, in words (the default one has no other name than "truth")."""
+    return "the default (the thesis' identified models)" if name == "truth" else name
 
 
 def _parameters(n: int) -> str:

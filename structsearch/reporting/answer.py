@@ -5,6 +5,7 @@ thesis' Van Ingen argument and named the fitted models in one line)."""
 from __future__ import annotations
 
 import html
+import math
 import re
 from typing import Mapping, Sequence
 
@@ -43,6 +44,27 @@ def _top(doc: Diagnosis, dimension: str):
     return max(rows, key=lambda w: w.share) if rows else None
 
 
+def _which_effect(doc: Diagnosis) -> str:
+    """The effects the diagnosis adopted, round by round, each with the share of the first round's gap it closes;
+    without one, the round's effect that closes most (never one that costs, never one a test rejected as the
+    answer)."""
+    adopted = [(i, r.effect(r.adopted)) for i, r in enumerate(doc.rounds) if r.adopted and r.effect(r.adopted)]
+    if adopted:
+        steps = [f"{e.name} (closes {share(doc.closes(i, e))} of the gap)" for i, e in adopted]
+        return "Which effect: adopted " + ", then ".join(steps) + "."
+    fitted = [e for e in doc.effects if not e.failed]
+    if not fitted:
+        return "Which effect: every effect of the library failed to fit (diagnosis table below)."
+    best = max(fitted, key=lambda e: doc.closes(0, e) if doc.closes(0, e) == doc.closes(0, e) else -math.inf)
+    if doc.gap_explained_by_baseline:
+        return (f"Which effect: the best, {best.name}, changes the validation MSE to "
+                f"{sig(best.mse_validation_after, 3)}; there is no gap for it to close.")
+    closes = doc.closes(0, best)
+    if not closes > 0:
+        return f"Which effect: none; no effect of the library closes any of the gap (the best, {best.name}, {share(closes)})."
+    return f"Which effect: none adopted; the best, {best.name}, would close {share(closes)} of the gap but fails its test."
+
+
 def gap_story(doc: Diagnosis) -> list[str]:
     """Where the model misses, which effect closes how much, what is left: three lines."""
     m, floor = doc.mse.validation, doc.noise_floor
@@ -54,18 +76,7 @@ def gap_story(doc: Diagnosis) -> list[str]:
         spots = " and ".join(f"{share(b.share)} in the {b.dimension.replace('_', ' ')} {b.bin}" for b in bins)
         where = (f"Where it misses: validation MSE {sig(m, 3)}, {share(m / floor - 1)} above the noise floor "
                  f"{sig(floor, 3)}" + (f"; of the gap, {spots}." if spots else "."))
-    best = doc.best_effect
-    if best is None:
-        effect = "Which effect: every effect of the library failed to fit (diagnosis table below)."
-    elif doc.gap_explained_by_baseline:
-        effect = (f"Which effect: the best, {best.name}, changes the validation MSE to {sig(best.mse_validation_after, 3)}; "
-                  "there is no gap for it to close.")
-    else:
-        effect = (f"Which effect: {best.name} closes {share(doc.closes(0, best))} of the gap"
-                  + (f" (p = {best.p_value:.2g})" if best.p_value is not None else "") + ".")
-        second = [e for e in doc.effects if not e.failed and e is not best][:1]
-        if second:
-            effect += f" Next best: {second[0].name}, {share(doc.closes(0, second[0]))}."
+    effect = _which_effect(doc)
     left = unexplained_sentence(doc)
     rest = (f"What is left: {left}" if left else
             f"What is left: {doc.final_model} is at the noise floor." if doc.explained else
