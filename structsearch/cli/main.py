@@ -252,7 +252,11 @@ def _print_winners(result) -> None:
         # without cross-validation the held-out MSE is the validation MSE: said once
         scores = f"{_held_out(best)} MSE {best.comparison.mse:.4g}" + (
             f", validation MSE {best.mse_validation:.4g}" if best.cv is not None else "")
-        parts = [f"{grid}: {best.name} ({_parameters(best.n_params)}, {scores})"]
+        answer = answer_of(ranked)
+        # rank 1 is the answer only when it is admissible and near the best fit: otherwise the line says so first
+        no_answer = answer is not None and not answer.answered and best.placement.admissible
+        parts = [f"{grid}: " + ("no answer, rank 1 " if no_answer else "")
+                 + f"{best.name} ({_parameters(best.n_params)}, {scores})"]
         n_admissible = sum(bool(s.placement.admissible) for s in ok)
         parts.append(f"{n_admissible} of {len(ok)} admissible" if best.placement.admissible else
                      f"NOT admissible (none of {len(ok)} is)")
@@ -267,7 +271,6 @@ def _print_winners(result) -> None:
                          f"{_change(runner_up.comparison.mse / best.comparison.mse - 1)})")
         parts.append(f"{result.seconds[grid]:.1f} s")
         print(_clip("; ".join(parts)))
-        answer = answer_of(ranked)
         if answer is not None and not answer.answered:
             # the whole sentence, uncut: it is the search's answer
             print(f"  {grid}: {answer.sentence()}")
@@ -318,8 +321,9 @@ def _report(args) -> int:
 def _print_report(res) -> None:
     for note in res.notes:
         print(f"note: {note}")
-    print(f"wrote {res.html} with {len(res.figures)} figures in {res.html.parent / 'figures'} "
-          f"({res.seconds:.0f} s)")
+    drawn = (f"with {len(res.figures)} figure{'' if len(res.figures) == 1 else 's'} in {res.html.parent / 'figures'}"
+             if res.figures else "without figures (the notes above say why)")
+    print(f"wrote {res.html} {drawn} ({res.seconds:.0f} s)")
 
 
 def _diagnose(args) -> int:
