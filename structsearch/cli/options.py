@@ -138,3 +138,23 @@ def _jobs(args) -> int:
 def _bounds(args) -> tuple:
     """The --bound options as ((name, (lo, hi)), ...), the last one of a name winning."""
     return tuple(sorted(dict(getattr(args, "bound", None) or []).items()))
+
+
+def _covariance_kinds(text: str) -> tuple[str, ...]:
+    """``--kinds hac-maneuver,hac-flight``: covariance kinds out of COVARIANCE_KINDS, each once."""
+    kinds = tuple(dict.fromkeys(k.strip() for k in text.split(",") if k.strip()))
+    unknown = [k for k in kinds if k not in COVARIANCE_KINDS]
+    if not kinds or unknown:
+        raise argparse.ArgumentTypeError(f"unknown covariance kind {unknown[0] if unknown else text!r}; known: "
+                                         f"{', '.join(COVARIANCE_KINDS)}")
+    return kinds
+
+
+def _flight_effects(text: str) -> tuple[str, ...]:
+    """``--flight-effects x_cg,intercept``: names out of structsearch.fitting.flight_effects.EFFECTS."""
+    from ..data.errors import DeclarationError
+    from ..fitting.flight_effects import parse_effects
+    try:
+        return parse_effects([t.strip() for t in text.split(",")], "--flight-effects")
+    except DeclarationError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--flight-effects: ")) from None

@@ -197,23 +197,10 @@ def read_campaign(directory: Path | str, fmt: str = "standard", segment: str | N
     extra = {k: v for k, v in doc.items() if k not in RESERVED_KEYS and not isinstance(v, (dict, list))}
     if isinstance(doc.get("source"), dict):   # where a simulated campaign comes from (a simulator, its aircraft)
         extra["source"] = dict(doc["source"])
-    required, angles = (RAW_REQUIRED, RAW_ANGLES) if fmt == "raw" else (REQUIRED, ANGLES)
     if segment is not None and segment not in records.SEGMENT_CHOICES:
         raise DataError(f"segment must be one of {', '.join(records.SEGMENT_CHOICES)}, not {shown(segment)}")
     rules = records.LengthRules.parse(doc.get("min_convective_times"), KINDS, toml)
-    sample_rate = _sample_rate(doc, toml)
-    segments, pieces, steps = [], [], []
-    for i, m in enumerate(maneuvers):
-        path = inside(directory, m.file, f"{toml} [[maneuver]] #{i + 1}", "file")
-        columns = _with_time(_read_table(path), m, str(path), fmt, f"{toml} [[maneuver]] #{i + 1}")
-        validate_maneuver(columns, path, required, angles, cbar=aircraft["cbar"], rule=rules.for_kind(m.kind),
-                          sample_rate=sample_rate, v_range=aircraft.get("V_range"), steady=m.steady)
-        steps.append(float("nan") if m.steady else units.median_step(columns["t"]))
-        for piece, cut in _pieces(m, columns, path, doc["maneuver"][i], segment, rules, aircraft["cbar"],
-                                  f"{toml} [[maneuver]] #{i + 1}", derive_alpha_dot=fmt != "raw"):
-            pieces.append(piece)
-            segments.append(cut)
-    units.check_steps_across(steps, [str(directory / m.file) for m in maneuvers])
+    pieces, segments = _read_maneuvers(directory, doc, maneuvers, aircraft, fmt, segment, rules)
     ids = [m.id for m in pieces]
     if len(set(ids)) != len(ids):
         twice = next(x for x in ids if ids.count(x) > 1)
@@ -294,6 +281,29 @@ def _join_written_cycles(maneuvers: list, segments: list, toml: str) -> tuple[li
         out_s.append({k: np.concatenate([np.asarray(p[k]) for p in parts]) for k in keys})
         i = j
     return out_m, out_s
+
+
+def _read_maneuvers(directory: Path, doc: dict, maneuvers: list[Maneuver], aircraft: Mapping[str, object], fmt: str,
+                    segment: str | None, rules: records.LengthRules) -> tuple[list[Maneuver], list[dict]]:
+    """Each maneuver's file read, checked (:func:`validate_maneuver`, and its time step against the others') and cut
+    into the maneuvers it gives (itself, or its cycles), in the manifest's order."""
+    toml = str(directory / "campaign.toml")
+    required, angles = (RAW_REQUIRED, RAW_ANGLES) if fmt == "raw" else (REQUIRED, ANGLES)
+    sample_rate = _sample_rate(doc, toml)
+    segments, pieces, steps = [], [], []
+    for i, m in enumerate(maneuvers):
+        where = f"{toml} [[maneuver]] #{i + 1}"
+        path = inside(directory, m.file, where, "file")
+        columns = _with_time(_read_table(path), m, str(path), fmt, where)
+        validate_maneuver(columns, path, required, angles, cbar=aircraft["cbar"], rule=rules.for_kind(m.kind),
+                          sample_rate=sample_rate, v_range=aircraft.get("V_range"), steady=m.steady)
+        steps.append(float("nan") if m.steady else units.median_step(columns["t"]))
+        for piece, cut in _pieces(m, columns, path, doc["maneuver"][i], segment, rules, aircraft["cbar"], where,
+                                  derive_alpha_dot=fmt != "raw"):
+            pieces.append(piece)
+            segments.append(cut)
+    units.check_steps_across(steps, [str(directory / m.file) for m in maneuvers])
+    return pieces, segments
 
 
 def _with_time(columns: dict, m: Maneuver, path: str, fmt: str, where: str) -> dict:

@@ -190,6 +190,29 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
     channels, the declared ``sample_rate`` [Hz] and the aircraft's ``v_range`` [m/s] (:mod:`.units`). ``steady``
     points have no time step, duration or rate to check; their alpha_dot, where given, is zero."""
     source = str(path)
+    _check_required(columns, source, required)
+    n = len(columns["t"])
+    if n < MIN_SAMPLES and not steady:   # steady points are each an equilibrium: no dynamics to follow
+        raise DataError(f"maneuver has {n} samples; it needs at least {MIN_SAMPLES} to fit separation dynamics",
+                        source=source, column="t")
+    _check_values(columns, source)
+    _check_time_and_speed(columns, source)
+    if not steady:
+        units.check_step(columns["t"], source, sample_rate)
+    why = None if cbar is None or steady else (rule or records.LengthRule()).problem(columns["t"], columns["V"], cbar)
+    if why is not None:
+        raise DataError(f"maneuver is too short to fit separation dynamics: {why}", source=source, column="t")
+    _check_angles(columns, source, angles)
+    _check_rates(columns, source)
+    if steady:
+        check_steady(columns, source)
+    else:
+        units.check_rate_units(columns, source)
+    units.check_airspeed_units(columns, source, v_range)
+
+
+def _check_required(columns: Mapping[str, np.ndarray], source: str, required) -> None:
+    """Each required column present, or one error naming it (and the column a typo or a space made of it)."""
     names = [c for c in columns if c != LINE_KEY]
     for col in required:
         if col not in columns:
@@ -200,11 +223,11 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
                     " (a phase-averaged cycle without time stamps: give its frequency in Hz in its [[maneuver]] "
                     "entry)" if col == "t" else "")
             raise DataError(f"required column is missing{hint}", source=source, column=col)
-    n = len(columns["t"])
-    if n < MIN_SAMPLES and not steady:   # steady points are each an equilibrium: no dynamics to follow
-        raise DataError(f"maneuver has {n} samples; it needs at least {MIN_SAMPLES} to fit separation dynamics",
-                        source=source, column="t")
-    for col in names:
+
+
+def _check_values(columns: Mapping[str, np.ndarray], source: str) -> None:
+    """Every value finite and of a magnitude whose square a fit can hold."""
+    for col in (c for c in columns if c != LINE_KEY):
         values = columns[col]
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
@@ -215,9 +238,11 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
             raise DataError(f"value {values[huge[0]]:g} is an absurd magnitude (above {MAX_MAGNITUDE:g}): its squares "
                             "would overflow a fit" + _row_message(columns, int(huge[0])), source=source, column=col,
                             row=int(huge[0]))
-    t = columns["t"]
-    step = np.diff(t)
-    bad = np.flatnonzero(step <= 0)
+
+
+def _check_time_and_speed(columns: Mapping[str, np.ndarray], source: str) -> None:
+    """Time strictly increasing; airspeed positive."""
+    bad = np.flatnonzero(np.diff(columns["t"]) <= 0)
     if bad.size:
         raise DataError("time is not strictly increasing" + _row_message(columns, int(bad[0]) + 1),
                         source=source, column="t", row=int(bad[0]) + 1)
@@ -225,11 +250,10 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
     if slow.size:
         raise DataError(f"airspeed {columns['V'][slow[0]]:g} m/s is not positive"
                         + _row_message(columns, int(slow[0])), source=source, column="V", row=int(slow[0]))
-    if not steady:
-        units.check_step(t, source, sample_rate)
-    why = None if cbar is None or steady else (rule or records.LengthRule()).problem(t, columns["V"], cbar)
-    if why is not None:
-        raise DataError(f"maneuver is too short to fit separation dynamics: {why}", source=source, column="t")
+
+
+def _check_angles(columns: Mapping[str, np.ndarray], source: str, angles) -> None:
+    """Angles in radians: a value beyond :data:`MAX_ANGLE_RAD` is in degrees."""
     for col in angles:
         if col in columns:
             big = np.flatnonzero(np.abs(columns[col]) > MAX_ANGLE_RAD)
@@ -237,12 +261,6 @@ def validate_maneuver(columns: Mapping[str, np.ndarray], path: Path, required=RE
                 raise DataError(f"value {columns[col][big[0]]:g} looks like degrees; angles must be in "
                                 f"radians" + _row_message(columns, int(big[0])), source=source, column=col,
                                 row=int(big[0]))
-    _check_rates(columns, source)
-    if steady:
-        check_steady(columns, source)
-    else:
-        units.check_rate_units(columns, source)
-    units.check_airspeed_units(columns, source, v_range)
 
 
 # Body rates beyond a full turn per second are not flown by a fixed-wing aircraft: degrees per second.

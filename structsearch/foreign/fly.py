@@ -24,7 +24,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Mapping
-from pathlib import Path
 import numpy as np
 
 from ..data.campaign import Campaign, Maneuver, make_campaign
