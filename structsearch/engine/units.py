@@ -23,7 +23,7 @@ COLUMN_UNITS: Mapping[str, Mapping[str, int]] = {
     "t": {"s": 1}, "alpha": {"rad": 1}, "q": {"rad": 1, "s": -1}, "V": {"m": 1, "s": -1}, "de": {"rad": 1},
     "CL": {}, "CD": {}, "Cm": {}, "alpha_dot": {"rad": 1, "s": -1}, "CT": {}, "x_cg": {"m": 1},
     "theta": {"rad": 1}, "h": {"m": 1}, "CX": {}, "CZ": {}, "beta": {"rad": 1}, "p": {"rad": 1, "s": -1},
-    "r": {"rad": 1, "s": -1}, "da": {"rad": 1}, "dr": {"rad": 1},
+    "r": {"rad": 1, "s": -1}, "da": {"rad": 1}, "dr": {"rad": 1}, "phi": {"rad": 1}, "CY": {}, "Cl": {}, "Cn": {},
     "cbar": {"m": 1}, "S": {"m": 2}, "b": {"m": 1},
 }
 # the separation parameters of every state (their names carry the state's suffix: tau1_ss, a_star_w): the time
