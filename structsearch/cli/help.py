@@ -104,7 +104,7 @@ COMMANDS: dict[str, CommandHelp] = {
         "searches every grid, tells the story of Van Ingen's models against the flight data (a diagnosis of "
         "each), writes the thesis' comparison tables and the report. Reads nothing; writes campaign/, "
         "ranking.csv and the grids' tables, story.json and story.md, study/ and report.html to --out (a full "
-        "run: about 11 minutes on 2 cores; --scale 0.05: about two).",
+        "run: 7 to 11 minutes on 2 cores; --scale 0.05: about two).",
         ("structsearch demo --out results --scale 0.05   # a quick look",
          "structsearch demo --out results")),
     "compare": CommandHelp(

@@ -157,8 +157,9 @@ def answer_html(answers: Mapping[str, tuple], source: str, diagnosis: Diagnosis 
                          "against the flight data.</p><ul class='gap'>"
                          + "".join(f"<li>{html.escape(t)}</li>" for t in gap_story(gaps[coef])) + "</ul>")
         if diagnosis is not None and coef == diagnosed:
-            parts.append("<ul class='gap'>" + "".join(f"<li>{html.escape(t)}</li>" for t in gap_story(diagnosis))
-                         + "</ul>")
+            parts.append(f"<p class='source'>This report's diagnosis: {html.escape(diagnosis.baseline)} against the "
+                         "flight data.</p><ul class='gap'>"
+                         + "".join(f"<li>{html.escape(t)}</li>" for t in gap_story(diagnosis)) + "</ul>")
         elif diagnosis is not None and coef not in gaps:   # one diagnosis per report: where the others' come from
             parts.append(f"<p class='source'>Gap story: not diagnosed in this report (structsearch report "
                          f"--diagnose {coef}, or structsearch diagnose --model {html.escape(c.name)}).</p>")
