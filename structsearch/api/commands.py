@@ -11,6 +11,7 @@ from typing import Callable, Mapping, Sequence
 
 from ..data.campaign import Campaign, read_campaign
 from ..data.atomic import write_json
+from ..data.coefficients import COEFFICIENTS, coefficient as coefficient_record
 from ..data.errors import DeclarationError
 from ..fitting.options import check_box_names
 from ..fitting.pools import warm_workers
@@ -96,7 +97,7 @@ def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence
     if progress is not None:
         progress("fit: " + " + ".join(c.name for c in candidates) + " jointly")
     joint = run(candidates, campaign.split("train"), campaign.split("validation"), options, band_samples=band_samples)
-    if band_samples and {c.coefficient for c in candidates} == {"CL", "CD", "Cm"}:
+    if band_samples and {c.coefficient for c in candidates} == set(COEFFICIENTS):
         import dataclasses
         from ..flight.replay_bands import replay_band
         if progress is not None:
@@ -170,7 +171,7 @@ def _joint_lift_structures(joint_lift: str | Sequence[str], settings: Settings, 
     from ..engine.twostep import SCORE_KINDS
     from ..fitting.joint import joint_structures
     joint = joint_structures(joint_lift if isinstance(joint_lift, str) else ",".join(joint_lift))
-    if not any(c.coefficient == "CL" for c in joint):
+    if not any(coefficient_record(c.coefficient).owns_states for c in joint):
         raise DeclarationError("--joint-lift: the joint structures need a lift structure (CL-...) for drag "
                                "and pitch to read")
     if settings.covariance not in SCORE_KINDS:

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from ..data.campaign import Campaign
+from ..data.coefficients import coefficient
 from ..data.errors import DataError, DeclarationError
 from ..fitting.fitter import Fitter
 from ..fitting.lift_fit import LiftFit
@@ -63,9 +64,9 @@ def answer_fits(fitter: Fitter, choice, identified) -> dict:
     out = {}
     for coef, c in choice.winners.items():
         if identified is not None and identified.candidates[coef] == c:
-            out[coef] = (c, identified.summaries[coef], None if coef == "CL" else identified.lift)
+            out[coef] = (c, identified.summaries[coef], None if coefficient(coef).owns_states else identified.lift)
             continue
-        if coef == "CL":
+        if coefficient(coef).owns_states:
             result, lift = fitter.fit_one(c), None
         else:
             lift_c = choice.lifts[coef]

@@ -10,7 +10,7 @@ from typing import Any, Callable
 
 from ..data.errors import DeclarationError
 from ..fitting.fitter import Fitter
-from ..data.coefficients import GRID_OF
+from ..data.coefficients import COEFFICIENTS, GRID_OF
 from .discovered import Discovery, build_discovery
 from .explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, Exploration
 from .moves import DISCOVER_KINDS, MOVE_KINDS
@@ -22,8 +22,9 @@ def minimal(coefficient: str, lift: str | None):
     """The minimal structure: the intercept alone (a drag or pitch one fed the lift model ``lift``)."""
     from ..fitting.candidates import Candidate
     from ..fitting.specs import load_grid
-    if coefficient == "CL":
-        return Candidate("CL-minimal", "discover", "CL", (("CL0", "1"),), note="the intercept alone")
+    if COEFFICIENTS[coefficient].owns_states:
+        return Candidate(f"{coefficient}-minimal", "discover", coefficient, ((f"{coefficient}0", "1"),),
+                         note="the intercept alone")
     lift_c = load_grid("lift")[lift]
     return Candidate(f"{coefficient}-minimal", "discover", coefficient, ((f"{coefficient}0", "1"),), lift_c.states,
                      lift, "the intercept alone", lift_c.bounds, lift_c.forms)
@@ -32,7 +33,7 @@ def minimal(coefficient: str, lift: str | None):
 def _start(coefficient: str, start: str, lift_names: list[str]):
     from ..fitting.specs import resolve_candidate
     if start == "minimal":
-        return minimal(coefficient, lift_names[0] if coefficient != "CL" else None)
+        return minimal(coefficient, None if COEFFICIENTS[coefficient].owns_states else lift_names[0])
     c = resolve_candidate(start)
     if c.coefficient != coefficient:
         raise DeclarationError(f"--from {start}: {c.name} models {c.coefficient}, not {coefficient}")
@@ -81,7 +82,7 @@ def discover_structures(fitter: Fitter, coefficient: str, diagnose_search: Diagn
 def _lift_models(fitter: Fitter, first, candidates) -> dict:
     """The lift models a drag or pitch structure may be fed, fitted (none for a lift structure)."""
     from ..fitting.lift_fit import LiftFit
-    if first.coefficient == "CL":
+    if COEFFICIENTS[first.coefficient].owns_states:
         return {}
     fitter.say(f"fitting the lift model{'s' if len(candidates) > 1 else ''} {', '.join(c.name for c in candidates)}")
     lifts = {}

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
-from ..data.coefficients import GRID_OF
+from ..data.coefficients import GRID_OF, LIFT, coefficient
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..data.manifest import check_set
@@ -215,8 +215,9 @@ def applicable_models(winners: Mapping[str, Candidate], campaign: Campaign, note
         missing = missing_columns(c, campaign)
         if not missing:
             continue
-        grid = lift_grid if coef == "CL" else load_grid(GRID_OF[coef], lift_grid)
-        lift = None if coef == "CL" else (c.lift or out["CL"].name)
+        owns = coefficient(coef).owns_states
+        grid = lift_grid if owns else load_grid(GRID_OF[coef], lift_grid)
+        lift = None if owns else (c.lift or out[LIFT.name].name)
         substitute = next((s for s in grid.candidates
                            if not missing_columns(s, campaign) and (lift is None or s.lift == lift)), None)
         if substitute is None and coef in optional:

@@ -108,7 +108,7 @@ def _with_answers(fits: ReportFits) -> ReportFits:
     """``fits`` answering with the figures' set (a caller that fitted no separate answers)."""
     import dataclasses
     ms = fits.identified
-    answers = {coef: (ms.candidates[coef], ms.summaries[coef], None if coef == "CL" else ms.lift)
+    answers = {coef: (ms.candidates[coef], ms.summaries[coef], None if COEFFICIENTS[coef].owns_states else ms.lift)
                for coef in COEFFICIENTS}
     return dataclasses.replace(fits, answers=answers, source=fits.source or "shown in the figures")
 
