@@ -151,6 +151,7 @@ def test_the_report_of_a_campaign_without_an_answer_says_so(tmp_path, run_cli):
     assert "identified models" not in head
     assert "no admissible structure near the best fit for CL" in head
     assert "No admissible structure within 25 % of the best fit" in head and "is not an answer" in head
+    assert "Identified parameters" not in page and "Parameters of the models shown" in page
 
 
 @pytest.mark.slow

@@ -185,9 +185,11 @@ def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, st
     """The page (module docstring)."""
     d = campaign.data
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
-    sections = [("answer", "The identified models" if answered(fits.verdicts, fits.answers) else "The models shown"),
+    identified = answered(fits.verdicts, fits.answers)
+    parameters = "Identified parameters" if identified else "Parameters of the models shown"
+    sections = [("answer", "The identified models" if identified else "The models shown"),
                 ("notes", "How the models were chosen"),
-                ("parameters", "Identified parameters")] + ([("figures", "Figures")] if written else [])
+                ("parameters", parameters)] + ([("figures", "Figures")] if written else [])
     if diagnosis is not None:
         sections.append(("diagnosis", f"Diagnosis of {diagnosis['baseline']}"))
     if vi is not None or story:
@@ -213,7 +215,7 @@ def render_html(campaign, out: Path, fits, ms, vi, written, notes, diagnosis, st
                 if written else "No figures: they draw a lift, drag and pitch model together (a note says why "
                                 "one is missing).") + "</p>"]
     parts += [f"<p class='note'>{html.escape(n)}</p>" for n in notes]
-    parts.append("<h2 id='parameters'>Identified parameters</h2>")
+    parts.append(f"<h2 id='parameters'>{parameters}</h2>")
     # the answers' structures first, then any structure only the figures draw (the lift model a drag or pitch
     # winner reads when it is not the lift winner)
     shown = [r for _, r, _ in fits.answers.values()]
