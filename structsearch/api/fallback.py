@@ -21,9 +21,13 @@ def needs_discovery(ranked: list[CandidateResult]) -> bool:
     return bool(fitted) and not any(r.placement.admissible for r in fitted)
 
 
+def _best_fit(ranked: list[CandidateResult]) -> CandidateResult:
+    return next(r for r in ranked if not r.failed)
+
+
 def _lift_of(fitter: Fitter, grid: str, ranked: list[CandidateResult]) -> tuple[tuple[str, ...], bool]:
     """The lift model a drag or pitch search is fed (none for a lift search), and whether the search can run."""
-    best = next(r for r in ranked if not r.failed)
+    best = _best_fit(ranked)
     if coefficient(best.coefficient).owns_states:
         return (), True
     from ..fitting.specs import load_grid
@@ -45,9 +49,8 @@ def discover_beside(fitter: Fitter, grid: str, ranked: list[CandidateResult], kn
         return ranked, []
     fed = f" fed {lifts[0]}" if lifts else ""
     fitter.say(f"grid {grid}: no admissible structure; the structure search goes on from the minimal structure{fed}")
-    modelled = next(r for r in ranked if not r.failed).coefficient
-    found = discover_structures(fitter.quiet(), modelled, diagnose_search, start="minimal", lifts=lifts,
-                                max_steps=max_steps)
+    found = discover_structures(fitter.quiet(), _best_fit(ranked).coefficient, diagnose_search, start="minimal",
+                                lifts=lifts, max_steps=max_steps)
     seen = {structure_key(c) for c in known}
     new = []
     for node in found.exploration.fitted():
