@@ -95,7 +95,7 @@ def test_python_declarations_of_the_final_models_equal_the_grids(coefficient, de
 def _result(error=None) -> CandidateResult:
     scores = SplitScores(0.5, (0.25, 0.75), (10, 10), R2Summary(0.9, float("nan"), 0.95), 0.1, None)
     if error:
-        return CandidateResult.failure(name="X", grid="g", coefficient="CL", lift=None, error=error, seconds=1.5)
+        return CandidateResult.failed_with(name="X", grid="g", coefficient="CL", lift=None, error=error, seconds=1.5)
     return stated_result("CD-I", "drag", "CD", "CL-VI", 2.0, names=("a", "b"), nonlinear_names=("a",),
                            params={"a": 1.0, "b": -2.0}, stderr={"a": 0.1, "b": float("nan")},
                            p_values={"a": 0.001, "b": 0.2}, at_bound={"a": "lower"},
@@ -368,3 +368,43 @@ def test_coefficients_are_named_once_in_their_registry():
     spelled = [str(p.relative_to(ROOT)) for p in sorted((ROOT / "structsearch").rglob("*.py"))
                if '("CL", "CD", "Cm")' in p.read_text() and p.name != "coefficients.py"]
     assert spelled == []
+
+
+def test_the_engine_asks_a_problem_what_it_declares_and_probes_nothing():
+    """The solver and the statistics use only what SeparableProblem declares (its capabilities have defaults):
+    no ``hasattr`` probe of a problem in the engine."""
+    import ast
+    probes = []
+    for path in sorted((ROOT / "structsearch" / "engine").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "hasattr":
+                probes.append(f"{path.relative_to(ROOT)}:{node.lineno}")
+    assert probes == []
+
+
+def test_a_problem_that_declares_only_evaluate_is_fitted_with_the_protocols_defaults():
+    """A user's problem subclasses SeparableProblem and writes ``evaluate`` alone: fit_problem reads the
+    defaults (nothing unidentifiable beyond the Jacobian's rank, one Jacobian block, the plain residual, no
+    inputs to name). The fit of y = c exp(-k x) recovers k and c to within their noise."""
+    from structsearch.engine.fit import fit_problem
+    from structsearch.engine.snls import Evaluation, SeparableProblem
+
+    class Decay(SeparableProblem):
+        nonlinear_names, linear_names = ("k",), ("c",)
+
+        def __init__(self, x):
+            self.x = x
+
+        def evaluate(self, theta):
+            e = np.exp(-theta[0] * self.x)[:, None]
+            return Evaluation(e, -self.x[:, None] * e, np.array([0]), np.array([0]))
+
+    rng = np.random.default_rng(3)
+    x = np.linspace(0.0, 4.0, 200)
+    y = 2.0 * np.exp(-0.7 * x) + 0.01 * rng.standard_normal(x.size)
+    fit = fit_problem(Decay(x), y, boundaries=np.array([0, x.size]), segment_names=["all"], start=[0.3],
+                      lower=[0.0], upper=[5.0], covariance="white")
+    k, c = fit.params["k"], fit.params["c"]
+    sk, sc = fit.stderr["k"], fit.stderr["c"]
+    # 4 standard errors: a miss of that size has probability below 1e-4 under the fit's own covariance
+    assert abs(k - 0.7) < 4 * sk and abs(c - 2.0) < 4 * sc and 0 < sk < 0.01

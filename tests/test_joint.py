@@ -10,7 +10,7 @@ from structsearch.data.errors import DeclarationError
 from structsearch.engine.fit import fit_problem
 from structsearch.engine.joint import JointProblem
 from structsearch.engine.separable import SeparableModel
-from structsearch.engine.snls import model_jacobian, reduce
+from structsearch.engine.snls import SeparableProblem, model_jacobian, reduce
 
 from conftest import central_difference
 
@@ -267,7 +267,7 @@ def test_the_factor_of_a_joint_jacobian_block_by_block_is_that_of_the_whole_matr
                             -0.4 + 2.0 * X * np.exp(-0.7 * X) + 0.01 * rng.standard_normal(len(X))])
     outcome = solve(problem, y, [1.0], [0.01], [5.0])
 
-    class Plain:   # the same problem without its Jacobian's pattern
+    class Plain(SeparableProblem):   # the same problem without its Jacobian's pattern (the protocol's default)
         nonlinear_names, linear_names = problem.nonlinear_names, problem.linear_names
         evaluate = staticmethod(problem.evaluate)
     kw = dict(boundaries=np.array([0, 2 * len(X)]), segment_names=("m",), lower=[0.01], upper=[5.0],

@@ -101,7 +101,7 @@ def test_ranking_rule_prefers_the_smaller_model_within_noise():
         scores = SplitScores(float(np.mean(per)), tuple(per), (100,) * len(per), R2Summary(0.9, 0.8, 1.0))
         return stated_result(name, "g", "CL", None, 0.0, names=tuple(f"p{i}" for i in range(n)),
                                train=scores, validation=scores)
-    broken = CandidateResult.failure(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
+    broken = CandidateResult.failed_with(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
     ranked = rank([summary("big", 9, [1.0, 2.0, 3.0]), summary("small", 6, [1.001, 2.002, 2.999]),
                    summary("bad", 5, [1.5, 2.9, 4.4]), broken])
     assert [r.name for r in ranked] == ["small", "big", "bad", "broken"]
@@ -608,20 +608,23 @@ def test_grid_bounds_for_a_parameter_no_candidate_has_are_errors(tmp_path, bound
 
 def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
     """Issue 13: a failure that may be a programming error (a bare ValueError) is retried next run; a
-    failure that is a property of the data (not applicable, DataError, ...) is cached."""
-    import structsearch.fitting.candidate_job as candidate_job
+    failure that is a property of the data (not applicable, DataError, ...) is cached. The kind is the
+    exception's, never read from the message: a ValueError that says "DataError" is still retried."""
+    import structsearch.fitting.candidate_fit as candidate_fit
+    from structsearch.data.errors import DataError
+    from structsearch.fitting.candidate_result import FailureKind
     from structsearch.fitting.options import FitOptions
     from structsearch.fitting.runner import cache_path, campaign_fingerprint
     cand = load_grid("lift")["CL-I"]
     options = FitOptions(n_starts=1, cv_folds=0)
     path = cache_path(tmp_path, cand, campaign_fingerprint(tiny), None, options)[0]
-    for error, cached in (("ValueError: boom", False), ("DataError: m01.csv, column 'V': bad", True)):
-        def failing(c, *args, error=error, **kwargs):   # a fit's statistics task, failing
-            return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
-                                           error=error, seconds=0.0), None
-        monkeypatch.setattr(candidate_job, "fit_from", failing)
+    for exc, kind in ((ValueError("DataError: only its words say so"), FailureKind.RETRIED),
+                      (DataError("m01.csv, column 'V': bad"), FailureKind.DATA)):
+        def failing(*args, exc=exc, **kwargs):   # the fit's set-up, raising
+            raise exc
+        monkeypatch.setattr(candidate_fit, "_setup", failing)
         out = run([cand], tiny, tmp_path, options=options, backend="threading")[0]
-        assert out.failed and path.exists() == cached, error
+        assert out.failed and out.failure is kind and path.exists() == kind.cached, exc
 
 
 @pytest.mark.slow

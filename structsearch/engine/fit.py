@@ -40,8 +40,7 @@ def _check_regressors(problem: SeparableProblem, phi: np.ndarray, boundaries: np
     bad = np.argwhere(~(np.abs(phi) <= MAX_REGRESSOR))   # NaN fails the comparison too
     if bad.size:
         seg = int(np.searchsorted(boundaries, bad[0][0], side="right") - 1)
-        inputs = (problem.regressor_inputs(int(bad[0][1]), int(bad[0][0]))
-                  if hasattr(problem, "regressor_inputs") else "")
+        inputs = problem.regressor_inputs(int(bad[0][1]), int(bad[0][0]))
         value = phi[bad[0][0], bad[0][1]]
         what = ("NaN or infinite" if not np.isfinite(value) else
                 f"{value:.3g}, beyond {MAX_REGRESSOR:g} (an overflow: its squares would overflow the fit)")
@@ -104,14 +103,15 @@ def fit_problem(problem: SeparableProblem, y: np.ndarray, *, boundaries: np.ndar
     coef = outcome.coef
     jac = model_jacobian(ev, coef, k)
     residual = proj.residual if proj is not None else y - ev.phi @ coef
-    if hasattr(problem, "extended_residual"):
-        residual = problem.extended_residual(outcome.theta, coef, y)
+    extended = problem.extended_residual(outcome.theta, coef, y)
+    if extended is not None:
+        residual = extended
     names = tuple(problem.nonlinear_names) + tuple(problem.linear_names)
-    reasons = dict(problem.identifiability(outcome.theta)) if hasattr(problem, "identifiability") else {}
+    reasons = dict(problem.identifiability(outcome.theta))
     # one QR of the m x p Jacobian serves the rank test, condition and covariance; an OLS Jacobian is Phi,
     # whose projection factorised it already
     factor = scaled_factor_from_qr(jac, proj.r, proj.columns) if k == 0 and proj.rank == jac.shape[1] \
-        else scaled_factor(jac, problem.jacobian_blocks() if hasattr(problem, "jacobian_blocks") else None)
+        else scaled_factor(jac, problem.jacobian_blocks())
     reasons.update(rank_reasons(jac, names, skip=tuple(reasons), factor=factor[0]))
     basis = covariance_basis(jac, names, reasons, k)
     everything = bool(np.all(basis)) and bool(np.all(np.isfinite(jac)))

@@ -16,11 +16,11 @@ from typing import Sequence
 import numpy as np
 
 from ..data.errors import DeclarationError
-from .snls import Evaluation, Reduced, project, residual_jacobian
+from .snls import Evaluation, Reduced, SeparableProblem, project, residual_jacobian
 
 
 @dataclass(frozen=True, eq=False)
-class JointProblem:
+class JointProblem(SeparableProblem):
     """Blocks (each a bound separable problem: ``evaluate``, ``nonlinear_names``, ``linear_names``) over the
     same ``n_samples`` samples, weighted by ``weights``."""
 
@@ -148,7 +148,6 @@ class JointProblem:
         for b, block in enumerate(self.blocks):
             for n in block.nonlinear_names:
                 having[n] = having.get(n, 0) + 1
-            if hasattr(block, "identifiability"):
-                for n, why in block.identifiability(self.block_theta(b, theta)).items():
-                    reasons.setdefault(n, []).append(why)
+            for n, why in block.identifiability(self.block_theta(b, theta)).items():
+                reasons.setdefault(n, []).append(why)
         return {n: whys[0] for n, whys in reasons.items() if len(whys) == having.get(n, 1)}

@@ -160,7 +160,7 @@ class Profiles:
                            "parameters": {p.name: p.to_dict() for p in self.parameters}})
 
 
-class _Held:
+class _Held(SeparableProblem):
     """``problem`` with nonlinear parameter ``j`` held at ``value``: a separable problem in the others."""
 
     def __init__(self, problem: SeparableProblem, j: int, value: float):

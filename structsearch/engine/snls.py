@@ -42,13 +42,36 @@ class Evaluation:
 
 
 class SeparableProblem(Protocol):
+    """What the solver and the statistics may use of a problem: ``evaluate`` is the whole contract; the rest
+    are capabilities with defaults, which a problem gets by subclassing this protocol (and overrides where it
+    has more to say)."""
+
     nonlinear_names: tuple[str, ...]
     linear_names: tuple[str, ...]
 
     def evaluate(self, theta: np.ndarray) -> Evaluation: ...
 
+    def identifiability(self, theta: np.ndarray) -> dict[str, str]:
+        """The parameters the structure cannot identify at ``theta``, each with why (domain rules: a state its
+        regressors cannot see, ...); default: none beyond what the Jacobian's rank shows."""
+        return {}
 
-class BoundProblem:
+    def jacobian_blocks(self) -> list[tuple[slice, list[int]]] | None:
+        """Row blocks and the columns each touches (a stacked problem's), for a blockwise scaled QR; default
+        None: the Jacobian is one block."""
+        return None
+
+    def extended_residual(self, theta: np.ndarray, coef: np.ndarray, y: np.ndarray) -> np.ndarray | None:
+        """``y - Phi(theta) coef`` in extended precision where the problem can give it; default None."""
+        return None
+
+    def regressor_inputs(self, index: int, row: int) -> str:
+        """The inputs of regressor ``index`` at ``row``, in words, for an error naming a bad value; default
+        empty."""
+        return ""
+
+
+class BoundProblem(SeparableProblem):
     """Base of a model bound to data (attribute ``model``): parameter names come from the model."""
 
     @property

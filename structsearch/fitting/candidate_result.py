@@ -8,6 +8,8 @@ methods a fit result has (``summary()``, ``cov_params()``, ``conf_int()``, ``wal
 """
 from __future__ import annotations
 
+import enum
+
 from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING, Any, Sequence
 
@@ -29,8 +31,8 @@ if TYPE_CHECKING:
 # 7: the parameters' estimates and covariance as one object (ParameterEstimates.to_dict); 8: the ranking's
 # fields as one placement; 9: the optimizer's account as one report; 10: a fit that did not converge withholds
 # its statistics (``ParameterEstimates.withheld``); 12: the flight effects and the fit's warnings; 13: scores per
-# unit smaller than a maneuver on splits of few maneuvers
-JSON_LAYOUT = 13
+# unit smaller than a maneuver on splits of few maneuvers; 14: a failure's kind
+JSON_LAYOUT = 14
 
 
 def _nan_if_none(v) -> float:
@@ -80,6 +82,19 @@ class SplitScores:
 
 
 NOT_APPLICABLE = "not applicable: "
+
+
+class FailureKind(enum.Enum):
+    """Why a candidate has no fit, as a kind (never read from its message): whether the cache keeps it."""
+
+    NOT_APPLICABLE = "not applicable"   # the campaign cannot fit it by its nature (a column it lacks)
+    DATA = "data"                       # the data or the declaration make it fail (a DataError, a singular matrix)
+    RETRIED = "retried"                 # any other failure: it may be a programming error, so it is fitted again
+
+    @property
+    def cached(self) -> bool:
+        """Whether the failure follows from the question (kept in the cache) rather than maybe from the code."""
+        return self is not FailureKind.RETRIED
 
 
 @dataclass(frozen=True)
@@ -147,6 +162,7 @@ class CandidateResult:
     lift: str | None
     seconds: float
     error: str | None = None
+    failure: FailureKind | None = None  # the error's kind (None: it did not fail)
     # --- the fit (None when it failed) ---
     estimates: ParameterEstimates | None = None
     # the correlation with the data columns centred that can be (what admissibility judges; () when none can)
@@ -170,6 +186,10 @@ class CandidateResult:
     def __post_init__(self):
         rows = _rows(self.centred_correlation) if len(self.centred_correlation) else ()
         object.__setattr__(self, "centred_correlation", rows)
+        if self.error is None and self.failure is not None:
+            raise ValueError(f"{self.name}: a failure's kind ({self.failure.value}) without its error")
+        if self.error is not None and self.failure is None:   # a failure nobody classified is not cached
+            object.__setattr__(self, "failure", FailureKind.RETRIED)
 
     # ----- construction ---------------------------------------------------------------
     @classmethod
@@ -188,9 +208,11 @@ class CandidateResult:
                    cv_scheme=cv_scheme, cv_note=cv_note, equations=result.equations)
 
     @classmethod
-    def failure(cls, *, name: str, grid: str, coefficient: str, lift: str | None, error: str,
-                seconds: float) -> "CandidateResult":
-        return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds, error=error)
+    def failed_with(cls, *, name: str, grid: str, coefficient: str, lift: str | None, error: str,
+                    seconds: float, kind: FailureKind = FailureKind.RETRIED) -> "CandidateResult":
+        """A candidate without a fit: ``error`` in words, ``kind`` whether it follows from the question."""
+        return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds, error=error,
+                   failure=kind)
 
     def placed(self, **changes: Any) -> "CandidateResult":
         """A copy whose :class:`Placement` has ``changes`` (``admissible``, ``reasons``, ``rank``,
@@ -206,7 +228,7 @@ class CandidateResult:
     def not_applicable(self) -> bool:
         """A candidate the campaign cannot fit by its nature (a column or the fixed reference point it lacks), not
         one whose fit went wrong: skipped, with ``error`` saying why."""
-        return self.error is not None and self.error.startswith(NOT_APPLICABLE)
+        return self.failure is FailureKind.NOT_APPLICABLE
 
     @property
     def n_params(self) -> int:
@@ -299,6 +321,7 @@ class CandidateResult:
                                                                  "latex": list(self.equations.latex)}
         doc["flight_effects"] = None if self.flight_effects is None else self.flight_effects.to_dict()
         doc["warnings"] = list(self.warnings)
+        doc["failure"] = None if self.failure is None else self.failure.value
         return json_ready(doc)
 
     @classmethod
@@ -322,4 +345,5 @@ class CandidateResult:
         if values.get("flight_effects") is not None:
             values["flight_effects"] = FlightEffects.from_dict(values["flight_effects"])
         values["warnings"] = tuple(values.get("warnings", ()))
+        values["failure"] = None if values.get("failure") is None else FailureKind(values["failure"])
         return cls(**values)

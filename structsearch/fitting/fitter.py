@@ -102,15 +102,16 @@ class Fitter:
 
     # ----- fitting ---------------------------------------------------------------------------------------
     def fit(self, candidates: Sequence[Candidate],
-            donors: Iterable[tuple[Candidate, CandidateResult]] = ()) -> list[CandidateResult]:
-        """Every candidate's result, in order (a failed one carries its reason)."""
+            donors: Iterable[tuple[Candidate, CandidateResult]] = (), *, staged: bool = True) -> list[CandidateResult]:
+        """Every candidate's result, in order (a failed one carries its reason); ``staged`` False: none starts
+        from another of ``candidates`` (each fitted as it would be alone)."""
         from .runner import run
         if not candidates:
             return []
         c = self.config
         return run(list(candidates), c.campaign, c.cache_dir, lifts=dict(self.lifts), options=c.options,
                    n_jobs=c.n_jobs, backend=c.backend, progress=c.progress, fitted_before=list(donors),
-                   trace=c.trace, meter=c.meter)
+                   trace=c.trace, meter=c.meter, staged=staged)
 
     def fit_one(self, candidate: Candidate,
                 donors: Iterable[tuple[Candidate, CandidateResult]] = ()) -> CandidateResult:

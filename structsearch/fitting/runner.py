@@ -78,12 +78,6 @@ def code_fingerprint() -> str:
     return h.hexdigest()[:16]
 
 
-# Failures that follow from the data or the declaration (cached); any other exception may be a
-# programming error and is retried on the next run.
-CACHED_FAILURES = ("not applicable", "DataError", "DeclarationError", "FitError", "StructSearchError",
-                   "LinAlgError", "FloatingPointError")
-
-
 def same_model_fitted(candidates: Sequence[Candidate], fitted: Sequence[tuple[Candidate, CandidateResult]]
                       ) -> dict[int, tuple[Candidate, CandidateResult]]:
     """Candidates (by index) that are, apart from their name and grid, a candidate fitted already (of an
@@ -128,7 +122,7 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
         options: FitOptions = FitOptions(), n_jobs: int = 1,
         backend: str = "loky", progress: Callable[[str], None] | None = None,
         fitted_before: Sequence[tuple[Candidate, CandidateResult]] = (), trace: Trace | None = None,
-        meter: Callable[[int, int, str], None] | None = None) -> list[CandidateResult]:
+        meter: Callable[[int, int, str], None] | None = None, staged: bool = True) -> list[CandidateResult]:
     """Fit candidates (cached, in parallel), staged (:mod:`.staging`): a candidate starts from the
     estimates of a candidate nested in it, fitted before it in this grid (an earlier wave) or in
     ``fitted_before`` (earlier grids of the same search). A candidate that is one of ``fitted_before``
@@ -137,7 +131,9 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     folds are tasks of their own (:mod:`.scheduling`), on any backend; a candidate's donors are fixed (those of
     earlier waves), so the results do not depend on the backend, the number of jobs or the order tasks finish
     in. Results come in the order of ``candidates``; ``trace`` records every task; ``meter(finished, of, what)`` is
-    told of each candidate fitted (``progress`` only of what is worth a line: the cache, a failure)."""
+    told of each candidate fitted (``progress`` only of what is worth a line: the cache, a failure). ``staged``
+    False: no candidate of this call starts from another of it (each is fitted as it would be alone, the
+    candidates side by side: a round of refinements)."""
     say = progress or (lambda msg: None)
     train, validation = campaign.split("train"), campaign.split("validation")
     data_key = campaign_fingerprint(campaign)
@@ -146,8 +142,8 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     order = waves(candidates)
     wave_of = {i: w for w, members in enumerate(order) for i in members}
     # the candidates of earlier waves a candidate may start from: it waits for them
-    needs = {i: [j for j in wave_of if wave_of[j] < wave_of[i] and may_donate(candidates[j], candidates[i])]
-             for i in wave_of}
+    needs = {i: [j for j in wave_of if staged and wave_of[j] < wave_of[i]
+                 and may_donate(candidates[j], candidates[i])] for i in wave_of}
     paths = {}
     for i, c in enumerate(candidates):
         lift = lifts.get(c.lift) if c.lift else None
@@ -175,7 +171,7 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     finished = [0]
 
     def done(i, summary, warm):
-        if not summary.failed or summary.error.startswith(CACHED_FAILURES):
+        if not summary.failed or summary.failure.cached:   # a failure that may be the code's is fitted again
             write_cached(*paths[i], summary)
         results[i] = summary
         finished[0] += 1

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import time
 from dataclasses import dataclass, field
@@ -13,7 +14,8 @@ from .admissibility import FIXABLE_REASONS, AdmissibilityRules, MAX_CORRELATION,
 from .ranking import rank
 from .ranking import near_best
 from .answer import answer_of
-from .refinement import Refinement, refine, refinement_key
+from .refinement import Refinement, refinement_key
+from .refinements_together import refine_together
 from ..fitting.fitter import Fitter, console_line
 from ..fitting.lift_fit import LiftFit
 from ..fitting.candidates import Candidate, Grid
@@ -159,22 +161,24 @@ def _refine_grid(fitter: Fitter, grid: Grid, results: list[CandidateResult], ran
     """The structures the refinement of ``grid``'s candidates reached (with their fits) and the refinements
     themselves (``alpha_range``: the alpha range flown in training). The candidates within noise of the best fit
     are refined first (:func:`refinement_starts`); while no admissible structure is within the answer's tolerance
-    of the best fit (:mod:`.answer`), the next candidates follow, best fit first, until one is or every candidate
-    has been refined (``rerank(extra)``: the grid ranked with the structures reached so far)."""
+    of the best fit (:mod:`.answer`), the next candidates follow, best fit first, :data:`REFINE_STARTS` at a time,
+    until one is or every candidate has been refined (``rerank(extra)``: the grid ranked with the structures
+    reached so far). The refinements of one wave are walked together (:mod:`.refinements_together`): each
+    round's fits are one task graph, so the wave's chains spread over the workers side by side."""
     known = {refinement_key(c): (c, r) for c, r in zip(grid.candidates, results) if not r.failed}
-    # a step waits for the one before, but its starts and folds spread over the workers
-    one_at_a_time = fitter.quiet()
+    # each fit of a round made as it would be alone: a refinement's steps never depend on who shares its rounds
+    fit_side_by_side = functools.partial(fitter.quiet().fit, staged=False)
     extra, done_all = [], []
-    starts = refinement_starts(ranked)
-    queue = [s for s in down_the_ranking(ranked) if s.name not in {t.name for t in starts}]
-    while starts or (queue and rerank is not None and not _answered(rerank(extra) if extra else ranked)):
-        start = starts.pop(0) if starts else queue.pop(0)
-        done = refine(grid[start.name], start, one_at_a_time.fit_one, known, alpha_range)
-        new = [(c, r) for c, r in done.steps if c.name not in done.reached]
-        known.update({k: step for k, step in zip(done.keys, done.steps) if step[0].name not in done.reached})
-        extra += new
-        fitter.say(_refinement_line(grid, start, done))
-        done_all.append(done)
+    wave = refinement_starts(ranked)
+    queue = [s for s in down_the_ranking(ranked) if s.name not in {t.name for t in wave}]
+    while wave:
+        for start, done in zip(wave, refine_together([(grid[s.name], s) for s in wave], fit_side_by_side, known,
+                                                     alpha_range)):
+            extra += [(c, r) for c, r in done.steps if c.name not in done.reached]
+            fitter.say(_refinement_line(grid, start, done))
+            done_all.append(done)
+        more = queue and rerank is not None and not _answered(rerank(extra) if extra else ranked)
+        wave, queue = (queue[:REFINE_STARTS], queue[REFINE_STARTS:]) if more else ([], queue)
     return extra, done_all
 
 

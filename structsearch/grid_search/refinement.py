@@ -36,7 +36,7 @@ from __future__ import annotations
 import dataclasses
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Generator
 
 import numpy as np
 
@@ -307,9 +307,10 @@ def _moves(current: Candidate, summary: CandidateResult, alpha_range) -> list[Mo
 
 
 def _try(move: Move, c: Candidate, so_far: tuple[list[str], dict, dict, dict], suffix: str, current_mse: float,
-         fit: Callable[[Candidate], CandidateResult], known: dict) -> tuple[tuple | None, str | None]:
+         known: dict) -> Generator[Candidate, CandidateResult, tuple[tuple | None, str | None]]:
     """``move`` made on top of the refinement so far (drops, kinds, boxes, rewritten regressors): (candidate,
-    result, the changes so far with it, was_known) when it is taken, else None and why not."""
+    result, the changes so far with it, was_known) when it is taken, else None and why not. Yields the candidate
+    when it must be fitted (a structure in ``known`` is not) and is sent its result."""
     dropped, kinds, boxes, replaced = so_far
     drop = dropped + [n for n in move.drop if n not in dropped]
     new_kinds = {**kinds, **dict(move.kinds)}
@@ -319,8 +320,14 @@ def _try(move: Move, c: Candidate, so_far: tuple[list[str], dict, dict, dict], s
     if len(drop) >= len(c.regressors):
         return None, f"{what} would leave no term"
     candidate = _refined(c, drop, suffix, new_kinds, new_boxes, new_replaced)
-    same = known.get(refinement_key(candidate, new_boxes))
-    candidate, result = same if same is not None else (candidate, fit(candidate))
+    key = refinement_key(candidate, new_boxes)
+    same = known.get(key)
+    if same is None:
+        result = yield candidate
+        # a walk whose fits were made beside this one's may have taken this structure meanwhile: reached
+        same = known.get(key)
+    if same is not None:
+        candidate, result = same
     if result.failed:
         return None, f"the refined {candidate.name} ({move.what}) failed: {result.error}"
     if result.optimizer.converged is False:
@@ -339,7 +346,21 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
     """Refine ``c`` (fitted as ``summary``); ``fit`` fits a new structure, ``known`` maps the structures
     fitted already to their candidate and result (reused instead of refitting); ``alpha_range``: the alpha range
     flown in training (an alpha* outside it is a state the data do not place; None: not judged)."""
-    known = known or {}
+    walk = refinement_walk(c, summary, {} if known is None else known, alpha_range)
+    try:
+        request = next(walk)
+        while True:
+            request = walk.send(fit(request))
+    except StopIteration as finished:
+        return finished.value
+
+
+def refinement_walk(c: Candidate, summary: CandidateResult, known: dict[tuple, tuple[Candidate, CandidateResult]],
+                    alpha_range: tuple[float, float] | None = None
+                    ) -> Generator[Candidate, CandidateResult, Refinement]:
+    """The refinement of ``c`` as a walk that yields each structure it needs fitted and is sent its result (so
+    that several walks can have their fits made together: :mod:`.refinements_together`); returns the
+    :class:`Refinement`. Each step it takes that is not in ``known`` is added to it, for the walks after it."""
     steps, reached, keys = [], [], []
     current, current_summary, so_far = c, summary, ([], {}, {}, {})
     stopped, refused_all = "nothing left to drop", ()
@@ -353,7 +374,7 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
         refused, taken = [], None
         suffix = "r" + ("" if step == 1 else str(step)) + "-auto"
         for move in moves:
-            taken, why = _try(move, c, so_far, suffix, current_summary.comparison.mse, fit, known)
+            taken, why = yield from _try(move, c, so_far, suffix, current_summary.comparison.mse, known)
             if taken is not None:
                 break
             refused.append(why)
@@ -365,6 +386,8 @@ def refine(c: Candidate, summary: CandidateResult, fit: Callable[[Candidate], Ca
         keys.append(refinement_key(current, so_far[2]))
         if was_known:
             reached.append(current.name)
+        else:
+            known.setdefault(keys[-1], (current, current_summary))
     else:
         stopped = f"stopped after {MAX_STEPS} steps"
     return Refinement(c.name, tuple(steps), stopped, tuple(reached), refused_all, tuple(keys))
