@@ -59,7 +59,11 @@ def test_a_command_help_prints_the_example_as_written(name, capsys):
     assert f"\nexamples:\n  structsearch {name}" in out.getvalue()
 
 
-def test_a_relative_change_on_the_console_never_reads_minus_zero():
-    from structsearch.cli import _change
-    assert [_change(x) for x in (0.0, -0.00012, 0.0004, -0.001, 0.107, float("nan"))] == \
-        ["0%", "-0.012%", "+0.04%", "-0.1%", "+10.7%", "n/a"]
+def test_the_consoles_gap_is_the_tables_gap_to_best_and_never_reads_minus_zero():
+    """The console's "next" and "passed over" figures are the ranking's gap to best (the tables' column), not
+    a ratio of pooled MSEs: one comparison, one number."""
+    from types import SimpleNamespace
+    from structsearch.cli import _gap
+    gaps = (0.0, -0.00012, 0.0004, -0.001, 0.107, float("nan"), None)
+    assert [_gap(SimpleNamespace(placement=SimpleNamespace(gap=x))) for x in gaps] == \
+        ["0%", "-0.012%", "+0.04%", "-0.1%", "+10.7%", "n/a", "n/a"]

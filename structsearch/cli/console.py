@@ -59,16 +59,14 @@ def _print_winners(result) -> None:
         if not_converged:
             parts.append(f"optimizer did not converge for {_named(not_converged)}")
         if runner_up is not None:
-            parts.append(f"next {runner_up.name} ({_parameters(runner_up.n_params)}, "
-                         f"{_change(runner_up.comparison.mse / best.comparison.mse - 1)})")
+            parts.append(f"next {runner_up.name} ({_parameters(runner_up.n_params)}, gap {_gap(runner_up)})")
         parts.append(f"{result.seconds[grid]:.1f} s")
         print(_clip("; ".join(parts)))
         if answer is not None and not answer.answered:
             # the whole sentence, uncut: it is the search's answer
             print(f"  {grid}: {answer.sentence()}")
         for s in passed_over(ranked)[:3]:
-            print(_clip(f"  passed over {s.name} ({_held_out(s)} MSE "
-                        f"{_change(s.comparison.mse / best.comparison.mse - 1)}): {'; '.join(s.placement.reasons)}"))
+            print(_clip(f"  passed over {s.name} (gap {_gap(s)}): {'; '.join(s.placement.reasons)}"))
         _print_skipped(skipped)
 
 
@@ -82,11 +80,14 @@ def _print_skipped(skipped) -> None:
         print(_clip(f"  skipped {_named(names)}: {reason}"))
 
 
-def _change(x: float) -> str:
-    """A relative change as a signed percentage that never reads "-0.0%": below 0.1% at two significant
-    digits (a structure passed over for a change this small is why the line is printed)."""
-    from ..reporting.tables import signed_percent   # the tables' "gap to best" reads the same
-    return signed_percent(x)
+def _gap(s) -> str:
+    """The tables' "gap to best" of ``s`` (its mean per-maneuver relative excess of held-out MSE over the
+    ranking's reference), as a signed percentage that never reads "-0.0%": the console and the tables give one
+    number for one comparison. "n/a" when the ranking could not measure it."""
+    import math
+    from ..reporting.tables import signed_percent
+    gap = s.placement.gap
+    return signed_percent(gap) if gap is not None and math.isfinite(gap) else "n/a"
 
 
 def _print_report(res) -> None:

@@ -16,7 +16,7 @@ import argparse  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from .console import _change, _clip, _print_report, _print_winners, _truth_words  # noqa: E402, F401  (_change: tests)
+from .console import _clip, _gap, _print_report, _print_winners, _truth_words  # noqa: E402, F401  (_gap: tests)
 from .grids import _grids  # noqa: E402
 from .options import _bounds, _jobs  # noqa: E402
 
