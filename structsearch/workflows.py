@@ -80,15 +80,18 @@ def demo(out: str | Path = "results", *, jobs: int = 0, starts: int = 4, scale: 
     is done (the command prints each grid's winner there); ``meter`` is told of every candidate fitted (the
     command's progress bar). Over earlier results (a checkout's committed ``results/``) the files whose answers
     are the same are kept byte for byte and one line says so (:mod:`structsearch.experiments.unchanged`)."""
-    from .experiments.unchanged import keep_unchanged, snapshot
+    from .experiments.unchanged import keep_unchanged, restore, snapshot
     aside = snapshot(Path(out))
     try:
         outcome = _demo(Path(out), jobs=jobs, starts=starts, scale=scale, max_correlation=max_correlation,
                         say=say or (lambda m: None), winners=winners, progress=progress, meter=meter)
     except BaseException:
-        if aside is not None:
+        if aside is not None:   # interrupted or failed: the earlier results go back, the copy goes
             import shutil
-            shutil.rmtree(aside, ignore_errors=True)
+            try:
+                restore(Path(out), aside)
+            finally:
+                shutil.rmtree(aside, ignore_errors=True)
         raise
     if aside is not None:
         (say or (lambda m: None))(keep_unchanged(Path(out), aside).line(Path(out)))

@@ -101,3 +101,35 @@ def test_a_wall_time_in_a_sentence_is_not_an_answer_and_a_difference_names_its_l
     b.write_text("# Study\n\nSNLS on all maneuvers (9.2 s).\n\n| x | 0.7 |\n")
     found = differences("study.md", a, b)
     assert [(d.where, d.first, d.second, d.kind) for d in found] == [("line 5", "| x | 0.5 |", "| x | 0.7 |", "number")]
+
+
+def test_an_interrupted_demo_puts_the_earlier_results_back_and_leaves_no_copy(tmp_path, monkeypatch):
+    """A demo stopped half way (Ctrl-C, a failure) over a checkout's results leaves them as they were: the files
+    it had rewritten go back, and the snapshot it took is removed (before, it was removed without being put back,
+    the only copy of the committed results). The snapshot is named as every run's temporary folder
+    (``structsearch-<pid>-...``), so a run killed with -9 leaves nothing the next run does not sweep."""
+    import os
+    import tempfile
+
+    import structsearch.workflows as workflows
+    from structsearch.experiments import unchanged
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "lift.md").write_text("the committed ranking\n")
+    made = []
+    real_snapshot = unchanged.snapshot
+
+    def snapshot(path):
+        made.append(real_snapshot(path))
+        return made[-1]
+    monkeypatch.setattr(unchanged, "snapshot", snapshot)
+
+    def half_a_demo(out, **kwargs):
+        (out / "lift.md").write_text("half of a new ranking\n")
+        raise KeyboardInterrupt
+    monkeypatch.setattr(workflows, "_demo", half_a_demo)
+    with pytest.raises(KeyboardInterrupt):
+        workflows.demo(out)
+    assert (out / "lift.md").read_text() == "the committed ranking\n"
+    assert made[0].name.startswith(f"structsearch-{os.getpid()}-") and made[0].parent == Path(tempfile.gettempdir())
+    assert not made[0].exists()

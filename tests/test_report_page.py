@@ -260,3 +260,38 @@ def test_the_first_screen_names_the_effects_adopted_never_one_that_costs():
     line = gap_story(d)[1]
     assert line == "Which effect: adopted second_state (closes 50% of the gap), then cp_shift (closes 23% of the gap)."
     assert "CL-story" not in line
+
+
+def test_a_report_beside_the_demos_story_gives_its_gaps_on_the_first_screen(tmp_path, monkeypatch):
+    """``structsearch report`` after the demo reads the story the demo wrote beside the ranking: every coefficient
+    the story diagnosed gets its gap on the first screen (before, only the demo's own call passed them, and a
+    report made afterwards said "Gap story: not diagnosed in this report" for C_L and C_D). A story.json that is
+    not the demo's is one error naming the file."""
+    import json
+    import shutil
+    from pathlib import Path
+
+    import importlib
+
+    import structsearch.reporting.page as page
+    api_report = importlib.import_module("structsearch.api.report")   # the package names the function report
+    from structsearch.data.errors import DataError
+    results = Path(__file__).resolve().parents[1] / "results"
+    shutil.copy(results / "story.json", tmp_path / "story.json")
+    (tmp_path / "ranking.csv").write_text("grid,name\n")   # the report does not search: a ranking is there
+    lines, gaps = api_report.read_story_gaps(tmp_path)
+    assert sorted(gaps) == ["CD", "CL", "Cm"] and lines == json.loads((results / "story.json").read_text())["lines"]
+    built = {}
+
+    def build(campaign, out, fits, options=None, story=None, gaps=None):
+        built.update(story=story, gaps=gaps)
+        return {"html": out / "report.html", "figures": [], "notes": []}
+    monkeypatch.setattr(page, "build", build)
+    monkeypatch.setattr(page, "require_figures", lambda: None)
+    monkeypatch.setattr(api_report, "fit_report_models", lambda *a, **k: None)
+    outcome = api_report.report(build_campaign(seed=3, scale=0.05), tmp_path)
+    assert sorted(built["gaps"]) == ["CD", "CL", "Cm"] and built["story"] == lines
+    assert any("story.json" in note for note in outcome.notes)
+    (tmp_path / "story.json").write_text('{"lines": [], "diagnoses": {"CL": {"coefficient": 3}}}')
+    with pytest.raises(DataError, match="story.json.*not a story written by the demo"):
+        api_report.read_story_gaps(tmp_path)

@@ -101,5 +101,29 @@ def report(campaign: Campaign | str | os.PathLike, out: str | os.PathLike = "res
         searched = f"ranked first by the search this report ran (its settings; ranking in {out / 'ranking.csv'})"
     with command_fitter("report", campaign, settings, out) as fitter:
         fits = fit_report_models(fitter, out, diagnose=diagnose, models=tuple(models), searched=searched)
+    read_story = None
+    if gaps is None and story is None:   # the demo's story beside the ranking: its first screen gives the gaps
+        read_story = read_story_gaps(out)
+        if read_story is not None:
+            story, gaps = read_story
     res = build(campaign, out, fits, options=options, story=story, gaps=gaps)
-    return ReportOutcome(res["html"], res["figures"], res["notes"], time.perf_counter() - started)
+    notes = list(res["notes"]) + ([f"the simulator's gap story is read from {out / 'story.json'} (written by the "
+                                   "demo beside this ranking)"] if read_story is not None else [])
+    return ReportOutcome(res["html"], res["figures"], notes, time.perf_counter() - started)
+
+
+def read_story_gaps(out: Path):
+    """The story's lines and diagnoses (coefficient -> Diagnosis) from ``out/story.json``, or None without one; a
+    story.json that is not the demo's document is one error naming the file."""
+    from ..data.reading import inside, load_json
+    from ..diagnosis.results import Diagnosis
+    path = Path(out) / "story.json"
+    if not path.exists():
+        return None
+    doc = load_json(inside(out, "story.json", str(path)))
+    try:
+        lines = [str(line) for line in doc["lines"]]
+        gaps = {str(c): Diagnosis.from_dict(d) for c, d in doc["diagnoses"].items()}
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise DataError(f"not a story written by the demo ({type(exc).__name__}: {exc})", source=str(path)) from None
+    return lines, gaps

@@ -10,6 +10,7 @@ of the file sets are then recomputed from the files as they are.
 """
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import tempfile
@@ -56,11 +57,20 @@ def snapshot(out: Path) -> Path | None:
     names = _files(out) if out.is_dir() else []
     if not names:
         return None
-    aside = Path(tempfile.mkdtemp(prefix=".earlier-results-"))
+    # named as every run's temporary folder, so that the next run sweeps it when this one is killed with -9
+    aside = Path(tempfile.mkdtemp(prefix=f"structsearch-{os.getpid()}-earlier-results-"))
     for name in names:
         (aside / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(out / name, aside / name)
     return aside
+
+
+def restore(out: Path, aside: Path) -> None:
+    """Put every file of ``aside`` (:func:`snapshot`) back into ``out`` as it was, each written atomically: an
+    interrupted run leaves the results it found, not half of its own over them."""
+    from ..data.atomic import write_bytes
+    for name in _files(aside):
+        write_bytes(Path(out) / name, (aside / name).read_bytes())
 
 
 def differences(name: str, earlier: Path, now: Path, tol: Tolerances = Tolerances()) -> list[Difference]:
