@@ -14,7 +14,7 @@ from ..flight.names import AIRCRAFT_NAMES, ANOMALY_NAMES, WITHHOLDABLE
 from .options import _covariance_kinds, _flight_effects  # noqa: F401  (their tests import them from here)
 from .parser_bench import _add_bench
 
-BENCHMARK_PARTS = ("withheld", "anomalies", "null")
+BENCHMARK_PARTS = ("withheld", "anomalies", "null", "jsbsim")
 
 
 def _benchmark_parts(text: str) -> str:
@@ -294,7 +294,9 @@ def _add_diagnose(sub, handler: Callable) -> None:
     g.add_argument("--scale", type=_fraction, default=1.0, help="benchmark campaign scale")
     g.add_argument("--null-seeds", type=_non_negative, default=3, help="benchmark: seeds of the null case")
     g.add_argument("--parts", type=_benchmark_parts, default=None,
-                   help="benchmark: which parts, comma-separated: withheld, anomalies, null (default: all)")
+                   help="benchmark: which parts, comma-separated: withheld, anomalies, null (default: these three); "
+                        "jsbsim: the withheld effects diagnosed through JSBSim (the truth without each effect "
+                        "exported as the simulator; needs the jsbsim extra)")
     g.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
     g.add_argument("--backend", default="loky", choices=("loky", "dask"),
                    help="loky: local processes; dask: a dask.distributed cluster (a local one of --jobs workers)")
