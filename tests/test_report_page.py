@@ -220,12 +220,17 @@ def test_the_first_screen_gives_every_coefficients_verdict_and_simulator_gap():
 
 
 def test_a_value_and_its_deviation_never_wrap_apart_nor_a_number_inside_a_cell():
-    """Equations wrap between terms, never inside "(estimate ± std. dev.)"; table cells break only a word that
-    cannot fit its column (a number keeps its digits together)."""
+    """Equations wrap between terms, never inside one ("(estimate ± std. dev.)*factor", a factor with spaces of
+    its own such as "(1 - X_ss)*CL"); table cells break only a word that cannot fit its column (a number keeps
+    its digits together)."""
     from structsearch.reporting.answer import _unbroken
     from structsearch.reporting.page_html import STYLE
     text = _unbroken("CD = (0.0204 ± 0.0027)*CL**2 + (-1.2e-5 ± 0.3e-5)*alpha")
-    assert text.count("<span class='value'>") == 2 and "<span class='value'>(0.0204 ± 0.0027)</span>*CL**2" in text
+    assert text == ("<span class='value'>CD = (0.0204 ± 0.0027)*CL**2</span> + "
+                    "<span class='value'>(-1.2e-5 ± 0.3e-5)*alpha</span>")
+    text = _unbroken("Cm = (0.1 ± 0.01) - (0.05 ± 0.01)*(1 - X_ss)*CL\ndX/dt = (X0(alpha - tau2*alpha_dot) - X)/tau1")
+    assert "<span class='value'>(0.05 ± 0.01)*(1 - X_ss)*CL</span>" in text and text.count("\n") == 1
+    assert "<span class='value'>dX/dt = (X0(alpha - tau2*alpha_dot) - X)/tau1</span>" in text
     assert ".value{white-space:nowrap}" in STYLE and "overflow-wrap:anywhere" not in STYLE
 
 

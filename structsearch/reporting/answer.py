@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import html
 import math
-import re
 from typing import Mapping, Sequence
 
 from ..diagnosis.results import Diagnosis
@@ -103,8 +102,23 @@ def mathml(c) -> str:
 
 
 def _unbroken(text: str) -> str:
-    """Every "(estimate ± std. dev.)" of an escaped equation kept on one line where the equation wraps."""
-    return re.sub(r"\([^()\n]*±[^()\n]*\)", lambda m: f"<span class='value'>{m[0]}</span>", text)
+    """Every term of an escaped equation (a summand at the top level of its line: "(estimate ± std. dev.)*factor",
+    "(1 - X_ss)*CL") kept on one line: the equation wraps only between terms."""
+    return "\n".join(_terms_unbroken(line) for line in text.split("\n"))
+
+
+def _terms_unbroken(line: str) -> str:
+    pieces, depth, start, i = [], 0, 0, 0
+    while i < len(line):
+        if line[i] in "()":
+            depth += 1 if line[i] == "(" else -1
+        elif depth == 0 and line.startswith((" + ", " - "), i):
+            pieces += [line[start:i], line[i:i + 3]]
+            start = i = i + 3
+            continue
+        i += 1
+    pieces.append(line[start:])
+    return "".join(p if p in (" + ", " - ") or not p.strip() else f"<span class='value'>{p}</span>" for p in pieces)
 
 
 def verdict_text(verdict: Mapping | None) -> str:
