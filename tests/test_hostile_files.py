@@ -91,6 +91,20 @@ def test_the_command_line_refuses_a_symlink_out_in_one_line(run_cli, campaign_di
     assert len(proc.stderr.strip().splitlines()) == 1 and "outside the directory" in proc.stderr
 
 
+@pytest.mark.parametrize("name", ["fit.json", "ranking.csv"])
+def test_a_fixed_name_in_a_given_directory_that_links_out_is_refused_unread(tmp_path, outside, name):
+    """What export (``--fit DIR``) and report read by a fixed name in the directory they are given stays inside
+    it: a fit.json or ranking.csv that is a link to a file elsewhere is one error, its content unread."""
+    from structsearch.api.exporting import read_fit_directory
+    from structsearch.reporting.choice import ranked_rows
+    given = tmp_path / "given"
+    given.mkdir()
+    (given / name).symlink_to(outside)
+    read = read_fit_directory if name == "fit.json" else ranked_rows
+    message = _refused(lambda: read(given), DataError, name, "outside the directory")
+    assert SECRET not in message
+
+
 # ----- 2. a grid name that would write outside --out ----------------------------------------------------------
 @pytest.mark.parametrize("name", ["../escape", "/tmp/escape", "..", ".hidden", "a\\b"])
 def test_a_grid_name_that_is_a_path_is_refused(tmp_path, name):

@@ -22,7 +22,7 @@ from ..engine.separation import SeparationState, evaluate_state
 from ..export.card import (CoefficientModel, ExportedModel, StateModel, aircraft_record, ordered, validity)
 from ..fitting.candidates import Candidate
 from ..fitting.lift_fit import LiftAt
-from ..data.reading import shown
+from ..data.reading import inside, shown
 from .fit_document import Fields, read_fit_json
 from .results import campaign_record
 from .settings import Settings, command_fitter
@@ -115,7 +115,7 @@ def read_fit_directory(directory: str | os.PathLike) -> tuple[list[Fitted], dict
     if not os.path.lexists(path):
         raise DataError("no fit.json here: --fit takes the --out directory of `structsearch fit`",
                         source=str(path))
-    doc = read_fit_json(path)
+    doc = read_fit_json(inside(directory, "fit.json", str(path)))   # a link out of the directory is refused unread
     if not isinstance(doc, dict):
         raise DataError(f"not a fit document (a JSON object), but {shown(doc)}", source=str(path))
     fields = Fields(path)

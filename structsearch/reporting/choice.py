@@ -20,7 +20,7 @@ from ..data.coefficients import GRID_OF, LIFT, coefficient
 from ..data.campaign import Campaign
 from ..data.errors import DataError, DeclarationError
 from ..data.manifest import check_set
-from ..data.reading import excerpt, read_text
+from ..data.reading import excerpt, inside, read_text
 from ..fitting.candidates import Candidate
 from ..fitting.specs import find_candidate, load_grid
 from ..flight.reference import FINAL_MODEL_NAMES
@@ -74,7 +74,9 @@ def ranked_rows(out: Path) -> dict[str, list[dict]] | None:
     path = Path(out) / "ranking.csv"
     if not path.exists():
         return None
-    text = read_text(path)   # a regular UTF-8 file of bounded size, before its manifest hashes it
+    # inside ``out`` (a link to elsewhere is refused unread), a regular UTF-8 file of bounded size, before its
+    # manifest hashes it
+    text = read_text(inside(out, "ranking.csv", str(path)))
     check_set(Path(out), "search", "ranking.csv")
     try:
         reader = csv.DictReader(io.StringIO(text, newline=""))
