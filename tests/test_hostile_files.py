@@ -408,3 +408,19 @@ def _alive(pid: int) -> bool:
         return status.read_text().split(")")[-1].split()[0] != "Z"
     except OSError:
         return False
+
+
+@pytest.mark.parametrize("doc, words", [
+    ("[1, 2]", ["not a JSON object"]),
+    ('{"complete": "yes", "files": {}}', ["'complete'", "not a boolean"]),
+    ('{"complete": true, "files": [1]}', ["'files'", "not a table"]),
+    ('{"complete": true, "files": {"lift.md": 5}}', ["'lift.md'", "5"]),
+    ('{"complete": true, "files": {"../x": "00"}}', ["'../x'", "not a file of its directory"]),
+])
+def test_a_malformed_manifest_is_one_error_naming_its_key(tmp_path, doc, words):
+    """A manifest whose verdict or list is malformed names what is wrong (before: "the manifest is unreadable",
+    for every fault alike), and one that lists a file outside its directory is refused before anything uses it."""
+    from structsearch.data.manifest import check_set, manifest_path
+    manifest_path(tmp_path, "search").write_text(doc)
+    (tmp_path / "ranking.csv").write_text("grid,model,rank\n")
+    _refused(lambda: check_set(tmp_path, "search", "ranking.csv"), DataError, "search manifest", *words)

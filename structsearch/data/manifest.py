@@ -13,7 +13,7 @@ from typing import Iterable
 
 from .atomic import write_json
 from .errors import DataError
-from .reading import MAX_TABLE_BYTES, load_json, open_regular
+from .reading import MAX_TABLE_BYTES, excerpt, load_json, open_regular, shown
 
 
 def manifest_path(out: Path, name: str) -> Path:
@@ -43,15 +43,21 @@ def listed_files(out: Path, name: str) -> set[str] | None:
 
 
 def _read(path: Path, name: str) -> tuple[bool, dict]:
-    try:
-        doc = load_json(path)
-        complete, files = doc["complete"], doc["files"]
-        if not isinstance(complete, bool) or not isinstance(files, dict) or not all(
-                isinstance(v, str) for v in files.values()):
-            raise TypeError
-        return complete, dict(files)
-    except (ValueError, KeyError, TypeError):   # a DataError of the reader is a ValueError too
-        raise DataError(f"the {name} manifest is unreadable: run the {name} again", source=str(path)) from None
+    """A manifest's verdict and files; what is wrong with one is one error naming the file and its key (the
+    reader's own errors, a FIFO, NUL bytes or a file too large, say theirs)."""
+    doc = load_json(path)
+    again = f"run the {name} again"
+    if not isinstance(doc, dict):
+        raise DataError(f"the {name} manifest is not a JSON object: {again}", source=str(path))
+    for key, kind in (("complete", bool), ("files", dict)):
+        if not isinstance(doc.get(key), kind):
+            raise DataError(f"the {name} manifest's {key!r} is not a {'boolean' if kind is bool else 'table'}: "
+                            f"{again}", source=str(path), column=key)
+    for file, digest in doc["files"].items():
+        if not isinstance(digest, str) or Path(file).is_absolute() or ".." in Path(file).parts:
+            raise DataError(f"the {name} manifest lists {excerpt(file)} with {shown(digest)}, not a file of its "
+                            f"directory with its digest: {again}", source=str(path), column="files")
+    return doc["complete"], dict(doc["files"])
 
 
 def check_set(out: Path, name: str, file: str) -> None:
