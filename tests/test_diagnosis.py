@@ -260,8 +260,10 @@ def _story_diagnosis(**changes):
     rounds = (_round("CL-I", 2.0, "a", [effect("a", 1.5), effect("b", 1.8)]),
               _round("CL-I + a", 1.5, "b", [effect("b", 1.0)]),
               _round("CL-I + a + b", 1.0, None, [effect("c", 1.0), EffectRow("d", error="fitting d failed")]))
-    d = Diagnosis("CL", "CL-I", 1.0, "saturated library model", 1.0, True, 0.0, 0.01, rounds, "CL-I + a + b", 1.0,
-                  Unexplained(1.0, 0, 0.0), seconds=1.0)
+    d = Diagnosis(coefficient="CL", baseline="CL-I", noise_floor=1.0, floor_source="saturated library model",
+                  noise_floor_library=1.0, explained=True, final_excess_over_floor=0.0, final_excess_se=0.01,
+                  rounds=rounds, final_model="CL-I + a + b", final_mse=1.0, unexplained=Unexplained(1.0, 0, 0.0),
+                  seconds=1.0)
     return dataclasses.replace(d, **changes)
 
 

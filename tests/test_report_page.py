@@ -125,8 +125,10 @@ def _diagnosis(at_floor: bool):
                EffectRow("add b = q", error="fitting b failed: singular"))
     first = Round("Cm-X", TrainValidation(mse, mse), 1.0, "saturated library model", 1.0, 0.1, (), effects,
                   at_floor, 0.0, 0.01, None, None, 1.0, mse - 1.0)
-    return Diagnosis("Cm", "Cm-X", 1.0, "saturated library model", 1.0, at_floor, 0.0, 0.01, (first,), "Cm-X", mse,
-                     Unexplained(None if at_floor else 1.0, 0, 0.0), seconds=1.0)
+    return Diagnosis(coefficient="Cm", baseline="Cm-X", noise_floor=1.0, floor_source="saturated library model",
+                     noise_floor_library=1.0, explained=at_floor, final_excess_over_floor=0.0, final_excess_se=0.01,
+                     rounds=(first,), final_model="Cm-X", final_mse=mse,
+                     unexplained=Unexplained(None if at_floor else 1.0, 0, 0.0), seconds=1.0)
 
 
 @pytest.mark.parametrize("at_floor", [True, False])
@@ -260,8 +262,10 @@ def test_the_first_screen_names_the_effects_adopted_never_one_that_costs():
                   0.1, 1e-9, "second_state", floor, 1.0)
     second = Round("Cm-I + second_state", TrainValidation(1.5, 1.5), floor, "saturated", floor, 0.1, (), (shift,),
                    False, 0.5, 0.1, 1e-9, "cp_shift", floor, 0.5)
-    d = Diagnosis("Cm", "Cm-I", floor, "saturated", floor, False, 0.27, 0.05, (first, second), "Cm-I + cp", 1.27,
-                  Unexplained(0.27, 0, 0.0), seconds=1.0)
+    d = Diagnosis(coefficient="Cm", baseline="Cm-I", noise_floor=floor, floor_source="saturated",
+                  noise_floor_library=floor, explained=False, final_excess_over_floor=0.27, final_excess_se=0.05,
+                  rounds=(first, second), final_model="Cm-I + cp", final_mse=1.27,
+                  unexplained=Unexplained(0.27, 0, 0.0), seconds=1.0)
     line = gap_story(d)[1]
     assert line == "Which effect: adopted second_state (closes 50% of the gap), then cp_shift (closes 23% of the gap)."
     assert "CL-story" not in line

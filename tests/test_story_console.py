@@ -21,8 +21,10 @@ def _effect(name, after, verdict, p=1e-6, threshold=0.01):
 
 
 def _diagnosis(rounds, **changes):
-    d = Diagnosis("CD", "CD-I", 1.0, "saturated library model", 1.0, False, 0.2, 0.01, tuple(rounds),
-                  rounds[-1].baseline, 1.2, Unexplained(1.0, 0, 0.0), seconds=1.0)
+    d = Diagnosis(coefficient="CD", baseline="CD-I", noise_floor=1.0, floor_source="saturated library model",
+                  noise_floor_library=1.0, explained=False, final_excess_over_floor=0.2, final_excess_se=0.01,
+                  rounds=tuple(rounds), final_model=rounds[-1].baseline, final_mse=1.2,
+                  unexplained=Unexplained(1.0, 0, 0.0), seconds=1.0)
     return dataclasses.replace(d, **changes)
 
 

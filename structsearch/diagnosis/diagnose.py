@@ -250,11 +250,14 @@ def diagnose_search(fitter: Fitter, baseline: Candidate, *, max_rounds: int = DE
                   "alpha": alpha, "test": TEST_NAME, "terms": start.library.to_dict(),
                   "lift_models": sorted(ctx.lifts), "final_rule": ex.final_rule,
                   "set_aside": [a.to_dict() for a in ex.set_aside]}
-    return Diagnosis(baseline.coefficient, baseline.name, floor.mse, floor.source,
-                     min(f.mse for f in floors if not f.library_free), explained, final_excess, final_excess_se,
-                     tuple(rounds), final_fit.candidate.name, float(np.mean(final_fit.residual ** 2)), block,
-                     tuple(warnings), sl, time.perf_counter() - t0, final_fit.candidate.to_dict(), search_doc,
-                     start.reasons, _equivalences(baseline, path[-1], ctx)), ex
+    return Diagnosis(coefficient=baseline.coefficient, baseline=baseline.name, noise_floor=floor.mse,
+                     floor_source=floor.source,
+                     noise_floor_library=min(f.mse for f in floors if not f.library_free), explained=explained,
+                     final_excess_over_floor=final_excess, final_excess_se=final_excess_se, rounds=tuple(rounds),
+                     final_model=final_fit.candidate.name, final_mse=float(np.mean(final_fit.residual ** 2)),
+                     unexplained=block, warnings=tuple(warnings), state_level=sl, seconds=time.perf_counter() - t0,
+                     final_structure=final_fit.candidate.to_dict(), search=search_doc, baseline_reasons=start.reasons,
+                     equivalences=_equivalences(baseline, path[-1], ctx)), ex
 
 
 def _equivalences(baseline: Candidate, node, ctx: _Context):

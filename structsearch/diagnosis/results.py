@@ -313,7 +313,7 @@ class StateLevel:
         return text
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)   # twenty fields: built by keyword, never by position
 class Diagnosis:
     """The diagnosis of one coefficient's baseline (docs/interfaces.md sections 3 and 5.4). The top-level
     ``mse``, ``where``, ``effects`` and ``noise_floor_spectral`` are the first round's; ``state_level`` is None
@@ -418,10 +418,14 @@ class Diagnosis:
         """A diagnosis read back from its document (``mse``, ``where``, ``effects``, ``noise_floor_spectral`` and
         ``gap_explained_by_baseline`` are taken from its first round)."""
         sl = d.get("state_level")
-        return cls(d["coefficient"], d["baseline"], d["noise_floor"], d["floor_source"], d["noise_floor_library"],
-                   d["explained"], d["final_excess_over_floor"], d["final_excess_se"],
-                   tuple(Round.from_dict(r) for r in d["rounds"]), d["final_model"], d["final_mse"],
-                   Unexplained.from_dict(d["unexplained"]), tuple(d.get("warnings", ())),
-                   None if sl is None else StateLevel.from_dict(sl), d.get("seconds", float("nan")),
-                   d.get("final_structure"), d.get("search"), tuple(d.get("baseline_reasons", ())),
-                   tuple(Equivalence.from_dict(e) for e in d.get("equivalences", ())), d.get("simulator"))
+        return cls(coefficient=d["coefficient"], baseline=d["baseline"], noise_floor=d["noise_floor"],
+                   floor_source=d["floor_source"], noise_floor_library=d["noise_floor_library"],
+                   explained=d["explained"], final_excess_over_floor=d["final_excess_over_floor"],
+                   final_excess_se=d["final_excess_se"], rounds=tuple(Round.from_dict(r) for r in d["rounds"]),
+                   final_model=d["final_model"], final_mse=d["final_mse"],
+                   unexplained=Unexplained.from_dict(d["unexplained"]), warnings=tuple(d.get("warnings", ())),
+                   state_level=None if sl is None else StateLevel.from_dict(sl),
+                   seconds=d.get("seconds", float("nan")), final_structure=d.get("final_structure"),
+                   search=d.get("search"), baseline_reasons=tuple(d.get("baseline_reasons", ())),
+                   equivalences=tuple(Equivalence.from_dict(e) for e in d.get("equivalences", ())),
+                   simulator=d.get("simulator"))
