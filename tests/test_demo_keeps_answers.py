@@ -126,10 +126,11 @@ def test_an_interrupted_demo_puts_the_earlier_results_back_and_leaves_no_copy(tm
 
     def half_a_demo(out, **kwargs):
         (out / "lift.md").write_text("half of a new ranking\n")
+        (out / "drag.md").write_text("a file the earlier results did not have\n")
         raise KeyboardInterrupt
     monkeypatch.setattr(workflows, "_demo", half_a_demo)
     with pytest.raises(KeyboardInterrupt):
         workflows.demo(out)
-    assert (out / "lift.md").read_text() == "the committed ranking\n"
+    assert (out / "lift.md").read_text() == "the committed ranking\n" and not (out / "drag.md").exists()
     assert made[0].name.startswith(f"structsearch-{os.getpid()}-") and made[0].parent == Path(tempfile.gettempdir())
     assert not made[0].exists()

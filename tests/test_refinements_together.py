@@ -94,3 +94,16 @@ def test_a_refused_structure_asked_for_twice_is_fitted_once_for_both():
     assert first.stopped == second.stopped and "raises the held-out MSE by 5.0%; dropping b" in second.stopped
     # each round fits the structure both ask for once: dropping a, then dropping b
     assert calls == [["Ar-auto"], ["Ar-auto"]]
+
+
+def test_requests_that_differ_only_in_what_is_not_a_term_are_two_fits():
+    """One fit serves two requests only when they are one model: the same terms with another moment reference,
+    box or flight effect are another question (fitted apart), while the name and note do not count."""
+    import dataclasses
+
+    from structsearch.grid_search.refinements_together import same_fit_key
+    c = Candidate("P", "pitch", "Cm", (("c0", "1"), ("a", "alpha")))
+    assert same_fit_key(c) == same_fit_key(dataclasses.replace(c, name="Q", note="another name"))
+    for other in (dataclasses.replace(c, moment_reference="fixed"), dataclasses.replace(c, flight_effects=("c0",)),
+                  dataclasses.replace(c, bounds=(("a_star", (0.1, 0.3)),))):
+        assert same_fit_key(other) != same_fit_key(c), other

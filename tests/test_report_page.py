@@ -272,8 +272,8 @@ def test_the_first_screen_names_the_effects_adopted_never_one_that_costs():
 
 
 def test_a_report_beside_the_demos_story_gives_its_gaps_on_the_first_screen(tmp_path, monkeypatch):
-    """``structsearch report`` after the demo reads the story the demo wrote beside the ranking: every coefficient
-    the story diagnosed gets its gap on the first screen (before, only the demo's own call passed them, and a
+    """``structsearch report`` of the demo's campaign (OUT/campaign) reads the story the demo wrote beside the
+    ranking: every coefficient the story diagnosed gets its gap on the first screen (before, only the demo's own call passed them, and a
     report made afterwards said "Gap story: not diagnosed in this report" for C_L and C_D). A story.json that is
     not the demo's is one error naming the file."""
     import json
@@ -298,9 +298,15 @@ def test_a_report_beside_the_demos_story_gives_its_gaps_on_the_first_screen(tmp_
     monkeypatch.setattr(page, "build", build)
     monkeypatch.setattr(page, "require_figures", lambda: None)
     monkeypatch.setattr(api_report, "fit_report_models", lambda *a, **k: None)
-    outcome = api_report.report(build_campaign(seed=3, scale=0.05), tmp_path)
+    write_campaign(build_campaign(seed=3, scale=0.05), tmp_path / "campaign")
+    outcome = api_report.report(read_campaign(tmp_path / "campaign"), tmp_path)
     assert sorted(built["gaps"]) == ["CD", "CL", "Cm"] and built["story"] == lines
     assert any("story.json" in note for note in outcome.notes)
+    # a report of another campaign made in that folder does not show the demo's story (it is of other data)
+    write_campaign(build_campaign(seed=4, scale=0.05), tmp_path / "other")
+    built.clear()
+    outcome = api_report.report(read_campaign(tmp_path / "other"), tmp_path)
+    assert built["gaps"] is None and not any("story.json" in note for note in outcome.notes)
     (tmp_path / "story.json").write_text('{"lines": [], "diagnoses": {"CL": {"coefficient": 3}}}')
     with pytest.raises(DataError, match="story.json.*not a story written by the demo"):
         api_report.read_story_gaps(tmp_path)

@@ -102,13 +102,16 @@ def report(campaign: Campaign | str | os.PathLike, out: str | os.PathLike = "res
     with command_fitter("report", campaign, settings, out) as fitter:
         fits = fit_report_models(fitter, out, diagnose=diagnose, models=tuple(models), searched=searched)
     read_story = None
-    if gaps is None and story is None:   # the demo's story beside the ranking: its first screen gives the gaps
+    # the demo's story, when this report is of the demo's own campaign (OUT/campaign): its first screen gives the
+    # gaps; a story beside another campaign is of other data and is not shown
+    if gaps is None and story is None and campaign.directory is not None \
+            and Path(campaign.directory).resolve() == (out / "campaign").resolve():
         read_story = read_story_gaps(out)
         if read_story is not None:
             story, gaps = read_story
     res = build(campaign, out, fits, options=options, story=story, gaps=gaps)
     notes = list(res["notes"]) + ([f"the simulator's gap story is read from {out / 'story.json'} (written by the "
-                                   "demo beside this ranking)"] if read_story is not None else [])
+                                   "demo for this campaign)"] if read_story is not None else [])
     return ReportOutcome(res["html"], res["figures"], notes, time.perf_counter() - started)
 
 

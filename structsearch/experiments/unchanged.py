@@ -66,10 +66,14 @@ def snapshot(out: Path) -> Path | None:
 
 
 def restore(out: Path, aside: Path) -> None:
-    """Put every file of ``aside`` (:func:`snapshot`) back into ``out`` as it was, each written atomically: an
-    interrupted run leaves the results it found, not half of its own over them."""
+    """Put every file of ``aside`` (:func:`snapshot`) back into ``out`` as it was, each written atomically, and
+    remove the files it did not hold: an interrupted run leaves the results it found, not half of its own."""
     from ..data.atomic import write_bytes
-    for name in _files(aside):
+    earlier = set(_files(aside))
+    for name in _files(Path(out)):   # what the interrupted run added (an unfinished manifest, say) goes
+        if name not in earlier:
+            (Path(out) / name).unlink(missing_ok=True)
+    for name in sorted(earlier):
         write_bytes(Path(out) / name, (aside / name).read_bytes())
 
 

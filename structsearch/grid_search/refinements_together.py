@@ -5,17 +5,20 @@ independent: walked together, round by round, each round fits the structure ever
 for next as one task graph (their starts and folds spread over the workers together). The walks advance in
 the order of their starts after each round and share what they took (``known``), so the result is the same on
 any number of workers: it depends on the fits, never on which finished first. A structure two refinements ask
-for in the same round is fitted once.
+for in the same round is fitted once. Where two refinements meet one structure, the one that reaches it in an
+earlier round takes it and the other is told it reached it: one refinement after another could give the name
+to the other (the same structure and fit, another name); on the campaigns measured the two agree.
 """
 from __future__ import annotations
 
 import dataclasses
+import json
 
 from typing import Callable, Generator, Sequence
 
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
-from .refinement import Refinement, refinement_walk, structure_key
+from .refinement import Refinement, refinement_walk
 
 FitMany = Callable[[list[Candidate]], list[CandidateResult]]
 
@@ -47,9 +50,10 @@ def _advance(i: int, walk: Generator, step: Callable[[Generator], Candidate], as
         done[i] = finished.value
 
 
-def same_fit_key(c: Candidate) -> tuple:
-    """What two requests share when they are one fit: the structure and its boxes (names and notes aside)."""
-    return structure_key(c) + (tuple(sorted(c.bounds)),)
+def same_fit_key(c: Candidate) -> str:
+    """What two requests share when they are one fit: the whole declaration (structure, boxes, forms, flight
+    effects, moment reference) but its name, grid and note, as the runner tells a twin it has fitted already."""
+    return json.dumps({k: v for k, v in c.to_dict().items() if k not in ("name", "grid", "note")}, sort_keys=True)
 
 
 def _fit_once(fit_many: FitMany, candidates: list[Candidate]) -> list[CandidateResult]:
