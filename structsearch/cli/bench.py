@@ -189,19 +189,29 @@ def _through_jsbsim(args, out: Path, say) -> None:
     import time
     from ..api import withheld_jsbsim
     from ..api.settings import Settings
+    from ..engine.statistics import DEFAULT_COVARIANCE
     from ..data.atomic import write_json, write_text
     from ..flight.flighttest import build_campaign
     t0 = time.perf_counter()
     campaign = build_campaign(seed=args.seed, scale=args.scale)
+    work = out / "withheld_jsbsim"
+    # the fits are cached under the benchmark's folder: a run stopped half way resumes where it was
     settings = Settings(starts=args.starts, seed=args.seed, covariance=args.covariance, jobs=_jobs(args),
-                        bounds=_bounds(args) or None)
-    rows = withheld_jsbsim.run(campaign, out / "withheld_jsbsim", settings=settings, say=say)
+                        bounds=_bounds(args) or None, progress=say, cache=work / "cache")
     command = " ".join(["structsearch diagnose --benchmark --parts jsbsim --out", str(out)]
                        + ([f"--scale {args.scale:g}"] if args.scale != 1.0 else [])
-                       + ([f"--seed {args.seed}"] if args.seed else []))
-    seconds = time.perf_counter() - t0
-    md = write_text(out / "withheld_jsbsim_benchmark.md", withheld_jsbsim.markdown(rows, command, seconds))
-    write_json(out / "withheld_jsbsim_benchmark.json", withheld_jsbsim.to_json(rows, command, seconds))
+                       + ([f"--seed {args.seed}"] if args.seed else [])
+                       + ([f"--starts {args.starts}"] if args.starts != 2 else [])
+                       + ([f"--covariance {args.covariance}"] if args.covariance != DEFAULT_COVARIANCE else [])
+                       + [f"--bound {n}={lo:g}:{hi:g}" for n, (lo, hi) in args.bound])
+    rows = []
+    for effect in withheld_jsbsim.effects():   # the page is written again after each row: a long run shows its rows
+        if say is not None:
+            say(f"withheld through JSBSim: {effect}")
+        rows.append(withheld_jsbsim.row(campaign, effect, work, settings))
+        seconds = time.perf_counter() - t0
+        md = write_text(out / "withheld_jsbsim_benchmark.md", withheld_jsbsim.markdown(rows, command, seconds))
+        write_json(out / "withheld_jsbsim_benchmark.json", withheld_jsbsim.to_json(rows, command, seconds))
     hits = sum(r.hit and r.closes_half for r in rows)
     print(f"withheld through JSBSim: {hits} of {len(rows)} adopted first and closing half the gap; wrote {md}")
 
