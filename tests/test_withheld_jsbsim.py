@@ -41,3 +41,14 @@ def test_a_withheld_pitch_rate_is_found_through_jsbsim(tmp_path):
     r = row(build_campaign(seed=7, scale=0.5), "pitch_rate", tmp_path, Settings(jobs=2))
     assert r.first_adopted == "pitch_rate" and r.hit and r.closes_half, r
     assert (tmp_path / "pitch_rate" / "aerodynamics.xml").exists()
+
+
+def test_the_move_that_is_the_withheld_effect_on_a_fixed_baseline():
+    """The effect itself, the effect at one state, and (the simulator's missing second state) a state the gap
+    model adds with its own K term count; another effect, or a state added for another effect, does not."""
+    from structsearch.api.withheld_jsbsim import is_the_effect
+    assert is_the_effect("pitch_rate", "pitch_rate", "pitch_rate")
+    assert is_the_effect("elevator_effectiveness_loss", "elevator_effectiveness_loss: add Cm_Xde_2_ss = X_ss*de")
+    assert is_the_effect("second_separation_state", "add state X_ss with CL_KL_ss = K_L(X_ss)")
+    assert not is_the_effect("unsteady_lag", "add state X_ss with CL_KL_ss = K_L(X_ss)")
+    assert not is_the_effect("pitch_rate", "alpha_dot", "alpha_dot")

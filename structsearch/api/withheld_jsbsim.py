@@ -26,6 +26,10 @@ from .settings import Settings
 
 # A library effect "explains" the gap when it closes at least this share of it (the withheld benchmark's rule).
 HALF = 0.5
+# The move that is a withheld effect when the baseline is a fixed simulator: the gap model has no separation
+# state of its own, so the simulator's missing second state enters as the gap model's first, a state with its
+# own K term (the library's second_separation_state applies to a structure that has a state already)
+SAME_ON_A_FIXED_BASELINE = {"second_separation_state": "add state "}
 
 
 @dataclass(frozen=True)
@@ -84,7 +88,7 @@ def row(campaign: Campaign, effect: str, work: Path, settings: Settings = Settin
     floor = doc.noise_floor
     gap = doc.mse.validation / floor - 1 if floor and math.isfinite(floor) and floor > 0 else None
     return ThroughJsbsimRow(effect, coefficient, fitted[-1].candidate.name, first.adopted,
-                            adopted is not None and effect in (adopted.name, adopted.effect), shrink,
+                            adopted is not None and is_the_effect(effect, adopted.name, adopted.effect), shrink,
                             shrink is not None and shrink >= HALF, gap, bool(doc.explained),
                             time.perf_counter() - t0)
 
@@ -95,6 +99,13 @@ def effects() -> list[str]:
     from ..export.check import need_jsbsim
     need_jsbsim("the withheld benchmark through JSBSim drives JSBSim")
     return list(WITHHELD)
+
+
+def is_the_effect(effect: str, move: str, move_effect: str | None = None) -> bool:
+    """Whether the adopted ``move`` (its name, and the library effect it carries) is the withheld ``effect``: the
+    effect itself, the effect at one state, or its form on a fixed baseline (:data:`SAME_ON_A_FIXED_BASELINE`)."""
+    same = SAME_ON_A_FIXED_BASELINE.get(effect)
+    return effect in (move, move_effect) or move.startswith(f"{effect}:") or bool(same and move.startswith(same))
 
 
 def run(campaign: Campaign, work: Path, settings: Settings = Settings(),
@@ -124,7 +135,9 @@ def markdown(rows: Sequence[ThroughJsbsimRow], command: str, seconds: float) -> 
         "parameter values, nothing refitted) is exported to JSBSim, and the default campaign is diagnosed against "
         "that aircraft as `diagnose --simulator jsbsim:DIR` diagnoses any simulator: a fixed baseline, evaluated at "
         "the recorded states, with the diagnose command's own settings (`diagnose --simulator`). `shrink` is the "
-        "share of the first round's gap the move adopted first closes.", "",
+        "share of the first round's gap the move adopted first closes. On a fixed baseline the gap model has no "
+        "separation state of its own, so a withheld second state enters as its first: `add state X with its K "
+        "term` counts as `second_separation_state`.", "",
         tabulate(table, headers=["withheld effect", "coef.", "adopted first", "is the effect", "shrink", ">= 0.5",
                                  "baseline gap over floor", "explained", "s"], tablefmt="github"), "",
         f"Adopted first: **{hits}/{len(rows)}**; adopted first and closing at least half of the gap: "
