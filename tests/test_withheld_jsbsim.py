@@ -44,11 +44,14 @@ def test_a_withheld_pitch_rate_is_found_through_jsbsim(tmp_path):
 
 
 def test_the_move_that_is_the_withheld_effect_on_a_fixed_baseline():
-    """The effect itself, the effect at one state, and (the simulator's missing second state) a state the gap
-    model adds with its own K term count; another effect, or a state added for another effect, does not."""
+    """The effect itself, the effect at one state, and (an effect that is the coefficient's K term on a state,
+    whose states are inside the simulator) a state the gap model adds with that term count; another effect, or a
+    state added for an effect that is not a K term, does not."""
     from structsearch.api.withheld_jsbsim import is_the_effect
     assert is_the_effect("pitch_rate", "pitch_rate", "pitch_rate")
     assert is_the_effect("elevator_effectiveness_loss", "elevator_effectiveness_loss: add Cm_Xde_2_ss = X_ss*de")
     assert is_the_effect("second_separation_state", "add state X_ss with CL_KL_ss = K_L(X_ss)")
+    assert is_the_effect("separation_drag", "add state X_ss with CD_1mX_ss = 1 - X_ss")
+    assert is_the_effect("cp_shift", "add state X_ss with Cm_1mX_ssCL = (1 - X_ss)*CL")
     assert not is_the_effect("unsteady_lag", "add state X_ss with CL_KL_ss = K_L(X_ss)")
     assert not is_the_effect("pitch_rate", "alpha_dot", "alpha_dot")

@@ -26,10 +26,12 @@ from .settings import Settings
 
 # A library effect "explains" the gap when it closes at least this share of it (the withheld benchmark's rule).
 HALF = 0.5
-# The move that is a withheld effect when the baseline is a fixed simulator: the gap model has no separation
-# state of its own, so the simulator's missing second state enters as the gap model's first, a state with its
-# own K term (the library's second_separation_state applies to a structure that has a state already)
-SAME_ON_A_FIXED_BASELINE = {"second_separation_state": "add state "}
+# The move that is a withheld effect when the baseline is a fixed simulator. The simulator's separation states
+# are inside it, out of the gap model's reach: an effect that is the coefficient's K term on a state (the K term
+# a new state brings: K_L(X) in lift, the second state; 1 - X in drag, separation drag; (1 - X) C_L in pitch, the
+# centre-of-pressure shift; data/coefficients.py) enters as a state the gap model adds with that term
+SAME_ON_A_FIXED_BASELINE = {"second_separation_state": "add state ", "separation_drag": "add state ",
+                            "cp_shift": "add state "}
 
 
 @dataclass(frozen=True)
@@ -135,9 +137,11 @@ def markdown(rows: Sequence[ThroughJsbsimRow], command: str, seconds: float) -> 
         "parameter values, nothing refitted) is exported to JSBSim, and the default campaign is diagnosed against "
         "that aircraft as `diagnose --simulator jsbsim:DIR` diagnoses any simulator: a fixed baseline, evaluated at "
         "the recorded states, with the diagnose command's own settings (`diagnose --simulator`). `shrink` is the "
-        "share of the first round's gap the move adopted first closes. On a fixed baseline the gap model has no "
-        "separation state of its own, so a withheld second state enters as its first: `add state X with its K "
-        "term` counts as `second_separation_state`.", "",
+        "share of the first round's gap the move adopted first closes. On a fixed baseline the simulator's "
+        "separation states are out of the gap model's reach, so an effect that is the coefficient's K term on a "
+        "state enters as a state the gap model adds with that term: `add state X with ...` counts as "
+        "`second_separation_state` (K_L(X) in lift), `separation_drag` (1 - X in drag) and `cp_shift` "
+        "((1 - X) C_L in pitch).", "",
         tabulate(table, headers=["withheld effect", "coef.", "adopted first", "is the effect", "shrink", ">= 0.5",
                                  "baseline gap over floor", "explained", "s"], tablefmt="github"), "",
         f"Adopted first: **{hits}/{len(rows)}**; adopted first and closing at least half of the gap: "
