@@ -33,12 +33,13 @@ def test_the_simulator_is_the_truth_without_the_effect_at_the_truths_values(effe
 def test_a_withheld_pitch_rate_is_found_through_jsbsim(tmp_path):
     """The truth's lift without its pitch-rate term, exported to JSBSim and flown against (as a user's simulator):
     the diagnosis adopts the pitch-rate effect first, and it closes at least half of the gap. The campaign is a
-    seed and scale the committed benchmark did not use."""
+    seed the committed benchmark did not use, at full scale: at half scale (seed 7) the move is adopted first too,
+    but the baseline is within the floor's tolerance, where its share of the gap is not defined."""
     pytest.importorskip("jsbsim", reason="the benchmark drives JSBSim (the test extra has it)")
     from structsearch.api import Settings
     from structsearch.api.withheld_jsbsim import row
     from structsearch.flight.flighttest import build_campaign
-    r = row(build_campaign(seed=7, scale=0.5), "pitch_rate", tmp_path, Settings(jobs=2))
+    r = row(build_campaign(seed=7), "pitch_rate", tmp_path, Settings(jobs=2))
     assert r.first_adopted == "pitch_rate" and r.hit and r.closes_half, r
     assert (tmp_path / "pitch_rate" / "aerodynamics.xml").exists()
 
