@@ -53,12 +53,13 @@ class ThroughJsbsimRow:
 def truth_without(effect: str) -> list[Fitted]:
     """The default campaign's truth without ``effect`` as export reads fitted models: the lift model and, for a
     drag or pitch effect, that coefficient's model; the truth's values, no covariance."""
+    from ..data.coefficients import LIFT, coefficient
     from ..diagnosis.withheld import baseline_without
     from ..fitting.specs import find_candidate
     from ..flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_MODEL_NAMES, FINAL_PITCH
     truth = {**FINAL_LIFT, **FINAL_DRAG, **FINAL_PITCH}
     reduced = baseline_without(effect)
-    lift = reduced if reduced.coefficient == "CL" else find_candidate(FINAL_MODEL_NAMES["CL"])
+    lift = reduced if coefficient(reduced.coefficient).owns_states else find_candidate(FINAL_MODEL_NAMES[LIFT.name])
     models = [lift] + ([reduced] if reduced is not lift else [])
     return [_truth_of(c, truth) for c in models]
 
