@@ -17,7 +17,7 @@ import math
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Sequence
 
 from ..data.campaign import Campaign
 from ..fitting.candidates import Candidate
@@ -109,17 +109,6 @@ def is_the_effect(effect: str, move: str, move_effect: str | None = None) -> boo
     effect itself, the effect at one state, or its form on a fixed baseline (:data:`SAME_ON_A_FIXED_BASELINE`)."""
     same = SAME_ON_A_FIXED_BASELINE.get(effect)
     return effect in (move, move_effect) or move.startswith(f"{effect}:") or bool(same and move.startswith(same))
-
-
-def run(campaign: Campaign, work: Path, settings: Settings = Settings(),
-        say: Callable[[str], None] | None = None) -> list[ThroughJsbsimRow]:
-    """Every withheld effect through JSBSim, in the benchmark's order."""
-    rows = []
-    for effect in effects():
-        if say is not None:
-            say(f"withheld through JSBSim: {effect}")
-        rows.append(row(campaign, effect, Path(work), settings))
-    return rows
 
 
 def markdown(rows: Sequence[ThroughJsbsimRow], command: str, seconds: float) -> str:

@@ -84,10 +84,8 @@ def _gap(s) -> str:
     """The tables' "gap to best" of ``s`` (its mean per-maneuver relative excess of held-out MSE over the
     ranking's reference), as a signed percentage that never reads "-0.0%": the console and the tables give one
     number for one comparison. "n/a" when the ranking could not measure it."""
-    import math
-    from ..reporting.tables import signed_percent
-    gap = s.placement.gap
-    return signed_percent(gap) if gap is not None and math.isfinite(gap) else "n/a"
+    from ..reporting.tables import signed_percent   # "n/a" for NaN
+    return signed_percent(float("nan") if s.placement.gap is None else s.placement.gap)
 
 
 def _print_report(res) -> None:

@@ -78,16 +78,18 @@ def code_fingerprint() -> str:
     return h.hexdigest()[:16]
 
 
+def model_key(c: Candidate) -> str:
+    """What makes two candidates one question: the whole declaration but its name, grid and note."""
+    return json.dumps({k: v for k, v in c.to_dict().items() if k not in ("name", "grid", "note")}, sort_keys=True)
+
+
 def same_model_fitted(candidates: Sequence[Candidate], fitted: Sequence[tuple[Candidate, CandidateResult]]
                       ) -> dict[int, tuple[Candidate, CandidateResult]]:
     """Candidates (by index) that are, apart from their name and grid, a candidate fitted already (of an
     earlier grid), with that candidate and its result: the same coefficient, regressors (names and
     expressions), states, lift model and search boxes ask the same question of the same data."""
-    def model_of(c):
-        d = c.to_dict()
-        return json.dumps({k: v for k, v in d.items() if k not in ("name", "grid", "note")}, sort_keys=True)
-    done = {model_of(c): (c, r) for c, r in fitted if not r.failed}
-    return {i: done[model_of(c)] for i, c in enumerate(candidates) if model_of(c) in done}
+    done = {model_key(c): (c, r) for c, r in fitted if not r.failed}
+    return {i: done[model_key(c)] for i, c in enumerate(candidates) if model_key(c) in done}
 
 
 def may_be_nonlinear(c: Candidate, lift_params: dict | None) -> bool:

@@ -12,12 +12,12 @@ to the other (the same structure and fit, another name); on the campaigns measur
 from __future__ import annotations
 
 import dataclasses
-import json
 
 from typing import Callable, Generator, Sequence
 
 from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
+from ..fitting.runner import model_key
 from .refinement import Refinement, refinement_walk
 
 FitMany = Callable[[list[Candidate]], list[CandidateResult]]
@@ -51,9 +51,8 @@ def _advance(i: int, walk: Generator, step: Callable[[Generator], Candidate], as
 
 
 def same_fit_key(c: Candidate) -> str:
-    """What two requests share when they are one fit: the whole declaration (structure, boxes, forms, flight
-    effects, moment reference) but its name, grid and note, as the runner tells a twin it has fitted already."""
-    return json.dumps({k: v for k, v in c.to_dict().items() if k not in ("name", "grid", "note")}, sort_keys=True)
+    """What two requests share when they are one fit: the runner's rule for a twin it has fitted already."""
+    return model_key(c)
 
 
 def _fit_once(fit_many: FitMany, candidates: list[Candidate]) -> list[CandidateResult]:
