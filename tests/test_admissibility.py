@@ -107,7 +107,7 @@ def test_ranking_puts_admissible_candidates_first_and_names_the_passed_over():
     better = result(mse=(0.9, 1.8, 2.7), p_values={"tau1": 0.3})
     better = stated_result(**{**better.__dict__, "name": "better"})
     ok = stated_result(**{**result().__dict__, "name": "ok"})
-    broken = CandidateResult.failed_with(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
+    broken = CandidateResult.failure(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
     ranked = rank([better, ok, broken], lambda s: reasons(s, LIFT, RULES))
     assert [r.name for r in ranked] == ["ok", "better", "broken"]
     assert ranked[0].placement.admissible and not ranked[1].placement.admissible and ranked[1].placement.rank == 2

@@ -95,7 +95,7 @@ def test_python_declarations_of_the_final_models_equal_the_grids(coefficient, de
 def _result(error=None) -> CandidateResult:
     scores = SplitScores(0.5, (0.25, 0.75), (10, 10), R2Summary(0.9, float("nan"), 0.95), 0.1, None)
     if error:
-        return CandidateResult.failed_with(name="X", grid="g", coefficient="CL", lift=None, error=error, seconds=1.5)
+        return CandidateResult.failure(name="X", grid="g", coefficient="CL", lift=None, error=error, seconds=1.5)
     return stated_result("CD-I", "drag", "CD", "CL-VI", 2.0, names=("a", "b"), nonlinear_names=("a",),
                            params={"a": 1.0, "b": -2.0}, stderr={"a": 0.1, "b": float("nan")},
                            p_values={"a": 0.001, "b": 0.2}, at_bound={"a": "lower"},

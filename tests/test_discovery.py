@@ -364,7 +364,7 @@ def test_bonferroni_over_the_moves_of_a_step():
     assert one.threshold == DEFAULT_ALPHA and many.threshold == pytest.approx(DEFAULT_ALPHA / 40)
     assert one.improves and not many.improves
     # a failed fit: no test, and why
-    failed = CandidateResult.failed_with(name="f", grid="g", coefficient="CD", lift=None, error="boom", seconds=0.0)
+    failed = CandidateResult.failure(name="f", grid="g", coefficient="CD", lift=None, error="boom", seconds=0.0)
     t = move_test(parent, failed, DEFAULT_ALPHA, 4)
     assert np.isnan(t.p_value) and t.reason == "a fit failed" and not t.improves
 

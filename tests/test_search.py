@@ -101,7 +101,7 @@ def test_ranking_rule_prefers_the_smaller_model_within_noise():
         scores = SplitScores(float(np.mean(per)), tuple(per), (100,) * len(per), R2Summary(0.9, 0.8, 1.0))
         return stated_result(name, "g", "CL", None, 0.0, names=tuple(f"p{i}" for i in range(n)),
                                train=scores, validation=scores)
-    broken = CandidateResult.failed_with(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
+    broken = CandidateResult.failure(name="broken", grid="g", coefficient="CL", lift=None, error="boom", seconds=0)
     ranked = rank([summary("big", 9, [1.0, 2.0, 3.0]), summary("small", 6, [1.001, 2.002, 2.999]),
                    summary("bad", 5, [1.5, 2.9, 4.4]), broken])
     assert [r.name for r in ranked] == ["small", "big", "bad", "broken"]
@@ -624,7 +624,7 @@ def test_unexpected_failures_are_not_cached(tiny, tmp_path, monkeypatch):
             raise exc
         monkeypatch.setattr(candidate_fit, "_setup", failing)
         out = run([cand], tiny, tmp_path, options=options, backend="threading")[0]
-        assert out.failed and out.failure is kind and path.exists() == kind.cached, exc
+        assert out.failed and out.failure_kind is kind and path.exists() == kind.cached, exc
 
 
 @pytest.mark.slow

@@ -125,9 +125,9 @@ def fit_from(c: Candidate, train: FlightData, validation: FlightData, lift: Lift
     try:
         setup = _setup(c, train, validation, lift)
         if isinstance(setup, str):
-            return CandidateResult.failed_with(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
-                                               seconds=time.perf_counter() - t0, error=setup,
-                                               kind=FailureKind.NOT_APPLICABLE), None
+            return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
+                                           seconds=time.perf_counter() - t0, error=setup,
+                                           kind=FailureKind.NOT_APPLICABLE), None
         effects = prepare(c, options, setup.model, setup.train, setup.validation)
         if effects is not None:   # the effect columns on coded data; its starts and folds solved here
             setup = dataclasses.replace(setup, model=effects.model, train=effects.train,
@@ -152,9 +152,9 @@ def fit_from(c: Candidate, train: FlightData, validation: FlightData, lift: Lift
     except (StructSearchError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
         # the data or the declaration: kept in the cache; a bare ValueError may be the code's: fitted again
         from_question = isinstance(exc, (StructSearchError, np.linalg.LinAlgError, FloatingPointError))
-        return CandidateResult.failed_with(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
-                                           error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0,
-                                           kind=FailureKind.DATA if from_question else FailureKind.RETRIED), None
+        return CandidateResult.failure(name=c.name, grid=c.grid, coefficient=c.coefficient, lift=c.lift,
+                                       error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0,
+                                       kind=FailureKind.DATA if from_question else FailureKind.RETRIED), None
 
 
 def _scored(c: Candidate, setup: _Setup, result, plan: FoldPlan, options: FitOptions, cv: np.ndarray | None,

@@ -162,7 +162,7 @@ class CandidateResult:
     lift: str | None
     seconds: float
     error: str | None = None
-    failure: FailureKind | None = None  # the error's kind (None: it did not fail)
+    failure_kind: FailureKind | None = None  # the error's kind (None: it did not fail)
     # --- the fit (None when it failed) ---
     estimates: ParameterEstimates | None = None
     # the correlation with the data columns centred that can be (what admissibility judges; () when none can)
@@ -186,10 +186,10 @@ class CandidateResult:
     def __post_init__(self):
         rows = _rows(self.centred_correlation) if len(self.centred_correlation) else ()
         object.__setattr__(self, "centred_correlation", rows)
-        if self.error is None and self.failure is not None:
-            raise ValueError(f"{self.name}: a failure's kind ({self.failure.value}) without its error")
-        if self.error is not None and self.failure is None:   # a failure nobody classified is not cached
-            object.__setattr__(self, "failure", FailureKind.RETRIED)
+        if self.error is None and self.failure_kind is not None:
+            raise ValueError(f"{self.name}: a failure's kind ({self.failure_kind.value}) without its error")
+        if self.error is not None and self.failure_kind is None:   # a failure nobody classified is not cached
+            object.__setattr__(self, "failure_kind", FailureKind.RETRIED)
 
     # ----- construction ---------------------------------------------------------------
     @classmethod
@@ -208,11 +208,11 @@ class CandidateResult:
                    cv_scheme=cv_scheme, cv_note=cv_note, equations=result.equations)
 
     @classmethod
-    def failed_with(cls, *, name: str, grid: str, coefficient: str, lift: str | None, error: str,
+    def failure(cls, *, name: str, grid: str, coefficient: str, lift: str | None, error: str,
                     seconds: float, kind: FailureKind = FailureKind.RETRIED) -> "CandidateResult":
         """A candidate without a fit: ``error`` in words, ``kind`` whether it follows from the question."""
         return cls(name=name, grid=grid, coefficient=coefficient, lift=lift, seconds=seconds, error=error,
-                   failure=kind)
+                   failure_kind=kind)
 
     def placed(self, **changes: Any) -> "CandidateResult":
         """A copy whose :class:`Placement` has ``changes`` (``admissible``, ``reasons``, ``rank``,
@@ -228,7 +228,7 @@ class CandidateResult:
     def not_applicable(self) -> bool:
         """A candidate the campaign cannot fit by its nature (a column or the fixed reference point it lacks), not
         one whose fit went wrong: skipped, with ``error`` saying why."""
-        return self.failure is FailureKind.NOT_APPLICABLE
+        return self.failure_kind is FailureKind.NOT_APPLICABLE
 
     @property
     def n_params(self) -> int:
@@ -321,7 +321,7 @@ class CandidateResult:
                                                                  "latex": list(self.equations.latex)}
         doc["flight_effects"] = None if self.flight_effects is None else self.flight_effects.to_dict()
         doc["warnings"] = list(self.warnings)
-        doc["failure"] = None if self.failure is None else self.failure.value
+        doc["failure_kind"] = None if self.failure_kind is None else self.failure_kind.value
         return json_ready(doc)
 
     @classmethod
@@ -345,5 +345,5 @@ class CandidateResult:
         if values.get("flight_effects") is not None:
             values["flight_effects"] = FlightEffects.from_dict(values["flight_effects"])
         values["warnings"] = tuple(values.get("warnings", ()))
-        values["failure"] = None if values.get("failure") is None else FailureKind(values["failure"])
+        values["failure_kind"] = None if values.get("failure_kind") is None else FailureKind(values["failure_kind"])
         return cls(**values)

@@ -173,7 +173,7 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     finished = [0]
 
     def done(i, summary, warm):
-        if not summary.failed or summary.failure.cached:   # a failure that may be the code's is fitted again
+        if not summary.failed or summary.failure_kind.cached:   # a failure that may be the code's is fitted again
             write_cached(*paths[i], summary)
         results[i] = summary
         finished[0] += 1
