@@ -5,6 +5,7 @@ import pytest
 
 from structsearch.api.withheld_jsbsim import truth_without
 from structsearch.diagnosis.withheld import WITHHELD
+from structsearch.fitting.models import build_model
 from structsearch.flight.reference import FINAL_DRAG, FINAL_LIFT, FINAL_PITCH
 
 TRUTH = {**FINAL_LIFT, **FINAL_DRAG, **FINAL_PITCH}
@@ -19,6 +20,13 @@ def test_the_simulator_is_the_truth_without_the_effect_at_the_truths_values(effe
     assert fitted[0].candidate.coefficient == "CL" and fitted[-1].candidate.coefficient == coefficient
     for f in fitted:
         assert f.params == {n: TRUTH[n] for n in f.params} and f.covariance is None
+    # what the export must be given is what the model built from the structure estimates: no parameter missing,
+    # none extra (read from the engine's model, not from how truth_without picks them)
+    lift_model = build_model(fitted[0].candidate)
+    assert set(fitted[0].params) == set(lift_model.nonlinear_names) | set(lift_model.linear_names)
+    if coefficient != "CL":
+        assert set(fitted[-1].params) == set(dict(fitted[-1].candidate.regressors))
+        assert not set(fitted[-1].params) & set(lift_model.nonlinear_names)
     exported = fitted[-1]
     assert not set(dropped) & set(exported.params)
     if effect == "unsteady_lag":
