@@ -12,11 +12,18 @@ Code blocks are read by their language tag:
   a quoted line stands for any text (a wall time). A quoted line the run does not print fails the test;
 * ``toml``: parsed; with ``<!-- file: NAME -->`` right before the fence it is also written to NAME in the
   page's working directory, where later blocks use it (a grid spec is then searched, a term library loaded);
-* ``text``, ``csv``, ``json``: listings, not run (``json`` is parsed when it is a whole document).
+* ``text``, ``csv``, ``json``: listings, not run (``json`` is parsed when it is a whole document). A ``text``
+  block that quotes what the program printed or wrote is marked ``<!-- output: printed -->`` (the output of the
+  page's block run just before it: a python block's standard output, a shell block's commands' outputs) or
+  ``<!-- output: file PATH -->`` (a file the page's runs wrote, an HTML page read as its text), optionally with
+  ``, rtol R``; its lines are then checked as a console block's quoted lines are. A text block that quotes an
+  error line (``structsearch ...: error: ...``) must be so marked.
 
 An HTML comment on the line before a fence marks a block: ``<!-- test: slow -->`` runs it only in the slow set
 (with the rest of its page, in order), ``<!-- test: skip (REASON) -->`` never runs it (an installation, the test
-command itself) and must give a reason. A block without a known tag fails the test, so none is skipped silently.
+command itself) and must give a reason, ``<!-- test: exit N -->`` (or ``slow, exit N``) expects each command of a
+console block to end with exit status N (an error the page shows, its quoted lines checked). A block without a
+known tag fails the test, so none is skipped silently.
 
 Examples use the small campaign ``structsearch simulate --out camp --scale 0.05``; it is flown once per test
 module and copied where a page asks for it (the same command and seed give the same campaign bit for bit).
@@ -34,6 +41,7 @@ import subprocess
 import sys
 import tomllib
 from dataclasses import dataclass
+from html.parser import HTMLParser
 from pathlib import Path
 
 import pytest
@@ -57,9 +65,28 @@ class Block:
     line: int
     lang: str
     body: str
-    marker: str = ""        # "slow", "skip (...)" or ""
+    marker: str = ""        # "slow", "skip (...)", "exit N", "slow, exit N" or ""
     file: str = ""          # <!-- file: NAME -->
-    output: str = ""        # <!-- output: rtol R -->: how close a quoted output's numbers must be
+    output: str = ""        # <!-- output: [printed | file PATH][, ]rtol R -->: what a quote quotes, how closely
+
+    @property
+    def slow(self) -> bool:
+        return self.marker.split(",")[0].strip() == "slow"
+
+    @property
+    def skipped(self) -> bool:
+        return self.marker.startswith("skip")
+
+    @property
+    def exit_status(self) -> int:
+        """The exit status each command of the block must end with (``<!-- test: exit N -->``; 0 otherwise)."""
+        m = re.search(r"(?:^|,\s*)exit (\d+)$", self.marker)
+        return int(m[1]) if m else 0
+
+    @property
+    def quotes(self) -> str:
+        """What a text block quotes: "printed", "file PATH", or "" (a listing)."""
+        return re.sub(r",?\s*rtol [0-9.eE+-]+$", "", self.output).strip()
 
     @property
     def where(self) -> str:
@@ -146,10 +173,10 @@ def _line_pattern(quoted: str) -> re.Pattern:
 
 
 def _close(quoted: str, printed: str, rtol: float | None) -> bool:
-    """``printed`` within ``rtol`` of ``quoted``, else within one unit of ``quoted``'s last digit."""
+    """``printed`` within one unit of ``quoted``'s last digit, or within ``rtol`` of it."""
     x, y = float(quoted), float(printed)
-    if rtol is not None:
-        return abs(x - y) <= rtol * max(abs(x), abs(y))
+    if rtol is not None and abs(x - y) <= rtol * max(abs(x), abs(y)):
+        return True
     mantissa, _, exponent = quoted.lower().partition("e")
     digits = len(mantissa.split(".")[1]) if "." in mantissa else 0
     return abs(x - y) <= 1.0001 * 10.0 ** (int(exponent or 0) - digits)
@@ -173,11 +200,64 @@ def quoted_output_problem(quoted: list[str], printed: str, rtol: float | None = 
 
 
 def _rtol(block: Block) -> float | None:
-    if not block.output:
+    if not block.output or block.output == block.quotes:
         return None
-    m = re.fullmatch(r"rtol ([0-9.eE+-]+)", block.output)
+    m = re.search(r"rtol ([0-9.eE+-]+)$", block.output)
     assert m, f"{block.where}: <!-- output: rtol R --> expected, not {block.output!r}"
     return float(m[1])
+
+
+class _HtmlText(HTMLParser):
+    """An HTML page's text as a reader sees it: a line per block element, a formula's MathML skipped (the page
+    also writes each formula as text)."""
+    BLOCKS = {"p", "div", "h1", "h2", "h3", "h4", "li", "tr", "br", "pre", "table", "section", "caption"}
+
+    def __init__(self):
+        super().__init__()
+        self.parts: list[str] = []
+        self.hidden = 0
+        self.pre = 0
+
+    def handle_starttag(self, tag, attrs):
+        self.hidden += tag in ("math", "script", "style")
+        self.pre += tag == "pre"
+        if tag in self.BLOCKS:
+            self.parts.append("\n")
+
+    def handle_endtag(self, tag):
+        self.hidden -= tag in ("math", "script", "style")
+        self.pre -= tag == "pre"
+        if tag in self.BLOCKS:
+            self.parts.append("\n")
+
+    def handle_data(self, data):
+        if not self.hidden:
+            self.parts.append(data if self.pre else data.replace("\n", " "))   # a source line break is a space
+
+    def text(self) -> str:
+        return "\n".join(" ".join(line.split()) for line in "".join(self.parts).splitlines() if line.strip())
+
+
+def written_text(path: Path) -> str:
+    """A file the page's runs wrote, as text (an HTML page as its reader's text)."""
+    if path.suffix == ".html":
+        parser = _HtmlText()
+        parser.feed(path.read_text(encoding="utf-8"))
+        return parser.text()
+    return path.read_text(encoding="utf-8")
+
+
+ERROR_LINE = re.compile(r"^\s*structsearch[\w -]*: error:", re.M)
+
+
+def quoted_text_problem(block: Block, printed: str, workdir: Path) -> str | None:
+    """Whether a text block marked as quoting an output quotes it (None) or what it quotes that was not printed."""
+    if block.quotes == "printed":
+        return quoted_output_problem(block.body.splitlines(), printed, _rtol(block))
+    path = workdir / block.quotes.removeprefix("file ").strip()
+    if not path.is_file():
+        return f"the quoted file {path} was not written"
+    return quoted_output_problem(block.body.splitlines(), written_text(path), _rtol(block))
 
 
 def pages_with(predicate) -> list[Path]:
@@ -201,11 +281,13 @@ def _env():
     return env
 
 
-def _structsearch(argv: list[str], cwd: Path, where: str = "") -> str:
-    """Run ``structsearch ARGV`` in ``cwd``; what it printed, stdout and stderr interleaved as on a console."""
+def _structsearch(argv: list[str], cwd: Path, where: str = "", status: int = 0) -> str:
+    """Run ``structsearch ARGV`` in ``cwd``, which must end with exit ``status``; what it printed, stdout and
+    stderr interleaved as on a console."""
     proc = subprocess.run([sys.executable, "-m", "structsearch", *argv], cwd=cwd, env={**_env(), "PYTHONUNBUFFERED": "1"},
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=3600)
-    assert proc.returncode == 0, f"{where}: structsearch {' '.join(argv)} failed:\n{proc.stdout[-4000:]}"
+    assert proc.returncode == status, \
+        f"{where}: structsearch {' '.join(argv)} ended with exit {proc.returncode}, not {status}:\n{proc.stdout[-4000:]}"
     return proc.stdout
 
 
@@ -213,28 +295,42 @@ def run_page(page: Path, workdir: Path, small_campaign_dir, include_slow: bool, 
     """Run the page's blocks in order in ``workdir``; return how many ran."""
     namespace: dict = {"__name__": "__docs__"}
     monkeypatch.chdir(workdir)
-    ran = 0
+    if not (workdir / "examples").exists():       # the pages run from a checkout's root, where examples/ is
+        (workdir / "examples").symlink_to(ROOT / "examples", target_is_directory=True)
+    ran, printed, skipped_a_run = 0, "", False
     for block in blocks(page):
-        if block.marker.startswith("skip") or (block.marker == "slow" and not include_slow):
+        if block.skipped or (block.slow and not include_slow):
+            skipped_a_run |= _runs(block)
             continue
+        if block.lang == "text" and block.quotes:
+            if skipped_a_run and block.quotes == "printed":
+                continue                                 # it quotes a block that did not run in this set
+            problem = quoted_text_problem(block, printed, workdir)
+            assert problem is None, f"{block.where}: {problem}"
+            continue
+        skipped_a_run = False
         if block.lang == "toml":
             tomllib.loads(block.body)
             if block.file:
                 (workdir / block.file).parent.mkdir(parents=True, exist_ok=True)
                 (workdir / block.file).write_text(block.body + "\n")
         elif block.lang in RUN_PYTHON:
-            with contextlib.redirect_stdout(io.StringIO()):
+            with contextlib.redirect_stdout(io.StringIO()) as stdout:
                 try:
                     exec(compile(block.body, block.where, "exec"), namespace)
                 except Exception as error:      # noqa: BLE001 - name the block that failed
                     raise AssertionError(f"{block.where}: the python block failed: {error!r}") from error
+            printed = stdout.getvalue()
         elif block.lang in RUN_SHELL:
+            printed = ""
             for command, quoted in zip(commands(block), quoted_outputs(block)):
                 argv = shlex.split(command)
                 if command == SMALL_CAMPAIGN and not (workdir / "camp").exists() and not quoted:
                     shutil.copytree(small_campaign_dir(), workdir / "camp")
                     continue
-                problem = quoted_output_problem(quoted, _structsearch(argv[1:], workdir, block.where), _rtol(block))
+                output = _structsearch(argv[1:], workdir, block.where, block.exit_status)
+                printed += output
+                problem = quoted_output_problem(quoted, output, _rtol(block))
                 assert problem is None, f"{block.where}: {command}: {problem}"
         else:
             continue
@@ -279,8 +375,13 @@ def test_no_page_narrates_issues(page):
 def test_every_block_has_a_known_tag_and_markers_are_well_formed(page):
     for block in blocks(page):
         assert block.lang in RUN_PYTHON | RUN_SHELL | LISTINGS, f"{block.where}: a block tagged {block.lang!r}"
-        assert block.marker in ("", "slow") or re.fullmatch(r"skip \(.+\)", block.marker), block.where
-        assert not block.output or (block.lang == "console" and _rtol(block) is not None), block.where
+        assert re.fullmatch(r"(slow)?|(slow, )?exit \d+|skip \(.+\)", block.marker), block.where
+        assert not block.exit_status or block.lang == "console", block.where
+        assert not block.output or (block.lang == "console" and not block.quotes and _rtol(block) is not None) \
+            or (block.lang == "text" and re.fullmatch(r"printed|file \S+", block.quotes)), block.where
+        assert block.lang != "text" or block.quotes or block.skipped or not ERROR_LINE.search(block.body), \
+            f"{block.where}: a text block quotes an error line: mark it <!-- output: printed --> after the block " \
+            "that prints it (a console block marked <!-- test: exit 2 -->)"
         if block.lang == "json" and block.body.lstrip().startswith("{") and "..." not in block.body:
             json.loads(block.body)
         if block.lang in RUN_SHELL and not block.marker.startswith("skip"):
@@ -288,6 +389,18 @@ def test_every_block_has_a_known_tag_and_markers_are_well_formed(page):
             for command in commands(block):
                 assert shlex.split(command)[0] in ("structsearch", ".venv/bin/structsearch"), \
                     f"{block.where}: only structsearch commands run ({command!r}); mark the block skip with a reason"
+
+
+@pytest.mark.parametrize("page", PAGES, ids=_ids(PAGES))
+def test_a_quote_of_printed_output_follows_a_block_that_runs(page):
+    """A quote of what was printed is checked against the block run before it, so that block must run."""
+    before = None
+    for block in blocks(page):
+        if block.lang == "text" and block.quotes == "printed":
+            assert before is not None and not before.skipped, \
+                f"{block.where}: it quotes the output of a block that never runs ({before and before.where})"
+        elif _runs(block):
+            before = block
 
 
 TUTORIAL_RUN = """\
@@ -308,12 +421,28 @@ def test_a_quoted_output_the_run_does_not_print_fails():
     assert quoted_output_problem(["lift: CL-VI (11 parameters, validation MSE 0.00378); ..."], printed) is None
     assert quoted_output_problem(["lift: CL-VI (11 parameters, validation MSE 0.00390); ..."], printed) is not None
     assert quoted_output_problem(["lift: CL-VI (11 parameters, validation MSE 0.0039); ..."], printed, 0.05) is None
+    assert quoted_output_problem(["lift: CL-VI (11 parameters, validation MSE 0.0040); ..."], printed, 0.05) \
+        is not None
     assert quoted_output_problem(["wrote first-search/ranking.csv ...", "grid lift: 6 candidates"], printed) \
         is not None                                                       # the order counts
     console = Block(ROOT / "README.md", 1, "console", "$ structsearch search \\\n  --grid lift\nout 1\n\nout 2\n"
                     "$ structsearch grids\n")
     assert commands(console) == ["structsearch search --grid lift", "structsearch grids"]
     assert quoted_outputs(console) == [["out 1", "out 2"], []]
+
+
+def test_an_html_page_is_quoted_as_its_text(tmp_path):
+    page = tmp_path / "report.html"
+    page.write_text("<html><style>p {}</style><h2>Lift, C_L: CL-VI</h2><p>Validation R<sup>2</sup> 0.9052;\n"
+                    "  held-out MSE 0.003171</p><math><mi>CL</mi></math><p>CL = 0.223</p></html>", encoding="utf-8")
+    assert written_text(page).splitlines() == ["Lift, C_L: CL-VI", "Validation R2 0.9052; held-out MSE 0.003171",
+                                               "CL = 0.223"]
+    quote = Block(ROOT / "README.md", 1, "text", "Lift, C_L: CL-VI\nCL = 0.223", output="file report.html")
+    assert quoted_text_problem(quote, "", tmp_path) is None
+    wrong = Block(ROOT / "README.md", 1, "text", "Lift, C_L: CL-VI\nCL = 0.300", output="file report.html")
+    assert quoted_text_problem(wrong, "", tmp_path) is not None
+    missing = Block(ROOT / "README.md", 1, "text", "CL", output="file nowhere.html")
+    assert "was not written" in quoted_text_problem(missing, "", tmp_path)
 
 
 def test_markers_are_found():
@@ -328,8 +457,8 @@ def _runs(block: Block) -> bool:
     return block.lang in RUN_PYTHON | RUN_SHELL or bool(block.file)
 
 
-FAST = pages_with(lambda b: _runs(b) and not b.marker)
-SLOW = pages_with(lambda b: _runs(b) and b.marker == "slow")
+FAST = pages_with(lambda b: _runs(b) and not b.slow and not b.skipped)
+SLOW = pages_with(lambda b: _runs(b) and b.slow)
 
 
 @pytest.mark.parametrize("page", FAST, ids=_ids(FAST))

@@ -62,61 +62,71 @@ def run_staged(campaigns: int = 50, scale: float = 0.05, random_starts: int = 64
     (the lowest among the ``random_starts`` uniform random starts inside the box that end on no bound,
     and the admissible fits below). Beside it the previous default (declared start plus three quasi-random
     points), one random start, and with ``variants`` the fits of :data:`VARIANTS`."""
-    from joblib import Parallel, delayed
-    from ..flight.flighttest import build_campaign
     from ..fitting.models import build_model
-    from ..fitting.options import FitOptions
-    from ..fitting.candidate_fit import fit_staged
     from ..fitting.specs import resolve_candidate
     from ..fitting.staging import stages
-    from .bench_process import solve_or_none
     say = progress or (lambda m: None)
     candidate = resolve_candidate("CL-VI")
-    model = build_model(candidate)
-    stage_model = build_model(stages(candidate)[0])
+    models = (candidate, build_model(candidate), build_model(stages(candidate)[0]))
     chosen = VARIANTS if variants else {}
     rows = []
+    verdict = {True: "reaches", False: "MISSES", None: "has no admissible solution to reach (none found)"}
     for seed in range(campaigns):
-        campaign = build_campaign(seed=seed, scale=scale)
-        train, validation = campaign.split("train"), campaign.split("validation")
-        problem, y = model.bind(train), train["CL"]
-        lower, upper = model.bound_vectors(train)
-        rng = np.random.default_rng(10_000 + seed)
-        points = lower + rng.uniform(size=(random_starts, len(lower))) * (upper - lower)
-        random_fits = Parallel(n_jobs=n_jobs)(delayed(solve_or_none)(problem, y, p, lower, upper) for p in points)
-        random = [(float(2 * o.cost), _on_bound(model.nonlinear_names, o.theta, lower, upper))
-                  for o in random_fits if o is not None]
-        t0 = time.perf_counter()
-        staged = fit_staged(candidate, train, validation, None, FitOptions(cv_folds=0))
-        t_staged = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        previous = model.fit(train, n_starts=4, seed=0)
-        t_previous = time.perf_counter() - t0
-        # on a bound as the random starts are judged (the solver's tolerance), not the fits' practical flag
-        fits = {"staged": (float(staged.mse_train * len(y)), _on_bound(*_box(staged.estimates)), t_staged),
-                "previous": (float(np.sum(previous.residuals ** 2)), _on_bound(*_box(previous.estimates)), t_previous)}
-        fits.update({k: fit_variant(model, stage_model, train, *v[1:]) for k, v in chosen.items()})
-        admissible = [r for r, bound in random if not bound] + [f[0] for f in fits.values() if not f[1]]
-        best = min(admissible) if admissible else float("nan")
-        best_any = min([r for r, _ in random] + [f[0] for f in fits.values()])
-        ok = best * (1 + SAME_OPTIMUM_RTOL)
-        # no admissible solution found (every start and fit ends on a bound): nothing to reach, None
-        reached = {k: bool(not f[1] and f[0] <= ok) if admissible else None for k, f in fits.items()}
-        rows.append({"seed": seed, "samples": len(y), "best_rss": best, "best_any_rss": best_any,
-                     "best_any_on_bound": bool(not admissible or best_any < best * (1 - SAME_OPTIMUM_RTOL)),
-                     "staged_ok": reached["staged"], "previous_ok": reached["previous"],
-                     "random_ok": int(sum(not b and r <= ok for r, b in random)),
-                     "random_admissible": int(sum(not b for _, b in random)),
-                     "staged_s": t_staged, "previous_s": t_previous,
-                     "variants": {k: {"ok": reached[k], "rss": fits[k][0], "at_bound": fits[k][1],
-                                      "seconds": fits[k][2]} for k in chosen}})
-        verdict = {True: "reaches", False: "MISSES", None: "has no admissible solution to reach (none found)"}
-        say(f"campaign {seed}: staged {verdict[reached['staged']]} the best admissible fit; "
+        rows.append(_staged_row(seed, scale, random_starts, n_jobs, models, chosen))
+        say(f"campaign {seed}: staged {verdict[rows[-1]['staged_ok']]} the best admissible fit; "
             f"{rows[-1]['random_ok']}/{random_starts} random starts do"
-            + "".join(f"; {k} {'yes' if reached[k] else 'NO'}" for k in chosen))
-    n = len(rows)
+            + "".join(f"; {k} {'yes' if rows[-1]['variants'][k]['ok'] else 'NO'}" for k in chosen))
+    return _staged_summary(rows, scale, random_starts, chosen)
+
+
+def _staged_row(seed: int, scale: float, random_starts: int, n_jobs: int, models, chosen: dict) -> dict:
+    """One campaign of :func:`run_staged`: the random starts, the staged and previous fits and the variants, each
+    judged against the best admissible RSS found."""
+    from joblib import Parallel, delayed
+    from ..fitting.candidate_fit import fit_staged
+    from ..fitting.options import FitOptions
+    from ..flight.flighttest import build_campaign
+    from .bench_process import solve_or_none
+    candidate, model, stage_model = models
+    campaign = build_campaign(seed=seed, scale=scale)
+    train, validation = campaign.split("train"), campaign.split("validation")
+    problem, y = model.bind(train), train["CL"]
+    lower, upper = model.bound_vectors(train)
+    rng = np.random.default_rng(10_000 + seed)
+    points = lower + rng.uniform(size=(random_starts, len(lower))) * (upper - lower)
+    random_fits = Parallel(n_jobs=n_jobs)(delayed(solve_or_none)(problem, y, p, lower, upper) for p in points)
+    random = [(float(2 * o.cost), _on_bound(model.nonlinear_names, o.theta, lower, upper))
+              for o in random_fits if o is not None]
+    t0 = time.perf_counter()
+    staged = fit_staged(candidate, train, validation, None, FitOptions(cv_folds=0))
+    t_staged = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    previous = model.fit(train, n_starts=4, seed=0)
+    t_previous = time.perf_counter() - t0
+    # on a bound as the random starts are judged (the solver's tolerance), not the fits' practical flag
+    fits = {"staged": (float(staged.mse_train * len(y)), _on_bound(*_box(staged.estimates)), t_staged),
+            "previous": (float(np.sum(previous.residuals ** 2)), _on_bound(*_box(previous.estimates)), t_previous)}
+    fits.update({k: fit_variant(model, stage_model, train, *v[1:]) for k, v in chosen.items()})
+    admissible = [r for r, bound in random if not bound] + [f[0] for f in fits.values() if not f[1]]
+    best = min(admissible) if admissible else float("nan")
+    best_any = min([r for r, _ in random] + [f[0] for f in fits.values()])
+    ok = best * (1 + SAME_OPTIMUM_RTOL)
+    # no admissible solution found (every start and fit ends on a bound): nothing to reach, None
+    reached = {k: bool(not f[1] and f[0] <= ok) if admissible else None for k, f in fits.items()}
+    return {"seed": seed, "samples": len(y), "best_rss": best, "best_any_rss": best_any,
+            "best_any_on_bound": bool(not admissible or best_any < best * (1 - SAME_OPTIMUM_RTOL)),
+            "staged_ok": reached["staged"], "previous_ok": reached["previous"],
+            "random_ok": int(sum(not b and r <= ok for r, b in random)),
+            "random_admissible": int(sum(not b for _, b in random)),
+            "staged_s": t_staged, "previous_s": t_previous,
+            "variants": {k: {"ok": reached[k], "rss": fits[k][0], "at_bound": fits[k][1],
+                             "seconds": fits[k][2]} for k in chosen}}
+
+
+def _staged_summary(rows: list[dict], scale: float, random_starts: int, chosen: dict) -> dict:
+    """:func:`run_staged`'s figures over its campaigns' rows."""
     judged = [r for r in rows if r["staged_ok"] is not None]
-    return {"campaigns": n, "scale": scale, "random_starts": random_starts, "reference": "best admissible",
+    return {"campaigns": len(rows), "scale": scale, "random_starts": random_starts, "reference": "best admissible",
             "admissible_campaigns": len(judged),
             "no_admissible": [r["seed"] for r in rows if r["staged_ok"] is None],
             "samples_median": float(np.median([r["samples"] for r in rows])),

@@ -99,15 +99,20 @@ def parse_file(path: Path) -> ET.Element:
         raw = path.read_bytes()
     except OSError as exc:
         raise DeclarationError(f"{path}: cannot read the aircraft file ({exc.strerror})") from None
+    return parse_bytes(raw, str(path), "the aircraft file")
+
+
+def parse_bytes(raw: bytes, source: str, what: str) -> ET.Element:
+    """The XML document ``raw`` (``source`` names it in an error), refusing document type declarations."""
     if len(raw) > MAX_BYTES:
-        raise DeclarationError(f"{path}: {len(raw)} bytes is not an aircraft file (more than {MAX_BYTES})")
+        raise DeclarationError(f"{source}: {len(raw)} bytes is not {what} (more than {MAX_BYTES})")
     if b"<!DOCTYPE" in raw or b"<!ENTITY" in raw:
-        raise DeclarationError(f"{path}: the aircraft file declares a document type or an entity, which is not "
+        raise DeclarationError(f"{source}: {what} declares a document type or an entity, which is not "
                                "read (entities are never expanded): remove the <!DOCTYPE ...> declaration")
     try:
         return ET.fromstring(raw)
     except ET.ParseError as exc:
-        raise DeclarationError(f"{path}: not well-formed XML ({exc})") from None
+        raise DeclarationError(f"{source}: not well-formed XML ({exc})") from None
 
 
 def _reads(element: ET.Element) -> frozenset[str]:

@@ -165,7 +165,8 @@ def fly_campaign(target: str, modification: Modification | Mapping[str, float] |
     missing = [f for f in modification.functions if not any(f in aircraft.functions(a) for a in aircraft.axes)]
     if missing:
         raise StructSearchError(f"--modify: the aircraft {aircraft.name} has no axis function {missing[0]!r}")
-    holder = make_copy(aircraft, modification.scales, rewrite=False, lags=modification.lags, frame_s=1.0 / RATE_HZ)
+    holder = make_copy(aircraft, modification.scales, rewrite=False, lags=modification.lags, frame_s=1.0 / RATE_HZ,
+                       tables=modification.tables, states=modification.states)
     rng = np.random.default_rng(seed)
     maneuvers, segments, craft = [], [], None
     try:

@@ -9,10 +9,28 @@
     input = "aero/alpha-rad"            # a property it reads: it reads it lagged instead
     time_constant = 0.3                 # s, positive and finite: tau dy/dt + y = input
 
+    [[replace]]
+    function = "aero/coefficient/CLwbh" # an axis function holding one table
+    rows = [-0.09, 0.0, 0.09, 0.36]     # its row breakpoints, increasing
+    columns = [0.0, 1.0]                # its column breakpoints (a table of two inputs only)
+    values = [[-0.22, -0.22], [0.25, 0.25], [0.73, 0.73], [1.15, 1.15]]   # a row of values per row breakpoint
+                                                                            # (one number per row without columns)
+
+    [[state]]
+    system = "systems/structsearch_states.xml"  # a separation-state system `export --format jsbsim` wrote,
+                                                # a path inside this file's directory
+    state = "structsearch/X_ss"                 # the state it computes (1 attached, 0 separated)
+    function = "aero/coefficient/CLwbh"         # an axis function of the aircraft
+    input = "aero/stall-hyst-norm"              # a property it reads: it reads the state instead
+    complement = true                           # read 1 - state (a property that is 1 when separated)
+
 A lag is a first-order separation lag on what the function reads (its table's alpha, say): the function follows
-the input with the time constant, as a separation that takes time to follow alpha does. A lag acts over time, so
-it is a modification of an aircraft that is flown (``simulate --jsbsim``), not of one evaluated at recorded states.
-At least one entry; each error names the file and the entry.
+the input with the time constant, as a separation that takes time to follow alpha does. A state is a separation
+state the project identified and exported, flown inside the aircraft: its system is copied into the aircraft and
+the function reads the state where it read ``input`` (c172p's stall latch, say, which picks the lift table's
+column). A replaced table keeps the inputs it reads and takes the given breakpoints and values. A lag and a state
+act over time, so they modify an aircraft that is flown (``simulate --jsbsim``), not one evaluated at recorded
+states. At least one entry; each error names the file and the entry.
 """
 from __future__ import annotations
 
@@ -24,10 +42,15 @@ from typing import Mapping
 
 from ..data.errors import DeclarationError
 from ..data.reading import parse_toml, read_text
+from .aircraft_xml import parse_bytes
 
-KEYS = ("scale", "lag")
+KEYS = ("scale", "lag", "replace", "state")
 SCALE_KEYS = ("function", "factor")
 LAG_KEYS = ("function", "input", "time_constant")
+REPLACE_KEYS = ("function", "rows", "values")
+REPLACE_OPTIONAL = ("columns",)
+STATE_KEYS = ("system", "state", "function", "input")
+STATE_OPTIONAL = ("complement",)
 # the properties a lag's flight writes and its function reads (foreign.private_copy, foreign.fly)
 LAG_ACTIVE = "structsearch/lag-active"
 
@@ -58,19 +81,66 @@ class Lag:
 
 
 @dataclass(frozen=True)
+class Table:
+    """``function``'s only table replaced: breakpoints ``rows`` (and ``columns``, for a table of two inputs) and
+    ``values`` (one per row; a row of one per column for two inputs)."""
+
+    function: str
+    rows: tuple[float, ...]
+    values: tuple
+    columns: tuple[float, ...] = ()
+
+    def table_data(self) -> str:
+        """The values as JSBSim's ``<tableData>`` reads them: the column breakpoints first, then a line per row."""
+        lines = ["\t".join(repr(c) for c in self.columns)] if self.columns else []
+        for row, value in zip(self.rows, self.values):
+            lines.append("\t".join(repr(v) for v in (row, *(value if self.columns else (value,)))))
+        return "\n" + "\n".join(lines) + "\n"
+
+    def key(self) -> str:
+        return f"{self.function}={self.rows!r}x{self.columns!r}:{self.values!r}"
+
+
+@dataclass(frozen=True)
+class State:
+    """A separation state's system (its XML text, from ``source``) flown in the aircraft; ``function`` reads
+    ``state`` (or 1 - state, ``complement``) where it read ``input``."""
+
+    source: str
+    system: str = field(repr=False)
+    state: str
+    function: str
+    input: str
+    complement: bool = False
+
+    def key(self) -> str:
+        text = hashlib.sha256(self.system.encode()).hexdigest()[:16]
+        return f"{self.function}<{self.input}={'1-' if self.complement else ''}{self.state}@{text}"
+
+
+@dataclass(frozen=True)
 class Modification:
-    """What ``--modify`` changes: functions scaled (function -> factor) and inputs lagged."""
+    """What ``--modify`` changes: functions scaled (function -> factor), inputs lagged, tables replaced and
+    separation states flown in place of inputs."""
 
     scales: Mapping[str, float] = field(default_factory=dict)
     lags: tuple[Lag, ...] = ()
+    tables: tuple[Table, ...] = ()
+    states: tuple[State, ...] = ()
 
     def __bool__(self) -> bool:
-        return bool(self.scales or self.lags)
+        return bool(self.scales or self.lags or self.tables or self.states)
+
+    @property
+    def acts_over_time(self) -> bool:
+        """Whether it modifies only an aircraft that is flown (a lag, a state), not one evaluated at states."""
+        return bool(self.lags or self.states)
 
     @property
     def functions(self) -> tuple[str, ...]:
         """Every function the modification names (each must be one of the aircraft's axis functions)."""
-        return tuple(dict.fromkeys([*self.scales, *(lag.function for lag in self.lags)]))
+        return tuple(dict.fromkeys([*self.scales, *(lag.function for lag in self.lags),
+                                    *(t.function for t in self.tables), *(s.function for s in self.states)]))
 
     def digest(self) -> str:
         """A short digest of the modification, "none" without one (a campaign's ``source.modify``). A modification
@@ -80,6 +150,8 @@ class Modification:
         text = ";".join(f"{k}={float(v)!r}" for k, v in sorted(self.scales.items()))
         if self.lags:
             text += "|" + ";".join(f"{g.function}<{g.input}~{g.time_constant!r}" for g in self.lags)
+        if self.tables or self.states:
+            text += "|" + ";".join(t.key() for t in self.tables) + "|" + ";".join(s.key() for s in self.states)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -141,6 +213,77 @@ def _lags(entries: list, path: Path) -> tuple[Lag, ...]:
     return tuple(out)
 
 
+def _breakpoints(value, where: str, what: str) -> tuple[float, ...]:
+    if not isinstance(value, list) or len(value) < 2:
+        raise DeclarationError(f"{where}: {what} must be a list of at least two numbers")
+    points = tuple(_number(v, where, f"each of {what} must be a finite number") for v in value)
+    if any(b <= a for a, b in zip(points, points[1:])):
+        raise DeclarationError(f"{where}: {what} must increase, not {list(points)!r}")
+    return points
+
+
+def _values(value, rows: int, columns: int, where: str) -> tuple:
+    if not isinstance(value, list) or len(value) != rows:
+        raise DeclarationError(f"{where}: values must hold one entry per row breakpoint ({rows})")
+    if not columns:
+        return tuple(_number(v, where, "each value must be a finite number") for v in value)
+    if any(not isinstance(r, list) or len(r) != columns for r in value):
+        raise DeclarationError(f"{where}: each entry of values must be a list of one number per column ({columns})")
+    return tuple(tuple(_number(v, where, "each value must be a finite number") for v in r) for r in value)
+
+
+def _keys(e, required: tuple[str, ...], optional: tuple[str, ...], where: str, say: str) -> None:
+    if not isinstance(e, dict) or not set(required) <= set(e) or not set(e) <= set(required + optional):
+        raise DeclarationError(f"{where}: give {say}")
+
+
+def _tables(entries: list, path: Path) -> tuple[Table, ...]:
+    out: list[Table] = []
+    for i, e in enumerate(entries, 1):
+        where = f"{path}: [[replace]] entry {i}"
+        _keys(e, REPLACE_KEYS, REPLACE_OPTIONAL, where,
+              "function = \"...\", rows = [...], values = [...] and, for a table of two inputs, columns = [...]")
+        function = _name(e["function"], where, "function must be the name of an axis function")
+        if any(t.function == function for t in out):
+            raise DeclarationError(f"{where}: {function}'s table is replaced twice")
+        rows = _breakpoints(e["rows"], where, "rows")
+        columns = _breakpoints(e["columns"], where, "columns") if "columns" in e else ()
+        out.append(Table(function, rows, _values(e["values"], len(rows), len(columns), where), columns))
+    return tuple(out)
+
+
+def _system(value, path: Path, where: str) -> tuple[str, str]:
+    """(the name, the text) of a state's system file: a relative path inside the modification's directory."""
+    from ..data.reading import inside
+    name = _name(value, where, "system must be the path of a system file beside the modification")
+    try:
+        file = inside(path.parent, name, source=str(path), column="system")
+        return name, read_text(file, error=lambda source, message: _refused(f"{where}: the system {name!r}", message))
+    except OSError as exc:
+        raise DeclarationError(f"{where}: cannot read the system {name!r} ({exc.strerror})") from None
+
+
+def _states(entries: list, path: Path) -> tuple[State, ...]:
+    out: list[State] = []
+    for i, e in enumerate(entries, 1):
+        where = f"{path}: [[state]] entry {i}"
+        _keys(e, STATE_KEYS, STATE_OPTIONAL, where, "system = \"FILE\", state = \"PROPERTY\", function = \"...\", "
+              "input = \"...\" and optionally complement = true")
+        name, text = _system(e["system"], path, where)
+        if parse_bytes(text.encode(), f"{where}: {name}", "a system file").tag != "system":
+            raise DeclarationError(f"{where}: {name} is not a JSBSim <system> file")
+        complement = e.get("complement", False)
+        if not isinstance(complement, bool):
+            raise DeclarationError(f"{where}: complement must be true or false, not {complement!r}")
+        function = _name(e["function"], where, "function must be the name of an axis function")
+        read = _name(e["input"], where, "input must be the name of a property the function reads")
+        if any(s.function == function and s.input == read for s in out):
+            raise DeclarationError(f"{where}: {function} already reads a state in place of {read}")
+        out.append(State(name, text, _name(e["state"], where, "state must be the property the system computes"),
+                         function, read, complement))
+    return tuple(out)
+
+
 def read_modify(path: str | Path) -> Modification:
     """The modification in ``path`` (module docstring)."""
     path = Path(path)
@@ -151,10 +294,12 @@ def read_modify(path: str | Path) -> Modification:
         raise DeclarationError(f"{path}: cannot read the modification ({exc.strerror})") from None
     unknown = [k for k in doc if k not in KEYS]
     if unknown:
-        raise DeclarationError(f"{path}: unknown key {unknown[0]!r} (a modification holds [[scale]] and [[lag]] "
-                               "entries)")
-    modification = Modification(_scales(_entries(doc, "scale", path), path), _lags(_entries(doc, "lag", path), path))
+        raise DeclarationError(f"{path}: unknown key {unknown[0]!r} (a modification holds [[scale]], [[lag]], "
+                               "[[replace]] and [[state]] entries)")
+    modification = Modification(_scales(_entries(doc, "scale", path), path), _lags(_entries(doc, "lag", path), path),
+                                _tables(_entries(doc, "replace", path), path),
+                                _states(_entries(doc, "state", path), path))
     if not modification:
-        raise DeclarationError(f"{path}: no [[scale]] or [[lag]] entry (function = \"aero/coefficient/...\", "
-                               "factor = 2.0)")
+        raise DeclarationError(f"{path}: no [[scale]], [[lag]], [[replace]] or [[state]] entry (function = "
+                               "\"aero/coefficient/...\", factor = 2.0)")
     return modification

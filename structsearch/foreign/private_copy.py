@@ -13,8 +13,10 @@ property of the ``structsearch/`` namespace that the evaluation writes from the 
   elevator -> ``structsearch/input/<property>``: an input the campaign or ``--simulator-input`` supplies.
 
 The copy's top-level ``<output>`` directives are removed (JSBSim would write files), each function a
-modification scales (``--modify``) is wrapped in a product with its factor, and each input a modification lags is
-read by its function through a property of its own (:func:`_lag`; the flight writes the lagged value).
+modification scales (``--modify``) is wrapped in a product with its factor, each input a modification lags is
+read by its function through a property of its own (:func:`_lag`; the flight writes the lagged value), a replaced
+table takes its new breakpoints and values, and a separation state's system is copied into the aircraft, its
+function reading the state in place of the input it replaces (:func:`_state`).
 """
 from __future__ import annotations
 
@@ -27,7 +29,8 @@ from typing import Mapping, Sequence
 
 from ..data.errors import DeclarationError
 from .aircraft_xml import READ_TAGS, AircraftFile, parse_file
-from .modify import LAG_ACTIVE, Lag
+from .aircraft_xml import parse_bytes
+from .modify import LAG_ACTIVE, Lag, State, Table
 
 NAMESPACE = "structsearch/"
 ALPHADOT = {"aero/alphadot-rad_sec": "structsearch/alphadot-rad_sec",
@@ -101,12 +104,7 @@ def _lag(aero: ET.Element, lag: Lag, aircraft: str, frame_s: float) -> None:
     from the value of the frame before (``lag.lagged``, which the flight writes back after each frame),
     y = u + A (y_before - u) with A = exp(-frame/tau) while :data:`~.modify.LAG_ACTIVE` is 1, and the input itself
     while it is 0 (JSBSim trims the aircraft so: in equilibrium a lagged input is the input)."""
-    reads = [e for f in aero.iter("function") if f.get("name") == lag.function
-             for tag in READ_TAGS for e in f.iter(tag) if (e.text or "").strip().lstrip("-") == lag.input]
-    if not reads:
-        raise DeclarationError(f"--modify: the function {lag.function} of {aircraft} does not read {lag.input}; a "
-                               "[[lag]] lags a property its function reads")
-    for e in reads:
+    for e in _reading(aero, lag.function, lag.input, aircraft, "lag"):
         e.text = ("-" if e.text.strip().startswith("-") else "") + lag.read
     switched = ET.Element("function", name=lag.read)
     total = ET.SubElement(switched, "sum")
@@ -121,6 +119,44 @@ def _lag(aero: ET.Element, lag: Lag, aircraft: str, frame_s: float) -> None:
     aero.insert(first, switched)
 
 
+def _reading(aero: ET.Element, function: str, prop: str, aircraft: str, entry: str) -> list[ET.Element]:
+    reads = [e for f in aero.iter("function") if f.get("name") == function
+             for tag in READ_TAGS for e in f.iter(tag) if (e.text or "").strip().lstrip("-") == prop]
+    if not reads:
+        raise DeclarationError(f"--modify: the function {function} of {aircraft} does not read {prop}; a "
+                               f"[[{entry}]] replaces a property its function reads")
+    return reads
+
+
+def _replace_table(aero: ET.Element, table: Table, aircraft: str) -> None:
+    """``table.function``'s only table takes ``table``'s breakpoints and values; it reads the inputs it read."""
+    found = [t for f in aero.iter("function") if f.get("name") == table.function for t in f.iter("table")]
+    if len(found) != 1:
+        raise DeclarationError(f"--modify: the function {table.function} of {aircraft} holds {len(found)} tables; "
+                               "a [[replace]] replaces a function's only table")
+    inputs = [(v.text or "").strip() for v in found[0].findall("independentVar")]
+    if len(inputs) != (2 if table.columns else 1):
+        raise DeclarationError(f"--modify: the table of {table.function} reads {len(inputs)} inputs "
+                               f"({', '.join(inputs)}): give columns = [...] for a table of two inputs, none for one")
+    found[0].find("tableData").text = table.table_data()
+
+
+def _state(doc: ET.Element, aero: ET.Element, state: State, number: int, aircraft: str) -> None:
+    """``state``'s system flown in the aircraft, and its function reading the state (or 1 - state) in place of
+    ``state.input``."""
+    read = state.state
+    if state.complement:
+        read = f"structsearch/state-{number}/complement"
+        complement = ET.Element("function", name=read)
+        difference = ET.SubElement(complement, "difference")
+        ET.SubElement(difference, "value").text = "1.0"
+        ET.SubElement(difference, "property").text = state.state
+        aero.insert(next((i for i, c in enumerate(aero) if c.tag in ("function", "axis")), len(aero)), complement)
+    for e in _reading(aero, state.function, state.input, aircraft, "state"):
+        e.text = ("-" if e.text.strip().startswith("-") else "") + read
+    doc.insert(list(doc).index(aero), parse_bytes(state.system.encode(), state.source, "a system file"))
+
+
 def _link(source: Path, target: Path) -> None:
     if not source.is_dir():
         return
@@ -131,14 +167,15 @@ def _link(source: Path, target: Path) -> None:
 
 
 def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
-              rewrite: bool = True, lags: Sequence[Lag] = (), frame_s: float = 0.01) -> tempfile.TemporaryDirectory:
+              rewrite: bool = True, lags: Sequence[Lag] = (), frame_s: float = 0.01, tables: Sequence[Table] = (),
+              states: Sequence[State] = ()) -> tempfile.TemporaryDirectory:
     """A temporary JSBSim root holding the private copy of ``aircraft`` (module docstring); the caller keeps the
     returned directory object alive while JSBSim reads from it. Without ``rewrite`` (an aircraft to fly, not to
     evaluate at given states) the aerodynamics keep reading JSBSim's own properties; only such an aircraft may
-    carry ``lags`` (a lag acts over time), stepped in frames of ``frame_s`` seconds."""
-    if lags and rewrite:
-        raise DeclarationError("--modify: a [[lag]] acts over time: it modifies an aircraft that is flown "
-                               "(simulate --jsbsim), not one evaluated at recorded states")
+    carry ``lags`` and ``states`` (they act over time), stepped in frames of ``frame_s`` seconds."""
+    if (lags or states) and rewrite:
+        raise DeclarationError("--modify: a [[lag]] or a [[state]] acts over time: it modifies an aircraft that is "
+                               "flown (simulate --jsbsim), not one evaluated at recorded states")
     holder = tempfile.TemporaryDirectory(prefix="structsearch-jsbsim-")
     root = Path(holder.name)
     # the name is an existing aircraft directory's own name (aircraft_xml.locate refuses '/', '\\' and '..'), never
@@ -153,8 +190,12 @@ def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
     aero = doc.find("aerodynamics")
     if rewrite:
         _rewrite_reads(aero, set(aircraft.reads))
+    for table in tables:
+        _replace_table(aero, table, aircraft.name)
     _scale(aero, dict(scales or {}))
     for lag in lags:
         _lag(aero, lag, aircraft.name, frame_s)
+    for number, state in enumerate(states, 1):
+        _state(doc, aero, state, number, aircraft.name)
     ET.ElementTree(doc).write(target / f"{aircraft.name}.xml", encoding="utf-8", xml_declaration=True)
     return holder
