@@ -379,6 +379,10 @@ def test_the_engine_asks_a_problem_what_it_declares_and_probes_nothing():
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "hasattr":
                 probes.append(f"{path.relative_to(ROOT)}:{node.lineno}")
+            # getattr(problem, "capability", default): a probe too (the protocol's defaults answer instead)
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "getattr" \
+                    and len(node.args) == 3 and "problem" in ast.unparse(node.args[0]):
+                probes.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     assert probes == []
 
 

@@ -39,7 +39,7 @@ def test_the_joint_evaluation_is_the_blocks_weighted_and_interleaved_and_its_der
     np.testing.assert_array_equal(problem.boundaries(np.array([0, 60, 120])), [0, 120, 240])
 
 
-class _Stacked:
+class _Stacked(SeparableProblem):
     """The joint problem without its block reduction: the generic projection of the stacked matrix."""
 
     def __init__(self, problem):

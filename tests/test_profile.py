@@ -8,7 +8,7 @@ import pytest
 
 from structsearch.engine.profile import Profiles, profile, profile_statistic
 from structsearch.engine.separable import SeparableModel
-from structsearch.engine.snls import Evaluation
+from structsearch.engine.snls import Evaluation, SeparableProblem
 
 MODEL = SeparableModel({"c": "exp(-b*x)", "c0": "1"}, variables=["x"], bounds={"b": (0.01, 20.0)})
 
@@ -97,7 +97,7 @@ def test_a_box_edge_before_the_crossing_opens_that_side():
     assert j.open_low and "estimate is on the box's lower edge" in j.reason_low and not j.open_high
 
 
-class _BrokenAbove:
+class _BrokenAbove(SeparableProblem):
     """The decay problem, with a regression matrix that is not finite above ``limit``."""
 
     def __init__(self, problem, limit):

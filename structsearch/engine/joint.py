@@ -47,7 +47,7 @@ class JointProblem(SeparableProblem):
 
     @property
     def units(self) -> dict[str, str]:
-        return {n: u for b in self.blocks for n, u in (getattr(b, "units", None) or {}).items()}
+        return {n: u for b in self.blocks for n, u in b.units.items()}
 
     @property
     def n_blocks(self) -> int:

@@ -70,6 +70,17 @@ class SeparableProblem(Protocol):
         empty."""
         return ""
 
+    @property
+    def units(self) -> dict[str, str]:
+        """Each parameter's unit where the problem knows it; default none (the tables then say "unknown")."""
+        return {}
+
+    def reduce(self, theta: np.ndarray, y: np.ndarray) -> Reduced | None:
+        """The reduced problem at ``theta`` (None where Phi, its derivative or the Jacobian is not finite); default
+        the projection of the whole Phi (:func:`projected`). A problem with structure to exploit overrides it (a
+        joint problem's block-diagonal Phi projects block by block, never forming the stacked matrix)."""
+        return projected(self, theta, y, len(self.nonlinear_names))
+
 
 class BoundProblem(SeparableProblem):
     """Base of a model bound to data (attribute ``model``): parameter names come from the model."""
@@ -155,13 +166,13 @@ class Reduced:
 
 
 def reduce(problem: SeparableProblem, theta: np.ndarray, y: np.ndarray, k: int) -> Reduced | None:
-    """The reduced problem at ``theta`` (None where Phi, its derivative or the Jacobian is not finite).
+    """The reduced problem at ``theta``: what the problem's ``reduce`` gives (:meth:`SeparableProblem.reduce`)."""
+    return problem.reduce(theta, y)
 
-    A problem with structure to exploit offers its own ``reduce(theta, y)`` (a joint problem's block-diagonal
-    Phi projects block by block, never forming the stacked matrix)."""
-    own = getattr(problem, "reduce", None)
-    if own is not None:
-        return own(theta, y)
+
+def projected(problem: SeparableProblem, theta: np.ndarray, y: np.ndarray, k: int) -> Reduced | None:
+    """The reduced problem at ``theta`` by the projection of the whole Phi (None where Phi, its derivative or the
+    Jacobian is not finite)."""
     ev = problem.evaluate(theta)
     if not (np.all(np.isfinite(ev.phi)) and np.all(np.isfinite(ev.dphi))):
         return None
