@@ -120,6 +120,28 @@ def _safe(name: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name)[:100] or "_"
 
 
+def _lift_key(lifts: dict[str, LiftFit], candidate: Candidate) -> str | None:
+    """The cache key of the lift model a drag or pitch candidate reads (None for a lift candidate)."""
+    lift = lifts.get(candidate.lift) if candidate.lift else None
+    return lift.cache_key if lift else None
+
+
+def _serve_twins(candidates: Sequence[Candidate], fitted_before, results: list, paths: dict, path_of,
+                 say: Callable[[str], None]) -> None:
+    """A candidate that is one of ``fitted_before`` under another name, not cached itself, is served the twin's
+    fit as cached under this run's key (the same data, options, lift model and code), never an object from
+    elsewhere: the lift grid's CL-VI is the separation grid's X_ss/X_w U/S."""
+    for i, (twin, _) in same_model_fitted(candidates, fitted_before).items():
+        if results[i] is not None:
+            continue
+        fitted = read_cached(*path_of(twin), say)
+        if fitted is not None and not fitted.failed:
+            results[i] = dataclasses.replace(fitted, name=candidates[i].name, grid=candidates[i].grid)
+            write_cached(*paths[i], results[i])
+            say(f"{candidates[i].grid} {candidates[i].name}: the same model as {twin.grid} {twin.name}, "
+                "fitted already")
+
+
 def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts: dict[str, LiftFit] | None = None,
         options: FitOptions = FitOptions(), n_jobs: int = 1,
         backend: str = "loky", progress: Callable[[str], None] | None = None,
@@ -140,33 +162,18 @@ def run(candidates: Sequence[Candidate], campaign: Campaign, out: Path, *, lifts
     train, validation = campaign.split("train"), campaign.split("validation")
     data_key = campaign_fingerprint(campaign)
     lifts = lifts or {}
-    results: list[CandidateResult | None] = [None] * len(candidates)
     order = waves(candidates)
     wave_of = {i: w for w, members in enumerate(order) for i in members}
     # the candidates of earlier waves a candidate may start from: it waits for them
     needs = {i: [j for j in wave_of if staged and wave_of[j] < wave_of[i]
                  and may_donate(candidates[j], candidates[i])] for i in wave_of}
-    paths = {}
-    for i, c in enumerate(candidates):
-        lift = lifts.get(c.lift) if c.lift else None
-        paths[i] = cache_path(out, c, data_key, lift.cache_key if lift else None, options)
-        results[i] = read_cached(*paths[i], say)
+    paths = {i: cache_path(out, c, data_key, _lift_key(lifts, c), options) for i, c in enumerate(candidates)}
+    results: list[CandidateResult | None] = [read_cached(*paths[i], say) for i in range(len(candidates))]
     cached = sum(r is not None for r in results)
     if cached:
         say(f"{cached} of {len(candidates)} candidates from the cache")
-    for i, (twin, _) in same_model_fitted(candidates, fitted_before).items():
-        if results[i] is not None:
-            continue
-        # the lift grid's CL-VI is the separation grid's X_ss/X_w U/S: served the twin's fit as cached
-        # under this run's key (the same data, options, lift model and code), never an object from elsewhere
-        twin_lift = lifts.get(twin.lift) if twin.lift else None
-        fitted = read_cached(*cache_path(out, twin, data_key, twin_lift.cache_key if twin_lift else None, options),
-                             say)
-        if fitted is not None and not fitted.failed:
-            results[i] = dataclasses.replace(fitted, name=candidates[i].name, grid=candidates[i].grid)
-            write_cached(*paths[i], results[i])
-            say(f"{candidates[i].grid} {candidates[i].name}: the same model as {twin.grid} {twin.name}, "
-                "fitted already")
+    _serve_twins(candidates, fitted_before, results, paths, lambda c: cache_path(
+        out, c, data_key, _lift_key(lifts, c), options), say)
     todo = [i for i in range(len(candidates)) if results[i] is None]
     if not todo:
         return results

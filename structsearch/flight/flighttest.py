@@ -181,6 +181,49 @@ def _smoothstep(x):
     return x * x * (3 - 2 * x)
 
 
+def _quasi_steady(rng: np.random.Generator, t: np.ndarray, n: int, trimmed, proc: Procedures):
+    """A quasi-steady approach: alpha raised slowly to its peak, held, then recovered; a small elevator wiggle.
+    (speed, trim, alpha reference, throttle, elevator beyond the loop's), drawn from ``rng`` in this order."""
+    V = rng.uniform(*proc.qs_speed)
+    tr = trimmed(V)
+    peak = rng.uniform(*proc.qs_peak)
+    t_up = rng.uniform(36.0, 42.0)
+    alpha_ref = tr.alpha + (peak - tr.alpha) * _smoothstep(t / t_up)
+    recover = t_up + rng.uniform(2.0, 4.0)
+    alpha_ref = np.where(t < recover, alpha_ref,
+                         0.06 + (peak - 0.06) * (1 - _smoothstep((t - recover) / QS_RECOVERY_S)))
+    throttle = np.where(t < recover, 0.45 * tr.throttle, 0.6)
+    de_extra = proc.qs_wiggle[0] * smooth_noise(rng, n, DT, proc.qs_wiggle[1])
+    return V, tr, alpha_ref, throttle, de_extra
+
+
+def _dynamic(rng: np.random.Generator, t: np.ndarray, wiggle: np.ndarray, trimmed, proc: Procedures, deep: bool):
+    """A dynamic (or deep) stall, entered like a stall approach (power reduced, alpha raised as the speed bleeds
+    off), then an oscillation of alpha about its centre: a sweep, or one frequency when deep."""
+    V = rng.uniform(*proc.dyn_speed)
+    tr = trimmed(V)
+    centre = rng.uniform(*proc.deep_centre) if deep else rng.uniform(*proc.dyn_centre)
+    amplitude = rng.uniform(*proc.deep_amplitude) if deep else rng.uniform(*proc.dyn_amplitude)
+    f_lo, f_hi = proc.dyn_freq_hz
+    f0, f1 = rng.uniform(f_lo, f_lo + 0.2), rng.uniform(f_hi - 0.2, f_hi)
+    t_up, t_osc = 18.0, 21.0
+    t_end = t_osc + (DYN_OSCILLATION_S if not deep else 23.0)
+    alpha_ref = tr.alpha + (centre - tr.alpha) * _smoothstep(t / t_up)
+    osc = (t >= t_osc) & (t < t_end)
+    if deep:
+        phase = 2 * np.pi * f0 * (t - t_osc)
+    else:  # linear sweep: a pilot speeding up the elevator oscillation
+        tau = np.clip(t - t_osc, 0, t_end - t_osc)
+        phase = 2 * np.pi * (f0 * tau + 0.5 * (f1 - f0) * tau ** 2 / (t_end - t_osc))
+    alpha_ref = alpha_ref + np.where(osc, amplitude * np.sin(phase), 0.0)
+    alpha_ref = np.where(t < t_end, alpha_ref, 0.06 + (centre - 0.06) * (1 - _smoothstep((t - t_end) / 3.0)))
+    throttle = np.where(t < t_end, 0.3 * tr.throttle, 0.6)
+    # sequential steps on the elevator during the approach, then small quasi-random inputs
+    de_extra = 0.004 * wiggle + np.where((t > 4.0) & (t < 5.5), 0.015, 0.0) \
+        - np.where((t > 6.0) & (t < 7.5), 0.015, 0.0)
+    return V, tr, alpha_ref, throttle, de_extra
+
+
 def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: float, x_cg: float,
         proc: Procedures = Procedures()) -> Flown:
     """Reference profiles for one maneuver (pilot-like, seeded), flown as ``proc`` says."""
@@ -196,40 +239,9 @@ def fly(model: AeroModel, p: PlannedManeuver, rng: np.random.Generator, mass: fl
         return trim(model, Condition(mass, x_cg, h, V), aircraft=craft)
 
     if p.kind == "quasi-steady":
-        V = rng.uniform(*proc.qs_speed)
-        tr = trimmed(V)
-        peak = rng.uniform(*proc.qs_peak)
-        t_up = rng.uniform(36.0, 42.0)
-        alpha_ref = tr.alpha + (peak - tr.alpha) * _smoothstep(t / t_up)
-        recover = t_up + rng.uniform(2.0, 4.0)
-        alpha_ref = np.where(t < recover, alpha_ref,
-                             0.06 + (peak - 0.06) * (1 - _smoothstep((t - recover) / QS_RECOVERY_S)))
-        throttle = np.where(t < recover, 0.45 * tr.throttle, 0.6)
-        de_extra = proc.qs_wiggle[0] * smooth_noise(rng, n, DT, proc.qs_wiggle[1])
+        V, tr, alpha_ref, throttle, de_extra = _quasi_steady(rng, t, n, trimmed, proc)
     elif p.kind in ("dynamic", "deep-dynamic"):
-        # entered like a stall approach: power reduced, alpha raised as the speed bleeds off
-        V = rng.uniform(*proc.dyn_speed)
-        tr = trimmed(V)
-        deep = p.kind == "deep-dynamic"
-        centre = rng.uniform(*proc.deep_centre) if deep else rng.uniform(*proc.dyn_centre)
-        amplitude = rng.uniform(*proc.deep_amplitude) if deep else rng.uniform(*proc.dyn_amplitude)
-        f_lo, f_hi = proc.dyn_freq_hz
-        f0, f1 = rng.uniform(f_lo, f_lo + 0.2), rng.uniform(f_hi - 0.2, f_hi)
-        t_up, t_osc = 18.0, 21.0
-        t_end = t_osc + (DYN_OSCILLATION_S if not deep else 23.0)
-        alpha_ref = tr.alpha + (centre - tr.alpha) * _smoothstep(t / t_up)
-        osc = (t >= t_osc) & (t < t_end)
-        if deep:
-            phase = 2 * np.pi * f0 * (t - t_osc)
-        else:  # linear sweep: a pilot speeding up the elevator oscillation
-            tau = np.clip(t - t_osc, 0, t_end - t_osc)
-            phase = 2 * np.pi * (f0 * tau + 0.5 * (f1 - f0) * tau ** 2 / (t_end - t_osc))
-        alpha_ref = alpha_ref + np.where(osc, amplitude * np.sin(phase), 0.0)
-        alpha_ref = np.where(t < t_end, alpha_ref, 0.06 + (centre - 0.06) * (1 - _smoothstep((t - t_end) / 3.0)))
-        throttle = np.where(t < t_end, 0.3 * tr.throttle, 0.6)
-        # sequential steps on the elevator during the approach, then small quasi-random inputs
-        de_extra = 0.004 * wiggle + np.where((t > 4.0) & (t < 5.5), 0.015, 0.0) \
-            - np.where((t > 6.0) & (t < 7.5), 0.015, 0.0)
+        V, tr, alpha_ref, throttle, de_extra = _dynamic(rng, t, wiggle, trimmed, proc, p.kind == "deep-dynamic")
     elif p.kind in ("pullup", "pushover"):
         V = rng.uniform(*proc.pullup_speed) if p.kind == "pullup" else rng.uniform(*proc.pushover_speed)
         tr = trimmed(V)
@@ -347,6 +359,28 @@ def _chosen_anomaly(anomaly: str | None, aircraft: str, withhold: tuple):
     return chosen
 
 
+def _manifest_keys(seed, scale, extras, truth: str, withhold: tuple, slow_errors, aircraft: str, chosen,
+                   flights: int | None, cg_spread, cg_moment: str, sensor_errors) -> dict:
+    """The free keys of a simulated campaign's manifest; a key a default leaves unsaid is absent, so a campaign
+    simulated before the key existed reads the same."""
+    extra = {"seed": int(seed), "scale": float(scale), "extras": bool(extras), "truth": truth,
+             "withheld": ",".join(withhold) or "none", "slow_errors": float(slow_errors)}
+    if aircraft != "citation":  # campaigns written before the second aircraft carry no such key
+        extra["simulated_aircraft"] = aircraft
+    if chosen is not None:  # nor do campaigns without an anomaly
+        extra["anomaly"] = chosen.name
+    if flights is not None:  # nor do campaigns without flights
+        extra["flights"] = flights
+    if cg_spread is not None:   # nor do campaigns flown in the default cg band
+        extra["cg_spread"] = float(cg_spread)
+    if cg_moment != "thesis":
+        extra["cg_moment"] = cg_moment
+    if sensor_errors is not None:
+        extra.pop("slow_errors")
+        extra.update(sensor_errors.manifest(), format="raw")
+    return extra
+
+
 def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool = False,
                    slow_errors: float = 1.0, aircraft: str = "citation", anomaly: str | None = None,
                    raw: bool = False, flights: int = 0, nominal: bool = False, cg_spread: float | None = None,
@@ -399,21 +433,8 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
                  for i, p in enumerate(plan)]
     if nominal:
         maneuvers, segments = _with_nominal(maneuvers, segments, model, seed, scale, slow_errors, proc)
-    extra = {"seed": int(seed), "scale": float(scale), "extras": bool(extras), "truth": model.name,
-             "withheld": ",".join(withhold) or "none", "slow_errors": float(slow_errors)}
-    if aircraft != "citation":  # campaigns written before the second aircraft carry no such key
-        extra["simulated_aircraft"] = aircraft
-    if chosen is not None:  # nor do campaigns without an anomaly
-        extra["anomaly"] = chosen.name
-    if labels is not None:  # nor do campaigns without flights
-        extra["flights"] = int(flights)
-    if cg_spread is not None:   # nor do campaigns flown in the default cg band
-        extra["cg_spread"] = float(cg_spread)
-    if cg_moment != "thesis":
-        extra["cg_moment"] = cg_moment
-    if sensor_errors is not None:
-        extra.pop("slow_errors")
-        extra.update(sensor_errors.manifest(), format="raw")
+    extra = _manifest_keys(seed, scale, extras, model.name, withhold, slow_errors, aircraft, chosen,
+                           int(flights) if labels is not None else None, cg_spread, cg_moment, sensor_errors)
     name = f"simulated {proc.aircraft.label} stall {'and nominal ' if nominal else ''}campaign (seed {seed}" \
         + (f", anomaly {chosen.name})" if chosen is not None else ")")
     # the aircraft data of docs/interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope

@@ -176,8 +176,35 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     raw = {"alpha": alpha_reading,
            **_other_readings(rng, t, truth, aircraft, ax_true, az_true, buffet, gyro_buffet)}
     f = {name: prefilter(name, values, fs) for name, values in raw.items()}
-    q_dot = derivative(f["q"], t)
-    alpha_dot = derivative(f["alpha"], t)
+    reduced = _reduction(rng, f, truth, aircraft, flight, slow_error, slow_error_stall_gain, separation)
+    columns = {
+        "t": t - t[0], "alpha": f["alpha"], "q": f["q"], "V": f["V"], "de": f["de"], "CL": reduced["CL"],
+        "CD": reduced["CD"],
+        "Cm": pitch_moment_coefficient(derivative(f["q"], t), aircraft.inertia(reduced["mass"]), reduced["qs"],
+                                       aircraft.cbar) + reduced["cm_error"],
+        "alpha_dot": derivative(f["alpha"], t), "CT": reduced["thrust"] / reduced["qs"], "x_cg": truth["x_cg"],
+        "theta": f["theta"], "h": f["h"], "CX": reduced["CX"], "CZ": reduced["CZ"],
+        "mass": reduced["mass"], "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
+        **{f"{symbol}_true": x for symbol, x in truth["states"].items()},
+    }
+    if record_alpha or flight is not None:
+        columns["alpha_true"] = alpha
+    if flight is not None:
+        columns.update(x_cg=truth["x_cg"] + flight.x_cg, x_cg_true=truth["x_cg"], mass_true=truth["mass"],
+                       CT_true=truth["thrust"] / reduced["qs"])
+    if unlagged is not None:
+        columns["alpha_unlagged_true"] = prefilter("alpha", unlagged, fs)
+    if not aircraft.records_cg:  # flown at a fixed cg nobody recorded
+        del columns["x_cg"]
+        columns.pop("x_cg_true", None)
+    return columns
+
+
+def _reduction(rng: np.random.Generator, f: dict, truth: dict, aircraft: Aircraft, flight: FlightErrors | None,
+               slow_error: np.ndarray | None, slow_error_stall_gain: float, separation: np.ndarray) -> dict:
+    """The data reduction of the pre-filtered readings ``f``: the body-axis force coefficients from the measured
+    specific forces, with the thrust model's error (drawn here) and the flight's errors, the slow reconstruction
+    errors, and C_L, C_D from them at the measured alpha."""
     thrust_model = truth["thrust"] * (1 + rng.normal(0, ENGINE_MODEL_ERROR))
     mass = truth["mass"]
     if flight is not None:
@@ -186,28 +213,11 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     qs_m = f["qbar"] * aircraft.S
     cx_m, cz_m = body_force_coefficients(f["ax"], f["az"], mass, thrust_model, qs_m)
     a = f["alpha"]
-    cm_error = np.zeros(n)
+    cm_error = np.zeros(len(a))
     if slow_error is not None:
         d_cl, d_cd, cm_error = (slow_error * (1.0 + slow_error_stall_gain * separation)[:, None]).T
         cx_m = cx_m - d_cd * np.cos(a) + d_cl * np.sin(a)
         cz_m = cz_m - d_cl * np.cos(a) - d_cd * np.sin(a)
     cl_m, cd_m = lift_drag(cx_m, cz_m, a)
-    columns = {
-        "t": t - t[0], "alpha": a, "q": f["q"], "V": f["V"], "de": f["de"], "CL": cl_m, "CD": cd_m,
-        "Cm": pitch_moment_coefficient(q_dot, aircraft.inertia(mass), qs_m, aircraft.cbar) + cm_error,
-        "alpha_dot": alpha_dot, "CT": thrust_model / qs_m, "x_cg": truth["x_cg"],
-        "theta": f["theta"], "h": f["h"], "CX": cx_m, "CZ": cz_m,
-        "mass": mass, "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
-        **{f"{symbol}_true": x for symbol, x in truth["states"].items()},
-    }
-    if record_alpha or flight is not None:
-        columns["alpha_true"] = alpha
-    if flight is not None:
-        columns.update(x_cg=truth["x_cg"] + flight.x_cg, x_cg_true=truth["x_cg"], mass_true=truth["mass"],
-                       CT_true=truth["thrust"] / qs_m)
-    if unlagged is not None:
-        columns["alpha_unlagged_true"] = prefilter("alpha", unlagged, fs)
-    if not aircraft.records_cg:  # flown at a fixed cg nobody recorded
-        del columns["x_cg"]
-        columns.pop("x_cg_true", None)
-    return columns
+    return {"CL": cl_m, "CD": cd_m, "CX": cx_m, "CZ": cz_m, "thrust": thrust_model, "mass": mass, "qs": qs_m,
+            "cm_error": cm_error}

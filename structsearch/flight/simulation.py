@@ -153,6 +153,24 @@ def _alpha_dot_with_states(model, aircraft, V, alpha, q, theta, h, de, throttle,
 FAST_LAG_STEPS = 0.5
 
 
+def _rk4(rhs, y: np.ndarray, n_steps: int, dt: float, ends: np.ndarray) -> np.ndarray:
+    """The states at every step of the classical Runge-Kutta scheme from ``y``, the maneuvers side by side; a
+    maneuver past its end (``ends``, in steps) keeps its final state rather than flying on unpiloted.
+
+    One batch over time steps: a Python step costs the same for 1 or 50 maneuvers, so the fewer steps the better."""
+    out = np.empty((n_steps,) + y.shape)
+    for k in range(n_steps):
+        out[k] = y
+        if k == n_steps - 1:
+            break
+        k1 = rhs(k, y)
+        k2 = rhs(k, y + 0.5 * dt * k1)
+        k3 = rhs(k, y + 0.5 * dt * k2)
+        k4 = rhs(k, y + dt * k3)
+        y = np.where(k + 1 < ends, y + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4), y)
+    return out
+
+
 def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: np.ndarray,
              dt: float = 0.01, aircraft: Aircraft = CITATION, lengths: np.ndarray | None = None) -> Trajectory:
     """Integrate all maneuvers of a batch for ``len(pilot.alpha_ref)`` steps.
@@ -197,19 +215,7 @@ def simulate(model: AeroModel, y0: dict, pilot: Pilot, mass: np.ndarray, x_cg: n
             out[6 + i] = (targets[s] - lagged[s]) / taus[s]
         return out
 
-    # one batch over time steps: a Python step costs the same for 1 or 50 maneuvers, so the fewer steps
-    # the better; a maneuver that has ended keeps its final state rather than flying on unpiloted
-    ends = np.full(n_man, n_steps) if lengths is None else np.asarray(lengths)
-    out = np.empty((n_steps,) + y.shape)
-    for k in range(n_steps):
-        out[k] = y
-        if k == n_steps - 1:
-            break
-        k1 = rhs(k, y)
-        k2 = rhs(k, y + 0.5 * dt * k1)
-        k3 = rhs(k, y + 0.5 * dt * k2)
-        k4 = rhs(k, y + dt * k3)
-        y = np.where(k + 1 < ends, y + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4), y)
+    out = _rk4(rhs, y, n_steps, dt, np.full(n_man, n_steps) if lengths is None else np.asarray(lengths))
     # outputs recomputed on the stored states
     V, alpha, q, theta, h = out[:, 0], out[:, 1], out[:, 2], out[:, 3], out[:, 4]
     lagged = {s: out[:, 6 + i] for i, s in enumerate(lagged_names)}
