@@ -55,7 +55,8 @@ def _cycles(graph) -> list[list[str]]:
 
 
 def test_no_import_cycles_between_modules():
-    graph = grimp.build_graph("structsearch")
+    # imports made for type checkers alone (under TYPE_CHECKING) never run: a cycle through one is no cycle
+    graph = grimp.build_graph("structsearch", exclude_type_checking_imports=True)
     assert len(graph.modules) > 40  # the whole package was read
     assert _cycles(graph) == []
 
@@ -335,7 +336,7 @@ def test_ci_runs_exactly_the_readme_test_command():
 
 
 def test_rooms_stay_small_and_the_api_takes_one_settings_value():
-    """No function over 80 lines, no module over 450, no API function with more than 8 keyword options besides
+    """No function over 60 lines, no module over 450, no API function with more than 8 keyword options besides
     its settings value (the house's limits: a function or module past them is split, an API option past them
     belongs in structsearch.Settings)."""
     import ast
@@ -347,7 +348,7 @@ def test_rooms_stay_small_and_the_api_takes_one_settings_value():
             long_modules.append(str(path.relative_to(ROOT)))
         tree = ast.parse(text)
         for node in ast.walk(tree):
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno >= 80:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno >= 60:
                 long_functions.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}")
         if path.parent.name == "api":
             for node in tree.body:

@@ -46,7 +46,7 @@ def test_rewrite_replaces_atomically(campaign, tmp_path, monkeypatch):
     """Issue 13: rewriting swaps the old and the new directory in one step (Linux renameat2), so the
     campaign exists at every moment; the two-rename fallback is never needed here."""
     import sys
-    import structsearch.data.campaign as cmod
+    import structsearch.data.campaign_write as cmod
     write_campaign(campaign, tmp_path / "c")
     if sys.platform.startswith("linux"):
         def no_window(*args):

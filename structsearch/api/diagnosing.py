@@ -18,6 +18,39 @@ from .settings import Settings, command_fitter, fit_options
 _ADDABLE_STATES = (("ss", "U"), ("w", "U"), ("w2", "U"))
 
 
+def _simulator_target(simulator: str | None, simulator_inputs: Sequence[str]) -> tuple[str | None, dict, bool]:
+    """(the JSBSim target, the inputs given for it, whether it is an aircraft structsearch did not export)."""
+    if simulator is None:
+        if simulator_inputs:
+            raise DeclarationError("--simulator-input goes with --simulator jsbsim:NAME_OR_DIR")
+        return None, {}, False
+    from ..diagnosis.offset import simulator_target
+    from ..export.jsbsim_baseline import exported_by_structsearch
+    from ..foreign.baseline import parse_inputs
+    target = simulator_target(simulator)
+    given = parse_inputs(simulator_inputs)
+    foreign = not exported_by_structsearch(target)
+    if given and not foreign:
+        raise DeclarationError(f"--simulator-input: {simulator} is an export of structsearch, which reads the "
+                               "campaign's own columns; the option is for other JSBSim aircraft")
+    return target, given, foreign
+
+
+def _baseline(campaign: Campaign, coefficient: str, baseline_column: str | None, target: str | None, given: dict,
+              foreign: bool, settings: Settings):
+    """The simulator's ``coefficient`` at every sample: a column of the campaign, or a JSBSim aircraft evaluated."""
+    from ..diagnosis import offset
+    if target is None:
+        return offset.column_baseline(campaign, coefficient, baseline_column)
+    if settings.progress is not None:
+        settings.progress(f"evaluating the JSBSim aircraft {target} at {campaign.data.n_samples} recorded samples")
+    if foreign:
+        from ..foreign.baseline import jsbsim_baseline as foreign_baseline
+        return foreign_baseline(target, campaign, coefficient, given)
+    from ..export.jsbsim_baseline import jsbsim_baseline
+    return jsbsim_baseline(target, campaign, coefficient)
+
+
 def diagnose_simulator(campaign: Campaign | str | os.PathLike, *, coefficient: str | None,
                        baseline_column: str | None = None, simulator: str | None = None,
                        settings: Settings = Settings(), out: str | os.PathLike | None = None,
@@ -39,33 +72,12 @@ def diagnose_simulator(campaign: Campaign | str | os.PathLike, *, coefficient: s
     if (baseline_column is None) == (simulator is None):
         raise DeclarationError("a simulator baseline is either --baseline-column NAME or --simulator jsbsim:AIRCRAFT")
     offset.check_coefficient(coefficient)
-    target, given, foreign = None, {}, False
-    if simulator is not None:   # a malformed value is answered before the campaign is read
-        from ..export.jsbsim_baseline import exported_by_structsearch
-        from ..diagnosis.offset import simulator_target
-        from ..foreign.baseline import parse_inputs
-        target = simulator_target(simulator)
-        given = parse_inputs(simulator_inputs)
-        foreign = not exported_by_structsearch(target)
-        if given and not foreign:
-            raise DeclarationError(f"--simulator-input: {simulator} is an export of structsearch, which reads the "
-                                   "campaign's own columns; the option is for other JSBSim aircraft")
-    elif simulator_inputs:
-        raise DeclarationError("--simulator-input goes with --simulator jsbsim:NAME_OR_DIR")
+    # a malformed value is answered before the campaign is read
+    target, given, foreign = _simulator_target(simulator, simulator_inputs)
     check_box_names(fit_options("diagnose", settings).parameter_boxes,
                     [Candidate("addable states", "", coefficient, (), _ADDABLE_STATES)])
     campaign = as_campaign(campaign, settings.segment, settings.reference_point)
-    if target is None:
-        baseline = offset.column_baseline(campaign, coefficient, baseline_column)
-    else:
-        if settings.progress is not None:
-            settings.progress(f"evaluating the JSBSim aircraft {target} at {campaign.data.n_samples} recorded samples")
-        if foreign:
-            from ..foreign.baseline import jsbsim_baseline as foreign_baseline
-            baseline = foreign_baseline(target, campaign, coefficient, given)
-        else:
-            from ..export.jsbsim_baseline import jsbsim_baseline
-            baseline = jsbsim_baseline(target, campaign, coefficient)
+    baseline = _baseline(campaign, coefficient, baseline_column, target, given, foreign, settings)
     start = offset.start_structure(baseline)
     with command_fitter("diagnose", offset.gap_campaign(campaign, baseline), settings, out) as fitter:
         result, search = diagnose_search(fitter, start, seed=settings.seed, states=False,

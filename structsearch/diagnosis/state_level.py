@@ -31,6 +31,48 @@ def divergence(run) -> Divergence | None:
     return None if found is None else Divergence(run.name, *found)
 
 
+def _other_coefficient(campaign: Campaign, other: str, lift_fit: LiftFit, options: FitOptions):
+    """The thesis' final structure of ``other`` on ``lift_fit``'s states, refitted on the training maneuvers: its
+    model and its linear estimates. Terms on states this lift model does not have, or on columns the campaign
+    lacks (x_cg), are left out (before and after alike)."""
+    lift_cand = lift_fit.candidate
+    structure = find_candidate(FINAL_MODEL_NAMES[other])
+    symbols = [f"X_{n}" if n else "X" for n, _ in lift_cand.states]
+    have = set(campaign.data.columns) | set(campaign.data.constants) | set(symbols)
+    kept = []
+    for name, text in structure.regressors:
+        try:
+            declare(name, text, states=symbols)
+        except DeclarationError:
+            continue
+        if set(symbol_names(text)) <= have | {"CL"}:
+            kept.append((name, text))
+    structure = dataclasses.replace(structure, regressors=tuple(kept), states=lift_cand.states,
+                                    lift=lift_cand.name, bounds=lift_cand.bounds)
+    s = fit_candidate(structure, campaign.split("train"), campaign.split("validation"), lift_fit, options)
+    if s.failed:
+        raise DeclarationError(f"state-level comparison: {s.error}")
+    linear = {k: v for k, v in s.estimates.params.items() if k not in lift_fit.result.estimates.nonlinear_names}
+    return build_model(structure, lift_fit), linear
+
+
+def _simulator(campaign: Campaign, fitted: Fitted, lift, options: FitOptions):
+    """The simulator of the three coefficients with ``fitted`` as the diagnosed one: its lift model is the
+    diagnosed one, or the lift model the drag or pitch candidate names (``lift``)."""
+    from ..flight.aero import AeroModel
+    coef = fitted.candidate.coefficient
+    lift_fit = LiftFit(fitted.candidate, fitted.summary) if coef == "CL" else lift
+    models, params = {"CL": build_model(lift_fit.candidate)}, dict(lift_fit.params)
+    for other in ("CD", "Cm"):
+        if other == coef:
+            models[other] = build_model(fitted.candidate, lift)
+            params.update(fitted.summary.estimates.params)
+        else:
+            models[other], linear = _other_coefficient(campaign, other, lift_fit, options)
+            params.update(linear)
+    return AeroModel(models["CL"], models["CD"], models["Cm"], params, name=fitted.candidate.name)
+
+
 def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options: FitOptions,
                 window_s: float = 5.0, lift_after=None) -> StateLevel:
     """Forward-simulated state error on the validation maneuvers with the model before and after.
@@ -40,48 +82,12 @@ def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options
     states, so that the three form one simulator. ``lift`` is the lift model the baseline reads; ``lift_after``
     the one the model after the effect reads, when the effect changed it (a drag model fed another lift model).
     """
-    from ..flight.aero import AeroModel
     from ..flight.replay import replay
-    train, val = campaign.split("train"), campaign.split("validation")
-    coef = before.candidate.coefficient
-
-    def aero(fitted: Fitted, lift) -> AeroModel:
-        # the simulator's lift model: the diagnosed one, or the lift model the drag or pitch candidate names
-        lift_fit = LiftFit(fitted.candidate, fitted.summary) if coef == "CL" else lift
-        lift_cand = lift_fit.candidate
-        models, params = {}, dict(lift_fit.params)
-        models["CL"] = build_model(lift_cand)
-        for other in ("CD", "Cm"):
-            if other == coef:
-                models[other] = build_model(fitted.candidate, lift)
-                params.update(fitted.summary.estimates.params)
-                continue
-            structure = find_candidate(FINAL_MODEL_NAMES[other])
-            # terms on states this lift model does not have, or on columns the campaign lacks (x_cg), are left
-            # out (before and after alike)
-            symbols = [f"X_{n}" if n else "X" for n, _ in lift_cand.states]
-            have = set(campaign.data.columns) | set(campaign.data.constants) | set(symbols)
-            kept = []
-            for name, text in structure.regressors:
-                try:
-                    declare(name, text, states=symbols)
-                except DeclarationError:
-                    continue
-                if set(symbol_names(text)) <= have | {"CL"}:
-                    kept.append((name, text))
-            structure = dataclasses.replace(structure, regressors=tuple(kept), states=lift_cand.states,
-                                            lift=lift_cand.name, bounds=lift_cand.bounds)
-            s = fit_candidate(structure, train, val, lift_fit, options)
-            if s.failed:
-                raise DeclarationError(f"state-level comparison: {s.error}")
-            models[other] = build_model(structure, lift_fit)
-            params.update({k: v for k, v in s.estimates.params.items() if k not in lift_fit.result.estimates.nonlinear_names})
-        return AeroModel(models["CL"], models["CD"], models["Cm"], params, name=fitted.candidate.name)
-
+    val = campaign.split("validation")
     runs, diverged = {}, {}
     for label, fitted, read in (("before", before, lift), ("after", after, lift_after or lift)):
         with np.errstate(all="ignore"):   # a diverging replay overflows; it is named below, not warned about
-            runs[label] = replay(val, aero(fitted, read), window_s=window_s)
+            runs[label] = replay(val, _simulator(campaign, fitted, read, options), window_s=window_s)
         diverged[label] = tuple(d for d in map(divergence, runs[label]) if d is not None)
     # both RMS over the same maneuvers: those neither model diverged on (a model that diverges on the hardest one
     # must not look better for it)

@@ -132,6 +132,19 @@ def _peak(runner, problem, y, start, lower, upper, samples: int):
     return {"samples": samples, "peak_mb": peak / 2**20, "seconds": dt, "nfev": nfev, "rss": rss}
 
 
+def _memory(model, data, problem, y, start, lower, upper) -> dict:
+    """The peak memory of one start of every method at N samples, and of the variable-projection methods at 2N:
+    the same maneuvers twice, twice the samples with identical per-sample character."""
+    doubled = data.select(list(range(data.n_segments)) * 2)
+    problem2, y2 = model.bind(doubled), doubled["CL"]
+    problem2.evaluate(start)
+    memory = {key: [_peak(runner, problem, y, start, lower, upper, data.n_samples)]
+              for key, (_, runner) in METHODS.items()}
+    for key in ("snls", "prototype"):
+        memory[key].append(_peak(METHODS[key][1], problem2, y2, start, lower, upper, doubled.n_samples))
+    return memory
+
+
 def run_engine(config: BenchConfig = BenchConfig(), progress=None) -> dict:
     """The engine figures (see the module's docstring)."""
     say = progress or (lambda msg: None)
@@ -174,14 +187,7 @@ def run_engine(config: BenchConfig = BenchConfig(), progress=None) -> dict:
         one[key]["reached_best"] = bool(ok(one[key]["rss"]))
 
     say("memory of one start of every method at N, and of the variable-projection methods at 2N")
-    # the same maneuvers twice: twice the samples with identical per-sample character
-    doubled = data.select(list(range(data.n_segments)) * 2)
-    problem2, y2 = model.bind(doubled), doubled["CL"]
-    problem2.evaluate(start)
-    memory = {key: [_peak(runner, problem, y, start, lower, upper, data.n_samples)]
-              for key, (_, runner) in METHODS.items()}
-    for key in ("snls", "prototype"):
-        memory[key].append(_peak(METHODS[key][1], problem2, y2, start, lower, upper, doubled.n_samples))
+    memory = _memory(model, data, problem, y, start, lower, upper)
     import resource
     snls_mem = memory["snls"]
     return {

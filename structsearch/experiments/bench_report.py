@@ -85,8 +85,39 @@ def search_markdown(s: dict) -> str:
     return "\n".join(lines)
 
 
+def _one_start_lines(fig: dict) -> list[str]:
+    o, labels = fig["one_start"], fig["methods"]
+    lines = [
+        "## One start from the default start point",
+        "",
+        "| method | median wall time [s] | ratio to the prototype | function evaluations | Jacobian evaluations "
+        "| RSS | reached the best |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for key, label in labels.items():
+        m = o[key]
+        lines.append(f"| {label} | {m['median_s']:.3f} | {m['median_s'] / o['prototype']['median_s']:.2f} | "
+                     f"{m['nfev']} | {m['njev'] or '-'} | {m['rss']:.6g} | {'yes' if m['reached_best'] else 'no'} |")
+    return lines + ["", f"One start of structsearch takes **{o['snls']['median_s'] / o['prototype']['median_s']:.2f}x** "
+                    "the prototype's wall time (the target: at most 0.8x).", ""]
+
+
+def _memory_lines(fig: dict) -> list[str]:
+    sc, labels, n = fig["scaling"], fig["methods"], fig["random_starts"]["n"]
+    lines = ["## Memory and scaling (one start, traced Python/numpy allocations)", "",
+             "| method | samples | peak memory [MB] | wall time [s] | function evaluations |", "|---|---|---|---|---|"]
+    for key, rows in fig["memory_by_method"].items():
+        for m in rows:
+            lines.append(f"| {labels[key]} | {m['samples']} | {m['peak_mb']:.1f} | {m['seconds']:.3f} | {m['nfev']} |")
+    return lines + ["", f"Doubling the samples multiplies the SNLS time by {sc['time_ratio']:.2f} and its peak memory "
+                    f"by {sc['memory_ratio']:.2f}. Peak resident memory of the whole bench process (interpreter, "
+                    f"both data sets, all fits): {fig['process_peak_rss_mb']:.0f} MB.", "",
+                    "Success counts over a handful of starts carry binomial noise of about "
+                    f"sqrt(n p (1-p)) = {np.sqrt(n * 0.25):.1f} starts at p = 1/2.", ""]
+
+
 def to_markdown(fig: dict) -> str:
-    o, r, sc = fig["one_start"], fig["random_starts"], fig["scaling"]
+    r = fig["random_starts"]
     labels = fig["methods"]
     n = r["n"]
     headline = r["prototype"]["s_per_success"] / r["snls"]["s_per_success"]
@@ -118,28 +149,8 @@ def to_markdown(fig: dict) -> str:
         f"full NLS with the analytic Jacobian and {r['fd']['s_per_success'] / r['snls']['s_per_success']:.1f}x "
         "faster than scipy's default.",
         "",
-        "## One start from the default start point",
-        "",
-        "| method | median wall time [s] | ratio to the prototype | function evaluations | Jacobian evaluations "
-        "| RSS | reached the best |",
-        "|---|---|---|---|---|---|---|",
     ]
-    for key, label in labels.items():
-        m = o[key]
-        lines.append(f"| {label} | {m['median_s']:.3f} | {m['median_s'] / o['prototype']['median_s']:.2f} | "
-                     f"{m['nfev']} | {m['njev'] or '-'} | {m['rss']:.6g} | {'yes' if m['reached_best'] else 'no'} |")
-    lines += ["", f"One start of structsearch takes **{o['snls']['median_s'] / o['prototype']['median_s']:.2f}x** the "
-              "prototype's wall time (issue 17's target: at most 0.8x).", "",
-              "## Memory and scaling (one start, traced Python/numpy allocations)", "",
-              "| method | samples | peak memory [MB] | wall time [s] | function evaluations |", "|---|---|---|---|---|"]
-    for key, rows in fig["memory_by_method"].items():
-        for m in rows:
-            lines.append(f"| {labels[key]} | {m['samples']} | {m['peak_mb']:.1f} | {m['seconds']:.3f} | {m['nfev']} |")
-    lines += ["", f"Doubling the samples multiplies the SNLS time by {sc['time_ratio']:.2f} and its peak memory by "
-              f"{sc['memory_ratio']:.2f}. Peak resident memory of the whole bench process (interpreter, "
-              f"both data sets, all fits): {fig['process_peak_rss_mb']:.0f} MB.", "",
-              "Success counts over a handful of starts carry binomial noise of about "
-              f"sqrt(n p (1-p)) = {np.sqrt(n * 0.25):.1f} starts at p = 1/2.", ""]
+    lines += _one_start_lines(fig) + _memory_lines(fig)
     if "processes" in fig:
         lines.append(process_markdown(fig["processes"]))
     if "search" in fig:

@@ -97,6 +97,22 @@ def _summary_row(k: KindCalibration) -> list:
             "yes" if k.meets_goals else "no"]
 
 
+def _kind_lines(k) -> list[str]:
+    """One covariance kind's table: each parameter's bias, spread, coverage and count against its binomial floor."""
+    if not any(p.n for p in k.parameters):
+        return [f"## {k.kind}", "", "Not estimable on these campaigns: every reported standard deviation is "
+                "NaN (the estimate needs more training maneuvers than parameters).", ""]
+    rows = [[p.model, p.parameter, f"{p.truth:.5g}", f"{p.bias_in_sd:+.2f}", f"{p.mc_sd:.3g}",
+             f"{p.reported_sd:.3g}", f"{p.ratio:.2f}", f"{p.coverage68:.2f}", f"{p.coverage95:.2f}",
+             _count(p),
+             f"{p.centred95:.2f}"]
+            for p in k.parameters]
+    return [f"## {k.kind}", "",
+            tabulate(rows, headers=["model", "parameter", "truth", "bias / MC sd", "MC sd", "mean reported sd",
+                                    "reported / MC", "68 % coverage", "95 % coverage", "covered / floor",
+                                    "95 % coverage of the MC mean"], tablefmt="github"), ""]
+
+
 def calibration_markdown(cal: Calibration, command: str) -> str:
     lo, hi = COVERAGE_RANGE
     n = len(cal.seeds)
@@ -145,20 +161,7 @@ def calibration_markdown(cal: Calibration, command: str) -> str:
     lines += band_lines(cal)
     lines += joint_lines(cal)
     for k in cal.kinds:
-        if not any(p.n for p in k.parameters):
-            lines += [f"## {k.kind}", "", "Not estimable on these campaigns: every reported standard deviation is "
-                      "NaN (the estimate needs more training maneuvers than parameters).", ""]
-            continue
-        rows = [[p.model, p.parameter, f"{p.truth:.5g}", f"{p.bias_in_sd:+.2f}", f"{p.mc_sd:.3g}",
-                 f"{p.reported_sd:.3g}", f"{p.ratio:.2f}", f"{p.coverage68:.2f}", f"{p.coverage95:.2f}",
-                 _count(p),
-                 f"{p.centred95:.2f}"]
-                for p in k.parameters]
-        lines += [f"## {k.kind}", "",
-                  tabulate(rows, headers=["model", "parameter", "truth", "bias / MC sd", "MC sd",
-                                          "mean reported sd", "reported / MC", "68 % coverage",
-                                          "95 % coverage", "covered / floor", "95 % coverage of the MC mean"],
-                           tablefmt="github"), ""]
+        lines += _kind_lines(k)
     return "\n".join(lines)
 
 

@@ -137,6 +137,23 @@ def _scores(y: np.ndarray, pred: np.ndarray, data: FlightData) -> SplitScores:
     return SplitScores.of(ManeuverScores.of(y, y - pred, data.segment_slices()), None)
 
 
+def _settle(problem_at, order, models, params, weights, lower, upper, max_iterations: int, tol: float):
+    """Relax the weights and the estimate together until one more iteration changes neither by more than ``tol``:
+    Gauss-Newton steps while they contract, then (they stopped contracting, or their budget ran out) each
+    iteration's problem solved from where the steps left off, the slower relaxation that needs no contraction,
+    with a budget of its own. (the problem settled on, its observations, the optimum, iterations, settled, history)"""
+    relaxed = _relax_by_gauss_newton(problem_at, [c.coefficient for c in order], params, weights, lower, upper,
+                                     max_iterations, tol)
+    history, iterations, settled, outcome = list(relaxed.history), relaxed.iterations, relaxed.settled, relaxed.outcome
+    params, weights = relaxed.params, relaxed.weights
+    if settled:
+        problem, _, y = problem_at(params, weights)
+        return problem, y, outcome, iterations, settled, history
+    problem, y, outcome, iterations, settled = _relax_by_solves(problem_at, order, models, params, weights, history,
+                                                                lower, upper, iterations, max_iterations, tol)
+    return problem, y, outcome, iterations, settled, history
+
+
 def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: FlightData,
               options: FitOptions = FitOptions(), *, max_iterations: int = MAX_ITERATIONS,
               tol: float = WEIGHT_TOLERANCE, band_samples: int = 0) -> JointFit:
@@ -169,18 +186,8 @@ def fit_joint(candidates: Sequence[Candidate], train: FlightData, validation: Fl
         return problem, datas, problem.interleave([m.target(d) for m, d in zip(models, datas)])
 
     lower, upper = _box(problem_at(params, weights)[0], models, train)
-    relaxed = _relax_by_gauss_newton(problem_at, [c.coefficient for c in order], params, weights, lower, upper,
-                                     max_iterations, tol)
-    history, iterations, settled, outcome = list(relaxed.history), relaxed.iterations, relaxed.settled, relaxed.outcome
-    params, weights = relaxed.params, relaxed.weights
-    if settled:
-        problem, _, y = problem_at(params, weights)
-    else:
-        # the steps stopped contracting (or their budget ran out): solve each iteration's problem from where the
-        # steps left off, the slower relaxation that needs no contraction, with a budget of its own
-        problem, y, outcome, iterations, settled = _relax_by_solves(problem_at, order, models, params, weights,
-                                                                    history, lower, upper, iterations,
-                                                                    max_iterations, tol)
+    problem, y, outcome, iterations, settled, history = _settle(problem_at, order, models, params, weights, lower,
+                                                                upper, max_iterations, tol)
     # the statistics at the settled estimate, on the problem it settled on (its weights, its C_L): one more
     # iteration would change the weights and the estimate by less than ``tol``
     result = fit_problem(problem, y, boundaries=problem.boundaries(train.bounds), segment_names=train.names,

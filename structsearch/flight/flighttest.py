@@ -437,10 +437,14 @@ def build_campaign(seed: int = 0, withhold=(), scale: float = 1.0, extras: bool 
                            int(flights) if labels is not None else None, cg_spread, cg_moment, sensor_errors)
     name = f"simulated {proc.aircraft.label} stall {'and nominal ' if nominal else ''}campaign (seed {seed}" \
         + (f", anomaly {chosen.name})" if chosen is not None else ")")
-    # the aircraft data of docs/interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope
-    mass = proc.aircraft.empty_mass + proc.aircraft.crew_mass + float(np.mean(proc.fuel))
-    manifest = proc.aircraft.manifest(mass)
-    if raw:  # where the accelerometer sits; the simulated thrust acts through the cg
+    return make_campaign(name, _aircraft_manifest(proc, raw), maneuvers, segments, extra)
+
+
+def _aircraft_manifest(proc: Procedures, raw: bool) -> dict:
+    """The aircraft data of docs/interfaces.md 5.1 the simulator knows: pitch inertia, the cg envelope (and, for
+    raw channels, where the accelerometer sits; the simulated thrust acts through the cg)."""
+    manifest = proc.aircraft.manifest(proc.aircraft.empty_mass + proc.aircraft.crew_mass + float(np.mean(proc.fuel)))
+    if raw:
         from .raw import ACCELEROMETER
         manifest.update(accelerometer=ACCELEROMETER, thrust_line_z=0.0)
-    return make_campaign(name, manifest, maneuvers, segments, extra)
+    return manifest

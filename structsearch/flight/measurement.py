@@ -177,16 +177,7 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
            **_other_readings(rng, t, truth, aircraft, ax_true, az_true, buffet, gyro_buffet)}
     f = {name: prefilter(name, values, fs) for name, values in raw.items()}
     reduced = _reduction(rng, f, truth, aircraft, flight, slow_error, slow_error_stall_gain, separation)
-    columns = {
-        "t": t - t[0], "alpha": f["alpha"], "q": f["q"], "V": f["V"], "de": f["de"], "CL": reduced["CL"],
-        "CD": reduced["CD"],
-        "Cm": pitch_moment_coefficient(derivative(f["q"], t), aircraft.inertia(reduced["mass"]), reduced["qs"],
-                                       aircraft.cbar) + reduced["cm_error"],
-        "alpha_dot": derivative(f["alpha"], t), "CT": reduced["thrust"] / reduced["qs"], "x_cg": truth["x_cg"],
-        "theta": f["theta"], "h": f["h"], "CX": reduced["CX"], "CZ": reduced["CZ"],
-        "mass": reduced["mass"], "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
-        **{f"{symbol}_true": x for symbol, x in truth["states"].items()},
-    }
+    columns = _columns(t, f, truth, reduced, aircraft)
     if record_alpha or flight is not None:
         columns["alpha_true"] = alpha
     if flight is not None:
@@ -198,6 +189,21 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
         del columns["x_cg"]
         columns.pop("x_cg_true", None)
     return columns
+
+
+def _columns(t: np.ndarray, f: dict, truth: dict, reduced: dict, aircraft: Aircraft) -> dict:
+    """A maneuver's columns: the pre-filtered readings, the reduced coefficients (C_m from the derivative of the
+    filtered pitch rate), alpha's derivative, and the truth beside them."""
+    return {
+        "t": t - t[0], "alpha": f["alpha"], "q": f["q"], "V": f["V"], "de": f["de"], "CL": reduced["CL"],
+        "CD": reduced["CD"],
+        "Cm": pitch_moment_coefficient(derivative(f["q"], t), aircraft.inertia(reduced["mass"]), reduced["qs"],
+                                       aircraft.cbar) + reduced["cm_error"],
+        "alpha_dot": derivative(f["alpha"], t), "CT": reduced["thrust"] / reduced["qs"], "x_cg": truth["x_cg"],
+        "theta": f["theta"], "h": f["h"], "CX": reduced["CX"], "CZ": reduced["CZ"],
+        "mass": reduced["mass"], "CL_true": truth["CL"], "CD_true": truth["CD"], "Cm_true": truth["Cm"],
+        **{f"{symbol}_true": x for symbol, x in truth["states"].items()},
+    }
 
 
 def _reduction(rng: np.random.Generator, f: dict, truth: dict, aircraft: Aircraft, flight: FlightErrors | None,

@@ -82,20 +82,38 @@ def filter_smooth(model: StateSpace, inputs: np.ndarray, y: np.ndarray, use: np.
             x, f = model.transition(x, inputs[k - 1], inputs[k])
             p = f @ p @ f.T + q
         x_pred[k], p_pred[k], jac[k] = x, p, f
-        for j in np.flatnonzero(use[k]):
-            predicted, h = model.measure(x)
-            hj = h[j]
-            ph = p @ hj
-            s = hj @ ph + r[j]
-            gain = ph / s
-            nu = y[k, j] - predicted[j]
-            innovation[k, j], innovation_var[k, j] = nu, s
-            x = x + gain * nu
-            p = p - np.outer(gain, ph)
-            p = 0.5 * (p + p.T)
+        x, p = _update(model, x, p, y[k], use[k], r, innovation[k], innovation_var[k])
         x_filt[k], p_filt[k] = x, p
         if progress is not None and k % report_every == 0:
             progress(0.5 * k / n_steps)
+    xs, ps, process_var = _smooth(model, inputs, starts, x_pred, x_filt, p_pred, p_filt, jac, smooth,
+                                  progress, report_every)
+    return Smoothed(x_filt, xs, ps, innovation, innovation_var, process_var)
+
+
+def _update(model: StateSpace, x: np.ndarray, p: np.ndarray, y_k: np.ndarray, use_k: np.ndarray, r: np.ndarray,
+            innovation_k: np.ndarray, innovation_var_k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One step's measurements, one at a time, each about the state the previous one left; their innovations and
+    variances are written into ``innovation_k`` and ``innovation_var_k``."""
+    for j in np.flatnonzero(use_k):
+        predicted, h = model.measure(x)
+        hj = h[j]
+        ph = p @ hj
+        s = hj @ ph + r[j]
+        gain = ph / s
+        nu = y_k[j] - predicted[j]
+        innovation_k[j], innovation_var_k[j] = nu, s
+        x = x + gain * nu
+        p = p - np.outer(gain, ph)
+        p = 0.5 * (p + p.T)
+    return x, p
+
+
+def _smooth(model: StateSpace, inputs, starts, x_pred, x_filt, p_pred, p_filt, jac, smooth: bool, progress,
+            report_every: int):
+    """The RTS smoother's backward pass (the filtered states when not ``smooth``) and the process-noise variance
+    the smoothed states imply (NaN without a transition)."""
+    n_steps, n = x_filt.shape
     xs, ps = x_filt.copy(), p_filt.copy()
     # E[(x[k+1] - f(x[k]))^2] under the smoothed distribution, summed over the transitions within records
     # (Shumway and Stoffer's M-step for the process noise, linearised): the squared mean plus
@@ -113,5 +131,4 @@ def filter_smooth(model: StateSpace, inputs: np.ndarray, y: np.ndarray, use: np.
             transitions += 1
         if progress is not None and k % report_every == 0:
             progress(1.0 - 0.5 * k / n_steps)
-    process_var = process_sum / transitions if transitions else np.full(n, np.nan)
-    return Smoothed(x_filt, xs, ps, innovation, innovation_var, process_var)
+    return xs, ps, process_sum / transitions if transitions else np.full(n, np.nan)

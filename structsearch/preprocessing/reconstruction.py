@@ -133,15 +133,10 @@ def _residual_rms(model, smoothed, y, use) -> np.ndarray:
     return out
 
 
-def reconstruct(filtered: Mapping[str, np.ndarray], slices: Sequence[slice], fs: float,
-                cutoffs_hz: Mapping[str, float], input_psd: Mapping[str, float], accelerometer=(0.0, 0.0, 0.0),
-                progress: Callable[[float], None] | None = None) -> Reconstruction:
-    """Estimate the sensor errors from the pre-filtered channels (``filtered``: ax, az at the accelerometer,
-    q, q_dot, V, alpha, theta, h and optionally r, phi; one array over all maneuvers, ``slices`` the
-    maneuvers). ``input_psd``: the one-sided noise floor of ax, az and q [unit^2/Hz]."""
-    every = max(1, int(round(STEP_S * fs)))
-    dt = every / fs
-    index, starts = _steps(slices, every)
+def _observations(filtered: Mapping[str, np.ndarray], slices: Sequence[slice], every: int, dt: float,
+                  index: np.ndarray, cutoffs_hz: Mapping[str, float], accelerometer):
+    """The filter's inputs (the specific forces moved to the cg, the rates) and measurements at its steps, and
+    which measurement updates each step (each channel at its own rate, none near a maneuver's ends)."""
     zero = np.zeros(len(filtered["q"]))
     ax_cg, az_cg = specific_force_at_cg(filtered["ax"], filtered["az"], filtered["q"], filtered["q_dot"],
                                         accelerometer)
@@ -159,6 +154,19 @@ def reconstruct(filtered: Mapping[str, np.ndarray], slices: Sequence[slice], fs:
     if not use.any():
         raise FitError(f"no maneuver is longer than {2 * EDGE_S:g} s: the flight-path reconstruction leaves "
                        f"{EDGE_S:g} s at each end to the filters' transients and has nothing left to compare")
+    return inputs, y, use
+
+
+def reconstruct(filtered: Mapping[str, np.ndarray], slices: Sequence[slice], fs: float,
+                cutoffs_hz: Mapping[str, float], input_psd: Mapping[str, float], accelerometer=(0.0, 0.0, 0.0),
+                progress: Callable[[float], None] | None = None) -> Reconstruction:
+    """Estimate the sensor errors from the pre-filtered channels (``filtered``: ax, az at the accelerometer,
+    q, q_dot, V, alpha, theta, h and optionally r, phi; one array over all maneuvers, ``slices`` the
+    maneuvers). ``input_psd``: the one-sided noise floor of ax, az and q [unit^2/Hz]."""
+    every = max(1, int(round(STEP_S * fs)))
+    dt = every / fs
+    index, starts = _steps(slices, every)
+    inputs, y, use = _observations(filtered, slices, every, dt, index, cutoffs_hz, accelerometer)
     model = LongitudinalKinematics(dt)
     psd = {c: 0.5 * float(input_psd[c]) for c in ("ax", "az", "q")}   # two-sided
     q = np.zeros((model.n_states, model.n_states))

@@ -72,6 +72,30 @@ def path_csv(found: Discovery) -> str:
     return buf.getvalue()
 
 
+def _against_the_grid(found: Discovery) -> list[str]:
+    """The discovered structure against the grid's and the thesis' answers: excess, noise verdict, terms."""
+    lines = ["## Against the grid and the thesis", ""]
+    body = [[c.role, c.name, c.n_params, _g(c.mse_validation), _g(c.mse_cv), "yes" if c.admissible else "no",
+             _g(c.excess, "+.1%"), _g(c.excess_se, ".1%"),
+             noise_verdict(c)] for c in found.comparison]
+    lines += [tabulate(body, headers=["role", "structure", "parameters", "validation MSE", "CV MSE", "admissible",
+                                      "discovered's excess", "se", "within noise"], tablefmt="github"), "",
+              "The discovered structure's per-maneuver relative excess of out-of-sample MSE over each reference; "
+              "within noise by the ranking's one-standard-error rule (within one standard error or 1 %); \"better\" "
+              "where the discovered structure is below the reference by more than that.", ""]
+    said = set()
+    for c in found.comparison[1:]:
+        mine = set(found.comparison[0].terms)
+        theirs = set(c.terms)
+        if c.name in said:   # the grid's rank 1 is often the thesis' final model: one line
+            continue
+        said.add(c.name)
+        if mine != theirs:
+            lines += [f"Terms against {c.name}: only discovered {sorted(mine - theirs) or '-'}; only in {c.name} "
+                      f"{sorted(theirs - mine) or '-'}.", ""]
+    return lines
+
+
 def markdown(found: Discovery, command: str = "") -> str:
     start = found.start
     lines = [f"# Structure discovery for {found.coefficient}", ""]
@@ -118,25 +142,7 @@ def markdown(found: Discovery, command: str = "") -> str:
     if f.spec:
         lines += [f"Written as a model spec: `{f.spec}` (`structsearch fit --model {f.spec}`).", ""]
     lines += set_aside_lines(found)
-    lines += ["## Against the grid and the thesis", ""]
-    body = [[c.role, c.name, c.n_params, _g(c.mse_validation), _g(c.mse_cv), "yes" if c.admissible else "no",
-             _g(c.excess, "+.1%"), _g(c.excess_se, ".1%"),
-             noise_verdict(c)] for c in found.comparison]
-    lines += [tabulate(body, headers=["role", "structure", "parameters", "validation MSE", "CV MSE", "admissible",
-                                      "discovered's excess", "se", "within noise"], tablefmt="github"), "",
-              "The discovered structure's per-maneuver relative excess of out-of-sample MSE over each reference; "
-              "within noise by the ranking's one-standard-error rule (within one standard error or 1 %); \"better\" "
-              "where the discovered structure is below the reference by more than that.", ""]
-    said = set()
-    for c in found.comparison[1:]:
-        mine = set(found.comparison[0].terms)
-        theirs = set(c.terms)
-        if c.name in said:   # the grid's rank 1 is often the thesis' final model: one line
-            continue
-        said.add(c.name)
-        if mine != theirs:
-            lines += [f"Terms against {c.name}: only discovered {sorted(mine - theirs) or '-'}; only in {c.name} "
-                      f"{sorted(theirs - mine) or '-'}.", ""]
+    lines += _against_the_grid(found)
     return "\n".join(lines)
 
 

@@ -102,16 +102,8 @@ def _joint(study: Study, out: Path, command: str) -> list[Path]:
     return written
 
 
-def write(study: Study, out: Path, command: str, figures: bool = True) -> list[Path]:
-    out = Path(out)
-    written = _estimators(study, out, command)
-    if study.joint is not None:
-        written += _joint(study, out, command)
-    written += _comparison(study, out, command, VAN_INGEN_REFITTED, "final_vs_van_ingen",
-                          "Final models against Van Ingen's structures refitted (thesis Tables 17 and 11.1)")
-    written += _comparison(study, out, command, VAN_INGEN_PUBLISHED, "final_vs_van_ingen_published",
-                           "Final lift model against Van Ingen's lift model as published (thesis Table 11.1, "
-                           "C_L only: only its lift values are published)")
+def _dynamic_stalls(study: Study, out: Path, command: str) -> list[Path]:
+    """The lift model with and without the dynamic stalls, and its parameter correlations each way."""
     d = study.dynamic_stalls
     q, f = d.quasi_steady, d.full
     rows = []
@@ -130,13 +122,27 @@ def write(study: Study, out: Path, command: str, figures: bool = True) -> list[P
                < abs(d.quasi_steady.rho('tau1_ss', 'tau2_ss')) else ": the other maneuvers do not decorrelate them. ")
             + "The level depends on the campaign (on a simulated one, on its noise and slow errors) and on the "
             "covariance estimator (here the fit's default).")
-    written += write_table(out, "dynamic_stalls", "The lift model with and without the dynamic stalls (thesis "
+    written = write_table(out, "dynamic_stalls", "The lift model with and without the dynamic stalls (thesis "
                            "Tables 10.1-10.3)", ["parameter", "estimate (QS only)", "sd (QS only)", "p (QS only)",
                                                  "estimate (full)", "sd (full)", "p (full)"], rows, command, note)
     for ident, stem in ((q, "correlation_quasi_steady"), (f, "correlation_full")):
         written += write_table(out, stem, f"Parameter correlations of {d.model}, {ident.label}",
                                ["parameter"] + list(ident.names),
                                [[n] + list(row) for n, row in zip(ident.names, ident.correlation)], command)
+    return written
+
+
+def write(study: Study, out: Path, command: str, figures: bool = True) -> list[Path]:
+    out = Path(out)
+    written = _estimators(study, out, command)
+    if study.joint is not None:
+        written += _joint(study, out, command)
+    written += _comparison(study, out, command, VAN_INGEN_REFITTED, "final_vs_van_ingen",
+                          "Final models against Van Ingen's structures refitted (thesis Tables 17 and 11.1)")
+    written += _comparison(study, out, command, VAN_INGEN_PUBLISHED, "final_vs_van_ingen_published",
+                           "Final lift model against Van Ingen's lift model as published (thesis Table 11.1, "
+                           "C_L only: only its lift values are published)")
+    written += _dynamic_stalls(study, out, command)
     kinds = study.separation_kinds
     written += write_table(out, "separation_matrix", "Separation kinds: training MSE of C_L (thesis Table 8)",
                            ["X_ss \\ X_w"] + list(kinds),
