@@ -178,6 +178,30 @@ def test_the_calibration_the_guide_quotes_is_the_committed_one():
     assert f"pool at {pooled}" in (root / "docs" / "guide" / "moment-reference.md").read_text()
 
 
+def test_the_calibration_without_the_effect_the_guide_quotes_is_committed_too():
+    """The guide's "without" column: the same truth flown without --flight-effects at scale 0.5, 8 held-out
+    campaigns, committed as results/calibration_cg_transfer_without; its quoted figures are read from it."""
+    import json
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    doc = json.loads((root / "results" / "calibration_cg_transfer_without" / "calibration.json").read_text())
+    assert doc.get("flight_effects", []) == [] and doc["cg_moment"] == "transfer" and doc["scale"] == 0.5
+    assert doc["seeds"]["values"] == list(range(2000, 2008)) and doc["seeds"]["held_out"]
+    kind = doc["kinds"]["hac-maneuver"]
+    rows = {f"{p['model']} {p['parameter']}": p for p in kind["parameters"]}
+    assert kind["below_binomial_floor"] == [] and all(p["coverage95_consistent"] for p in rows.values())
+    guide = (root / "docs" / "guide" / "flight-effects.md").read_text()
+    cm_cl = rows["Cm-XXXIIIf Cm_CL"]
+    worst = min(rows.values(), key=lambda p: p["coverage95"])
+    assert f"{cm_cl['coverage95']:.2f} ({cm_cl['covered95']}/8; sd ratio {cm_cl['sd_ratio']:.2f})" in guide
+    assert f"{worst['coverage95']:.2f} ± 0.15 ({worst['model']} {worst['parameter']}) to 1.00" in guide
+    assert f"{kind['pooled_coverage95']:.3f} ± 0.013" in guide
+    rejected = round(kind["gap_test_rejection_rate"] * kind["gap_tests"])
+    assert guide.count(f"{rejected}/{kind['gap_tests']}\n") == 1
+    pitch = [p["coverage95"] for key, p in rows.items() if key.startswith("Cm-XXXIIIf")]
+    assert f"{min(pitch):.2f}-{max(pitch):.2f}" in guide
+
+
 def test_a_parameter_no_campaign_estimated_has_no_count_not_zero():
     from structsearch.experiments.calibration import ParameterCalibration
     p = ParameterCalibration("m", "p", 0.0, 0.0, 1.0, float("nan"), float("nan"), float("nan"), 0)
