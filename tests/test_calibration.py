@@ -151,24 +151,30 @@ def test_a_kind_meets_its_goals_only_with_every_parameter_within_its_binomial_er
     assert len(kind(6).below_binomial) == len(kind(6).parameters) and not kind(6).meets_goals
 
 
+def _committed_calibration(folder: str):
+    """A committed calibration of the transfer truth on held-out seeds: (the document, its hac-maneuver kind, its
+    rows by "model parameter", Cm-XXXIIIf's Cm_CL row, the worst-covered row); no count below its binomial floor."""
+    import json
+    from pathlib import Path
+    doc = json.loads((Path(__file__).resolve().parents[1] / "results" / folder / "calibration.json").read_text())
+    assert doc["cg_moment"] == "transfer" and doc["seeds"]["held_out"]
+    kind = doc["kinds"]["hac-maneuver"]
+    rows = {f"{p['model']} {p['parameter']}": p for p in kind["parameters"]}
+    assert kind["below_binomial_floor"] == [] and all(p["coverage95_consistent"] for p in rows.values())
+    return doc, kind, rows, rows["Cm-XXXIIIf Cm_CL"], min(rows.values(), key=lambda p: p["coverage95"])
+
+
 def test_the_calibration_the_guide_quotes_is_the_committed_one():
     """The flight-effect calibration the guides quote is a committed results file made by the command they
     name, with its flight effects; every quoted figure is read from it, and each parameter's count is judged
     against its binomial Monte Carlo error."""
-    import json
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
-    doc = json.loads((root / "results" / "calibration_cg_transfer" / "calibration.json").read_text())
-    assert doc["flight_effects"] == ["x_cg"] and doc["cg_moment"] == "transfer" and doc["scale"] == 1.0
-    assert len(doc["seeds"]["values"]) == 20 and doc["seeds"]["held_out"]
-    kind = doc["kinds"]["hac-maneuver"]
-    rows = {f"{p['model']} {p['parameter']}": p for p in kind["parameters"]}
+    doc, kind, rows, cm_cl, worst = _committed_calibration("calibration_cg_transfer")
+    assert doc["flight_effects"] == ["x_cg"] and doc["scale"] == 1.0 and len(doc["seeds"]["values"]) == 20
     assert len(rows) == 25 and all(p["binomial_floor95"] == 15 for p in rows.values())
-    assert kind["below_binomial_floor"] == [] and all(p["coverage95_consistent"] for p in rows.values())
     guide = (root / "docs" / "guide" / "flight-effects.md").read_text()
     pooled = f"{kind['pooled_coverage95']:.3f}"
-    cm_cl = rows["Cm-XXXIIIf Cm_CL"]
-    worst = min(rows.values(), key=lambda p: p["coverage95"])
     assert f"pooled (25 parameters)   {pooled}" in guide
     assert f"{cm_cl['coverage95']:.2f} ({cm_cl['covered95']}/20; sd ratio {cm_cl['sd_ratio']:.2f})" in guide
     assert f"{worst['coverage95']:.2f} ({worst['covered95']}/20, {worst['model']} {worst['parameter']})" in guide
@@ -181,18 +187,12 @@ def test_the_calibration_the_guide_quotes_is_the_committed_one():
 def test_the_calibration_without_the_effect_the_guide_quotes_is_committed_too():
     """The guide's "without" column: the same truth flown without --flight-effects at scale 0.5, 8 held-out
     campaigns, committed as results/calibration_cg_transfer_without; its quoted figures are read from it."""
-    import json
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
-    doc = json.loads((root / "results" / "calibration_cg_transfer_without" / "calibration.json").read_text())
-    assert doc.get("flight_effects", []) == [] and doc["cg_moment"] == "transfer" and doc["scale"] == 0.5
-    assert doc["seeds"]["values"] == list(range(2000, 2008)) and doc["seeds"]["held_out"]
-    kind = doc["kinds"]["hac-maneuver"]
-    rows = {f"{p['model']} {p['parameter']}": p for p in kind["parameters"]}
-    assert kind["below_binomial_floor"] == [] and all(p["coverage95_consistent"] for p in rows.values())
+    doc, kind, rows, cm_cl, worst = _committed_calibration("calibration_cg_transfer_without")
+    assert doc.get("flight_effects", []) == [] and doc["scale"] == 0.5
+    assert doc["seeds"]["values"] == list(range(2000, 2008))
     guide = (root / "docs" / "guide" / "flight-effects.md").read_text()
-    cm_cl = rows["Cm-XXXIIIf Cm_CL"]
-    worst = min(rows.values(), key=lambda p: p["coverage95"])
     assert f"{cm_cl['coverage95']:.2f} ({cm_cl['covered95']}/8; sd ratio {cm_cl['sd_ratio']:.2f})" in guide
     assert f"{worst['coverage95']:.2f} ± 0.15 ({worst['model']} {worst['parameter']}) to 1.00" in guide
     assert f"{kind['pooled_coverage95']:.3f} ± 0.013" in guide
