@@ -90,7 +90,8 @@ class Block:
 
     @property
     def where(self) -> str:
-        return f"{self.page.relative_to(ROOT)}:{self.line}"
+        page = self.page.relative_to(ROOT) if self.page.is_relative_to(ROOT) else self.page
+        return f"{page}:{self.line}"
 
 
 def blocks(page: Path) -> list[Block]:
@@ -210,7 +211,8 @@ def _rtol(block: Block) -> float | None:
 class _HtmlText(HTMLParser):
     """An HTML page's text as a reader sees it: a line per block element, a formula's MathML skipped (the page
     also writes each formula as text)."""
-    BLOCKS = {"p", "div", "h1", "h2", "h3", "h4", "li", "tr", "br", "pre", "table", "section", "caption"}
+    BLOCKS = {"p", "div", "h1", "h2", "h3", "h4", "li", "tr", "br", "pre", "table", "section", "caption", "dt", "dd"}
+    CELLS = {"td", "th"}          # a table's cells: words apart on the row's line
 
     def __init__(self):
         super().__init__()
@@ -223,6 +225,8 @@ class _HtmlText(HTMLParser):
         self.pre += tag == "pre"
         if tag in self.BLOCKS:
             self.parts.append("\n")
+        elif tag in self.CELLS:
+            self.parts.append(" ")
 
     def handle_endtag(self, tag):
         self.hidden -= tag in ("math", "script", "style")
@@ -300,7 +304,7 @@ def run_page(page: Path, workdir: Path, small_campaign_dir, include_slow: bool, 
     ran, printed, skipped_a_run = 0, "", False
     for block in blocks(page):
         if block.skipped or (block.slow and not include_slow):
-            skipped_a_run |= _runs(block)
+            skipped_a_run |= _prints(block)
             continue
         if block.lang == "text" and block.quotes:
             if skipped_a_run and block.quotes == "printed":
@@ -308,7 +312,8 @@ def run_page(page: Path, workdir: Path, small_campaign_dir, include_slow: bool, 
             problem = quoted_text_problem(block, printed, workdir)
             assert problem is None, f"{block.where}: {problem}"
             continue
-        skipped_a_run = False
+        if _prints(block):
+            skipped_a_run = False
         if block.lang == "toml":
             tomllib.loads(block.body)
             if block.file:
@@ -396,10 +401,13 @@ def test_a_quote_of_printed_output_follows_a_block_that_runs(page):
     """A quote of what was printed is checked against the block run before it, so that block must run."""
     before = None
     for block in blocks(page):
+        if block.lang == "text" and block.quotes:
+            # a quote is checked where the page runs: a marker of its own would set it apart from what it quotes
+            assert not block.marker, f"{block.where}: a quote takes no test marker ({block.marker!r})"
         if block.lang == "text" and block.quotes == "printed":
             assert before is not None and not before.skipped, \
                 f"{block.where}: it quotes the output of a block that never runs ({before and before.where})"
-        elif _runs(block):
+        elif _prints(block):
             before = block
 
 
@@ -431,12 +439,31 @@ def test_a_quoted_output_the_run_does_not_print_fails():
     assert quoted_outputs(console) == [["out 1", "out 2"], []]
 
 
+def test_a_printed_quote_is_checked_against_the_block_that_printed_it(tmp_path, monkeypatch):
+    """A listing between a slow block and its quote does not make the fast set check the quote against an older
+    block's output; the slow set checks it against the slow block's, and a wrong quote fails there."""
+    page = tmp_path / "page.md"
+    quote = "<!-- output: printed -->\n```text\nx = {}\n```\n"
+    body = ("```python\nprint('x = 1')\n```\n\n<!-- test: slow -->\n```python\nprint('x = 5')\n```\n\n"
+            "```csv\na,b\n```\n\n")
+    page.write_text(body + quote.format(5))
+    work = tmp_path / "work"
+    work.mkdir()
+    assert run_page(page, work, None, False, monkeypatch) == 1
+    assert run_page(page, work, None, True, monkeypatch) == 2
+    page.write_text(body + quote.format(9))
+    assert run_page(page, work, None, False, monkeypatch) == 1
+    with pytest.raises(AssertionError, match="x = 9"):
+        run_page(page, work, None, True, monkeypatch)
+
+
 def test_an_html_page_is_quoted_as_its_text(tmp_path):
     page = tmp_path / "report.html"
     page.write_text("<html><style>p {}</style><h2>Lift, C_L: CL-VI</h2><p>Validation R<sup>2</sup> 0.9052;\n"
-                    "  held-out MSE 0.003171</p><math><mi>CL</mi></math><p>CL = 0.223</p></html>", encoding="utf-8")
+                    "  held-out MSE 0.003171</p><math><mi>CL</mi></math><p>CL = 0.223</p>"
+                    "<table><tr><td>CL</td><td>0.9052</td><td>0.003171</td></tr></table></html>", encoding="utf-8")
     assert written_text(page).splitlines() == ["Lift, C_L: CL-VI", "Validation R2 0.9052; held-out MSE 0.003171",
-                                               "CL = 0.223"]
+                                               "CL = 0.223", "CL 0.9052 0.003171"]
     quote = Block(ROOT / "README.md", 1, "text", "Lift, C_L: CL-VI\nCL = 0.223", output="file report.html")
     assert quoted_text_problem(quote, "", tmp_path) is None
     wrong = Block(ROOT / "README.md", 1, "text", "Lift, C_L: CL-VI\nCL = 0.300", output="file report.html")
@@ -455,6 +482,11 @@ def test_markers_are_found():
 
 def _runs(block: Block) -> bool:
     return block.lang in RUN_PYTHON | RUN_SHELL or bool(block.file)
+
+
+def _prints(block: Block) -> bool:
+    """A block whose output a quote may quote (a toml file block runs but prints nothing)."""
+    return block.lang in RUN_PYTHON | RUN_SHELL
 
 
 FAST = pages_with(lambda b: _runs(b) and not b.slow and not b.skipped)

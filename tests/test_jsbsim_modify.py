@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from structsearch.data.errors import DataError, DeclarationError
+from structsearch.data.errors import DeclarationError
 from structsearch.export.card import CoefficientModel, ExportedModel, StateModel
 from structsearch.export.jsbsim_files import system_xml
 from structsearch.foreign.modify import Modification, read_modify
@@ -92,7 +92,8 @@ def test_a_replaced_table_must_match_the_functions_table(tmp_path):
     aircraft = read_aircraft("c172p")
     one_input = read_modify(_write(tmp_path, f'[[replace]]\nfunction = "{CLWBH}"\nrows = [0.0, 0.3]\n'
                                    'values = [0.2, 1.2]\n', system=False))
-    with pytest.raises(DeclarationError, match=r"reads 2 inputs \(aero/alpha-rad, aero/stall-hyst-norm\)"):
+    with pytest.raises(DeclarationError, match=r"\[\[replace\]\] entry 1: the table of .* reads 2 inputs "
+                                               r"\(aero/alpha-rad, aero/stall-hyst-norm\)"):
         make_copy(aircraft, rewrite=False, tables=one_input.tables).cleanup()
 
 
@@ -124,6 +125,27 @@ def test_an_exported_separation_state_flies_in_place_of_the_stall_latch(tmp_path
         holder.cleanup()
 
 
+def test_a_system_two_states_share_is_flown_once_and_two_systems_may_not_compute_one_property(tmp_path):
+    """A system inserted twice would step its states twice a frame."""
+    two = STATE_ENTRY + STATE_ENTRY.replace("aero/coefficient/CLwbh", "aero/coefficient/CDwbh").replace(
+        'input = "aero/stall-hyst-norm"', 'input = "aero/alpha-rad"')
+    modification = read_modify(_write(tmp_path, two))
+    holder = make_copy(read_aircraft("c172p"), rewrite=False, states=modification.states)
+    try:
+        copy = (Path(holder.name) / "aircraft" / "c172p" / "c172p.xml").read_text()
+        assert copy.count('<system name="structsearch_states">') == 1
+    finally:
+        holder.cleanup()
+    (tmp_path / "systems" / "other.xml").write_text(_state_system().replace("structsearch_states", "other"))
+    clash = STATE_ENTRY + STATE_ENTRY.replace("systems/states.xml", "systems/other.xml").replace(
+        "aero/coefficient/CLwbh", "aero/coefficient/CDwbh").replace('input = "aero/stall-hyst-norm"',
+                                                                    'input = "aero/alpha-rad"')
+    (tmp_path / "modify.toml").write_text(clash)
+    states = read_modify(tmp_path / "modify.toml").states
+    with pytest.raises(DeclarationError, match=r"\[\[state\]\] entry 2: its system systems/other.xml computes"):
+        make_copy(read_aircraft("c172p"), rewrite=False, states=states)
+
+
 def test_state_and_table_entries_from_anyone_get_one_error_naming_file_and_entry(tmp_path):
     (tmp_path / "outside.xml").write_text("<system/>")
     inner = tmp_path / "inner"
@@ -138,17 +160,23 @@ def test_state_and_table_entries_from_anyone_get_one_error_naming_file_and_entry
                         (STATE_ENTRY.replace("complement = true", 'complement = "yes"'), "true or false"),
                         (STATE_ENTRY.replace("input = ", "reads = "), "entry 1: give system"),
                         (STATE_ENTRY.replace("systems/states.xml", "systems/absent.xml"), "the system 'systems/absent.xml': .*not found"),
-                        (STATE_ENTRY.replace("systems/states.xml", "../outside.xml"), "leads outside")):
+                        (STATE_ENTRY.replace("systems/states.xml", "../outside.xml"), r"entry 1: .*leads outside"),
+                        (STATE_ENTRY.replace("structsearch/X_ss", "structsearch/X_sss"),
+                         "computes no property 'structsearch/X_sss' \\(its states: .*structsearch/X_ss"),
+                        (table + 'rows = [0.0, 1' + "0" * 400 + ']\nvalues = [1, 2]\n', "finite number")):
         path = _write(inner, text)
-        error = DataError if "outside" in words else DeclarationError
-        with pytest.raises(error, match=words) as err:
+        with pytest.raises(DeclarationError, match=words) as err:
             read_modify(path)
-        assert str(path) in str(err.value)
+        assert str(path) in str(err.value) and len(str(err.value)) < 600
     _write(inner, STATE_ENTRY)
     (inner / "systems" / "states.xml").write_text("<aerodynamics/>")
     with pytest.raises(DeclarationError, match="is not a JSBSim <system> file"):
         read_modify(inner / "modify.toml")
     (inner / "systems" / "states.xml").write_text('<!DOCTYPE x [<!ENTITY a "b">]><system>&a;</system>')
     with pytest.raises(DeclarationError, match="entities are never expanded"):
+        read_modify(inner / "modify.toml")
+    # JSBSim would load a file a `file` attribute names, from anywhere: refused, unread
+    (inner / "systems" / "states.xml").write_text('<system name="x" file="/etc/passwd"/>')
+    with pytest.raises(DeclarationError, match="names another file"):
         read_modify(inner / "modify.toml")
     assert ET.fromstring(_state_system()).tag == "system"

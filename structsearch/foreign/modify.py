@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Mapping
 
 from ..data.errors import DeclarationError
-from ..data.reading import parse_toml, read_text
+from ..data.reading import parse_toml, read_text, shown
 from .aircraft_xml import parse_bytes
 
 KEYS = ("scale", "lag", "replace", "state")
@@ -89,6 +89,7 @@ class Table:
     rows: tuple[float, ...]
     values: tuple
     columns: tuple[float, ...] = ()
+    entry: str = field(default="[[replace]]", compare=False)   # the file and entry that declared it, for errors
 
     def table_data(self) -> str:
         """The values as JSBSim's ``<tableData>`` reads them: the column breakpoints first, then a line per row."""
@@ -112,6 +113,7 @@ class State:
     function: str
     input: str
     complement: bool = False
+    entry: str = field(default="[[state]]", compare=False)     # the file and entry that declared it, for errors
 
     def key(self) -> str:
         text = hashlib.sha256(self.system.encode()).hexdigest()[:16]
@@ -170,10 +172,13 @@ def _name(value, where: str, what: str) -> str:
 
 
 def _number(value, where: str, what: str, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or (
-            positive and value <= 0):
-        raise DeclarationError(f"{where}: {what}, not {value!r}")
-    return float(value)
+    try:       # an integer of hundreds of digits has no float: the same error as any other bad number
+        number = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
+    except OverflowError:
+        number = math.nan
+    if not math.isfinite(number) or (positive and number <= 0):
+        raise DeclarationError(f"{where}: {what}, not {shown(value)}")
+    return number
 
 
 def _entries(doc: dict, key: str, path: Path) -> list:
@@ -248,19 +253,45 @@ def _tables(entries: list, path: Path) -> tuple[Table, ...]:
             raise DeclarationError(f"{where}: {function}'s table is replaced twice")
         rows = _breakpoints(e["rows"], where, "rows")
         columns = _breakpoints(e["columns"], where, "columns") if "columns" in e else ()
-        out.append(Table(function, rows, _values(e["values"], len(rows), len(columns), where), columns))
+        out.append(Table(function, rows, _values(e["values"], len(rows), len(columns), where), columns, where))
     return tuple(out)
 
 
 def _system(value, path: Path, where: str) -> tuple[str, str]:
     """(the name, the text) of a state's system file: a relative path inside the modification's directory."""
+    from ..data.errors import DataError
     from ..data.reading import inside
     name = _name(value, where, "system must be the path of a system file beside the modification")
     try:
         file = inside(path.parent, name, source=str(path), column="system")
         return name, read_text(file, error=lambda source, message: _refused(f"{where}: the system {name!r}", message))
+    except DataError as exc:
+        raise DeclarationError(f"{where}: {exc}") from None
     except OSError as exc:
         raise DeclarationError(f"{where}: cannot read the system {name!r} ({exc.strerror})") from None
+
+
+def _check_system(text: str, name: str, state: str, where: str) -> None:
+    """A system file is one ``<system>`` that reads no other file and computes ``state``."""
+    root = parse_bytes(text.encode(), f"{where}: {name}", "a system file")
+    if root.tag != "system":
+        raise DeclarationError(f"{where}: {name} is not a JSBSim <system> file")
+    # JSBSim would load a file named by a `file` attribute from anywhere: the system must be whole
+    if any("file" in e.attrib for e in root.iter()):
+        raise DeclarationError(f"{where}: {name} names another file (a 'file' attribute); give the system whole")
+    computed = computed_properties(root)
+    if state not in computed:
+        near = sorted(p for p in computed if p.rsplit("/", 1)[-1].startswith("X"))
+        raise DeclarationError(f"{where}: {name} computes no property {state!r}"
+                               + (f" (its states: {', '.join(near)})" if near else ""))
+
+
+def computed_properties(root) -> set[str]:
+    """The properties a system computes: its components' outputs and names, and the properties it declares."""
+    out = {(e.text or "").strip() for e in root.iter("output")}
+    out |= {e.get("name", "") for e in root.iter() if e.tag not in ("system", "channel")}
+    out |= {(e.text or "").strip() for e in root.iter("property") if e.get("value") is not None}
+    return out - {""}
 
 
 def _states(entries: list, path: Path) -> tuple[State, ...]:
@@ -270,8 +301,8 @@ def _states(entries: list, path: Path) -> tuple[State, ...]:
         _keys(e, STATE_KEYS, STATE_OPTIONAL, where, "system = \"FILE\", state = \"PROPERTY\", function = \"...\", "
               "input = \"...\" and optionally complement = true")
         name, text = _system(e["system"], path, where)
-        if parse_bytes(text.encode(), f"{where}: {name}", "a system file").tag != "system":
-            raise DeclarationError(f"{where}: {name} is not a JSBSim <system> file")
+        state = _name(e["state"], where, "state must be the property the system computes")
+        _check_system(text, name, state, where)
         complement = e.get("complement", False)
         if not isinstance(complement, bool):
             raise DeclarationError(f"{where}: complement must be true or false, not {complement!r}")
@@ -279,8 +310,7 @@ def _states(entries: list, path: Path) -> tuple[State, ...]:
         read = _name(e["input"], where, "input must be the name of a property the function reads")
         if any(s.function == function and s.input == read for s in out):
             raise DeclarationError(f"{where}: {function} already reads a state in place of {read}")
-        out.append(State(name, text, _name(e["state"], where, "state must be the property the system computes"),
-                         function, read, complement))
+        out.append(State(name, text, state, function, read, complement, where))
     return tuple(out)
 
 

@@ -104,7 +104,7 @@ def _lag(aero: ET.Element, lag: Lag, aircraft: str, frame_s: float) -> None:
     from the value of the frame before (``lag.lagged``, which the flight writes back after each frame),
     y = u + A (y_before - u) with A = exp(-frame/tau) while :data:`~.modify.LAG_ACTIVE` is 1, and the input itself
     while it is 0 (JSBSim trims the aircraft so: in equilibrium a lagged input is the input)."""
-    for e in _reading(aero, lag.function, lag.input, aircraft, "lag"):
+    for e in _reading(aero, lag.function, lag.input, aircraft, "[[lag]]"):
         e.text = ("-" if e.text.strip().startswith("-") else "") + lag.read
     switched = ET.Element("function", name=lag.read)
     total = ET.SubElement(switched, "sum")
@@ -120,11 +120,12 @@ def _lag(aero: ET.Element, lag: Lag, aircraft: str, frame_s: float) -> None:
 
 
 def _reading(aero: ET.Element, function: str, prop: str, aircraft: str, entry: str) -> list[ET.Element]:
+    """Where ``function`` reads ``prop`` (``entry``: what asks, "[[lag]]" or the file and entry of a state)."""
     reads = [e for f in aero.iter("function") if f.get("name") == function
              for tag in READ_TAGS for e in f.iter(tag) if (e.text or "").strip().lstrip("-") == prop]
     if not reads:
-        raise DeclarationError(f"--modify: the function {function} of {aircraft} does not read {prop}; a "
-                               f"[[{entry}]] replaces a property its function reads")
+        raise DeclarationError(f"--modify: {entry}: the function {function} of {aircraft} does not read {prop}; "
+                               "it replaces a property its function reads")
     return reads
 
 
@@ -132,18 +133,35 @@ def _replace_table(aero: ET.Element, table: Table, aircraft: str) -> None:
     """``table.function``'s only table takes ``table``'s breakpoints and values; it reads the inputs it read."""
     found = [t for f in aero.iter("function") if f.get("name") == table.function for t in f.iter("table")]
     if len(found) != 1:
-        raise DeclarationError(f"--modify: the function {table.function} of {aircraft} holds {len(found)} tables; "
-                               "a [[replace]] replaces a function's only table")
+        raise DeclarationError(f"--modify: {table.entry}: the function {table.function} of {aircraft} holds "
+                               f"{len(found)} tables; a [[replace]] replaces a function's only table")
     inputs = [(v.text or "").strip() for v in found[0].findall("independentVar")]
     if len(inputs) != (2 if table.columns else 1):
-        raise DeclarationError(f"--modify: the table of {table.function} reads {len(inputs)} inputs "
+        raise DeclarationError(f"--modify: {table.entry}: the table of {table.function} reads {len(inputs)} inputs "
                                f"({', '.join(inputs)}): give columns = [...] for a table of two inputs, none for one")
     found[0].find("tableData").text = table.table_data()
 
 
-def _state(doc: ET.Element, aero: ET.Element, state: State, number: int, aircraft: str) -> None:
-    """``state``'s system flown in the aircraft, and its function reading the state (or 1 - state) in place of
-    ``state.input``."""
+def _systems(doc: ET.Element, aero: ET.Element, states: Sequence[State]) -> None:
+    """Each distinct system of ``states`` flown once in the aircraft (a system inserted twice would step its states
+    twice a frame); two different systems may not compute the same property."""
+    from .modify import computed_properties
+    inserted: dict[str, State] = {}
+    for state in states:
+        if state.system in inserted:
+            continue
+        system = parse_bytes(state.system.encode(), state.source, "a system file")
+        for other in inserted.values():
+            shared = computed_properties(system) & computed_properties(parse_bytes(other.system.encode(), other.source, "a system file"))
+            if shared:
+                raise DeclarationError(f"--modify: {state.entry}: its system {state.source} computes "
+                                       f"{sorted(shared)[0]}, as {other.entry}'s {other.source} does")
+        doc.insert(list(doc).index(aero), system)
+        inserted[state.system] = state
+
+
+def _state(aero: ET.Element, state: State, number: int, aircraft: str) -> None:
+    """The state's function reads the state (or 1 - state) in place of ``state.input`` (its system: :func:`_systems`)."""
     read = state.state
     if state.complement:
         read = f"structsearch/state-{number}/complement"
@@ -152,9 +170,8 @@ def _state(doc: ET.Element, aero: ET.Element, state: State, number: int, aircraf
         ET.SubElement(difference, "value").text = "1.0"
         ET.SubElement(difference, "property").text = state.state
         aero.insert(next((i for i, c in enumerate(aero) if c.tag in ("function", "axis")), len(aero)), complement)
-    for e in _reading(aero, state.function, state.input, aircraft, "state"):
+    for e in _reading(aero, state.function, state.input, aircraft, state.entry):
         e.text = ("-" if e.text.strip().startswith("-") else "") + read
-    doc.insert(list(doc).index(aero), parse_bytes(state.system.encode(), state.source, "a system file"))
 
 
 def _link(source: Path, target: Path) -> None:
@@ -195,7 +212,8 @@ def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
     _scale(aero, dict(scales or {}))
     for lag in lags:
         _lag(aero, lag, aircraft.name, frame_s)
+    _systems(doc, aero, states)
     for number, state in enumerate(states, 1):
-        _state(doc, aero, state, number, aircraft.name)
+        _state(aero, state, number, aircraft.name)
     ET.ElementTree(doc).write(target / f"{aircraft.name}.xml", encoding="utf-8", xml_declaration=True)
     return holder
