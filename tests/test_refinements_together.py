@@ -101,9 +101,9 @@ def test_requests_that_differ_only_in_what_is_not_a_term_are_two_fits():
     box or flight effect are another question (fitted apart), while the name and note do not count."""
     import dataclasses
 
-    from structsearch.grid_search.refinements_together import same_fit_key
+    from structsearch.fitting.runner import model_key
     c = Candidate("P", "pitch", "Cm", (("c0", "1"), ("a", "alpha")))
-    assert same_fit_key(c) == same_fit_key(dataclasses.replace(c, name="Q", note="another name"))
+    assert model_key(c) == model_key(dataclasses.replace(c, name="Q", note="another name"))
     for other in (dataclasses.replace(c, moment_reference="fixed"), dataclasses.replace(c, flight_effects=("c0",)),
                   dataclasses.replace(c, bounds=(("a_star", (0.1, 0.3)),))):
-        assert same_fit_key(other) != same_fit_key(c), other
+        assert model_key(other) != model_key(c), other

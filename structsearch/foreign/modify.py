@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
-from ..data.errors import DeclarationError
+from ..data.errors import DataError, DeclarationError
 from ..data.reading import parse_toml, read_text, shown
 from .aircraft_xml import parse_bytes
 
@@ -192,8 +192,7 @@ def _scales(entries: list, path: Path) -> dict[str, float]:
     out: dict[str, float] = {}
     for i, e in enumerate(entries, 1):
         where = f"{path}: [[scale]] entry {i}"
-        if not isinstance(e, dict) or sorted(e) != sorted(SCALE_KEYS):
-            raise DeclarationError(f"{where}: give exactly function = \"...\" and factor = NUMBER")
+        _keys(e, SCALE_KEYS, (), where, "exactly function = \"...\" and factor = NUMBER")
         function = _name(e["function"], where, "function must be the name of an axis function")
         if function in out:
             raise DeclarationError(f"{where}: {function} is scaled twice")
@@ -205,9 +204,7 @@ def _lags(entries: list, path: Path) -> tuple[Lag, ...]:
     out: list[Lag] = []
     for i, e in enumerate(entries, 1):
         where = f"{path}: [[lag]] entry {i}"
-        if not isinstance(e, dict) or sorted(e) != sorted(LAG_KEYS):
-            raise DeclarationError(f"{where}: give exactly function = \"...\", input = \"...\" and "
-                                   "time_constant = SECONDS")
+        _keys(e, LAG_KEYS, (), where, "exactly function = \"...\", input = \"...\" and time_constant = SECONDS")
         function = _name(e["function"], where, "function must be the name of an axis function")
         read = _name(e["input"], where, "input must be the name of a property the function reads")
         if any(g.function == function and g.input == read for g in out):
@@ -259,7 +256,6 @@ def _tables(entries: list, path: Path) -> tuple[Table, ...]:
 
 def _system(value, path: Path, where: str) -> tuple[str, str]:
     """(the name, the text) of a state's system file: a relative path inside the modification's directory."""
-    from ..data.errors import DataError
     from ..data.reading import inside
     name = _name(value, where, "system must be the path of a system file beside the modification")
     try:
@@ -271,22 +267,23 @@ def _system(value, path: Path, where: str) -> tuple[str, str]:
         raise DeclarationError(f"{where}: cannot read the system {name!r} ({exc.strerror})") from None
 
 
-def _check_system(text: str, name: str, state: str, where: str) -> None:
-    """A system file is one ``<system>`` that reads no other file and computes ``state``."""
+def _check_system(text: str, name: str, state: str, where: str) -> set[str]:
+    """A system file is one ``<system>`` that reads no other file and computes ``state``; what it computes."""
     root = parse_bytes(text.encode(), f"{where}: {name}", "a system file")
     if root.tag != "system":
         raise DeclarationError(f"{where}: {name} is not a JSBSim <system> file")
     # JSBSim would load a file named by a `file` attribute from anywhere: the system must be whole
     if any("file" in e.attrib for e in root.iter()):
         raise DeclarationError(f"{where}: {name} names another file (a 'file' attribute); give the system whole")
-    computed = computed_properties(root)
+    computed = _computed_properties(root)
     if state not in computed:
         near = sorted(p for p in computed if p.rsplit("/", 1)[-1].startswith("X"))
         raise DeclarationError(f"{where}: {name} computes no property {state!r}"
                                + (f" (its states: {', '.join(near)})" if near else ""))
+    return computed
 
 
-def computed_properties(root) -> set[str]:
+def _computed_properties(root) -> set[str]:
     """The properties a system computes: its components' outputs and names, and the properties it declares."""
     out = {(e.text or "").strip() for e in root.iter("output")}
     out |= {e.get("name", "") for e in root.iter() if e.tag not in ("system", "channel")}
@@ -295,14 +292,22 @@ def computed_properties(root) -> set[str]:
 
 
 def _states(entries: list, path: Path) -> tuple[State, ...]:
+    """The states, each system flown once however many states it holds; two different systems may not compute
+    the same property (both would write it every frame)."""
     out: list[State] = []
+    systems: dict[str, tuple[str, set[str]]] = {}    # a system's text -> (the entry that named it first, computes)
     for i, e in enumerate(entries, 1):
         where = f"{path}: [[state]] entry {i}"
         _keys(e, STATE_KEYS, STATE_OPTIONAL, where, "system = \"FILE\", state = \"PROPERTY\", function = \"...\", "
               "input = \"...\" and optionally complement = true")
         name, text = _system(e["system"], path, where)
         state = _name(e["state"], where, "state must be the property the system computes")
-        _check_system(text, name, state, where)
+        computed = _check_system(text, name, state, where)
+        for other, (first, theirs) in systems.items():
+            if other != text and computed & theirs:
+                raise DeclarationError(f"{where}: its system {name} computes {sorted(computed & theirs)[0]}, as the "
+                                       f"system of {first} does")
+        systems.setdefault(text, (where, computed))
         complement = e.get("complement", False)
         if not isinstance(complement, bool):
             raise DeclarationError(f"{where}: complement must be true or false, not {complement!r}")

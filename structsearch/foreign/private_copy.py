@@ -28,8 +28,7 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 from ..data.errors import DeclarationError
-from .aircraft_xml import READ_TAGS, AircraftFile, parse_file
-from .aircraft_xml import parse_bytes
+from .aircraft_xml import READ_TAGS, AircraftFile, parse_bytes, parse_file
 from .modify import LAG_ACTIVE, Lag, State, Table
 
 NAMESPACE = "structsearch/"
@@ -104,8 +103,7 @@ def _lag(aero: ET.Element, lag: Lag, aircraft: str, frame_s: float) -> None:
     from the value of the frame before (``lag.lagged``, which the flight writes back after each frame),
     y = u + A (y_before - u) with A = exp(-frame/tau) while :data:`~.modify.LAG_ACTIVE` is 1, and the input itself
     while it is 0 (JSBSim trims the aircraft so: in equilibrium a lagged input is the input)."""
-    for e in _reading(aero, lag.function, lag.input, aircraft, "[[lag]]"):
-        e.text = ("-" if e.text.strip().startswith("-") else "") + lag.read
+    _read_instead(aero, lag.function, lag.input, lag.read, aircraft, "[[lag]]")
     switched = ET.Element("function", name=lag.read)
     total = ET.SubElement(switched, "sum")
     ET.SubElement(total, "property").text = lag.input
@@ -115,18 +113,24 @@ def _lag(aero: ET.Element, lag: Lag, aircraft: str, frame_s: float) -> None:
     difference = ET.SubElement(product, "difference")
     ET.SubElement(difference, "property").text = lag.lagged
     ET.SubElement(difference, "property").text = lag.input
-    first = next((i for i, c in enumerate(aero) if c.tag in ("function", "axis")), len(aero))
-    aero.insert(first, switched)
+    _insert_ahead(aero, switched)
 
 
-def _reading(aero: ET.Element, function: str, prop: str, aircraft: str, entry: str) -> list[ET.Element]:
-    """Where ``function`` reads ``prop`` (``entry``: what asks, "[[lag]]" or the file and entry of a state)."""
+def _read_instead(aero: ET.Element, function: str, prop: str, read: str, aircraft: str, entry: str) -> None:
+    """``function`` reads ``read`` where it read ``prop`` (``entry``: what asks, "[[lag]]" or the file and entry of
+    a state)."""
     reads = [e for f in aero.iter("function") if f.get("name") == function
              for tag in READ_TAGS for e in f.iter(tag) if (e.text or "").strip().lstrip("-") == prop]
     if not reads:
         raise DeclarationError(f"--modify: {entry}: the function {function} of {aircraft} does not read {prop}; "
                                "it replaces a property its function reads")
-    return reads
+    for e in reads:
+        e.text = ("-" if e.text.strip().startswith("-") else "") + read
+
+
+def _insert_ahead(aero: ET.Element, function: ET.Element) -> None:
+    """``function`` ahead of every function and axis of the aerodynamics: computed before anything reads it."""
+    aero.insert(next((i for i, c in enumerate(aero) if c.tag in ("function", "axis")), len(aero)), function)
 
 
 def _replace_table(aero: ET.Element, table: Table, aircraft: str) -> None:
@@ -143,21 +147,10 @@ def _replace_table(aero: ET.Element, table: Table, aircraft: str) -> None:
 
 
 def _systems(doc: ET.Element, aero: ET.Element, states: Sequence[State]) -> None:
-    """Each distinct system of ``states`` flown once in the aircraft (a system inserted twice would step its states
-    twice a frame); two different systems may not compute the same property."""
-    from .modify import computed_properties
-    inserted: dict[str, State] = {}
-    for state in states:
-        if state.system in inserted:
-            continue
-        system = parse_bytes(state.system.encode(), state.source, "a system file")
-        for other in inserted.values():
-            shared = computed_properties(system) & computed_properties(parse_bytes(other.system.encode(), other.source, "a system file"))
-            if shared:
-                raise DeclarationError(f"--modify: {state.entry}: its system {state.source} computes "
-                                       f"{sorted(shared)[0]}, as {other.entry}'s {other.source} does")
-        doc.insert(list(doc).index(aero), system)
-        inserted[state.system] = state
+    """Each distinct system of ``states`` flown once in the aircraft: a system inserted twice would step its states
+    twice a frame (two different systems computing one property are refused when the modification is read)."""
+    for state in {s.system: s for s in states}.values():
+        doc.insert(list(doc).index(aero), parse_bytes(state.system.encode(), state.source, "a system file"))
 
 
 def _state(aero: ET.Element, state: State, number: int, aircraft: str) -> None:
@@ -169,9 +162,8 @@ def _state(aero: ET.Element, state: State, number: int, aircraft: str) -> None:
         difference = ET.SubElement(complement, "difference")
         ET.SubElement(difference, "value").text = "1.0"
         ET.SubElement(difference, "property").text = state.state
-        aero.insert(next((i for i, c in enumerate(aero) if c.tag in ("function", "axis")), len(aero)), complement)
-    for e in _reading(aero, state.function, state.input, aircraft, state.entry):
-        e.text = ("-" if e.text.strip().startswith("-") else "") + read
+        _insert_ahead(aero, complement)
+    _read_instead(aero, state.function, state.input, read, aircraft, state.entry)
 
 
 def _link(source: Path, target: Path) -> None:

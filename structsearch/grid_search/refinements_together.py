@@ -50,18 +50,13 @@ def _advance(i: int, walk: Generator, step: Callable[[Generator], Candidate], as
         done[i] = finished.value
 
 
-def same_fit_key(c: Candidate) -> str:
-    """What two requests share when they are one fit: the runner's rule for a twin it has fitted already."""
-    return model_key(c)
-
-
 def _fit_once(fit_many: FitMany, candidates: list[Candidate]) -> list[CandidateResult]:
     """Each candidate's fit, a structure asked for twice fitted once (the later asker gets it under its name)."""
     first: dict[tuple, int] = {}
     for i, c in enumerate(candidates):
-        first.setdefault(same_fit_key(c), i)
+        first.setdefault(model_key(c), i)
     unique = sorted(set(first.values()))
     results = dict(zip(unique, fit_many([candidates[i] for i in unique])))
     return [results[i] if i in results else
-            dataclasses.replace(results[first[same_fit_key(c)]], name=c.name, grid=c.grid)
+            dataclasses.replace(results[first[model_key(c)]], name=c.name, grid=c.grid)
             for i, c in enumerate(candidates)]
