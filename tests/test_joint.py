@@ -10,7 +10,7 @@ from structsearch.data.errors import DeclarationError
 from structsearch.engine.fit import fit_problem
 from structsearch.engine.joint import JointProblem
 from structsearch.engine.separable import SeparableModel
-from structsearch.engine.snls import SeparableProblem, model_jacobian, reduce
+from structsearch.engine.snls import SeparableProblem, model_jacobian
 
 from conftest import central_difference
 
@@ -57,15 +57,15 @@ def test_the_block_reduction_equals_the_stacked_projection():
     problem = JointProblem((a, b, c), np.array([4.0, 0.25, 1.7]), len(X))
     y = rng.standard_normal(3 * len(X))
     theta = np.array([0.7, 1.4])
-    blockwise = reduce(problem, theta, y, 2)
-    stacked = reduce(_Stacked(problem), theta, y, 2)
+    blockwise = problem.reduce(theta, y)
+    stacked = _Stacked(problem).reduce(theta, y)
     np.testing.assert_allclose(blockwise.coef, stacked.coef, rtol=1e-10)
     # the block reduction's rows come block after block, the stacked problem's interleaved
     order = np.concatenate([np.arange(b, 3 * len(X), 3) for b in range(3)])
     np.testing.assert_allclose(blockwise.residual, stacked.residual[order], atol=1e-12)
     np.testing.assert_allclose(blockwise.jacobian, stacked.jacobian[order], atol=1e-10)
     # and both are the derivative of the projected residual
-    fd = central_difference(lambda t: reduce(problem, t, y, 2).residual, theta)
+    fd = central_difference(lambda t: problem.reduce(t, y).residual, theta)
     np.testing.assert_allclose(blockwise.jacobian, fd, rtol=1e-5, atol=1e-8)
 
 

@@ -165,11 +165,6 @@ class Reduced:
     jacobian: np.ndarray
 
 
-def reduce(problem: SeparableProblem, theta: np.ndarray, y: np.ndarray, k: int) -> Reduced | None:
-    """The reduced problem at ``theta``: what the problem's ``reduce`` gives (:meth:`SeparableProblem.reduce`)."""
-    return problem.reduce(theta, y)
-
-
 def projected(problem: SeparableProblem, theta: np.ndarray, y: np.ndarray, k: int) -> Reduced | None:
     """The reduced problem at ``theta`` by the projection of the whole Phi (None where Phi, its derivative or the
     Jacobian is not finite)."""
@@ -186,7 +181,7 @@ def gauss_newton_step(problem: SeparableProblem, y: np.ndarray, theta, lower, up
     problem is not finite there): what one more solve would move the estimate, to first order, at the cost of
     one evaluation and no line search. Parameters on a bound that the step pushes outward do not move."""
     theta = np.asarray(theta, float)
-    reduced = reduce(problem, theta, y, len(theta))
+    reduced = problem.reduce(theta, y)
     if reduced is None:
         return None
     step = np.linalg.lstsq(reduced.jacobian, -reduced.residual, rcond=None)[0]
@@ -217,7 +212,7 @@ class _Objective:
     def _at(self, theta):
         if self._theta is None or not np.array_equal(theta, self._theta):
             with np.errstate(all="ignore"):
-                reduced = reduce(self.problem, theta, self.y, self.k)
+                reduced = self.problem.reduce(theta, self.y)
             if reduced is not None:
                 q_j, r_j = qr(np.asfortranarray(reduced.jacobian), mode="economic", overwrite_a=True,
                               check_finite=False)
