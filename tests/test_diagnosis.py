@@ -20,11 +20,13 @@ from test_report_cli import run_cli
 OPTIONS = FitOptions(n_starts=1)
 
 
-def _diagnose(campaign, baseline, n_jobs: int = 1, **settings):
-    """The diagnosis of ``baseline`` on ``campaign`` with OPTIONS, its fits cached in a temporary directory."""
+def _diagnose(campaign, baseline, n_jobs: int = 1, **changes):
+    """The diagnosis of ``baseline`` on ``campaign`` with OPTIONS and the diagnosis' search setting with
+    ``changes``, its fits cached in a temporary directory."""
+    from structsearch.diagnosis.diagnose import DIAGNOSE
     from structsearch.fitting.fitter import temporary_fitter
     with temporary_fitter(campaign, OPTIONS, n_jobs=n_jobs) as fitter:
-        return diagnose(fitter, baseline, **settings)
+        return diagnose(fitter, baseline, DIAGNOSE.but(**changes))
 
 
 @pytest.fixture(scope="module")
@@ -229,7 +231,7 @@ def test_a_gap_outside_the_library_is_not_explained_and_follows_its_signal():
     """Issue 14: lift slopes that grow with airspeed (no library term uses V). The truth structure CL-VI is
     not at the library-free floor even after what the library adds, and the remainder follows V."""
     camp = build_campaign(seed=5, scale=0.1, slow_errors=0.0, anomaly="compressibility")
-    d = _diagnose(camp, find_candidate("CL-VI"), max_rounds=2, states=False, beam=1)
+    d = _diagnose(camp, find_candidate("CL-VI"), max_rounds=2, state_level=False, beam=1)
     assert not d.gap_explained_by_baseline and not d.explained
     u = d.unexplained
     assert u.gap_signals[0].name == "V" and u.gap_signals[0].importance > 0.3
@@ -240,7 +242,7 @@ def test_a_gap_outside_the_library_is_not_explained_and_follows_its_signal():
     assert [p.name for p in u.partial_dependence] == [s.name for s in u.signals[:3]]
     # the same campaign without the anomaly: the truth structure is at the floor, nothing unexplained
     clean = _diagnose(build_campaign(seed=5, scale=0.1, slow_errors=0.0), find_candidate("CL-VI"),
-                      max_rounds=1, states=False)
+                      max_rounds=1, state_level=False)
     assert clean.explained and clean.unexplained.signals == ()
 
 

@@ -274,7 +274,8 @@ def test_a_diagnosis_and_the_story_search_no_form_move_and_discover_does(monkeyp
     import structsearch.diagnosis.diagnose as dg
     import structsearch.diagnosis.story as story
     from conftest import fitter_for
-    from structsearch.discovery.discover import discover_structures
+    from structsearch.diagnosis.discover import discover_structures
+    from structsearch.discovery.search_setting import DIAGNOSE, DISCOVER
     from structsearch.discovery.moves import DIAGNOSE_KINDS, DISCOVER_KINDS, MOVE_KINDS
     from structsearch.fitting.options import FitOptions
     asked = []
@@ -286,15 +287,15 @@ def test_a_diagnosis_and_the_story_search_no_form_move_and_discover_does(monkeyp
     monkeypatch.setattr(dg, "start_search", spy)
     fitter = fitter_for(simulated_campaign(0, 0.05), tmp_path, FitOptions(n_starts=1, cv_folds=0))
     with pytest.raises(_Searched):   # the diagnose command's call (api.commands.diagnose passes no kinds)
-        dg.diagnose(fitter, find_candidate("CL-I"), max_rounds=1, states=False)
+        dg.diagnose(fitter, find_candidate("CL-I"), DIAGNOSE.but(max_rounds=1, state_level=False))
     with pytest.raises(_Searched):   # the demo's story: diagnose from each Van Ingen model
         story.van_ingen_story(fitter)
     with pytest.raises(_Searched):
-        discover_structures(fitter, "CL", dg.diagnose_search, start="CL-I", max_steps=1)
+        discover_structures(fitter, "CL", DISCOVER.but(max_rounds=1), start="CL-I")
     assert asked == [DIAGNOSE_KINDS, DIAGNOSE_KINDS, DISCOVER_KINDS]
     assert "form" not in DIAGNOSE_KINDS and "form" in DISCOVER_KINDS and set(DISCOVER_KINDS) == set(MOVE_KINDS)
     with pytest.raises(DeclarationError, match="move kinds 'shape'"):
-        discover_structures(fitter, "CL", dg.diagnose_search, start="CL-I", kinds=("add", "shape"))
+        DISCOVER.but(kinds=("add", "shape"))
 
 
 def _form_search(campaign, tmp_path):

@@ -238,15 +238,14 @@ def diagnose(campaign: Campaign | str | os.PathLike, model: str | None = None, *
         return diagnose_simulator(campaign, coefficient=coefficient, baseline_column=baseline_column,
                                   simulator=simulator, settings=settings, out=out, terms=terms, beam=beam,
                                   max_steps=max_steps, simulator_inputs=simulator_inputs)
-    from ..diagnosis.diagnose import diagnose as run_diagnosis
-    from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS
+    from ..diagnosis.diagnose import DIAGNOSE, diagnose as run_diagnosis
     from ..fitting.specs import resolve_candidate
     campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     baseline = resolve_candidate(model, coefficient).with_moment_reference(settings.moment_reference)
     check_box_names(fit_options("diagnose", settings).parameter_boxes, [baseline])
     with command_fitter("diagnose", campaign, settings, out) as fitter:
-        result = run_diagnosis(fitter, baseline, seed=settings.seed, terms=None if terms is None else str(terms),
-                               beam=beam or DEFAULT_BEAM, max_rounds=max_steps or DEFAULT_MAX_STEPS)
+        result = run_diagnosis(fitter, baseline, DIAGNOSE.but(beam=beam, max_rounds=max_steps), seed=settings.seed,
+                               terms=None if terms is None else str(terms))
     if out is not None:
         from ..reporting.diagnosis_doc import write
         write(result, Path(out))

@@ -64,8 +64,7 @@ def diagnose_simulator(campaign: Campaign | str | os.PathLike, *, coefficient: s
     "PROPERTY=COLUMN|VALUE" items for what it reads and the campaign lacks), each term a column the search may
     rescale, drop or replace."""
     from ..diagnosis import offset
-    from ..diagnosis.diagnose import diagnose_search
-    from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS
+    from ..diagnosis.diagnose import DIAGNOSE, diagnose_search
     from ..fitting.candidates import Candidate
     from ..fitting.options import check_box_names
     from .settings import as_campaign
@@ -80,9 +79,9 @@ def diagnose_simulator(campaign: Campaign | str | os.PathLike, *, coefficient: s
     baseline = _baseline(campaign, coefficient, baseline_column, target, given, foreign, settings)
     start = offset.start_structure(baseline)
     with command_fitter("diagnose", offset.gap_campaign(campaign, baseline), settings, out) as fitter:
-        result, search = diagnose_search(fitter, start, seed=settings.seed, states=False,
-                                         terms=None if terms is None else str(terms), beam=beam or DEFAULT_BEAM,
-                                         max_rounds=max_steps or DEFAULT_MAX_STEPS,
+        setting = DIAGNOSE.but(state_level=False, beam=beam, max_rounds=max_steps)
+        result, search = diagnose_search(fitter, start, setting, seed=settings.seed,
+                                         terms=None if terms is None else str(terms),
                                          simulator_terms=offset.library_terms(baseline))
     bias = search.final.path()[0].result.estimates.params[start.regressors[0][0]]
     record = offset.simulator_record(campaign, baseline, bias)

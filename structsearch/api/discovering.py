@@ -1,4 +1,4 @@
-"""``structsearch discover`` as a Python function (the run itself is :mod:`structsearch.discovery.discover`)."""
+"""``structsearch discover`` as a Python function (the run itself is :mod:`structsearch.diagnosis.discover`)."""
 from __future__ import annotations
 
 import os
@@ -18,14 +18,14 @@ def discover(campaign: Campaign | str | os.PathLike, coefficient: str, *, settin
     structure's spec file there (fits cached in ``out/cache``). Returns the typed
     :class:`~structsearch.discovery.discovered.Discovery`. ``kinds``: the moves it makes (default every kind of
     :data:`~structsearch.discovery.moves.MOVE_KINDS`; without ``"form"`` every state keeps its static curve)."""
-    from ..diagnosis.diagnose import diagnose_search
-    from ..discovery.discover import discover_structures
+    from ..diagnosis.discover import discover_structures
+    from ..discovery.search_setting import DISCOVER
     from .settings import as_campaign
     campaign = as_campaign(campaign, settings.segment, settings.reference_point)
     with command_fitter("discover", campaign, settings, out) as fitter:
-        found = discover_structures(fitter, coefficient, diagnose_search, start=start, lifts=lifts, terms=terms,
-                                    beam=beam, max_steps=max_steps, moment_reference=settings.moment_reference,
-                                    **({} if kinds is None else {"kinds": tuple(kinds)}))
+        setting = DISCOVER.but(beam=beam, max_rounds=max_steps, kinds=kinds)
+        found = discover_structures(fitter, coefficient, setting, start=start, lifts=lifts, terms=terms,
+                                    moment_reference=settings.moment_reference)
     if out is None:
         return found
     from ..reporting.discovery_doc import write_discovery

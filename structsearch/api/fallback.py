@@ -42,15 +42,15 @@ def discover_beside(fitter: Fitter, grid: str, ranked: list[CandidateResult], kn
                     max_steps: int | None = None) -> tuple[list[CandidateResult], list[Candidate]]:
     """``ranked`` with the admissible structures a structure search from the minimal structure fitted in full
     (origin "discovered"), ranked again; and their candidates (named in the ranking, written beside it)."""
-    from ..diagnosis.diagnose import diagnose_search
-    from ..discovery.discover import discover_structures
+    from ..diagnosis.discover import discover_structures
+    from ..discovery.search_setting import DISCOVER
     lifts, possible = _lift_of(fitter, grid, ranked)
     if not possible:
         return ranked, []
     fed = f" fed {lifts[0]}" if lifts else ""
     fitter.say(f"grid {grid}: no admissible structure; the structure search goes on from the minimal structure{fed}")
-    found = discover_structures(fitter.quiet(), _best_fit(ranked).coefficient, diagnose_search, start="minimal",
-                                lifts=lifts, max_steps=max_steps)
+    found = discover_structures(fitter.quiet(), _best_fit(ranked).coefficient, DISCOVER.but(max_rounds=max_steps),
+                                start="minimal", lifts=lifts)
     seen = {structure_key(c) for c in known}
     new = []
     for node in found.exploration.fitted():

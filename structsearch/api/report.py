@@ -25,7 +25,7 @@ def fit_report_models(fitter: Fitter, out: Path, *, diagnose: str | None = "Cm",
                       searched: str | None = None):
     """The :class:`~structsearch.reporting.page.ReportFits` of a report in ``out`` (the search's winners in
     ``out/ranking.csv`` or ``models``; fitted with ``fitter``)."""
-    from ..diagnosis.diagnose import diagnose as run_diagnosis
+    from ..diagnosis.diagnose import DIAGNOSE, diagnose as run_diagnosis
     from ..flight.reference import VAN_INGEN_MODEL_NAMES
     from ..reporting.page import ReportFits, best_effect
     from ..reporting.choice import chosen_models
@@ -50,7 +50,7 @@ def fit_report_models(fitter: Fitter, out: Path, *, diagnose: str | None = "Cm",
     if diagnose:
         say(f"report: diagnosing {choice.shown[diagnose].name}")
         # the report's own options (not the diagnose command's): its cache serves the baseline fitted above
-        diagnosis = run_diagnosis(quiet, identified.candidates[diagnose], max_rounds=1, states=False)
+        diagnosis = run_diagnosis(quiet, identified.candidates[diagnose], DIAGNOSE.but(max_rounds=1, state_level=False))
         best = best_effect(diagnosis)
         if best is not None:
             effect = (best, *fit_with_effect(identified, diagnose, best, quiet))

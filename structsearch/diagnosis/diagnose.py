@@ -35,10 +35,11 @@ from ..discovery import effects as fx
 from . import floor as fl
 from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
-from ..discovery.adoption import DEFAULT_ALPHA, TEST_NAME
-from ..discovery.explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, Status, explore
+from ..discovery.adoption import TEST_NAME
+from ..discovery.explore import Status, explore
 from ..discovery.final_choice import stopped_text
-from ..discovery.moves import DIAGNOSE_KINDS, structure_key
+from ..discovery.moves import structure_key
+from ..discovery.search_setting import DIAGNOSE, SearchSetting
 from ..discovery.search_start import start_search
 from ..fitting.comparison import MIN_MANEUVERS, relative_excess, within_noise as one_se_rule
 from ..fitting.candidates import Candidate
@@ -54,7 +55,7 @@ from .state_level import state_level
 from .unexplained import unexplained as _unexplained
 from .where import overlap as _overlap, where, where_bins
 
-__all__ = ["diagnose", "diagnose_search", "saturated", "wald_p_value", "within_noise", "where", "spectral_floor", "state_level",
+__all__ = ["DIAGNOSE", "SearchSetting", "diagnose", "diagnose_search", "saturated", "wald_p_value", "within_noise", "where", "spectral_floor", "state_level",
            "Diagnosis"]
 
 SPECTRAL_SPLIT_HZ = 3.0
@@ -194,28 +195,24 @@ def _row(child, base: Fitted, floor: _Floor, explained_now: bool, where_rows, ct
                      child.candidate.name, **extra)
 
 
-def diagnose(fitter: Fitter, baseline: Candidate, **settings) -> Diagnosis:
+def diagnose(fitter: Fitter, baseline: Candidate, setting: SearchSetting = DIAGNOSE, **inputs) -> Diagnosis:
     """Diagnose one coefficient (:func:`diagnose_search`, its diagnosis alone)."""
-    return diagnose_search(fitter, baseline, **settings)[0]
+    return diagnose_search(fitter, baseline, setting, **inputs)[0]
 
 
-def diagnose_search(fitter: Fitter, baseline: Candidate, *, max_rounds: int = DEFAULT_MAX_STEPS, seed: int = 0,
-                    states: bool = True, terms: str | None = None, beam: int = DEFAULT_BEAM,
-                    alpha: float = DEFAULT_ALPHA, kinds=DIAGNOSE_KINDS, simplify: bool = False,
-                    simulator_terms=()):
+def diagnose_search(fitter: Fitter, baseline: Candidate, setting: SearchSetting = DIAGNOSE, *, seed: int = 0,
+                    terms: str | None = None, simulator_terms=()):
     """Diagnose one coefficient, and the structure search it ran: a search over moves
     (:mod:`structsearch.discovery`) from ``baseline`` until no move passes the adoption test; each adopted move
-    is a round, and the final structure is judged against the floor. A diagnosis adopts moves that close the
-    gap; with ``simplify`` (``discover``) also moves that only simplify within one standard error. ``kinds``: the
-    moves searched (a diagnosis' default leaves the static separation forms to ``discover``). ``to_dict()``
-    of the result is the JSON document of docs/interfaces.md sections 3 and 5.4. ``fitter``'s lift models are
-    lift models a drag or pitch structure may be fed besides its own (the story: the lift structure found for
-    C_L); ``terms`` a user's term file; ``simulator_terms`` the terms of a simulator baseline
-    (:class:`~structsearch.discovery.terms.SimulatorTerm`: a grey box whose terms the moves rescale, drop or replace)."""
+    is a round, and the final structure is judged against the floor. ``setting`` is what the search does
+    (:class:`~structsearch.discovery.search_setting.SearchSetting`: :data:`DIAGNOSE`, or ``discover``'s
+    :data:`~structsearch.discovery.search_setting.DISCOVER`). ``to_dict()`` of the result is the JSON document
+    of docs/interfaces.md sections 3 and 5.4. ``fitter``'s lift models are lift models a drag or pitch structure
+    may be fed besides its own (the story: the lift structure found for C_L); ``terms`` a user's term file;
+    ``simulator_terms`` the terms of a simulator baseline (:class:`~structsearch.discovery.terms.SimulatorTerm`:
+    a grey box whose terms the moves rescale, drop or replace)."""
     t0 = time.perf_counter()
-    if max_rounds < 1:
-        raise DeclarationError(f"a diagnosis needs at least one round, not {max_rounds}")
-    start = start_search(fitter, baseline, terms, kinds, simulator_terms)
+    start = start_search(fitter, baseline, terms, setting.kinds, simulator_terms)
     fitter = start.fitter
     train, val = fitter.splits()
     ctx = _Context(train, val, dict(fitter.lifts), seed)
@@ -230,9 +227,11 @@ def diagnose_search(fitter: Fitter, baseline: Candidate, *, max_rounds: int = DE
     # the floor is no stopping rule: an estimate of it from the baseline's residual can lie above what a better
     # structure reaches (pitch on Van Ingen's single state: the flexible model lacks the lift model's two states),
     # and the search would stop early; it stops when no move passes, and the verdict is taken at the end
-    fitter.say(f"structure search from {baseline.name}: {len(start.library.terms)} term templates, beam {beam}")
-    ex = explore(baseline, fitter, start.library, beam=beam, alpha=alpha, max_steps=max_rounds, judge=start.judge,
-                 kinds=kinds, simplify=simplify, at_floor=_own_floor_gate(ctx))
+    fitter.say(f"structure search from {baseline.name}: {len(start.library.terms)} term templates, "
+               f"beam {setting.beam}")
+    ex = explore(baseline, fitter, start.library, beam=setting.beam, alpha=setting.alpha,
+                 max_steps=setting.max_rounds, judge=start.judge, kinds=setting.kinds, simplify=setting.simplify,
+                 at_floor=_own_floor_gate(ctx))
     path = ex.final.path()
     fits = [base_fit] + [ctx.fitted(n) for n in path[1:]]
     floors, flexible, x_val_final = _final_floors(first, path, fits[-1], ctx, fitter.say)
@@ -243,11 +242,12 @@ def diagnose_search(fitter: Fitter, baseline: Candidate, *, max_rounds: int = DE
     library_free = min(f.mse for f in floors if f.library_free)
     block = _unexplained(rounds[0].mse.validation, final_fit, flexible[0], library_free, val, flexible[1],
                          flexible[2], x_val_final, explained, seed, first.base)
-    sl = _state_level(fitter, fits, ctx) if states and len(fits) > 1 else None
+    sl = _state_level(fitter, fits, ctx) if setting.state_level and len(fits) > 1 else None
     # the stop reason is worded now that the floor is known: "at the floor" only where the final structure is
-    ex = dataclasses.replace(ex, stopped=stopped_text(ex.stop, explained, " and ".join(ex.stopped_at), max_rounds))
-    search_doc = {"stopped": ex.stopped, "structures_fitted": ex.n_fitted, "steps": len(ex.steps), "beam": beam,
-                  "alpha": alpha, "test": TEST_NAME, "terms": start.library.to_dict(),
+    ex = dataclasses.replace(ex, stopped=stopped_text(ex.stop, explained, " and ".join(ex.stopped_at),
+                                                       setting.max_rounds))
+    search_doc = {"stopped": ex.stopped, "structures_fitted": ex.n_fitted, "steps": len(ex.steps),
+                  "beam": setting.beam, "alpha": setting.alpha, "test": TEST_NAME, "terms": start.library.to_dict(),
                   "lift_models": sorted(ctx.lifts), "final_rule": ex.final_rule,
                   "set_aside": [a.to_dict() for a in ex.set_aside]}
     return Diagnosis(coefficient=baseline.coefficient, baseline=baseline.name, noise_floor=floor.mse,

@@ -16,7 +16,7 @@ from ..fitting.lift_fit import LiftFit
 from .results import Diagnosis
 from ..flight.reference import VAN_INGEN_MODEL_NAMES
 from ..discovery.explore import DEFAULT_MAX_STEPS
-from ..discovery.moves import DIAGNOSE_KINDS
+from ..discovery.search_setting import DIAGNOSE, SearchSetting
 from ..fitting.fitter import Fitter, console_line
 from ..fitting.specs import find_candidate
 
@@ -28,6 +28,7 @@ STORY_ROUNDS = DEFAULT_MAX_STEPS
 # C_D and C_m as the beam of three did, in 188 s against 303 s (the library-only story: 90 s), and its path is
 # one line of moves to read.
 STORY_BEAM = 1
+STORY = DIAGNOSE.but(max_rounds=STORY_ROUNDS, beam=STORY_BEAM)
 
 
 @dataclass(frozen=True)
@@ -42,10 +43,11 @@ class Story:
         return {"diagnoses": {coef: d.to_dict() for coef, d in self.diagnoses.items()}, "lines": list(self.lines)}
 
 
-def van_ingen_story(fitter: Fitter, kinds=DIAGNOSE_KINDS, beam: int = STORY_BEAM) -> Story:
+def van_ingen_story(fitter: Fitter, setting: SearchSetting = STORY) -> Story:
     """Diagnose each Van Ingen structure (a structure search from each until it is at the floor or no move
     passes), lift first: the drag and pitch searches may feed their models the lift structure found for C_L.
-    ``kinds`` and ``beam`` restrict the search (``("effect",)`` and 1: the effect library alone, one at a time)."""
+    ``setting`` is the search (:data:`STORY`; ``STORY.but(kinds=("effect",))``: the effect library alone, one
+    effect at a time)."""
     say = fitter.say
     docs = {}
     lifts: dict[str, LiftFit] = {}
@@ -53,7 +55,7 @@ def van_ingen_story(fitter: Fitter, kinds=DIAGNOSE_KINDS, beam: int = STORY_BEAM
         say(f"story: diagnosing the Van Ingen {coef} model {name}")
         told = fitter.with_progress(lambda m, c=coef: say(f"story {c}: {m}"))
         docs[coef] = diagnose(dataclasses.replace(told, lifts=dict(lifts)), find_candidate(name),
-                              max_rounds=STORY_ROUNDS, kinds=kinds, beam=beam)
+                              setting)
         if coef == "CL" and docs[coef].final_structure is not None and docs[coef].rounds[-1].baseline != name:
             # drag and pitch may be fed the lift structure the story found for C_L
             found = dataclasses.replace(Candidate.from_dict(docs[coef].final_structure), name=FOUND_LIFT,

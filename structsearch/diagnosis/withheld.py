@@ -30,7 +30,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from .diagnose import diagnose
+from .diagnose import DIAGNOSE, diagnose
 from .results import Diagnosis
 from .story import unexplained_sentence
 from .where import bins, shares, top_bins
@@ -228,7 +228,7 @@ def _closed_by_library(doc: Diagnosis) -> float:
 def withheld_row(campaign, effect: str, options: FitOptions, n_jobs: int) -> WithheldRow:
     base = baseline_without(effect)
     with temporary_fitter(campaign, options, n_jobs=n_jobs) as fitter:
-        doc = diagnose(fitter, base, max_rounds=1)
+        doc = diagnose(fitter, base, DIAGNOSE.but(max_rounds=1))
     first = doc.effects[0]
     # a move carries the effect's name when it equals the effect, or is the effect at one state (row.effect)
     reported = next((e for e in doc.effects if e.name == effect or e.effect == effect), None)
@@ -266,7 +266,7 @@ def anomaly_row(name: str, seed: int, scale: float, options: FitOptions, n_jobs:
     campaign = build_campaign(seed=seed, scale=scale, anomaly=name)
     base = find_candidate(FINAL_MODEL_NAMES[anomaly.coefficient])
     with temporary_fitter(campaign, options, n_jobs=n_jobs) as fitter:
-        doc = diagnose(fitter, base, max_rounds=2, states=False)
+        doc = diagnose(fitter, base, DIAGNOSE.but(max_rounds=2, state_level=False))
     truth = truth_location(campaign, name)
     top_phase, top_band = _top(doc)
     closed = _closed_by_library(doc)
@@ -309,7 +309,7 @@ def run(seed: int = 0, scale: float = 1.0, null_seeds=(0, 1, 2), effects=None, a
         for coef, name in FINAL_MODEL_NAMES.items():
             say(f"null case seed {s} {name}")
             with temporary_fitter(camp, options, n_jobs=n_jobs) as fitter:
-                doc = diagnose(fitter, find_candidate(name), max_rounds=1, states=False)
+                doc = diagnose(fitter, find_candidate(name), DIAGNOSE.but(max_rounds=1, state_level=False))
             p = doc.rounds[0].gap_p_value
             null.append(NullRow(s, name, doc.explained, p, None if p is None else bool(p < 0.01), not doc.explained,
                                 doc.seconds, doc.rounds[0].adopted))

@@ -17,9 +17,8 @@ from ..data.coefficients import COEFFICIENTS
 
 def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
                         progress: Callable[[str], None] | None = None, coefficients=tuple(COEFFICIENTS)) -> dict:
-    from ..diagnosis.diagnose import diagnose_search
-    from ..diagnosis.story import van_ingen_story
-    from ..discovery.discover import discover_structures
+    from ..diagnosis.story import STORY, van_ingen_story
+    from ..diagnosis.discover import discover_structures
     from ..fitting.fitter import temporary_fitter
     from ..fitting.options import command_options
     from ..flight.flighttest import build_campaign
@@ -27,11 +26,11 @@ def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
     campaign = build_campaign(seed=seed, scale=scale)
     out: dict = {"scale": scale, "seed": seed, "n_jobs": n_jobs, "samples": campaign.data.n_samples}
     timings = {}
-    for label, kw in (("library_only", {"kinds": ("effect",), "beam": 1}), ("structure_search", {})):
+    for label, setting in (("library_only", STORY.but(kinds=("effect",))), ("structure_search", STORY)):
         say(f"story ({label.replace('_', ' ')})")
         with temporary_fitter(campaign, command_options("diagnose"), n_jobs=n_jobs) as fitter:
             t0 = time.perf_counter()
-            story = van_ingen_story(fitter, **kw)
+            story = van_ingen_story(fitter, setting)
             timings[label] = time.perf_counter() - t0
         out[f"story_{label}"] = {"seconds": timings[label],
                                  "explained": {c: d.explained for c, d in story.diagnoses.items()},
@@ -43,7 +42,7 @@ def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
         say(f"discover {coef} from the minimal structure")
         with temporary_fitter(campaign, command_options("discover"), n_jobs=n_jobs) as fitter:
             t0 = time.perf_counter()
-            found = discover_structures(fitter, coef, diagnose_search)
+            found = discover_structures(fitter, coef)
             seconds = time.perf_counter() - t0
         thesis = next((r for r in found.comparison if r.role == "thesis final"), None)
         out["discover"][coef] = {"seconds": seconds, "moves": len(found.path),

@@ -1,22 +1,18 @@
-"""``discover``'s run: a structure search over moves (:mod:`.explore`) from a minimal or named structure, with
-the floor and the gap each move closes judged by the diagnosis the caller injects (``diagnose_search``: the
-layer above, :func:`structsearch.diagnosis.diagnose.diagnose_search`), compared with the grid's rank-1
-candidate and the thesis' final model (:func:`.discovered.build_discovery`)."""
+"""``discover``'s run: the structure search of a diagnosis (:func:`.diagnose.diagnose_search`) in its
+``discover`` setting (:data:`~structsearch.discovery.search_setting.DISCOVER`: every move kind, simplifying moves
+adopted too) from a minimal or named structure, compared with the grid's rank-1 candidate and the thesis' final
+model (:func:`structsearch.discovery.discovered.build_discovery`)."""
 from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Any, Callable
 
 from ..data.errors import DeclarationError
 from ..fitting.fitter import Fitter
 from ..data.coefficients import COEFFICIENTS, GRID_OF
-from .discovered import Discovery, build_discovery
-from .explore import DEFAULT_BEAM, DEFAULT_MAX_STEPS, Exploration
-from .moves import DISCOVER_KINDS, MOVE_KINDS
-
-# A diagnosis of a structure search: (fitter, start, **settings) -> (its Diagnosis, the Exploration it ran)
-DiagnoseSearch = Callable[..., tuple[Any, Exploration]]
+from ..discovery.discovered import Discovery, build_discovery
+from ..discovery.search_setting import DISCOVER, SearchSetting
+from .diagnose import diagnose_search
 
 def minimal(coefficient: str, lift: str | None):
     """The minimal structure: the intercept alone (a drag or pitch one fed the lift model ``lift``)."""
@@ -41,24 +37,19 @@ def _start(coefficient: str, start: str, lift_names: list[str]):
 
 
 
-def discover_structures(fitter: Fitter, coefficient: str, diagnose_search: DiagnoseSearch, *,
-                        start: str = "minimal", lifts=(), terms=None, beam: int | None = None,
-                        max_steps: int | None = None, moment_reference: str | None = None,
-                        kinds=DISCOVER_KINDS) -> Discovery:
+def discover_structures(fitter: Fitter, coefficient: str, setting: SearchSetting = DISCOVER, *,
+                        start: str = "minimal", lifts=(), terms=None,
+                        moment_reference: str | None = None) -> Discovery:
     """Search structures for ``coefficient`` from ``start`` ("minimal", a candidate name or a spec file) with
     ``fitter``; drag and pitch structures may be fed ``lifts`` (names of the lift grid; default the thesis' CL-VI)
     and the start's own lift model. ``moment_reference`` ("cg" or "fixed"): a pitch start takes C_m about it
-    (None: as it declares; the moves keep it); ``kinds`` the moves it makes (:data:`~.moves.MOVE_KINDS`; default
-    every kind). Returns the typed :class:`Discovery` (nothing written)."""
+    (None: as it declares; the moves keep it); ``setting`` the search (:data:`DISCOVER`: every move kind, beam and
+    length as ``discover``'s defaults; ``DISCOVER.but(kinds=...)`` restricts the moves). Returns the typed :class:`Discovery` (nothing written)."""
     from ..fitting.options import check_box_names
     from ..fitting.specs import load_grid
     from ..flight.reference import FINAL_MODEL_NAMES
     if coefficient not in GRID_OF:
         raise DeclarationError(f"--coefficient {coefficient}: one of {', '.join(GRID_OF)}")
-    unknown = [k for k in kinds if k not in MOVE_KINDS]
-    if unknown or not kinds:
-        raise DeclarationError(f"move kinds {', '.join(map(repr, unknown)) or '(none)'}: each one of "
-                               f"{', '.join(MOVE_KINDS)}")
     lift_grid = load_grid("lift")
     names = list(dict.fromkeys(list(lifts) or [FINAL_MODEL_NAMES["CL"]]))
     for n in names:
@@ -68,14 +59,12 @@ def discover_structures(fitter: Fitter, coefficient: str, diagnose_search: Diagn
         names.insert(0, first.lift)
     check_box_names(fitter.options.parameter_boxes, [first])
     if terms is not None:   # a bad term file is an error before any lift model is fitted
-        from .terms import read_terms
+        from ..discovery.terms import read_terms
         read_terms(terms, coefficient)
     t0 = time.perf_counter()
     fitter = dataclasses.replace(fitter, lifts=_lift_models(fitter, first, [lift_grid[n] for n in names]))
-    diagnosis, exploration = diagnose_search(fitter, first, max_rounds=max_steps or DEFAULT_MAX_STEPS,
-                                             seed=fitter.options.seed, states=False,
-                                             terms=None if terms is None else str(terms),
-                                             beam=beam or DEFAULT_BEAM, simplify=True, kinds=tuple(kinds))
+    diagnosis, exploration = diagnose_search(fitter, first, setting, seed=fitter.options.seed,
+                                             terms=None if terms is None else str(terms))
     return build_discovery(fitter, diagnosis, exploration, time.perf_counter() - t0)
 
 
