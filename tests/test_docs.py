@@ -307,8 +307,8 @@ def run_page(page: Path, workdir: Path, small_campaign_dir, include_slow: bool, 
             skipped_a_run |= _prints(block)
             continue
         if block.lang == "text" and block.quotes:
-            if skipped_a_run and block.quotes == "printed":
-                continue                                 # it quotes a block that did not run in this set
+            if skipped_a_run:
+                continue         # it quotes a block that did not run in this set (what it printed or wrote)
             problem = quoted_text_problem(block, printed, workdir)
             assert problem is None, f"{block.where}: {problem}"
             continue

@@ -59,7 +59,7 @@ def _bench(args) -> int:
 
 
 def _simulate(args) -> int:
-    if args.jsbsim is not None or args.modify is not None:
+    if args.jsbsim is not None or args.modify is not None or args.lateral:
         return _simulate_jsbsim(args)
     from ..api import simulate
     from ..data.campaign import write_campaign
@@ -82,9 +82,9 @@ def _simulate(args) -> int:
 def _simulate_jsbsim(args) -> int:
     from ..api.simulating import simulate_jsbsim
     if args.jsbsim is None:
-        raise_error("--modify goes with --jsbsim NAME_OR_DIR")
+        raise_error(f"{'--modify' if args.modify is not None else '--lateral'} goes with --jsbsim NAME_OR_DIR")
     campaign, seconds = simulate_jsbsim(args.jsbsim, modify=args.modify, seed=args.seed, scale=args.scale,
-                                        out=args.out, format=args.format)
+                                        out=args.out, format=args.format, lateral=args.lateral)
     n_val = sum(m.split == "validation" for m in campaign.maneuvers)
     source = campaign.extra["source"]
     print(f"wrote {args.out}: {len(campaign.maneuvers)} maneuvers ({n_val} validation), {campaign.data.n_samples} "

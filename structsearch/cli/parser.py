@@ -149,6 +149,10 @@ def _add_simulate(sub, handler: Callable) -> None:
                         "aircraft directory) instead of the built-in simulator: the aircraft model flown, not a flight")
     s.add_argument("--modify", metavar="FILE", default=None,
                    help="with --jsbsim: a TOML modification of the aircraft ([[scale]] function = ..., factor = ...)")
+    s.add_argument("--lateral", action="store_true",
+                   help="with --jsbsim: fly the lateral maneuvers too (aileron and rudder doublets, a sideslip, a "
+                        "wind-up turn, stalls with lateral inputs) and record the lateral channels (beta, p, r, da, "
+                        "dr, CY, Cl, Cn) on every maneuver")
     s.add_argument("--seed", type=_non_negative, default=0, help="random seed (same seed, same campaign bit for bit)")
     s.add_argument("--withhold", action="append", choices=sorted(WITHHOLDABLE), metavar="EFFECT",
                    help="remove an effect from the truth model (repeatable): " + ", ".join(WITHHOLDABLE))

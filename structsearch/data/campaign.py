@@ -25,7 +25,9 @@ from .campaign_checks import (ANGLES, MANEUVER_KEYS, RAW_ANGLES, RAW_REQUIRED, R
 from . import units
 from .reading import shown
 
-KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugoid", "other", "nominal")
+# the lateral kinds are those ``simulate --jsbsim NAME --lateral`` flies (structsearch.foreign.lateral_plan)
+LATERAL_KINDS = ("aileron-doublet", "rudder-doublet", "sideslip", "wind-up-turn", "lateral-stall")
+KINDS = ("quasi-steady", "dynamic", "deep-dynamic", "pullup", "pushover", "phugoid", "other", "nominal") + LATERAL_KINDS
 # Nominal maneuvers (docs/interfaces.md 7.5) fly attached flow across the envelope; every other kind (and a
 # campaign written before nominal maneuvers existed) is a stall maneuver: the two regimes a global model is
 # validated on separately (structsearch.api.by_kind)

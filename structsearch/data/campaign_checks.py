@@ -22,9 +22,10 @@ from .reading import shown
 REQUIRED = ("t", "alpha", "q", "V", "de")
 # The lateral-directional channels a standard campaign may carry (optional; checked when present, as the others):
 # sideslip beta (positive with the relative wind from the right), roll and yaw rates p and r (body axes: right wing
-# down and nose right positive), aileron da (positive with the right aileron trailing edge down, which rolls the
-# aircraft left) and rudder dr (positive trailing edge left, which yaws it left), the side force, rolling and
-# yawing moment coefficients CY, Cl and Cn (positive to the right, right wing down, nose right). SI, radians.
+# down and nose right positive), aileron da (JSBSim's left aileron position: positive with the left aileron trailing
+# edge down, which rolls the aircraft right) and rudder dr (positive trailing edge left, which yaws it left), the
+# side force, rolling and yawing moment coefficients CY, Cl and Cn (positive to the right, right wing down, nose
+# right). SI, radians.
 LATERAL = ("beta", "p", "r", "da", "dr", "CY", "Cl", "Cn")
 ANGLES = ("alpha", "de", "theta", "phi", "beta", "da", "dr")
 # Raw flight-test campaigns (docs/interfaces.md 5.2, ``format = "raw"``): the channels as recorded.

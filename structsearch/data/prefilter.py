@@ -12,7 +12,7 @@ CUTOFF_HZ = {
     "ax": 4.0, "ay": 4.0, "az": 8.0, "p": 5.0, "q": 5.0, "r": 4.0,
     "da": 5.0, "de": 6.0, "dr": 4.0, "alpha": 6.0, "beta": 6.0,
     # not in Table 5: air data and attitude change slowly; filtered only against sensor noise
-    "V": 2.0, "qbar": 2.0, "theta": 5.0, "h": 1.0,
+    "V": 2.0, "qbar": 2.0, "theta": 5.0, "phi": 5.0, "h": 1.0,
 }
 ORDER = 4
 

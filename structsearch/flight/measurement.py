@@ -138,7 +138,7 @@ def _other_readings(rng: np.random.Generator, t: np.ndarray, truth: dict, aircra
 
 def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np.ndarray | None = None,
             slow_error_stall_gain: float = 1.0, aircraft: Aircraft = CITATION, vane_lag_s: float = 0.0,
-            record_alpha: bool = False, flight: FlightErrors | None = None) -> dict:
+            record_alpha: bool = False, flight: FlightErrors | None = None, record_qbar: bool = False) -> dict:
     """One maneuver's measured, pre-filtered, reconstructed columns from its truth histories.
 
     ``truth`` holds 1-D arrays: V, alpha, q, theta, h, de, thrust, qbar, mass, x_cg,
@@ -149,7 +149,8 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
 
     ``vane_lag_s`` > 0 passes the alpha vane's reading through a first-order lag of that time constant
     (the ``vane_lag`` anomaly) and adds the column ``alpha_unlagged_true``: the alpha this chain gives without
-    the lag (same noise, bias and pre-filter). ``record_alpha`` adds the truth alpha as ``alpha_true``.
+    the lag (same noise, bias and pre-filter). ``record_alpha`` adds the truth alpha as ``alpha_true``,
+    ``record_qbar`` the filtered dynamic pressure reading the reduction divides by as ``qbar`` [Pa].
     Neither draws random numbers: with the same ``rng`` every other column is unchanged.
 
     ``flight`` (:class:`FlightErrors`, drawn per flight) adds the errors the maneuver shares with the others of
@@ -180,6 +181,8 @@ def measure(rng: np.random.Generator, t: np.ndarray, truth: dict, slow_error: np
     columns = _columns(t, f, truth, reduced, aircraft)
     if record_alpha or flight is not None:
         columns["alpha_true"] = alpha
+    if record_qbar:
+        columns["qbar"] = f["qbar"]
     if flight is not None:
         columns.update(x_cg=truth["x_cg"] + flight.x_cg, x_cg_true=truth["x_cg"], mass_true=truth["mass"],
                        CT_true=truth["thrust"] / reduced["qs"])

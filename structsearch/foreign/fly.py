@@ -19,6 +19,11 @@ engine's pitching moment (JSBSim's ``moments/m-prop-lbsft`` over q S cbar: the r
 as it removes its thrust). The campaign's ``x_cg`` is JSBSim's cg station
 [m] (structural frame, x aft), and the column ``prop_induced_fps`` records the propeller's induced velocity
 (``propulsion/engine/prop-induced-velocity_fps``), which some aircraft's elevator power reads.
+
+With ``lateral`` the lateral maneuvers of :mod:`.lateral_plan` follow the stall plan, and every maneuver goes
+through the lateral measurement chain too (:mod:`structsearch.flight.lateral_measurement`: beta, p, r, phi, the
+aileron and rudder positions, C_Y, C_l and C_n reconstructed, their truths from JSBSim's SIDE force and its
+aerodynamic moments about the cg); the manifest gains I_xx and I_zz and the campaign a ``qbar`` column.
 """
 from __future__ import annotations
 
@@ -32,6 +37,7 @@ from ..flight.aircraft import Aircraft
 from ..flight.measurement import measure
 from .aircraft_xml import AircraftFile, read_aircraft
 from .evaluate import need_jsbsim
+from .lateral_plan import LATERAL_PLAN, lateral_commands, pilot_aileron
 from .modify import LAG_ACTIVE, Lag, Modification
 from .private_copy import make_copy
 
@@ -55,11 +61,12 @@ class Planned:
     pace: float        # the profile's time scale (1: nominal)
 
 
-def plan(scale: float, seed: int) -> list[Planned]:
-    """The maneuvers flown: at scale 1 :data:`PLAN`, at least one of each kind; every fourth one validates."""
+def plan(scale: float, seed: int, lateral: bool = False) -> list[Planned]:
+    """The maneuvers flown: at scale 1 :data:`PLAN` (and with ``lateral`` then
+    :data:`~.lateral_plan.LATERAL_PLAN`), at least one of each kind; every fourth one validates."""
     rng = np.random.default_rng([seed, 53])
     out = []
-    for kind, (count, duration) in PLAN.items():
+    for kind, (count, duration) in (PLAN | LATERAL_PLAN if lateral else PLAN).items():
         for _ in range(max(1, round(count * scale))):
             k = len(out)
             out.append(Planned(f"j{k + 1:02d}", kind, "validation" if k % 4 == 3 else "train", duration,
@@ -116,46 +123,95 @@ def _hold_lags(fdm, lags: tuple[Lag, ...]) -> None:
         fdm[lag.lagged] = fdm[lag.read]
 
 
-def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned, lags: tuple[Lag, ...] = ()) -> dict:
-    """The truth histories of one maneuver (module docstring), in SI units; ``lags`` those of ``--modify``."""
-    fdm = _start(jsbsim, root, aircraft, p, lags)
-    trim = float(fdm["fcs/elevator-cmd-norm"])
-    n = int(round(p.duration * RATE_HZ))
-    t = np.arange(n) / RATE_HZ
-    command = trim + elevator_profile(p, t, trim)
-    lift, drag = aircraft.functions("LIFT"), aircraft.functions("DRAG")
-    s_ft2, cbar_ft = float(fdm["metrics/Sw-sqft"]), float(fdm["metrics/cbarw-ft"])
-    names = ("velocities/vt-fps", "aero/alpha-rad", "velocities/q-rad_sec", "attitude/theta-rad", "position/h-sl-ft",
-             "fcs/elevator-pos-rad", "propulsion/engine/thrust-lbs", "aero/qbar-psf", "inertia/mass-slugs",
-             "inertia/cg-x-in", "moments/m-aero-lbsft", "inertia/iyy-slugs_ft2", "aero/stall-hyst-norm",
-             PROP_INDUCED, "moments/m-prop-lbsft")
+RECORD = ("velocities/vt-fps", "aero/alpha-rad", "velocities/q-rad_sec", "attitude/theta-rad", "position/h-sl-ft",
+          "fcs/elevator-pos-rad", "propulsion/engine/thrust-lbs", "aero/qbar-psf", "inertia/mass-slugs",
+          "inertia/cg-x-in", "moments/m-aero-lbsft", "inertia/iyy-slugs_ft2", "aero/stall-hyst-norm",
+          PROP_INDUCED, "moments/m-prop-lbsft")
+LATERAL_RECORD = ("aero/beta-rad", "velocities/p-rad_sec", "velocities/r-rad_sec", "attitude/phi-rad",
+                  "fcs/left-aileron-pos-rad", "fcs/rudder-pos-rad", "forces/fby-aero-lbs", "moments/l-aero-lbsft",
+                  "moments/n-aero-lbsft", "forces/fby-prop-lbs", "moments/l-prop-lbsft", "moments/n-prop-lbsft",
+                  "inertia/ixx-slugs_ft2", "inertia/izz-slugs_ft2", "inertia/ixz-slugs_ft2")
+
+
+def _commands(p: Planned, t: np.ndarray, trim: float, phases: np.ndarray) -> dict[str, np.ndarray]:
+    """A maneuver's commands: the elevator's (absolute) and, for a lateral kind, the aileron and rudder
+    excitations over their trim and the bank the pilot holds (:mod:`.lateral_plan`)."""
+    if p.kind not in LATERAL_PLAN:
+        return {"elevator": trim + elevator_profile(p, t, trim)}
+    out = lateral_commands(p.kind, t / p.pace, -1.0 - trim, phases)
+    out["elevator"] = np.clip(trim + out["elevator"], -1.0, 1.0)
+    return out
+
+
+def _fly_frames(fdm, commands: dict, names: tuple[str, ...], lags: tuple[Lag, ...], lift, drag) -> np.ndarray:
+    """Run the maneuver frame by frame; returns the recorded ``names`` and the summed LIFT and DRAG functions."""
+    n = len(commands["elevator"])
+    lateral = "aileron" in commands
+    trim_aileron, trim_rudder = float(fdm["fcs/aileron-cmd-norm"]), float(fdm["fcs/rudder-cmd-norm"])
     rec = np.empty((len(names) + 2, n))
     for k in range(n):
-        fdm["fcs/elevator-cmd-norm"] = command[k]
+        fdm["fcs/elevator-cmd-norm"] = commands["elevator"][k]
+        if lateral:
+            fdm["fcs/aileron-cmd-norm"] = pilot_aileron(trim_aileron + commands["aileron"][k], commands["bank"][k],
+                                                        fdm["attitude/phi-rad"], fdm["velocities/p-rad_sec"])
+            fdm["fcs/rudder-cmd-norm"] = float(np.clip(trim_rudder + commands["rudder"][k], -1.0, 1.0))
         fdm.run()
         _hold_lags(fdm, lags)
         for j, name in enumerate(names):
             rec[j, k] = fdm[name]
         rec[-2, k] = sum(fdm[f] for f in lift)
         rec[-1, k] = sum(fdm[f] for f in drag)
+    return rec
+
+
+def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned, lags: tuple[Lag, ...] = (),
+            lateral: bool = False, phases: np.ndarray | None = None) -> dict:
+    """The truth histories of one maneuver (module docstring), in SI units; ``lags`` those of ``--modify``;
+    ``lateral``: with the lateral truths (key ``lateral``); ``phases`` a lateral kind's multisine phases."""
+    fdm = _start(jsbsim, root, aircraft, p, lags)
+    t = np.arange(int(round(p.duration * RATE_HZ))) / RATE_HZ
+    commands = _commands(p, t, float(fdm["fcs/elevator-cmd-norm"]), np.zeros(10) if phases is None else phases)
+    names = RECORD + LATERAL_RECORD * lateral
+    rec = _fly_frames(fdm, commands, names, lags, aircraft.functions("LIFT"), aircraft.functions("DRAG"))
+    s_ft2, cbar_ft, b_ft = float(fdm["metrics/Sw-sqft"]), float(fdm["metrics/cbarw-ft"]), float(fdm["metrics/bw-ft"])
     r = dict(zip(names, rec))
     qs = r["aero/qbar-psf"] * s_ft2
     iyy = r["inertia/iyy-slugs_ft2"] * SLUGFT2
-    return {"t": t, "V": r["velocities/vt-fps"] * FT, "alpha": r["aero/alpha-rad"], "q": r["velocities/q-rad_sec"],
-            "theta": r["attitude/theta-rad"], "h": r["position/h-sl-ft"] * FT, "de": r["fcs/elevator-pos-rad"],
-            "thrust": r["propulsion/engine/thrust-lbs"] * LBF, "qbar": r["aero/qbar-psf"] * PSF,
-            "mass": r["inertia/mass-slugs"] * SLUG, "x_cg": r["inertia/cg-x-in"] * 0.0254,
-            "CL": rec[-2] / qs, "CD": rec[-1] / qs, "Cm": r["moments/m-aero-lbsft"] / (qs * cbar_ft),
-            "q_dot": r["moments/m-aero-lbsft"] * LBFFT / iyy, "iyy": iyy,
-            "states": {"X": 1.0 - r["aero/stall-hyst-norm"]}, "prop_induced_fps": r[PROP_INDUCED],
-            "engine_cm": r["moments/m-prop-lbsft"] / (qs * cbar_ft),
-            "geometry": (s_ft2 * FT ** 2, cbar_ft * FT, float(fdm["metrics/bw-ft"]) * FT)}
+    out = {"t": t, "V": r["velocities/vt-fps"] * FT, "alpha": r["aero/alpha-rad"], "q": r["velocities/q-rad_sec"],
+           "theta": r["attitude/theta-rad"], "h": r["position/h-sl-ft"] * FT, "de": r["fcs/elevator-pos-rad"],
+           "thrust": r["propulsion/engine/thrust-lbs"] * LBF, "qbar": r["aero/qbar-psf"] * PSF,
+           "mass": r["inertia/mass-slugs"] * SLUG, "x_cg": r["inertia/cg-x-in"] * 0.0254,
+           "CL": rec[-2] / qs, "CD": rec[-1] / qs, "Cm": r["moments/m-aero-lbsft"] / (qs * cbar_ft),
+           "q_dot": r["moments/m-aero-lbsft"] * LBFFT / iyy, "iyy": iyy,
+           "states": {"X": 1.0 - r["aero/stall-hyst-norm"]}, "prop_induced_fps": r[PROP_INDUCED],
+           "engine_cm": r["moments/m-prop-lbsft"] / (qs * cbar_ft),
+           "geometry": (s_ft2 * FT ** 2, cbar_ft * FT, b_ft * FT)}
+    if lateral:
+        out["lateral"] = _lateral_truth(r, out, qs, b_ft)
+    return out
+
+
+def _lateral_truth(r: dict, out: dict, qs: np.ndarray, b_ft: float) -> dict:
+    """The lateral truths (:func:`structsearch.flight.lateral_measurement.measure_lateral`'s ``truth``) in SI
+    units. JSBSim's ``inertia/ixz-slugs_ft2`` is minus the product of inertia of the standard convention (the
+    moment equations close on JSBSim's moments with its sign flipped)."""
+    qsb = qs * b_ft
+    return {"beta": r["aero/beta-rad"], "p": r["velocities/p-rad_sec"], "r": r["velocities/r-rad_sec"],
+            "phi": r["attitude/phi-rad"], "da": r["fcs/left-aileron-pos-rad"], "dr": r["fcs/rudder-pos-rad"],
+            "CY": r["forces/fby-aero-lbs"] / qs, "Cl": r["moments/l-aero-lbsft"] / qsb,
+            "Cn": r["moments/n-aero-lbsft"] / qsb, "fy_engine": r["forces/fby-prop-lbs"] * LBF,
+            "cl_engine": r["moments/l-prop-lbsft"] / qsb, "cn_engine": r["moments/n-prop-lbsft"] / qsb,
+            "Ixx": r["inertia/ixx-slugs_ft2"] * SLUGFT2, "Iyy": out["iyy"], "Izz": r["inertia/izz-slugs_ft2"] * SLUGFT2,
+            "Ixz": -r["inertia/ixz-slugs_ft2"] * SLUGFT2, "qbar": out["qbar"], "mass": out["mass"],
+            "states": out["states"]}
 
 
 def fly_campaign(target: str, modification: Modification | Mapping[str, float] | None = None, *,
-                 scale: float = 1.0, seed: int = 0) -> Campaign:
+                 scale: float = 1.0, seed: int = 0, lateral: bool = False) -> Campaign:
     """The campaign flown in JSBSim (module docstring), with the aircraft changed by ``modification``
-    (``--modify``: :mod:`.modify`; a mapping function -> factor scales functions alone)."""
+    (``--modify``: :mod:`.modify`; a mapping function -> factor scales functions alone); ``lateral``: the lateral
+    maneuvers too (:mod:`.lateral_plan`) and every maneuver with the lateral channels
+    (:mod:`structsearch.flight.lateral_measurement`)."""
     if modification is not None and not isinstance(modification, Modification):
         modification = Modification(dict(modification))
     jsbsim = need_jsbsim()
@@ -167,28 +223,48 @@ def fly_campaign(target: str, modification: Modification | Mapping[str, float] |
         raise StructSearchError(f"--modify: the aircraft {aircraft.name} has no axis function {missing[0]!r}")
     holder = make_copy(aircraft, modification.scales, rewrite=False, lags=modification.lags, frame_s=1.0 / RATE_HZ,
                        tables=modification.tables, states=modification.states)
-    rng = np.random.default_rng(seed)
-    maneuvers, segments, craft = [], [], None
+    # the lateral chain draws from a generator of its own: the longitudinal columns are those of a campaign without
+    rng, lateral_rng = np.random.default_rng(seed), np.random.default_rng([seed, 56])
+    maneuvers, segments, craft, inertia = [], [], None, []
     try:
-        for p in plan(scale, seed):
-            truth = fly_one(jsbsim, holder.name, aircraft, p, modification.lags)
-            s, cbar, b = truth.pop("geometry")
-            iyy = float(np.median(truth.pop("iyy")))
-            craft = craft or Aircraft(aircraft.name, f"JSBSim {aircraft.name}", s, cbar, b,
-                                      float(truth["mass"][0]), 0.0, iyy, 0.0, 1.0, 0.0)
-            t = truth.pop("t")
-            induced, engine_cm = truth.pop("prop_induced_fps"), truth.pop("engine_cm")
-            columns = measure(rng, t, truth, None, 1.0, craft)
-            # the reduction removes the engine's pitching moment as it removes its thrust (known, as the thrust is)
-            columns["Cm"] = columns["Cm"] - engine_cm
-            columns["prop_induced_fps"] = induced
+        for p in plan(scale, seed, lateral):
+            phases = lateral_rng.uniform(0.0, 2 * np.pi, 10) if p.kind in LATERAL_PLAN else None
+            truth = fly_one(jsbsim, holder.name, aircraft, p, modification.lags, lateral, phases)
+            craft = craft or _aircraft(aircraft.name, truth)
+            columns = _measured(rng, lateral_rng, truth, craft)
+            if lateral:
+                inertia.append([float(np.median(truth["lateral"][k])) for k in ("Ixx", "Izz")])
             maneuvers.append(Maneuver(p.id, f"{p.id}.csv", p.kind, p.split))
             segments.append(columns)
     finally:
         holder.cleanup()
     manifest = {"S": craft.S, "cbar": craft.cbar, "b": craft.b, "Iyy": round(craft.iyy_empty, 1)}
+    if lateral:
+        manifest.update(zip(("Ixx", "Izz"), (round(float(v), 1) for v in np.median(inertia, axis=0))))
     source = {"simulator": "jsbsim", "aircraft": aircraft.name, "jsbsim_version": jsbsim.__version__,
               "modify": modification.digest()}
     name = f"JSBSim {aircraft.name} stall campaign (seed {seed}" + (", modified)" if modification else ")")
     return make_campaign(name, manifest, maneuvers, segments, extra={"source": source, "seed": seed,
                                                                      "scale": float(scale)})
+
+
+def _aircraft(name: str, truth: dict) -> Aircraft:
+    """The aircraft record the measurement chain reads (geometry, first mass, median pitch inertia)."""
+    s, cbar, b = truth["geometry"]
+    return Aircraft(name, f"JSBSim {name}", s, cbar, b, float(truth["mass"][0]), 0.0, float(np.median(truth["iyy"])),
+                    0.0, 1.0, 0.0)
+
+
+def _measured(rng: np.random.Generator, lateral_rng: np.random.Generator, truth: dict, craft: Aircraft) -> dict:
+    """One maneuver's columns through the measurement chain; the lateral ones where ``truth`` has them."""
+    from ..flight.lateral_measurement import measure_lateral
+    lateral = truth.get("lateral")
+    plain = {k: v for k, v in truth.items() if k not in ("geometry", "iyy", "t", "prop_induced_fps", "engine_cm",
+                                                         "lateral")}
+    columns = measure(rng, truth["t"], plain, None, 1.0, craft, record_qbar=lateral is not None)
+    # the reduction removes the engine's pitching moment as it removes its thrust (known, as the thrust is)
+    columns["Cm"] = columns["Cm"] - truth["engine_cm"]
+    columns["prop_induced_fps"] = truth["prop_induced_fps"]
+    if lateral is not None:
+        columns.update(measure_lateral(lateral_rng, truth["t"], lateral, columns, craft.b, craft.S))
+    return columns
