@@ -42,8 +42,16 @@ def test_shipped_terms_hold_every_regressor_of_the_final_models(coefficient):
 
 
 def test_shipped_terms_of_an_unknown_coefficient():
-    with pytest.raises(DeclarationError, match="no term library for coefficient 'CY'"):
-        shipped_terms("CY")
+    with pytest.raises(DeclarationError, match="no term library for coefficient 'CZ'"):
+        shipped_terms("CZ")
+
+
+def test_the_lateral_coefficients_have_a_term_library_from_their_grids():
+    """The rolling moment's library holds its grid's terms: the classical derivatives, the rate made
+    dimensionless with the half span, and the roll damping lost with separation."""
+    expressions = {t.expression for t in shipped_terms("Cl")}
+    assert {"beta", "pstar", "rstar", "da", "dr", "CL"} <= expressions
+    assert any("pstar" in e and "X" in e for e in expressions)
 
 
 def _write(tmp_path, text, name="terms.toml"):

@@ -11,7 +11,7 @@ from typing import Callable, Mapping, Sequence
 
 from ..data.campaign import Campaign, read_campaign
 from ..data.atomic import write_json
-from ..data.coefficients import COEFFICIENTS, coefficient as coefficient_record
+from ..data.coefficients import LONGITUDINAL, coefficient as coefficient_record
 from ..data.errors import DeclarationError
 from ..fitting.options import check_box_names
 from ..fitting.pools import warm_workers
@@ -97,7 +97,7 @@ def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence
     if progress is not None:
         progress("fit: " + " + ".join(c.name for c in candidates) + " jointly")
     joint = run(candidates, campaign.split("train"), campaign.split("validation"), options, band_samples=band_samples)
-    if band_samples and {c.coefficient for c in candidates} == set(COEFFICIENTS):
+    if band_samples and {c.coefficient for c in candidates} == set(LONGITUDINAL):
         import dataclasses
         from ..flight.replay_bands import replay_band
         if progress is not None:

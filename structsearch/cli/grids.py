@@ -9,7 +9,7 @@ def _grids(args) -> int:
     from ..reporting.equations import equations, model_equation
     name = args.name
     if name is None:
-        for grid in grids_for("all"):
+        for grid in grids_for("all") + grids_for("lateral"):
             what = {c.coefficient for c in grid.candidates}
             print(f"{grid.name}: {len(grid.candidates)} candidates of {', '.join(sorted(what))} "
                   f"(structsearch grids {grid.name}: their states too)")
@@ -19,7 +19,8 @@ def _grids(args) -> int:
                 print(f"  {c.name}: {model_equation(c)}" + (f"  [{states}]" if states and not c.lift else ""))
         return 0
     if name in BUILTIN_GRIDS or name.endswith(".toml"):
-        shown = grids_for("all")[list(BUILTIN_GRIDS).index(name)] if name in BUILTIN_GRIDS else load_grid(name)
+        shipped = {g.name: g for g in grids_for("all") + grids_for("lateral")}
+        shown = shipped[name] if name in BUILTIN_GRIDS else load_grid(name)
         candidates = list(shown.candidates)
     else:
         try:

@@ -33,19 +33,38 @@ class Coefficient:
     k_term: tuple[str, str]
     moment: bool = False
     owns_states: bool = False
+    lateral: bool = False
+
+    @property
+    def length(self) -> str:
+        """The reference length a moment coefficient is made dimensionless with ("cbar" pitch, "b" roll and
+        yaw; "" for a force)."""
+        return ("b" if self.lateral else "cbar") if self.moment else ""
 
 
 COEFFICIENTS = MappingProxyType({c.name: c for c in (
     Coefficient("CL", "lift", "lift", "LIFT", "C_L", ("{c}_KL{s}", "K_L({X})"), owns_states=True),
     Coefficient("CD", "drag", "drag", "DRAG", "C_D", ("{c}_1mX{s}", "1 - {X}")),
     Coefficient("Cm", "pitching moment", "pitch", "PITCH", "C_m", ("{c}_1mX{s}CL", "(1 - {X})*CL"), moment=True),
+    # lateral-directional (body axes: side force right, rolling moment right wing down, yawing moment nose right);
+    # a separation state brings the side force and yawing moment a share of the flow lost, the rolling moment the
+    # roll damping lost with it
+    Coefficient("CY", "side force", "side", "SIDE", "C_Y", ("{c}_1mX{s}beta", "(1 - {X})*beta"), lateral=True),
+    Coefficient("Cl", "rolling moment", "roll", "ROLL", "C_l", ("{c}_1mX{s}p", "(1 - {X})*pstar"), moment=True,
+                lateral=True),
+    Coefficient("Cn", "yawing moment", "yaw", "YAW", "C_n", ("{c}_1mX{s}r", "(1 - {X})*rstar"), moment=True,
+                lateral=True),
 )})
 LIFT = COEFFICIENTS["CL"]
 # each coefficient's shipped grid, and each grid's coefficient
 GRID_OF = MappingProxyType({c.name: c.grid for c in COEFFICIENTS.values()})
 COEFFICIENT_OF_GRID = MappingProxyType({c.grid: c.name for c in COEFFICIENTS.values()})
-# the coefficients that are forces, in the registry's order (a moment about a point reads them)
-FORCES = tuple(c for c in COEFFICIENTS.values() if not c.moment)
+# the longitudinal coefficients (what the thesis models: the demo, the report's first screen, joint fits, the
+# global models) and the lateral-directional ones, each in the registry's order
+LONGITUDINAL = tuple(c.name for c in COEFFICIENTS.values() if not c.lateral)
+LATERAL = tuple(c.name for c in COEFFICIENTS.values() if c.lateral)
+# the longitudinal forces, in the registry's order (a pitching moment about a point reads them)
+FORCES = tuple(c for c in COEFFICIENTS.values() if not c.moment and not c.lateral)
 
 
 def coefficient(name: str) -> Coefficient:

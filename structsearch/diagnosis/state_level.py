@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 
 from ..data.campaign import Campaign
-from ..data.coefficients import COEFFICIENTS, LIFT
+from ..data.coefficients import COEFFICIENTS, LIFT, LONGITUDINAL
 from ..data.errors import DeclarationError
 from ..engine.regressors import declare, symbol_names
 from ..fitting.candidate_fit import fit_candidate
@@ -64,7 +64,7 @@ def _simulator(campaign: Campaign, fitted: Fitted, lift, options: FitOptions):
     coef = fitted.candidate.coefficient
     lift_fit = LiftFit(fitted.candidate, fitted.summary) if COEFFICIENTS[coef].owns_states else lift
     models, params = {LIFT.name: build_model(lift_fit.candidate)}, dict(lift_fit.params)
-    for other in (c.name for c in COEFFICIENTS.values() if not c.owns_states):
+    for other in (c for c in LONGITUDINAL if not COEFFICIENTS[c].owns_states):
         if other == coef:
             models[other] = build_model(fitted.candidate, lift)
             params.update(fitted.summary.estimates.params)
@@ -72,7 +72,7 @@ def _simulator(campaign: Campaign, fitted: Fitted, lift, options: FitOptions):
             models[other], linear = _other_coefficient(campaign, other, lift_fit, options)
             params.update(linear)
     # the simulator takes lift, drag and pitch in the registry's order
-    return AeroModel(*(models[c] for c in COEFFICIENTS), params, name=fitted.candidate.name)
+    return AeroModel(*(models[c] for c in LONGITUDINAL), params, name=fitted.candidate.name)
 
 
 def state_level(campaign: Campaign, before: Fitted, after: Fitted, lift, options: FitOptions,

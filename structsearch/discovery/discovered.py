@@ -219,16 +219,19 @@ def build_discovery(fitter: Fitter, diagnosis, exploration: Exploration, seconds
                            final_node.result.validation.mse, _cv(final_node.result), final_node.admissible,
                            final_node.reasons)
     coef = final_node.candidate.coefficient
-    say(f"the {GRID_OF[coef]} grid's rank-1 candidate and the thesis' final model, for comparison")
+    # the thesis' final model, where the thesis has one (it models C_L, C_D and C_m)
+    thesis_name = FINAL_MODEL_NAMES.get(coef)
+    say(f"the {GRID_OF[coef]} grid's rank-1 candidate" + (" and the thesis' final model" if thesis_name else "")
+        + ", for comparison")
     rows = [_row("discovered", final_node.candidate, final_node.result, final_node.result, judge)]
     grid = search(dataclasses.replace(fitter.quiet(), lifts={}), GRID_OF[coef], do_refine=False)
     ranked = grid.grids[GRID_OF[coef]]
     if ranked and not ranked[0].failed:
         rank1 = load_grid(GRID_OF[coef])[ranked[0].name]
         rows.append(_row(f"{GRID_OF[coef]} grid rank 1", rank1, ranked[0], final_node.result, judge))
-    thesis = find_candidate(FINAL_MODEL_NAMES[coef])
-    thesis_result = fitter.quiet().fit_one(thesis)
-    rows.append(_row("thesis final", thesis, thesis_result, final_node.result, judge))
+    if thesis_name:
+        thesis = find_candidate(thesis_name)
+        rows.append(_row("thesis final", thesis, fitter.quiet().fit_one(thesis), final_node.result, judge))
     steps = tuple(StepLine(s.index, len(s.tried), (s.beam[0].status + " " + s.beam[0].move.name) if s.beam else "-",
                            min((n for n in s.beam), key=lambda n: n.mse).candidate.name if s.beam else "-",
                            min((n.mse for n in s.beam), default=float("nan")), s.seconds)

@@ -13,12 +13,12 @@ import dataclasses
 from dataclasses import dataclass, replace
 from typing import Callable
 
-from ..data.coefficients import COEFFICIENTS
+from ..data.coefficients import LONGITUDINAL
 from ..data.errors import DeclarationError
 from ..fitting.candidates import Candidate
 from .equivalents import ALPHA_DOT_TERM, VANE_LAG, Equivalent
 
-ALL = tuple(COEFFICIENTS)
+ALL = LONGITUDINAL
 
 
 @dataclass(frozen=True)

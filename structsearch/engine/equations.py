@@ -42,6 +42,7 @@ FORM_MEANINGS = {f.name: f.meaning for f in FORMS.values() if f.meaning}
 _ONE = {"1", "1.0"}
 # How the data columns and states read in LaTeX; any other name is set upright with sympy's subscripts.
 _LATEX_NAMES = {"alpha": r"\alpha", "alpha_dot": r"\dot{\alpha}", "qstar": r"q^{*}", "de": r"\delta_e",
+                "pstar": r"p^{*}", "rstar": r"r^{*}", "beta": r"\beta", "da": r"\delta_a", "dr": r"\delta_r",
                 **{c.name: c.latex for c in COEFFICIENTS.values()}, "CT": "C_T", "cbar": r"\bar{c}", "x_cg": r"x_{cg}",
                 "V": "V", "q": "q"}
 

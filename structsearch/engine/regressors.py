@@ -49,6 +49,16 @@ def reduced_pitch_rate():
     return _real("q") * _real("cbar") / _real("V")
 
 
+def reduced_roll_rate():
+    """p* = p b / (2 V), the roll rate made dimensionless with the half span."""
+    return _real("p") * _real("b") / (2 * _real("V"))
+
+
+def reduced_yaw_rate():
+    """r* = r b / (2 V)."""
+    return _real("r") * _real("b") / (2 * _real("V"))
+
+
 def van_ingen_spline():
     """max(alpha - 6 deg, 0)^2."""
     return positive_part(_real("alpha") - sp.pi * 6 / 180) ** 2
@@ -119,8 +129,9 @@ def block(name: str, state: str | None = None) -> str:
     return template
 
 
-# Names that stand for a whole expression: "qstar", "spline".
-NAMED_EXPRESSIONS = {"qstar": reduced_pitch_rate, "spline": van_ingen_spline}
+# Names that stand for a whole expression: "qstar", "pstar", "rstar", "spline".
+NAMED_EXPRESSIONS = {"qstar": reduced_pitch_rate, "pstar": reduced_roll_rate, "rstar": reduced_yaw_rate,
+                     "spline": van_ingen_spline}
 
 
 def parse(text: str, *, known: Iterable[str], context: str = "") -> sp.Expr:

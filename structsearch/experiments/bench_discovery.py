@@ -12,11 +12,11 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from ..data.coefficients import COEFFICIENTS
+from ..data.coefficients import LONGITUDINAL
 
 
 def run_discovery_bench(n_jobs: int = 2, scale: float = 1.0, seed: int = 0,
-                        progress: Callable[[str], None] | None = None, coefficients=tuple(COEFFICIENTS)) -> dict:
+                        progress: Callable[[str], None] | None = None, coefficients=LONGITUDINAL) -> dict:
     from ..diagnosis.story import STORY, van_ingen_story
     from ..diagnosis.discover import discover_structures
     from ..fitting.fitter import temporary_fitter

@@ -36,7 +36,8 @@ SYSTEM_NAME = "structsearch_states"
 FILL_INPUTS = f"{NAMESPACE}/fill-inputs"
 DT = f"{NAMESPACE}/dt-sec"
 FORCE_FACTORS = ("aero/qbar-psf", "metrics/Sw-sqft")
-MOMENT_FACTORS = FORCE_FACTORS + ("metrics/cbarw-ft",)
+# a moment coefficient's reference length (Coefficient.length) as JSBSim's property
+LENGTH_PROPERTY = {"cbar": "metrics/cbarw-ft", "b": "metrics/bw-ft"}
 
 
 def symbols_of(model: ExportedModel) -> Symbols:
@@ -84,11 +85,12 @@ def aerodynamics_xml(model: ExportedModel) -> str:
                             name=output_property(c.coefficient)))
     for c in model.coefficients:
         record = coefficient_record(c.coefficient)
-        axis, factors = record.jsbsim_axis, (MOMENT_FACTORS if record.moment else FORCE_FACTORS)
+        axis = record.jsbsim_axis
+        factors = FORCE_FACTORS + ((LENGTH_PROPERTY[record.length],) if record.moment else ())
         functions = []
         for parameter, text in c.terms:
             kind = "moment" if record.moment else "force"
-            scale = "qbar*S*cbar" if record.moment else "qbar*S"
+            scale = f"qbar*S*{record.length}" if record.moment else "qbar*S"
             attributes = {} if record.moment else {"apply_at_cg": "true"}
             functions.append(element(
                 "function", element("description", text=f"{scale} * {parameter} * ({text})"),

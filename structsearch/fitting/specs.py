@@ -27,8 +27,9 @@ import difflib
 import os
 from importlib import resources
 from pathlib import Path
+from types import MappingProxyType
 
-from ..data.coefficients import COEFFICIENT_OF_GRID
+from ..data.coefficients import COEFFICIENT_OF_GRID, LONGITUDINAL
 from ..data.errors import DeclarationError
 from ..data.reading import load_toml
 from .candidates import Candidate, Grid
@@ -36,11 +37,11 @@ from .enumeration import expand
 
 # Shipped inside the package (a link to the top-level model_specs/ in a checkout).
 SPEC_DIR = resources.files("structsearch") / "model_specs"
-BUILTIN_GRIDS = ("separation", "lift", "drag", "pitch")
+BUILTIN_GRIDS = ("separation", "lift", "drag", "pitch", "side", "roll", "yaw")
 # The global models (one grid per coefficient in one file, model_specs/global.toml): found by name like the
 # candidates of the grids above, but no grid of ``search`` (they read the air-data columns Mach and qbar)
 GLOBAL_SPEC = "global"
-GLOBAL_TABLES = COEFFICIENT_OF_GRID
+GLOBAL_TABLES = MappingProxyType({g: c for g, c in COEFFICIENT_OF_GRID.items() if c in LONGITUDINAL})
 
 
 def suggestion(name: str, known) -> str:

@@ -237,6 +237,11 @@ def jsbsim_baseline(target: str, campaign: Campaign, coefficient: str,
                     scales: Mapping[str, float] | None = None) -> SimulatorBaseline:
     """The JSBSim aircraft ``target``'s ``coefficient`` at every sample of ``campaign``, term by term (``scales``:
     function -> factor, a modified aircraft: :mod:`.modify`)."""
+    if coefficient_record(coefficient).lateral:
+        # the lateral axes are evaluated at a sideslip, roll and yaw rate and surface positions the evaluation does
+        # not write yet, and their moments about the cg read the side force's arm
+        raise DeclarationError(f"--simulator jsbsim: evaluates C_L, C_D and C_m term by term; for {coefficient} give "
+                               "the simulator's values as a campaign column (--baseline-column NAME)")
     aircraft, evaluation, record, axes = evaluate_campaign(target, campaign, coefficient, given, scales)
     x_cg_ft = np.asarray(campaign.data["x_cg"], float) / FT if "x_cg" in campaign.data and coefficient == "Cm" \
         else None

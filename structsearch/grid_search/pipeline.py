@@ -32,10 +32,19 @@ class SearchResult:
     joint: object | None = None     # the JointFit whose lift block drag and pitch read (``joint_lift``)
 
 
+# ``--grid lateral``: the lateral-directional grids (``all`` is the thesis' longitudinal set)
+LATERAL_GRIDS = ("side", "roll", "yaw")
+
+
 def grids_for(spec: str) -> list[Grid]:
+    """The grids ``--grid spec`` searches: ``all`` (separation, lift, drag, pitch), ``lateral`` (side, roll, yaw),
+    or one grid by name or spec file."""
     if spec == "all":
         lift = load_grid("lift")
         return [load_grid("separation"), lift, load_grid("drag", lift), load_grid("pitch", lift)]
+    if spec == "lateral":
+        lift = load_grid("lift")
+        return [load_grid(name, lift) for name in LATERAL_GRIDS]
     return [load_grid(spec)]
 
 

@@ -22,7 +22,7 @@ from ..fitting.candidate_result import CandidateResult
 from ..fitting.candidates import Candidate
 from ..engine.scores import ManeuverScores
 
-from ..data.coefficients import COEFFICIENTS
+from ..data.coefficients import LONGITUDINAL
 from ..thesis_study.model_set import ModelSet
 
 # Stall stages on the static separation curve (thesis Fig. 6)
@@ -60,7 +60,7 @@ def static_values(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, 
 def static_coefficients(ms: ModelSet, alpha: np.ndarray, ref: Reference) -> dict[str, np.ndarray]:
     values = ms.aero.coefficients(static_values(ms, alpha, ref))
     # a coefficient without alpha-dependent terms comes back as a scalar
-    return {coef: np.broadcast_to(v, np.shape(alpha)).astype(float) for coef, v in zip(COEFFICIENTS, values)}
+    return {coef: np.broadcast_to(v, np.shape(alpha)).astype(float) for coef, v in zip(LONGITUDINAL, values)}
 
 
 def separation_curves(ms: ModelSet, alpha: np.ndarray) -> dict[str, dict]:
@@ -90,7 +90,7 @@ def partial_points(ms: ModelSet, data: FlightData, ref: Reference, max_points: i
     alpha = data["alpha"][idx]
     static = static_coefficients(ms, alpha, ref)
     out = {"alpha": alpha}
-    for coef in COEFFICIENTS:
+    for coef in LONGITUDINAL:
         residual = data[coef][idx] - ms.predict(coef, data)[idx]
         out[coef] = static[coef] + residual
     return out
@@ -119,7 +119,7 @@ def r2_sentence(ms: ModelSet, data: FlightData) -> str:
     why the per-maneuver R^2 of C_m is low: within one maneuver C_m varies little against the error the model
     cannot follow (the validation MSE), so R^2 = 1 - MSE / variance drops where the variance is small."""
     parts, worst = [], None
-    for coef in COEFFICIENTS:
+    for coef in LONGITUDINAL:
         pred = ms.predict(coef, data)
         scores = ManeuverScores.of(data[coef], data[coef] - pred, data.segment_slices())
         r2 = scores.r2_summary()
@@ -144,7 +144,7 @@ def trace_selection(ms: ModelSet, data: FlightData, train: FlightData | None = N
     training maneuvers, the model's 95 % confidence and prediction bands along them)."""
     from ..fitting.bands import trace_bands
     out = {}
-    for coef in COEFFICIENTS:
+    for coef in LONGITUDINAL:
         pred = ms.predict(coef, data)
         slices = data.segment_slices()
         per_maneuver = ManeuverScores.of(data[coef], data[coef] - pred, slices).r2

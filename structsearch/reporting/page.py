@@ -16,7 +16,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ..data.coefficients import COEFFICIENTS
+from ..data.coefficients import COEFFICIENTS, LONGITUDINAL
 from . import figures as fg
 from . import figure_data as rd
 from ..data.campaign import Campaign
@@ -109,7 +109,7 @@ def _with_answers(fits: ReportFits) -> ReportFits:
     import dataclasses
     ms = fits.identified
     answers = {coef: (ms.candidates[coef], ms.summaries[coef], None if COEFFICIENTS[coef].owns_states else ms.lift)
-               for coef in COEFFICIENTS}
+               for coef in LONGITUDINAL}
     return dataclasses.replace(fits, answers=answers, source=fits.source or "shown in the figures")
 
 

@@ -11,7 +11,7 @@ import numpy as np
 from ..data.campaign import Campaign
 from ..fitting.joint import fit_joint
 from ..fitting.options import FitOptions
-from ..data.coefficients import COEFFICIENTS
+from ..data.coefficients import LONGITUDINAL
 from .model_set import ModelSet
 
 TAU_PAIR = ("tau1_ss", "tau2_ss")
@@ -76,11 +76,11 @@ def _rho(names, correlation, pair) -> float:
 def compare_joint(final: ModelSet, campaign: Campaign, options: FitOptions) -> JointComparison:
     """Fit ``final``'s three structures jointly and set them against the sequential fits in ``final``."""
     train, validation = campaign.split("train"), campaign.split("validation")
-    joint = fit_joint([final.candidates[c] for c in COEFFICIENTS], train, validation, options)
+    joint = fit_joint([final.candidates[c] for c in LONGITUDINAL], train, validation, options)
     r = joint.result
     seen: set[str] = set()
     parameters = []
-    for c in COEFFICIENTS:
+    for c in LONGITUDINAL:
         seq = final.summaries[c]
         for n in seq.estimates.params:
             if n in seen or n not in r.params:

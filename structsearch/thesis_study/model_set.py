@@ -9,7 +9,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..data.coefficients import COEFFICIENTS
+from ..data.coefficients import LONGITUDINAL
 from ..data.errors import DeclarationError
 from ..data.flightdata import FlightData
 from ..flight.aero import AeroModel
@@ -52,7 +52,7 @@ def fit_model_set(label: str, names: Mapping[str, str | Candidate], fitter: Fitt
     """Fit the lift, drag and pitch structures (named, or candidates such as a search's refined ones; with
     ``fitter``: cached, on its workers)."""
     cands = {coef: names[coef] if isinstance(names[coef], Candidate) else find_candidate(names[coef])
-             for coef in COEFFICIENTS}
+             for coef in LONGITUDINAL}
     for coef in ("CD", "Cm"):
         if cands[coef].lift != cands["CL"].name:
             raise DeclarationError(f"{cands[coef].name} takes its separation states from {cands[coef].lift}, "
