@@ -1,6 +1,6 @@
 """The lateral grids (side, roll, yaw) searched on a lateral campaign flown in JSBSim by the stock c172p, whose
-lateral functions are the truth: the rolling moment's well-excited derivatives come back within two standard errors
-and 10 % of the aircraft's own.
+lateral functions are the truth: the rolling moment's well-excited derivatives come back within 10 % of the
+aircraft's own, the roll damping and aileron power within two standard errors too.
 
 The reference values are read off JSBSim's c172p.xml by hand (Clp -0.484, ClDa 0.229, Cldr 0.0147, the sideslip
 tables' slopes; CYdr 0.187) and moved to the cg where the campaign records C_l: the side force acts at the

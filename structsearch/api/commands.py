@@ -112,7 +112,7 @@ def fit_joint(campaign: Campaign | str | os.PathLike, structures: str | Sequence
 
 
 def search_candidates(grid: str) -> list:
-    """Every candidate of ``grid`` (separation, lift, drag, pitch, all or a grid spec file)."""
+    """Every candidate of ``grid`` (a shipped grid's name, ``all``, ``lateral`` or a grid spec file)."""
     from ..grid_search.pipeline import grids_for
     return [c for g in grids_for(grid) for c in g.candidates]
 

@@ -230,7 +230,11 @@ def exported_model(fitted: Sequence[Fitted], campaign: Campaign, data: Mapping) 
 def _check_exportable(c: Candidate) -> None:
     """What an export cannot write yet is one error naming it, never a model that computes something else: a
     pitch model about a fixed reference point (its known transfer term reads the measured C_D) and a model with
-    per-flight offsets (a simulator flies no recorded flight)."""
+    per-flight offsets (a simulator flies no recorded flight), and a lateral coefficient (C_Y is a body-axis force
+    where JSBSim's SIDE axis is a wind axis, and the export writes the LIFT, DRAG and PITCH axes)."""
+    if coefficient_record(c.coefficient).lateral:
+        raise DeclarationError(f"{c.name}: {c.coefficient} is a lateral coefficient; export --format jsbsim writes the "
+                               "LIFT, DRAG and PITCH axes (C_L, C_D, C_m) only")
     if c.moment_reference != "cg":
         raise DeclarationError(f"{c.name}: C_m about a fixed reference point cannot be exported yet (its transfer "
                                "term Cm_transfer is not written); export a model about the cg")

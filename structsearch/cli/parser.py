@@ -133,7 +133,8 @@ def _add_grids(sub, handler: Callable) -> None:
     """The ``grids`` command."""
     g = command_parser(sub, "grids")
     g.add_argument("name", nargs="?", default=None,
-                   help="a grid (separation, lift, drag, pitch), a grid spec file or a candidate name (CL-VI)")
+                   help="a grid (separation, lift, drag, pitch, side, roll, yaw), a grid spec file or a candidate "
+                        "name (CL-VI)")
     g.set_defaults(func=handler)
 
 
@@ -252,7 +253,8 @@ def _add_search(sub, handler: Callable) -> None:
     """The ``search`` command."""
     r = command_parser(sub, "search")
     _campaign_options(r)
-    r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all, or a grid spec file")
+    r.add_argument("--grid", required=True, help="separation, lift, drag, pitch, all (those four), side, roll, yaw, "
+                   "lateral (those three), or a grid spec file")
     r.add_argument("--jobs", type=_non_negative, default=0, help="parallel processes (default 0: all cores)")
     r.add_argument("--cv-method", choices=CV_METHODS, default="refit",
                    help="cross-validation folds of a nonlinear candidate: refit (solved again from the full "

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..discovery import effects as fx
 from . import floor as fl
+from ..data.coefficients import COEFFICIENTS
 from ..data.flightdata import FlightData
 from ..data.errors import DataError, DeclarationError
 from ..discovery.adoption import TEST_NAME
@@ -242,7 +243,9 @@ def diagnose_search(fitter: Fitter, baseline: Candidate, setting: SearchSetting 
     library_free = min(f.mse for f in floors if f.library_free)
     block = _unexplained(rounds[0].mse.validation, final_fit, flexible[0], library_free, val, flexible[1],
                          flexible[2], x_val_final, explained, seed, first.base)
-    sl = _state_level(fitter, fits, ctx) if setting.state_level and len(fits) > 1 else None
+    # the state-level replay flies the longitudinal simulator: a lateral structure has no place in it
+    replay = setting.state_level and len(fits) > 1 and not COEFFICIENTS[baseline.coefficient].lateral
+    sl = _state_level(fitter, fits, ctx) if replay else None
     # the stop reason is worded now that the floor is known: "at the floor" only where the final structure is
     ex = dataclasses.replace(ex, stopped=stopped_text(ex.stop, explained, " and ".join(ex.stopped_at),
                                                        setting.max_rounds))

@@ -44,7 +44,8 @@ def discover_structures(fitter: Fitter, coefficient: str, setting: SearchSetting
     ``fitter``; drag and pitch structures may be fed ``lifts`` (names of the lift grid; default the thesis' CL-VI)
     and the start's own lift model. ``moment_reference`` ("cg" or "fixed"): a pitch start takes C_m about it
     (None: as it declares; the moves keep it); ``setting`` the search (:data:`DISCOVER`: every move kind, beam and
-    length as ``discover``'s defaults; ``DISCOVER.but(kinds=...)`` restricts the moves). Returns the typed :class:`Discovery` (nothing written)."""
+    length as ``discover``'s defaults; ``DISCOVER.but(kinds=...)`` restricts the moves). Returns the typed
+    :class:`Discovery` (nothing written)."""
     from ..fitting.options import check_box_names
     from ..fitting.specs import load_grid
     from ..flight.reference import FINAL_MODEL_NAMES

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data.coefficients import COEFFICIENTS
+from ..data.coefficients import LONGITUDINAL
 from ..data.errors import DeclarationError
 from ..data.prefilter import derivative
 from ..engine.separation import first_order_lag, is_lagged
@@ -266,8 +266,8 @@ def truth_difference(campaign, effect: str, coefficient: str | None = None) -> n
     withheld = _withheld_of(extra)
     flown_anomaly = extra.get("anomaly")
     coef = coefficient or effect_coefficient(effect)
-    if coef not in COEFFICIENTS:
-        raise DeclarationError(f"no coefficient {coef!r}: truth differences are of CL, CD or Cm")
+    if coef not in LONGITUDINAL:
+        raise DeclarationError(f"no coefficient {coef!r}: truth differences are of {', '.join(LONGITUDINAL)}")
     data = campaign.data
     if effect in ANOMALIES:
         if flown_anomaly != effect:

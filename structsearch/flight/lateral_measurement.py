@@ -15,8 +15,10 @@ from the pitch acceleration), the product of inertia I_xz in the standard conven
     C_n = (I_zz r' - I_xz (p' - q r) + (I_yy - I_xx) p q) / (qbar S b) - C_n,engine
 
 with the engine's force and moments removed as the longitudinal reduction removes its thrust (known, as the thrust
-is). Nothing here is drawn from the generator the longitudinal chain uses: a campaign with the lateral channels has
-the same longitudinal columns as one without.
+is). With the roll and yaw rates measured, C_m gains the inertial coupling the pitch equation holds
+(:func:`pitch_coupling`): I_yy q' + (I_xx - I_zz) p r + I_xz (p^2 - r^2). Nothing here is drawn from the
+generator the longitudinal chain uses: a campaign with the lateral channels has the same longitudinal readings as
+one without (C_m differs by the coupling alone).
 """
 from __future__ import annotations
 
@@ -72,9 +74,7 @@ def measure_lateral(rng: np.random.Generator, t: np.ndarray, truth: dict, longit
     qbar = np.asarray(longitudinal["qbar"])
     qsb = qbar * area * span
     mass = longitudinal["mass"]
-    # the inertias scale with the mass the reduction takes, as the pitch inertia does
-    k = mass / truth["mass"]
-    ixx, iyy, izz, ixz = (truth[n] * k for n in ("Ixx", "Iyy", "Izz", "Ixz"))
+    ixx, iyy, izz, ixz = _inertias(truth, mass)
     p, q, r = f["p"], longitudinal["q"], f["r"]
     p_dot, r_dot = derivative(p, t), derivative(r, t)
     roll = ixx * p_dot - ixz * (r_dot + p * q) + (izz - iyy) * q * r
@@ -83,3 +83,18 @@ def measure_lateral(rng: np.random.Generator, t: np.ndarray, truth: dict, longit
             "CY": mass * f["ay"] / (qbar * area) - truth["fy_engine"] / (qbar * area),
             "Cl": roll / qsb - truth["cl_engine"], "Cn": yaw / qsb - truth["cn_engine"],
             "CY_true": truth["CY"], "Cl_true": truth["Cl"], "Cn_true": truth["Cn"]}
+
+
+def _inertias(truth: dict, mass: np.ndarray) -> tuple[np.ndarray, ...]:
+    """I_xx, I_yy, I_zz, I_xz as the reduction takes them: they scale with the mass it takes, as the pitch inertia
+    does."""
+    k = mass / truth["mass"]
+    return tuple(truth[n] * k for n in ("Ixx", "Iyy", "Izz", "Ixz"))
+
+
+def pitch_coupling(lateral: dict, truth: dict, longitudinal: dict, area: float, cbar: float) -> np.ndarray:
+    """The inertial coupling's share of C_m, ((I_xx - I_zz) p r + I_xz (p^2 - r^2)) / (qbar S cbar), from the
+    measured rates (``lateral``: :func:`measure_lateral`'s columns) and the reduction's dynamic pressure and mass."""
+    ixx, _, izz, ixz = _inertias(truth, longitudinal["mass"])
+    p, r = lateral["p"], lateral["r"]
+    return ((ixx - izz) * p * r + ixz * (p ** 2 - r ** 2)) / (np.asarray(longitudinal["qbar"]) * area * cbar)

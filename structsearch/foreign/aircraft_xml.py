@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
-from ..data.coefficients import FORCES, coefficient as coefficient_record
+from ..data.coefficients import COEFFICIENTS, FORCES, coefficient as coefficient_record
 from ..data.errors import DeclarationError
 
 # the axis that carries each coefficient (wind axes for the forces, the body pitch axis for the moment)
@@ -160,15 +160,15 @@ def read_aircraft(target: str) -> AircraftFile:
 
 
 def check_axes(aircraft: AircraftFile, coefficient: str) -> tuple[str, ...]:
-    """The functions of the axis that carries ``coefficient`` (for C_m also the force axes, whose forces the
-    moment transfer to the cg reads); one error when the aircraft lacks them."""
+    """The functions of the axis that carries ``coefficient`` (for a moment also the force axes, whose forces the
+    moment transfer to the cg reads; for C_Y the drag's); one error when the aircraft lacks them."""
     need = axes_read(coefficient)
     missing = [a for a in need if not aircraft.functions(a)]
     if missing:
         have = ", ".join(sorted(aircraft.axes)) or "none"
         raise DeclarationError(f"{aircraft.file}: no function in the aerodynamic axis {' and '.join(missing)} (the "
-                               f"axes it has: {have}); {coefficient} is read from the LIFT, DRAG and PITCH axes, not "
-                               "from body-axis (X, Z) forces")
+                               f"axes it has: {have}); {coefficient} is read from the {', '.join(need)} axes, not "
+                               "from body-axis (X, Y, Z) forces")
     return aircraft.functions(coefficient_record(coefficient).jsbsim_axis)
 
 
@@ -176,4 +176,10 @@ def axes_read(coefficient: str) -> list[str]:
     """The aerodynamic axes ``coefficient`` is evaluated from: its own, and for a moment the force axes too
     (the transfer of the moment to the cg reads the forces)."""
     record = coefficient_record(coefficient)
-    return [record.jsbsim_axis] + ([f.jsbsim_axis for f in FORCES] if record.moment else [])
+    if not record.lateral:
+        return [record.jsbsim_axis] + ([f.jsbsim_axis for f in FORCES] if record.moment else [])
+    # the body-axis side force holds the drag turned by the sideslip; a lateral moment about the cg reads every
+    # aerodynamic force (its arm)
+    if not record.moment:
+        return [record.jsbsim_axis, COEFFICIENTS["CD"].jsbsim_axis]
+    return [record.jsbsim_axis] + [c.jsbsim_axis for c in COEFFICIENTS.values() if not c.moment]

@@ -7,7 +7,9 @@ The aircraft (one of JSBSim's own or an aircraft directory) is evaluated at ever
   ``beta``, ``theta``, ``phi``, ``p``, ``r`` from columns of those names when the campaign has them, else
   symmetric wings-level flight (beta = phi = p = r = 0) with theta = alpha (none of these change the
   longitudinal coefficients but through the aircraft's own tables of them);
-* ``de`` [rad] -> ``fcs/elevator-pos-rad`` (both positive trailing edge down);
+* ``de`` [rad] -> ``fcs/elevator-pos-rad`` (both positive trailing edge down); ``da`` -> ``fcs/left-aileron-pos-rad``
+  and its negative -> ``fcs/right-aileron-pos-rad``, ``dr`` -> ``fcs/rudder-pos-rad`` where the aircraft reads them
+  (JSBSim's signs, as the campaign's);
 * ``alpha_dot`` [rad/s] -> ``structsearch/alphadot-rad_sec``, read in place of ``aero/alphadot-rad_sec``;
 * ``aero/stall-hyst-norm``: JSBSim's own latch run along each maneuver's recorded alpha (set above the
   aircraft's ``<hysteresis_limits>`` max, cleared below its min, starting cleared unless the first sample is above
@@ -22,7 +24,8 @@ aircraft's aerodynamic reference point; C_m about the campaign's cg adds the mom
 term ``sim:transfer`` = C_N (x_cg - x_ARP) / cbar + C_A (z_ARP - z_cg) / cbar (structural frame, x aft, z up;
 C_N = -F_z / q S, C_A = -F_x / q S from JSBSim's body-axis aerodynamic forces), with the campaign's ``x_cg`` [m]
 read as a station of the aircraft's structural frame (JSBSim's own cg when the campaign has no x_cg) and
-JSBSim's z_cg. The baseline is the sum of the terms.
+JSBSim's z_cg. C_Y, C_l and C_n are the body-axis side force and the moments about JSBSim's own cg
+(:mod:`.lateral_terms`). The baseline is the sum of the terms.
 """
 from __future__ import annotations
 
@@ -37,10 +40,13 @@ from ..diagnosis.offset import JSBSIM_PREFIX, SimulatorBaseline, check_values
 from ..data.coefficients import coefficient as coefficient_record
 from .aircraft_xml import AircraftFile, axes_read, check_axes, read_aircraft
 from .evaluate import STATE_IC, evaluate
+from .lateral_terms import TERM_PREFIX, TRANSFER, TRANSFER_SIGNALS, lateral_terms
 from .private_copy import ALPHADOT, ELEVATOR, ELEVATOR_DERIVED, HYSTERESIS, INPUT_PREFIX, derived, rewritten
 
-TERM_PREFIX = "sim:"
-TRANSFER = "sim:transfer"
+# the lateral surfaces an aircraft's axes may read, from the campaign's columns (JSBSim's signs: the left
+# aileron's position is da, the right one's -da)
+SURFACES = {"fcs/left-aileron-pos-rad": ("da", 1.0), "fcs/right-aileron-pos-rad": ("da", -1.0),
+            "fcs/rudder-pos-rad": ("dr", 1.0)}
 FT = 0.3048
 # state -> (campaign column, its factor to JSBSim's unit, the default when the campaign lacks the column: None
 # when it is required, "alpha" for theta)
@@ -132,6 +138,10 @@ def _inputs(campaign: Campaign, aircraft: AircraftFile, reads: set[str], given: 
             inputs[target], record[prop] = _given(campaign, prop, given[prop]), given[prop]
         elif prop == ELEVATOR:
             inputs[target], record[prop] = np.asarray(data["de"], float), "de"
+        elif prop in SURFACES and SURFACES[prop][0] in data:
+            column, sign = SURFACES[prop]
+            inputs[target] = sign * np.asarray(data[column], float)
+            record[prop] = column if sign > 0 else f"-{column}"
         elif prop in ALPHADOT:
             scale = 1.0 if prop.endswith("rad_sec") else 180.0 / math.pi
             inputs[target], record[prop] = np.asarray(data["alpha_dot"], float) * scale, "alpha_dot"
@@ -157,10 +167,12 @@ def _check_given(given: Mapping, aircraft: AircraftFile, target: str) -> None:
 
 def terms(evaluation, coefficient: str, aircraft: AircraftFile, x_cg_ft: np.ndarray | None) -> dict[str, np.ndarray]:
     """Each axis function of ``coefficient``'s axis as its share of the coefficient (module docstring), named
-    ``sim:<function>``; for C_m also ``sim:transfer``."""
+    ``sim:<function>``; for a moment and for C_Y also ``sim:transfer``."""
+    record = coefficient_record(coefficient)
+    if record.lateral:
+        return lateral_terms(evaluation, record, aircraft.functions(record.jsbsim_axis))
     g = evaluation.geometry
     qs = evaluation.qbar * g["metrics/Sw-sqft"]
-    record = coefficient_record(coefficient)
     scale = qs * (g["metrics/cbarw-ft"] if record.moment else 1.0)
     out = {TERM_PREFIX + f: evaluation.functions[f] / scale for f in aircraft.functions(record.jsbsim_axis)}
     if record.moment:
@@ -196,7 +208,9 @@ def term_signals(aircraft: AircraftFile, coefficient: str, record: Mapping) -> d
     out = {}
     for f in aircraft.functions(coefficient_record(coefficient).jsbsim_axis):
         out[TERM_PREFIX + f] = tuple(sorted({s for p in aircraft.leaves([f]) if (s := _signal(p, record))}))
-    if coefficient_record(coefficient).moment:
+    if coefficient_record(coefficient).lateral:
+        out[TRANSFER] = TRANSFER_SIGNALS[coefficient]
+    elif coefficient_record(coefficient).moment:
         out[TRANSFER] = ("CL", "x_cg")
     return out
 
@@ -237,11 +251,6 @@ def jsbsim_baseline(target: str, campaign: Campaign, coefficient: str,
                     scales: Mapping[str, float] | None = None) -> SimulatorBaseline:
     """The JSBSim aircraft ``target``'s ``coefficient`` at every sample of ``campaign``, term by term (``scales``:
     function -> factor, a modified aircraft: :mod:`.modify`)."""
-    if coefficient_record(coefficient).lateral:
-        # the lateral axes are evaluated at a sideslip, roll and yaw rate and surface positions the evaluation does
-        # not write yet, and their moments about the cg read the side force's arm
-        raise DeclarationError(f"--simulator jsbsim: evaluates C_L, C_D and C_m term by term; for {coefficient} give "
-                               "the simulator's values as a campaign column (--baseline-column NAME)")
     aircraft, evaluation, record, axes = evaluate_campaign(target, campaign, coefficient, given, scales)
     x_cg_ft = np.asarray(campaign.data["x_cg"], float) / FT if "x_cg" in campaign.data and coefficient == "Cm" \
         else None
@@ -261,6 +270,13 @@ def jsbsim_baseline(target: str, campaign: Campaign, coefficient: str,
 
 
 def _from_text(coefficient: str, campaign_cg: bool) -> str:
+    if coefficient_record(coefficient).lateral:
+        record = coefficient_record(coefficient)
+        if not record.moment:
+            return ("the SIDE axis functions (lbs, wind axes) over JSBSim's q S, plus sim:transfer, the rest of the "
+                    "body-axis side force (the drag turned by the sideslip)")
+        return (f"the {record.jsbsim_axis} axis functions (lbs ft, about the aerodynamic reference point) over q S b, "
+                "plus sim:transfer, the aerodynamic force's moment about JSBSim's own cg")
     if coefficient == "CL":
         return "the LIFT axis functions (lbs) over JSBSim's q S (psf, sq ft)"
     if coefficient == "CD":

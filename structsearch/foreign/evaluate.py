@@ -28,9 +28,9 @@ STATE_IC = ("ic/h-sl-ft", "ic/vt-fps", "ic/alpha-rad", "ic/beta-rad", "ic/theta-
             "ic/p-rad_sec", "ic/q-rad_sec", "ic/r-rad_sec")
 FCS_ENABLED = "simulation/models/FGFCS/enabled"
 QBAR = "aero/qbar-psf"
-BODY_FORCES = ("forces/fbx-aero-lbs", "forces/fbz-aero-lbs")
-GEOMETRY = ("metrics/Sw-sqft", "metrics/cbarw-ft", "metrics/aero-rp-x-in", "metrics/aero-rp-z-in",
-            "inertia/cg-x-in", "inertia/cg-z-in")
+BODY_FORCES = ("forces/fbx-aero-lbs", "forces/fby-aero-lbs", "forces/fbz-aero-lbs")
+GEOMETRY = ("metrics/Sw-sqft", "metrics/cbarw-ft", "metrics/bw-ft", "metrics/aero-rp-x-in", "metrics/aero-rp-y-in",
+            "metrics/aero-rp-z-in", "inertia/cg-x-in", "inertia/cg-y-in", "inertia/cg-z-in")
 NEEDS = "evaluating a JSBSim aircraft needs the jsbsim package"
 
 

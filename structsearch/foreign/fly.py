@@ -22,8 +22,9 @@ as it removes its thrust). The campaign's ``x_cg`` is JSBSim's cg station
 
 With ``lateral`` the lateral maneuvers of :mod:`.lateral_plan` follow the stall plan, and every maneuver goes
 through the lateral measurement chain too (:mod:`structsearch.flight.lateral_measurement`: beta, p, r, phi, the
-aileron and rudder positions, C_Y, C_l and C_n reconstructed, their truths from JSBSim's SIDE force and its
-aerodynamic moments about the cg); the manifest gains I_xx and I_zz and the campaign a ``qbar`` column.
+aileron and rudder positions, C_Y, C_l and C_n reconstructed, their truths from JSBSim's body-axis aerodynamic side
+force and its aerodynamic moments about the cg; C_m gains the inertial coupling of the rates); the manifest gains
+I_xx and I_zz and the campaign a ``qbar`` column.
 """
 from __future__ import annotations
 
@@ -257,7 +258,7 @@ def _aircraft(name: str, truth: dict) -> Aircraft:
 
 def _measured(rng: np.random.Generator, lateral_rng: np.random.Generator, truth: dict, craft: Aircraft) -> dict:
     """One maneuver's columns through the measurement chain; the lateral ones where ``truth`` has them."""
-    from ..flight.lateral_measurement import measure_lateral
+    from ..flight.lateral_measurement import measure_lateral, pitch_coupling
     lateral = truth.get("lateral")
     plain = {k: v for k, v in truth.items() if k not in ("geometry", "iyy", "t", "prop_induced_fps", "engine_cm",
                                                          "lateral")}
@@ -266,5 +267,8 @@ def _measured(rng: np.random.Generator, lateral_rng: np.random.Generator, truth:
     columns["Cm"] = columns["Cm"] - truth["engine_cm"]
     columns["prop_induced_fps"] = truth["prop_induced_fps"]
     if lateral is not None:
-        columns.update(measure_lateral(lateral_rng, truth["t"], lateral, columns, craft.b, craft.S))
+        measured = measure_lateral(lateral_rng, truth["t"], lateral, columns, craft.b, craft.S)
+        # with p and r measured the pitch equation's inertial coupling is known too
+        columns["Cm"] = columns["Cm"] + pitch_coupling(measured, lateral, columns, craft.S, craft.cbar)
+        columns.update(measured)
     return columns

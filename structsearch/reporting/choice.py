@@ -17,12 +17,8 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Mapping
 
-from ..data.coefficients import GRID_OF as _ALL_GRIDS, LIFT, LONGITUDINAL, coefficient
-
-# the report's first screen answers the longitudinal coefficients (the thesis' final structures stand in for one the
-# search did not rank): their grids
-GRID_OF = MappingProxyType({c: _ALL_GRIDS[c] for c in LONGITUDINAL})
 from ..data.campaign import Campaign
+from ..data.coefficients import GRID_OF as _ALL_GRIDS, LIFT, LONGITUDINAL, coefficient
 from ..data.errors import DataError, DeclarationError
 from ..data.manifest import check_set
 from ..data.reading import excerpt, inside, read_text
@@ -31,7 +27,9 @@ from ..fitting.specs import find_candidate, load_grid
 from ..flight.reference import FINAL_MODEL_NAMES
 from .refined import load_refined
 
-
+# the report's first screen answers the longitudinal coefficients (the thesis' final structures stand in for one the
+# search did not rank): their grids
+GRID_OF = MappingProxyType({c: _ALL_GRIDS[c] for c in LONGITUDINAL})
 ANSWERS_MAX_BYTES = 1 << 20   # a search's answers are a few hundred bytes a grid
 
 
