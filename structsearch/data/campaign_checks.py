@@ -33,6 +33,8 @@ RAW_REQUIRED = ("t", "ax", "ay", "az", "p", "q", "r", "phi", "theta", "V", "alph
 RAW_ANGLES = ("alpha", "de", "theta", "phi", "beta", "da", "dr")
 # Largest plausible magnitude of an angle in radians; more looks like degrees.
 MAX_ANGLE_RAD = 1.2
+# ... except a bank angle: an upset or a wing drop rolls past 70 deg, and a bank is at most pi in radians
+MAX_ANGLE_RAD_OF = {"phi": math.pi}
 # The shortest maneuver worth fitting is measured in convective times cbar/V (structsearch.data.records)
 MIN_CONVECTIVE_TIMES = records.MIN_CONVECTIVE_TIMES
 MIN_SAMPLES = records.MIN_SAMPLES
@@ -260,10 +262,10 @@ def _check_time_and_speed(columns: Mapping[str, np.ndarray], source: str) -> Non
 
 
 def _check_angles(columns: Mapping[str, np.ndarray], source: str, angles) -> None:
-    """Angles in radians: a value beyond :data:`MAX_ANGLE_RAD` is in degrees."""
+    """Angles in radians: a value beyond :data:`MAX_ANGLE_RAD` (a bank beyond pi) is in degrees."""
     for col in angles:
         if col in columns:
-            big = np.flatnonzero(np.abs(columns[col]) > MAX_ANGLE_RAD)
+            big = np.flatnonzero(np.abs(columns[col]) > MAX_ANGLE_RAD_OF.get(col, MAX_ANGLE_RAD))
             if big.size:
                 raise DataError(f"value {columns[col][big[0]]:g} looks like degrees; angles must be in "
                                 f"radians" + _row_message(columns, int(big[0])), source=source, column=col,

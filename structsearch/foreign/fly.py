@@ -41,6 +41,7 @@ from .evaluate import need_jsbsim
 from .lateral_plan import LATERAL_PLAN, lateral_commands, pilot_aileron
 from .modify import LAG_ACTIVE, Lag, Modification
 from .private_copy import make_copy
+from .wing_drop import STATES as WING_DROP_STATES
 
 FT, LBF, SLUG, SLUGFT2, PSF, LBFFT = 0.3048, 4.4482216152605, 14.593902937, 1.3558179483, 47.880258889, 1.3558179483
 RATE_HZ = 100.0
@@ -134,11 +135,14 @@ LATERAL_RECORD = ("aero/beta-rad", "velocities/p-rad_sec", "velocities/r-rad_sec
                   "inertia/ixx-slugs_ft2", "inertia/izz-slugs_ft2", "inertia/ixz-slugs_ft2")
 
 
-def _commands(p: Planned, t: np.ndarray, trim: float, phases: np.ndarray) -> dict[str, np.ndarray]:
-    """A maneuver's commands: the elevator's (absolute) and, for a lateral kind, the aileron and rudder
-    excitations over their trim and the bank the pilot holds (:mod:`.lateral_plan`)."""
+def _commands(p: Planned, t: np.ndarray, trim: float, phases: np.ndarray,
+              hold_bank: bool = False) -> dict[str, np.ndarray]:
+    """A maneuver's commands: the elevator's (absolute) and, for a lateral kind (or any kind with ``hold_bank``),
+    the aileron and rudder excitations over their trim and the bank the pilot holds (:mod:`.lateral_plan`)."""
     if p.kind not in LATERAL_PLAN:
-        return {"elevator": trim + elevator_profile(p, t, trim)}
+        zero = np.zeros_like(t)
+        return {"elevator": trim + elevator_profile(p, t, trim)} | (
+            {"aileron": zero, "rudder": zero, "bank": zero} if hold_bank else {})
     out = lateral_commands(p.kind, t / p.pace, -1.0 - trim, phases)
     out["elevator"] = np.clip(trim + out["elevator"], -1.0, 1.0)
     return out
@@ -166,13 +170,18 @@ def _fly_frames(fdm, commands: dict, names: tuple[str, ...], lags: tuple[Lag, ..
 
 
 def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned, lags: tuple[Lag, ...] = (),
-            lateral: bool = False, phases: np.ndarray | None = None) -> dict:
+            lateral: bool = False, phases: np.ndarray | None = None, states: Mapping[str, str] | None = None) -> dict:
     """The truth histories of one maneuver (module docstring), in SI units; ``lags`` those of ``--modify``;
-    ``lateral``: with the lateral truths (key ``lateral``); ``phases`` a lateral kind's multisine phases."""
+    ``lateral``: with the lateral truths (key ``lateral``); ``phases`` a lateral kind's multisine phases;
+    ``states``: separation states the modification flies (symbol -> property), recorded beside the stall latch's;
+    with them the pilot holds the wings level on every maneuver (a wing drop flown open loop departs into a
+    spiral dive)."""
+    states = dict(states or {})
     fdm = _start(jsbsim, root, aircraft, p, lags)
     t = np.arange(int(round(p.duration * RATE_HZ))) / RATE_HZ
-    commands = _commands(p, t, float(fdm["fcs/elevator-cmd-norm"]), np.zeros(10) if phases is None else phases)
-    names = RECORD + LATERAL_RECORD * lateral
+    commands = _commands(p, t, float(fdm["fcs/elevator-cmd-norm"]), np.zeros(10) if phases is None else phases,
+                         hold_bank=bool(states))
+    names = RECORD + LATERAL_RECORD * lateral + tuple(states.values())
     rec = _fly_frames(fdm, commands, names, lags, aircraft.functions("LIFT"), aircraft.functions("DRAG"))
     s_ft2, cbar_ft, b_ft = float(fdm["metrics/Sw-sqft"]), float(fdm["metrics/cbarw-ft"]), float(fdm["metrics/bw-ft"])
     r = dict(zip(names, rec))
@@ -184,7 +193,8 @@ def fly_one(jsbsim, root: str, aircraft: AircraftFile, p: Planned, lags: tuple[L
            "mass": r["inertia/mass-slugs"] * SLUG, "x_cg": r["inertia/cg-x-in"] * 0.0254,
            "CL": rec[-2] / qs, "CD": rec[-1] / qs, "Cm": r["moments/m-aero-lbsft"] / (qs * cbar_ft),
            "q_dot": r["moments/m-aero-lbsft"] * LBFFT / iyy, "iyy": iyy,
-           "states": {"X": 1.0 - r["aero/stall-hyst-norm"]}, "prop_induced_fps": r[PROP_INDUCED],
+           "states": {"X": 1.0 - r["aero/stall-hyst-norm"], **{s: r[prop] for s, prop in states.items()}},
+           "prop_induced_fps": r[PROP_INDUCED],
            "engine_cm": r["moments/m-prop-lbsft"] / (qs * cbar_ft),
            "geometry": (s_ft2 * FT ** 2, cbar_ft * FT, b_ft * FT)}
     if lateral:
@@ -223,14 +233,15 @@ def fly_campaign(target: str, modification: Modification | Mapping[str, float] |
     if missing:
         raise StructSearchError(f"--modify: the aircraft {aircraft.name} has no axis function {missing[0]!r}")
     holder = make_copy(aircraft, modification.scales, rewrite=False, lags=modification.lags, frame_s=1.0 / RATE_HZ,
-                       tables=modification.tables, states=modification.states)
+                       tables=modification.tables, states=modification.states, wing_drops=modification.wing_drops)
+    flown_states = WING_DROP_STATES if modification.wing_drops else {}
     # the lateral chain draws from a generator of its own: the longitudinal columns are those of a campaign without
     rng, lateral_rng = np.random.default_rng(seed), np.random.default_rng([seed, 56])
     maneuvers, segments, craft, inertia = [], [], None, []
     try:
         for p in plan(scale, seed, lateral):
             phases = lateral_rng.uniform(0.0, 2 * np.pi, 10) if p.kind in LATERAL_PLAN else None
-            truth = fly_one(jsbsim, holder.name, aircraft, p, modification.lags, lateral, phases)
+            truth = fly_one(jsbsim, holder.name, aircraft, p, modification.lags, lateral, phases, flown_states)
             craft = craft or _aircraft(aircraft.name, truth)
             columns = _measured(rng, lateral_rng, truth, craft)
             if lateral:

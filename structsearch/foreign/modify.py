@@ -24,12 +24,21 @@
     input = "aero/stall-hyst-norm"              # a property it reads: it reads the state instead
     complement = true                           # read 1 - state (a property that is 1 when separated)
 
+    [[wing_drop]]                               # an asymmetric stall: a separation state per wing
+    a_star = 0.30                               # (structsearch.foreign.wing_drop says what each key is)
+    a1 = 30.0
+    tau1 = 0.1
+    eta = 0.5
+    asymmetry = 0.01
+    roll = 0.05
+    yaw = 0.01
+
 A lag is a first-order separation lag on what the function reads (its table's alpha, say): the function follows
 the input with the time constant, as a separation that takes time to follow alpha does. A state is a separation
 state the project identified and exported, flown inside the aircraft: its system is copied into the aircraft and
 the function reads the state where it read ``input`` (c172p's stall latch, say, which picks the lift table's
 column). A replaced table keeps the inputs it reads and takes the given breakpoints and values. A lag and a state
-act over time, so they modify an aircraft that is flown (``simulate --jsbsim``), not one evaluated at recorded
+act over time, as a wing drop does, so they modify an aircraft that is flown (``simulate --jsbsim``), not one evaluated at recorded
 states. At least one entry; each error names the file and the entry.
 """
 from __future__ import annotations
@@ -43,8 +52,9 @@ from typing import Mapping
 from ..data.errors import DataError, DeclarationError
 from ..data.reading import parse_toml, read_text, shown
 from .aircraft_xml import parse_bytes
+from .wing_drop import OPTIONAL as WING_DROP_OPTIONAL, REQUIRED as WING_DROP_KEYS, WingDrop
 
-KEYS = ("scale", "lag", "replace", "state")
+KEYS = ("scale", "lag", "replace", "state", "wing_drop")
 SCALE_KEYS = ("function", "factor")
 LAG_KEYS = ("function", "input", "time_constant")
 REPLACE_KEYS = ("function", "rows", "values")
@@ -122,21 +132,23 @@ class State:
 
 @dataclass(frozen=True)
 class Modification:
-    """What ``--modify`` changes: functions scaled (function -> factor), inputs lagged, tables replaced and
-    separation states flown in place of inputs."""
+    """What ``--modify`` changes: functions scaled (function -> factor), inputs lagged, tables replaced,
+    separation states flown in place of inputs and an asymmetric stall (:mod:`.wing_drop`)."""
 
     scales: Mapping[str, float] = field(default_factory=dict)
     lags: tuple[Lag, ...] = ()
     tables: tuple[Table, ...] = ()
     states: tuple[State, ...] = ()
+    wing_drops: tuple[WingDrop, ...] = ()
 
     def __bool__(self) -> bool:
-        return bool(self.scales or self.lags or self.tables or self.states)
+        return bool(self.scales or self.lags or self.tables or self.states or self.wing_drops)
 
     @property
     def acts_over_time(self) -> bool:
-        """Whether it modifies only an aircraft that is flown (a lag, a state), not one evaluated at states."""
-        return bool(self.lags or self.states)
+        """Whether it modifies only an aircraft that is flown (a lag, a state, a wing drop), not one evaluated at
+        states."""
+        return bool(self.lags or self.states or self.wing_drops)
 
     @property
     def functions(self) -> tuple[str, ...]:
@@ -154,6 +166,8 @@ class Modification:
             text += "|" + ";".join(f"{g.function}<{g.input}~{g.time_constant!r}" for g in self.lags)
         if self.tables or self.states:
             text += "|" + ";".join(t.key() for t in self.tables) + "|" + ";".join(s.key() for s in self.states)
+        if self.wing_drops:
+            text += "|" + ";".join(w.key() for w in self.wing_drops)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -319,6 +333,21 @@ def _states(entries: list, path: Path) -> tuple[State, ...]:
     return tuple(out)
 
 
+def _wing_drops(entries: list, path: Path) -> tuple[WingDrop, ...]:
+    if len(entries) > 1:
+        raise DeclarationError(f"{path}: [[wing_drop]] entry 2: one wing drop flies per aircraft")
+    out = []
+    for i, e in enumerate(entries, 1):
+        where = f"{path}: [[wing_drop]] entry {i}"
+        _keys(e, WING_DROP_KEYS, WING_DROP_OPTIONAL, where, ", ".join(f"{k} = NUMBER" for k in WING_DROP_KEYS)
+              + " and optionally " + " and ".join(WING_DROP_OPTIONAL))
+        positive = ("a1", "tau1", "eta")
+        values = {k: _number(e[k], where, f"{k} must be a {'positive ' if k in positive else ''}finite number",
+                             positive=k in positive) for k in e}
+        out.append(WingDrop(**values, entry=where))
+    return tuple(out)
+
+
 def read_modify(path: str | Path) -> Modification:
     """The modification in ``path`` (module docstring)."""
     path = Path(path)
@@ -330,11 +359,12 @@ def read_modify(path: str | Path) -> Modification:
     unknown = [k for k in doc if k not in KEYS]
     if unknown:
         raise DeclarationError(f"{path}: unknown key {unknown[0]!r} (a modification holds [[scale]], [[lag]], "
-                               "[[replace]] and [[state]] entries)")
+                               "[[replace]], [[state]] and [[wing_drop]] entries)")
     modification = Modification(_scales(_entries(doc, "scale", path), path), _lags(_entries(doc, "lag", path), path),
                                 _tables(_entries(doc, "replace", path), path),
-                                _states(_entries(doc, "state", path), path))
+                                _states(_entries(doc, "state", path), path),
+                                _wing_drops(_entries(doc, "wing_drop", path), path))
     if not modification:
-        raise DeclarationError(f"{path}: no [[scale]], [[lag]], [[replace]] or [[state]] entry (function = "
+        raise DeclarationError(f"{path}: no [[scale]], [[lag]], [[replace]], [[state]] or [[wing_drop]] entry (function = "
                                "\"aero/coefficient/...\", factor = 2.0)")
     return modification

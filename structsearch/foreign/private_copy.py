@@ -30,6 +30,7 @@ from typing import Mapping, Sequence
 from ..data.errors import DeclarationError
 from .aircraft_xml import READ_TAGS, AircraftFile, parse_bytes, parse_file
 from .modify import LAG_ACTIVE, Lag, State, Table
+from .wing_drop import WingDrop, insert as insert_wing_drop
 
 NAMESPACE = "structsearch/"
 ALPHADOT = {"aero/alphadot-rad_sec": "structsearch/alphadot-rad_sec",
@@ -177,14 +178,14 @@ def _link(source: Path, target: Path) -> None:
 
 def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
               rewrite: bool = True, lags: Sequence[Lag] = (), frame_s: float = 0.01, tables: Sequence[Table] = (),
-              states: Sequence[State] = ()) -> tempfile.TemporaryDirectory:
+              states: Sequence[State] = (), wing_drops: Sequence[WingDrop] = ()) -> tempfile.TemporaryDirectory:
     """A temporary JSBSim root holding the private copy of ``aircraft`` (module docstring); the caller keeps the
     returned directory object alive while JSBSim reads from it. Without ``rewrite`` (an aircraft to fly, not to
     evaluate at given states) the aerodynamics keep reading JSBSim's own properties; only such an aircraft may
     carry ``lags`` and ``states`` (they act over time), stepped in frames of ``frame_s`` seconds."""
-    if (lags or states) and rewrite:
-        raise DeclarationError("--modify: a [[lag]] or a [[state]] acts over time: it modifies an aircraft that is "
-                               "flown (simulate --jsbsim), not one evaluated at recorded states")
+    if (lags or states or wing_drops) and rewrite:
+        raise DeclarationError("--modify: a [[lag]], a [[state]] or a [[wing_drop]] acts over time: it modifies an "
+                               "aircraft that is flown (simulate --jsbsim), not one evaluated at recorded states")
     holder = tempfile.TemporaryDirectory(prefix="structsearch-jsbsim-")
     root = Path(holder.name)
     # the name is an existing aircraft directory's own name (aircraft_xml.locate refuses '/', '\\' and '..'), never
@@ -207,5 +208,7 @@ def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
     _systems(doc, aero, states)
     for number, state in enumerate(states, 1):
         _state(aero, state, number, aircraft.name)
+    for drop in wing_drops:
+        insert_wing_drop(doc, aero, drop, aircraft.name)
     ET.ElementTree(doc).write(target / f"{aircraft.name}.xml", encoding="utf-8", xml_declaration=True)
     return holder
