@@ -99,7 +99,8 @@ def test_every_option_of_every_command_says_what_it_does():
 
 @pytest.mark.parametrize("argv,hint", [
     (["search", "--data", MISSING, "--grid", "lifts"], "did you mean 'lift'?"),
-    (["fit", "--data", MISSING, "--model", "CL-VII"], "did you mean 'CL-VI'?"),
+    (["fit", "--data", MISSING, "--model", "CL-VIj"], "did you mean 'CL-VI'?"),
+    (["fit", "--data", MISSING, "--model", "Cl-VIj"], "did you mean 'Cl-VI'?"),
     (["fit", "--data", MISSING, "--model", "cd-ixr"], "did you mean 'CD-IXr'?"),
 ])
 def test_a_misspelled_grid_or_model_gets_the_close_match(argv, hint, tmp_path, capsys):

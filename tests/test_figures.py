@@ -115,7 +115,7 @@ def test_corrected_points_scatter_around_the_static_curve(model_set, small):
     ref = rd.reference(small.split("train"))
     pts = rd.partial_points(model_set, small.data, ref, max_points=3000)
     static = rd.static_coefficients(model_set, pts["alpha"], ref)
-    for coef in rd.COEFFICIENTS:
+    for coef in rd.LONGITUDINAL:
         off = pts[coef] - static[coef]
         spread = np.std(small.data[coef])
         assert abs(np.mean(off)) < 0.05 * spread, coef

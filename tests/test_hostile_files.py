@@ -189,7 +189,7 @@ def _fit_doc(campaign_dir, **changes):
     ("deeply nested", ["nested"]),
     ("not utf-8", ["byte offset"]),
     ("a parameter missing", ["params.CL0", "missing"]),
-    ("an unknown coefficient", ["structure.coefficient", "must be one of CL, CD, Cm"]),
+    ("an unknown coefficient", ["structure.coefficient", "must be one of CL, CD, Cm, CY, Cl, Cn"]),
 ])
 def test_a_hostile_fit_json_is_one_error_naming_the_key(campaign_dir, tmp_path, case, words):
     from structsearch.api.exporting import read_fit_directory
@@ -206,7 +206,7 @@ def test_a_hostile_fit_json_is_one_error_naming_the_key(campaign_dir, tmp_path, 
     elif case == "a parameter missing":
         del doc["params"]["CL0"]
     elif case == "an unknown coefficient":
-        doc["structure"]["coefficient"] = "CY"
+        doc["structure"]["coefficient"] = "CZ"
     text = json.dumps(doc)
     if case == "deeply nested":
         text = text[:-1] + ', "x": ' + "[" * 100_000 + "]" * 100_000 + "}"

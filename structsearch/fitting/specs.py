@@ -45,10 +45,17 @@ GLOBAL_TABLES = MappingProxyType({g: c for g, c in COEFFICIENT_OF_GRID.items() i
 
 
 def suggestion(name: str, known) -> str:
-    """" (did you mean 'lift'?)" for a close match among ``known`` (case ignored), else ""."""
-    by_lower = {k.lower(): k for k in known}
+    """" (did you mean 'lift'?)" for a close match among ``known`` (case ignored; of names alike but for their
+    case, CL-VI and Cl-VI, the one spelt as ``name`` is), else ""."""
+    by_lower: dict[str, list[str]] = {}
+    for k in known:
+        by_lower.setdefault(k.lower(), []).append(k)
     close = difflib.get_close_matches(name.lower(), list(by_lower), n=1, cutoff=0.6)
-    return f" (did you mean {by_lower[close[0]]!r}?)" if close else ""
+    if not close:
+        return ""
+    alike = by_lower[close[0]]
+    best = max(alike, key=lambda k: difflib.SequenceMatcher(None, name, k).ratio())
+    return f" (did you mean {best!r}?)"
 
 
 def declaration_error(source: str, message: str) -> DeclarationError:

@@ -11,7 +11,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..data.coefficients import COEFFICIENTS as MODELLED
+from ..data.coefficients import LONGITUDINAL as MODELLED
 from ..data.campaign import Campaign
 from ..data.flightdata import FlightData
 from ..data.reduction import body_from_lift_drag
