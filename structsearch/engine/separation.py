@@ -35,6 +35,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from ..data.errors import DeclarationError
+from ..data.flightdata import derivative
 from .static_forms import DEFAULT_FORM, check_form, form_parameters, static_gradient, tanh_curve
 
 from .state_kinds import (KINDS, PARAMETERS_OF_KIND, TIME_PARAMETERS_OF_KIND, is_delayed, is_lagged,  # noqa: F401
@@ -59,12 +60,14 @@ class SeparationState:
 
     An empty name gives symbol ``X`` and parameters ``tau1, tau2, a1, a_star``. ``form`` is its static curve
     X0 (:mod:`.static_forms`; "tanh", the default, has a1 and a_star), whose parameters follow the kind's time
-    constants.
+    constants. ``drive``: the state reads alpha + drive p* (p* = p b / (2 V)) in place of alpha, a wing's own
+    angle of attack (a wing at ``drive`` half spans to the right of the plane of symmetry; 0: the aircraft's).
     """
 
     name: str
     kind: str
     form: str = DEFAULT_FORM
+    drive: float = 0.0
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -357,6 +360,26 @@ def _lag_from_equilibrium(t, u, du, tau1, bounds, step):
             dtau = linear_recurrence(a_full, forcing, 0.0)
         x_out[s:e], dx_out[s:e], dtau_out[s:e] = x, dx, dtau
     return x_out, dx_out, dtau_out
+
+
+def driven_alpha(data, drive: float) -> tuple[np.ndarray, np.ndarray]:
+    """(alpha, alpha_dot) a state of ``drive`` reads (:class:`SeparationState`): the aircraft's, or a wing's own,
+    alpha + drive p*, with its rate alpha_dot + drive dp*/dt (each maneuver differentiated on its own, as
+    alpha_dot is). A wing's pair is kept in the data's memo: every model bound to the data reads the same one."""
+    if not drive:
+        return data["alpha"], data["alpha_dot"]
+    memo = data.memo("driven alpha")
+    if drive not in memo:
+        pstar = data["p"] * data.constants["b"] / (2.0 * data["V"])
+        t, periods = data["t"], data.period_array
+        rate = np.concatenate([derivative(pstar[a:b], t[a:b], None if periods is None or not np.isfinite(periods[k])
+                                          else float(periods[k]))
+                               for k, (a, b) in enumerate(zip(data.bounds[:-1], data.bounds[1:]))])
+        pair = (data["alpha"] + drive * pstar, data["alpha_dot"] + drive * rate)
+        for x in pair:
+            x.setflags(write=False)
+        memo[drive] = pair
+    return memo[drive]
 
 
 def evaluate_state(state: SeparationState, values: dict[str, float], alpha: np.ndarray,

@@ -29,7 +29,7 @@ from .identifiability import SATURATION, check_parameter_names, collinear_with, 
 from .regressors import X_FLOOR, Regressor, declare
 from .results import FitResult
 from ..data.default_boxes import data_bounds
-from .separation import SeparationState, common_step, evaluate_state
+from .separation import SeparationState, common_step, driven_alpha, evaluate_state
 from .static_forms import LOCATION_PARAMETERS, SEPARATION_BOUNDS, SEPARATION_STARTS
 from .ols import ols
 from .snls import BoundProblem, Evaluation, MultistartOutcome, model_jacobian, multistart, solve_recorded, start_list
@@ -55,21 +55,23 @@ class StallModel:
                 bounds: Mapping[str, tuple[float, float]] | None = None,
                 fixed: Mapping[str, float] | None = None,
                 forms: Mapping[str, str] | None = None,
-                offset: tuple[str, str] | None = None) -> "StallModel":
+                offset: tuple[str, str] | None = None,
+                drives: Mapping[str, float] | None = None) -> "StallModel":
         """``states`` maps a state name ("ss", "w", or "" for plain X) to its kind S, Q or U; ``forms`` a state
         name to its static curve (:mod:`.static_forms`; a state not named has the tanh).
 
-        ``fixed`` holds separation parameters that are not estimated (a drag or
-        pitch model takes its states from the identified lift model); a model
-        whose separation parameters are all fixed is fitted by OLS. ``offset``: (name, expression)
+        ``fixed`` holds separation parameters that are not estimated (a drag or pitch model takes its states from
+        the identified lift model); a model whose separation parameters are all fixed is fitted by OLS. ``offset``: (name, expression)
         of a known term added to the output with its coefficient fixed at 1 (it reads no separation state).
+        ``drives``: a state name to its drive (a wing's state: :class:`~.separation.SeparationState`).
         """
         forms = dict(forms or {})
         stray = [n for n in forms if n not in (states or {})]
         if stray:
             raise DeclarationError(f"model {name!r}: a static separation form for {stray[0]!r}, which is not one of "
                                    f"its states ({', '.join(states or {}) or 'none'})")
-        state_objs = tuple(SeparationState(n, k, forms.get(n, "tanh")) for n, k in (states or {}).items())
+        state_objs = tuple(SeparationState(n, k, forms.get(n, "tanh"), (drives or {}).get(n, 0.0))
+                           for n, k in (states or {}).items())
         symbols = [s.symbol for s in state_objs]
         if len(set(symbols)) != len(symbols):
             raise DeclarationError(f"model {name!r}: separation state declared twice")
@@ -114,8 +116,9 @@ class StallModel:
 
     @property
     def state_inputs(self) -> tuple[str, ...]:
-        """The data columns the separation states read."""
-        return ("alpha", "alpha_dot", "t") if self.states else ()
+        """The data columns the separation states read (a wing's state its roll rate and airspeed too)."""
+        wing = ("p", "V") if any(s.drive for s in self.states) else ()
+        return ("alpha", "alpha_dot", "t") + wing if self.states else ()
 
     @property
     def required_columns(self) -> tuple[str, ...]:
@@ -338,13 +341,13 @@ class StallProblem(BoundProblem):
                 if x is None:
                     if len(fixed) >= FIXED_STATES_KEPT:  # a loop over fixed values must not hoard samples
                         fixed.pop(next(iter(fixed)), None)
-                    x = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step,
+                    x = evaluate_state(s, values, *driven_alpha(d, s.drive), d["t"], d.bounds, self._step,
                                        False, d.period_array)[0]
                     x.setflags(write=False)  # shared by every model bound to this data
                     fixed[memo_key] = x
                 out[s.symbol] = (index, x, None)
                 continue
-            x, dx = evaluate_state(s, values, d["alpha"], d["alpha_dot"], d["t"], d.bounds, self._step,
+            x, dx = evaluate_state(s, values, *driven_alpha(d, s.drive), d["t"], d.bounds, self._step,
                                    sensitivities, d.period_array)
             out[s.symbol] = (index, x, dx)
         self.__dict__["_last_states"] = (key, sensitivities, out)  # frozen dataclass: a cache, not a field

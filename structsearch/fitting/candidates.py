@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass, field
 
 from ..data.errors import DeclarationError
@@ -9,6 +10,33 @@ from ..data.errors import DeclarationError
 # Where a pitch candidate's C_m is taken about (docs/interfaces.md 7.5): the recorded cg, or the fixed
 # ``[aircraft] reference_point``, moved to the recorded cg by the known transfer (structsearch.data.moment_transfer).
 MOMENT_REFERENCES = ("cg", "fixed")
+
+
+# a wing state's angle of attack: alpha, plus or minus a number times p* (parsed, never evaluated)
+_DRIVE = re.compile(r"\s*alpha\s*([+-])\s*(?:([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*\*\s*pstar|pstar\s*\*\s*"
+                    r"([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?))\s*")
+
+
+def parse_drives(table, where: str) -> tuple[tuple[str, float], ...]:
+    """A ``drive`` table (wing state symbol -> "alpha - 0.5*pstar") as (state name, drive) pairs; one error naming
+    ``where`` and the state for anything else."""
+    if not isinstance(table, dict):
+        raise DeclarationError(f"{where}: drive is a table of wing states, such as "
+                               "{ X_left = \"alpha - 0.5*pstar\", X_right = \"alpha + 0.5*pstar\" }")
+    out = []
+    for symbol, text in table.items():
+        m = _DRIVE.fullmatch(text) if isinstance(text, str) else None
+        if not symbol.startswith("X_") or not symbol[2:].isidentifier() or m is None:
+            raise DeclarationError(f"{where}: drive {symbol!r} = {text!r}: a wing state X_<name> read at "
+                                   "\"alpha + NUMBER*pstar\" or \"alpha - NUMBER*pstar\" (p* = p b / (2 V))")
+        number = float(m[2] or m[3])
+        out.append((symbol[2:], number if m[1] == "+" else -number))
+    return tuple(out)
+
+
+def drive_text(drive: float) -> str:
+    """The angle of attack a wing state of ``drive`` reads, as a drive table writes it."""
+    return f"alpha {'+' if drive >= 0 else '-'} {abs(drive):g}*pstar"
 
 
 @dataclass(frozen=True)
@@ -35,6 +63,9 @@ class Candidate:
     # known terms (name, expression) added to the output with their coefficient fixed at 1, never estimated (a
     # simulator's term taken out of a fixed offset: structsearch.diagnosis.offset)
     known: tuple[tuple[str, str], ...] = ()
+    # a lift-fed structure's wing states (name, drive): each the lift model's wing state (its only state, or its
+    # "w") at the wing's own angle of attack alpha + drive p* (structsearch.engine.separation.SeparationState)
+    wings: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self):
         given = dict(self.forms)
@@ -98,6 +129,8 @@ class Candidate:
             out["moment_reference"] = self.moment_reference
         if self.known:
             out["known"] = dict(self.known)
+        if self.wings:
+            out["drive"] = {f"X_{n}": drive_text(d) for n, d in self.wings}
         return out
 
     @classmethod
@@ -106,7 +139,8 @@ class Candidate:
         return cls(d["name"], d["grid"], d["coefficient"], tuple(d["regressors"].items()), tuple(d["states"].items()),
                    d["lift"], d.get("note", ""), tuple((k, tuple(v)) for k, v in d.get("bounds", {}).items()),
                    tuple(d.get("x0", {}).items()), flight_effects=tuple(d.get("flight_effects", ())),
-                   moment_reference=d.get("moment_reference", "cg"), known=tuple(d.get("known", {}).items()))
+                   moment_reference=d.get("moment_reference", "cg"), known=tuple(d.get("known", {}).items()),
+                   wings=parse_drives(d.get("drive", {}), f"candidate {d['name']!r}"))
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from ..engine.regressors import parse
 from ..engine.separation import SeparationState
 from ..engine.static_forms import check_form
 from .spec_types import ENTRY_TYPES, GRID_TYPES, check_types
-from .candidates import MOMENT_REFERENCES, Candidate, Grid, from_roman, roman
+from .candidates import MOMENT_REFERENCES, Candidate, Grid, from_roman, parse_drives, roman
 from ..data.reading import shown
 
 
@@ -33,7 +33,7 @@ def _blocks(doc: dict, names: Sequence[str], where: str) -> list[tuple[str, str]
 # Every key a grid file and each of its entries may hold: any other is a typo, refused with the close match.
 GRID_KEYS = ("name", "coefficient", "prefix", "lift", "sets", "blocks", "bounds", "entry")
 ENTRY_KEYS = ("name", "lift", "states", "note", "bounds", "from", "drop", "kinds", "prefix", "blocks", "always",
-              "combinations", "regressors", "flight_effects", "x0", "moment_reference")
+              "combinations", "regressors", "flight_effects", "x0", "moment_reference", "drive")
 
 
 def check_keys(table: dict, known: Sequence[str], where: str) -> None:
@@ -121,7 +121,7 @@ def expand(doc: dict, source: str) -> Grid:
         check_keys(entry, ENTRY_KEYS, where)
         first_of_entry = len(candidates)
         lift = entry.get("lift", default_lift)
-        states = tuple((k, v) for k, v in entry.get("states", {}).items())
+        states = _own_states(entry)
         note = entry.get("note", "")
         bounds = _bounds(doc.get("bounds", {}), f"{source} [bounds]")
         own_bounds = _bounds(entry.get("bounds", {}), f"{where} bounds")
@@ -131,6 +131,7 @@ def expand(doc: dict, source: str) -> Grid:
         reference = _moment_reference(entry, coefficient, where)
         _declare_entry(doc, entry, where, candidates, add, (lift, states, note, bounds, own_bounds, reference))
         _with_flight_effects(candidates, first_of_entry, entry, where)
+        _with_wings(candidates, first_of_entry, entry, where)
         unused = [k for k, _ in own_bounds if k not in used_bounds]
         if unused:
             raise DeclarationError(f"{where}: bounds for {shown(unused[0])}, which no candidate of this entry has as a "
@@ -177,6 +178,32 @@ def _declare_entry(doc: dict, entry: dict, where: str, candidates: list[Candidat
         regs += [(k, str(v)) for k, v in entry.get("regressors", {}).items()]
         add(entry.get("name"), regs, states, lift, note, where, bounds, _forms(entry, [n for n, _ in states],
                                                                            lift, where), reference or "cg")
+
+
+def _own_states(entry: dict) -> tuple[tuple[str, str], ...]:
+    """The entry's own states (name, kind); a list of states names wing states instead (:func:`_with_wings`)."""
+    declared = entry.get("states", {})
+    return tuple(declared.items()) if isinstance(declared, dict) else ()
+
+
+def _with_wings(candidates: list[Candidate], first: int, entry: dict, where: str) -> None:
+    """The entry's wing states (``drive``, and ``states`` as a list naming the same ones) on the candidates it
+    declared (from ``first``): lift-fed candidates only, each reading the lift model's wing state."""
+    declared = entry.get("states", {})
+    if "drive" not in entry:
+        if isinstance(declared, list):
+            raise DeclarationError(f"{where}: states = [...] names wing states: give each one's angle of attack "
+                                   "in drive = { X_left = \"alpha - 0.5*pstar\", ... }")
+        return
+    wings = parse_drives(entry["drive"], where)
+    if isinstance(declared, list) and sorted(declared) != sorted(f"X_{n}" for n, _ in wings):
+        raise DeclarationError(f"{where}: states {declared} and drive {sorted(entry['drive'])} name different "
+                               "wing states")
+    for i in range(first, len(candidates)):
+        if not candidates[i].lift:
+            raise DeclarationError(f"{where} ({candidates[i].name}): wing states are the lift model's wing state "
+                                   "at each wing's angle of attack: give the entry a lift model (lift = \"CL-II\")")
+        candidates[i] = dataclasses.replace(candidates[i], wings=wings)
 
 
 def _with_flight_effects(candidates: list[Candidate], first: int, entry: dict, where: str) -> None:

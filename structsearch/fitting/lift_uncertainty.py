@@ -24,6 +24,7 @@ from ..engine.snls import model_jacobian
 from ..engine.stallmodel import StallModel
 from ..engine.statistics import Covariances, covariance_kind, flight_count
 from ..engine.twostep import generated_regressor_covariance, influence_covariance
+from .models import wing_aliases
 
 if TYPE_CHECKING:
     from .lift_context import LiftContext
@@ -45,7 +46,9 @@ def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lif
     coef = np.array([params[n] for n in model.linear_names], float)
     free = dataclasses.replace(model, fixed={})  # the shared separation parameters, now with derivatives
     problem = free.bind(predicted)
-    theta = np.array([lift_params[n] for n in free.nonlinear_names], float)
+    # a wing state's parameters are the lift model's wing state's: each moves with the parameter it copies
+    lift_name = wing_aliases(model, lift_params)
+    theta = np.array([lift_params[lift_name.get(n, n)] for n in free.nonlinear_names], float)
     through_states = model_jacobian(problem.evaluate(theta), coef, len(theta))[:, :len(theta)]
     x_values = {sym: v[1] for sym, v in problem.state_values(theta, False).items()}
     d_output_d_cl = sum((c * reg.column_derivative("CL", predicted, x_values, m)
@@ -56,8 +59,9 @@ def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lif
     cols = []
     for name in names:
         col = d_output_d_cl * lift_jacobian[:, lift_names.index(name)]
-        if name in free.nonlinear_names:
-            col = col + through_states[:, free.nonlinear_names.index(name)]
+        for j, own in enumerate(free.nonlinear_names):
+            if lift_name.get(own, own) == name:
+                col = col + through_states[:, j]
         cols.append(col)
     return np.column_stack(cols)
 

@@ -5,7 +5,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..data.errors import StructSearchError
+from ..data.errors import DeclarationError, StructSearchError
 from ..data.flightdata import FlightData
 from ..data.moment_transfer import TRANSFER_EXPRESSION, TRANSFER_NAME
 from ..engine.regressors import declare
@@ -24,12 +24,50 @@ def build_model(c: Candidate, lift: LiftFit | None = None) -> StallModel:
 
 def used_states(c: Candidate) -> dict[str, str]:
     """The states (name -> kind) ``c``'s regressors use: of a drag or pitch candidate, the lift model's states it
-    reads (CD-X reads none)."""
+    reads (CD-X reads none); a wing state is not among them (:func:`wing_states`)."""
     states = dict(c.states)
     symbols = {SeparationState(n, k, c.form_of(n)).symbol: n for n, k in states.items()}
+    wings = [SeparationState(n, "S").symbol for n, _ in c.wings]
     used = {s for name, text in c.regressors
-            for s in declare(name, text, states=list(symbols), free_columns=True).states}
+            for s in declare(name, text, states=list(symbols) + wings, free_columns=True).states}
     return {symbols[s]: states[symbols[s]] for s in symbols if s in used}
+
+
+def wing_source(c: Candidate) -> str:
+    """The lift model's state each wing state of ``c`` copies: its only state, or its wing's ("w")."""
+    names = [n for n, _ in c.states]
+    if len(names) == 1 or "w" in names:
+        return names[0] if len(names) == 1 else "w"
+    raise DeclarationError(f"candidate {c.name}: its wing states copy the lift model {c.lift}'s wing state, and "
+                           f"{c.lift} has neither one state nor one named 'w' ({', '.join(names) or 'none'})")
+
+
+def wing_aliases(model: StallModel, lift_params: Mapping[str, float]) -> dict[str, str]:
+    """Each wing state's parameter of ``model`` -> the lift model's parameter it copies (:func:`wing_states`: the
+    lift model's only state's, or its wing's "w")."""
+    out = {}
+    for s in model.states:
+        if s.drive:
+            for base in s.base_parameters:
+                found = [k for k in lift_params if k == base or k.startswith(base + "_")]
+                out[s.parameter_name(base)] = found[0] if len(found) == 1 else f"{base}_w"
+    return out
+
+
+def wing_states(c: Candidate, lift_params: Mapping[str, float]) -> tuple[dict, dict, dict, dict]:
+    """(states, forms, fixed parameters, drives) of ``c``'s wing states: the lift model's wing state (kind, form,
+    fitted parameters) read at each wing's own angle of attack."""
+    source = wing_source(c)
+    kind, form = dict(c.states)[source], c.form_of(source)
+    shared = SeparationState(source, kind, form)
+    states, forms, fixed, drives = {}, {}, {}, {}
+    for name, drive in c.wings:
+        states[name], drives[name] = kind, drive
+        if form != "tanh":
+            forms[name] = form
+        wing = SeparationState(name, kind, form)
+        fixed.update({wing.parameter_name(p): lift_params[shared.parameter_name(p)] for p in shared.base_parameters})
+    return states, forms, fixed, drives
 
 
 def model_with_lift(c: Candidate, lift_params: Mapping[str, float] | None) -> StallModel:
@@ -38,18 +76,25 @@ def model_with_lift(c: Candidate, lift_params: Mapping[str, float] | None) -> St
     parameters are free (a joint fit estimates them with the lift model's)."""
     fixed = None
     states = dict(c.states)
+    wings: tuple[dict, dict, dict, dict] = ({}, {}, {}, {})
     if c.lift:
         states = used_states(c)
         own = {p for n, k in states.items() for p in SeparationState(n, k, c.form_of(n)).parameters}
         fixed = {k: v for k, v in lift_params.items() if k in own}
+        if c.wings:
+            wings = wing_states(c, lift_params)
+            fixed.update(wings[2])
+    elif c.wings:
+        raise DeclarationError(f"candidate {c.name}: wing states read a fitted lift model")
     free_bounds = {k: v for k, v in c.bounds if not fixed or k not in fixed}
     free_bounds = {k: v for k, v in free_bounds.items()
                    if k in {p for n, kd in states.items() for p in SeparationState(n, kd, c.form_of(n)).parameters}}
-    forms = {n: f for n, f in c.forms if n in states}
+    forms = {**{n: f for n, f in c.forms if n in states}, **wings[1]}
+    states.update(wings[0])
     # about the fixed reference point: C_m about the recorded cg is the model's plus the known transfer
     offset = known_offset(c)
     return StallModel.declare(c.name, c.coefficient, dict(c.regressors), states=states, fixed=fixed,
-                              bounds=free_bounds, forms=forms, offset=offset)
+                              bounds=free_bounds, forms=forms, offset=offset, drives=wings[3])
 
 
 def known_offset(c: Candidate) -> tuple[str, str] | None:

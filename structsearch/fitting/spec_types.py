@@ -76,7 +76,11 @@ GRID_TYPES: Mapping[str, tuple[Callable, str]] = {
 ENTRY_TYPES: Mapping[str, tuple[Callable, str]] = {
     "name": (_name, "a non-empty string"),
     "lift": (_string, "the name of a lift candidate"),
-    "states": (_table_of(_string), "a table of state names to kinds, such as { ss = \"S\" }"),
+    "states": (lambda v: _table_of(_string)(v) or (isinstance(v, list) and all(_string(x) for x in v)),
+               "a table of state names to kinds, such as { ss = \"S\" }, or (with drive) a list of wing states, "
+               "such as [\"X_left\", \"X_right\"]"),
+    "drive": (_table_of(_string), "a table of wing states to the angle of attack each reads, such as "
+                                  "{ X_left = \"alpha - 0.5*pstar\" }"),
     "note": (_string, "a string"),
     "bounds": (_table, "a table of parameter = [lo, hi]"),
     "from": (_string, "the name of a candidate declared before"),

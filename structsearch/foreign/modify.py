@@ -154,7 +154,8 @@ class Modification:
     def functions(self) -> tuple[str, ...]:
         """Every function the modification names (each must be one of the aircraft's axis functions)."""
         return tuple(dict.fromkeys([*self.scales, *(lag.function for lag in self.lags),
-                                    *(t.function for t in self.tables), *(s.function for s in self.states)]))
+                                    *(t.function for t in self.tables), *(s.function for s in self.states),
+                                    *(w.function for w in self.wing_drops if w.function)]))
 
     def digest(self) -> str:
         """A short digest of the modification, "none" without one (a campaign's ``source.modify``). A modification
@@ -341,10 +342,14 @@ def _wing_drops(entries: list, path: Path) -> tuple[WingDrop, ...]:
         where = f"{path}: [[wing_drop]] entry {i}"
         _keys(e, WING_DROP_KEYS, WING_DROP_OPTIONAL, where, ", ".join(f"{k} = NUMBER" for k in WING_DROP_KEYS)
               + " and optionally " + " and ".join(WING_DROP_OPTIONAL))
+        if ("function" in e) != ("input" in e):
+            raise DeclarationError(f"{where}: function and input go together (the axis function that reads the "
+                                   "wings' mean separation, and the property it reads it in place of)")
         positive = ("a1", "tau1", "eta")
         values = {k: _number(e[k], where, f"{k} must be a {'positive ' if k in positive else ''}finite number",
-                             positive=k in positive) for k in e}
-        out.append(WingDrop(**values, entry=where))
+                             positive=k in positive) for k in e if k not in ("function", "input")}
+        names = {k: _name(e[k], where, f"{k} must be a property's name") for k in ("function", "input") if k in e}
+        out.append(WingDrop(**values, **names, entry=where))
     return tuple(out)
 
 

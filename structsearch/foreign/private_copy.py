@@ -30,7 +30,7 @@ from typing import Mapping, Sequence
 from ..data.errors import DeclarationError
 from .aircraft_xml import READ_TAGS, AircraftFile, parse_bytes, parse_file
 from .modify import LAG_ACTIVE, Lag, State, Table
-from .wing_drop import WingDrop, insert as insert_wing_drop
+from .wing_drop import SEPARATED as WING_SEPARATED, WingDrop, insert as insert_wing_drop, separated as wing_separated
 
 NAMESPACE = "structsearch/"
 ALPHADOT = {"aero/alphadot-rad_sec": "structsearch/alphadot-rad_sec",
@@ -210,5 +210,8 @@ def make_copy(aircraft: AircraftFile, scales: Mapping[str, float] | None = None,
         _state(aero, state, number, aircraft.name)
     for drop in wing_drops:
         insert_wing_drop(doc, aero, drop, aircraft.name)
+        if drop.function:   # the lift stalls with the wings
+            _insert_ahead(aero, wing_separated())
+            _read_instead(aero, drop.function, drop.input, WING_SEPARATED, aircraft.name, drop.entry)
     ET.ElementTree(doc).write(target / f"{aircraft.name}.xml", encoding="utf-8", xml_declaration=True)
     return holder

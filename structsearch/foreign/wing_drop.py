@@ -8,13 +8,17 @@
     asymmetry = 0.01    # rad: the right wing's a_star lies this much below the left one's (optional, 0)
     roll = 0.05         # C_l per unit of X_left - X_right: the more separated wing drops
     yaw = 0.01          # C_n per unit of X_left - X_right (optional, 0): and yaws the nose toward it
+    function = "aero/coefficient/CLwbh"   # optional: an axis function that reads the wings' mean separation,
+    input = "aero/stall-hyst-norm"        # 1 - (X_left + X_right)/2, where it read this property (a stall latch)
 
 Each wing sees its own angle of attack, alpha -+ eta p b / (2 V) (the right wing, going down when p > 0, sees
 more). A system (``structsearch-wing-drop``) computes both states in the aircraft's flight-control loop, each a
 JSBSim ``lag_filter`` of its static curve; the ROLL and YAW axes gain a function each,
 q S b roll (X_left - X_right) and q S b yaw (X_left - X_right). Fed back through the roll rate, the wing that
 separates first drops and separates further: the wing drop of an asymmetric stall. The states are the properties
-``structsearch/wing-drop/X-left`` and ``.../X-right``.
+``structsearch/wing-drop/X-left`` and ``.../X-right``. With ``function`` and ``input`` the lift stalls with the
+wings: c172p's lift table, which picks its attached or stalled column by its stall latch, blends them by the wings'
+mean separation instead (as ``[[state]]`` with ``complement`` does).
 """
 from __future__ import annotations
 
@@ -29,7 +33,8 @@ STATES = {"X_left": f"{NAMESPACE}/X-left", "X_right": f"{NAMESPACE}/X-right"}
 PSTAR = ("velocities/p-aero-rad_sec", "aero/bi2vel")
 MOMENT = ("aero/qbar-psf", "metrics/Sw-sqft", "metrics/bw-ft")
 REQUIRED = ("a_star", "a1", "tau1", "eta", "roll")
-OPTIONAL = ("asymmetry", "yaw")
+OPTIONAL = ("asymmetry", "yaw", "function", "input")
+SEPARATED = f"{NAMESPACE}/separated"
 
 
 @dataclass(frozen=True)
@@ -43,6 +48,8 @@ class WingDrop:
     roll: float
     asymmetry: float = 0.0
     yaw: float = 0.0
+    function: str = ""
+    input: str = ""
     entry: str = "[[wing_drop]]"
 
     def key(self) -> str:
@@ -96,8 +103,15 @@ def moment_function(drop: WingDrop, axis: str) -> ET.Element:
                     name=f"{NAMESPACE}/C{'l' if axis == 'ROLL' else 'n'}")
 
 
+def separated() -> ET.Element:
+    """The wings' mean separation, 1 - (X_left + X_right) / 2, as a function ahead of the axes."""
+    mean = _element("product", _value(0.5), _element("sum", _prop(STATES["X_left"]), _prop(STATES["X_right"])))
+    return _element("function", _element("difference", _value(1.0), mean), name=SEPARATED)
+
+
 def insert(doc: ET.Element, aero: ET.Element, drop: WingDrop, aircraft: str) -> None:
-    """The wing drop's system ahead of the aerodynamics, and its functions in the ROLL and YAW axes."""
+    """The wing drop's system ahead of the aerodynamics, and its functions in the ROLL and YAW axes (the function
+    reading the wings' mean separation: :func:`structsearch.foreign.private_copy.make_copy`)."""
     doc.insert(list(doc).index(aero), system(drop))
     for axis in ("ROLL", "YAW"):
         found = [a for a in aero.findall("axis") if a.get("name") == axis]
