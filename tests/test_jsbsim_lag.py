@@ -33,7 +33,7 @@ def test_a_lag_entry_is_read_with_its_number_and_properties(tmp_path):
     ('[[lag]]\nfunction = "aero/coefficient/CLwbh"\ninput = ""\ntime_constant = 1\n', "input must be the name"),
     (LAG.format(tau=0.3) * 2, "already reads aero/alpha-rad lagged"),
     ("lag = 3\n", "must be a list"),
-    ("", "no [[scale]], [[lag]], [[replace]] or [[state]] entry"),
+    ("", "no [[scale]], [[lag]], [[replace]], [[state]] or [[wing_drop]] entry"),
 ])
 def test_a_bad_lag_entry_is_one_error_naming_file_and_entry(tmp_path, text, words):
     path = tmp_path / "bad.toml"

@@ -192,8 +192,9 @@ def _with_wings(candidates: list[Candidate], first: int, entry: dict, where: str
     declared = entry.get("states", {})
     if "drive" not in entry:
         if isinstance(declared, list):
-            raise DeclarationError(f"{where}: states = [...] names wing states: give each one's angle of attack "
-                                   "in drive = { X_left = \"alpha - 0.5*pstar\", ... }")
+            raise DeclarationError(f"{where}: 'states' as a list names wing states: give each one's angle of "
+                                   "attack in drive = { X_left = \"alpha - 0.5*pstar\", ... } (own states are a "
+                                   "table of state names to kinds, such as { ss = \"S\" })")
         return
     wings = parse_drives(entry["drive"], where)
     if isinstance(declared, list) and sorted(declared) != sorted(f"X_{n}" for n, _ in wings):
