@@ -23,7 +23,8 @@ class Coefficient:
     theirs, and C_L, from a lift model. ``latex``: its symbol in equations. ``k_term``: the (name, expression)
     templates of the term a new separation state brings into its structure (``{c}`` the coefficient, ``{s}`` the
     state's suffix, ``{X}`` its symbol: Kirchhoff's lift, the separation drag 1 - X, the centre-of-pressure
-    shift (1 - X) C_L)."""
+    shift (1 - X) C_L). ``transfer_reads``: the campaign signals the term a simulator's axis functions need beside
+    them follows (a moment's transfer to the cg, the side force's turn into body axes)."""
 
     name: str
     quantity: str
@@ -34,6 +35,7 @@ class Coefficient:
     moment: bool = False
     owns_states: bool = False
     lateral: bool = False
+    transfer_reads: tuple[str, ...] = ()
 
     @property
     def length(self) -> str:
@@ -45,15 +47,17 @@ class Coefficient:
 COEFFICIENTS = MappingProxyType({c.name: c for c in (
     Coefficient("CL", "lift", "lift", "LIFT", "C_L", ("{c}_KL{s}", "K_L({X})"), owns_states=True),
     Coefficient("CD", "drag", "drag", "DRAG", "C_D", ("{c}_1mX{s}", "1 - {X}")),
-    Coefficient("Cm", "pitching moment", "pitch", "PITCH", "C_m", ("{c}_1mX{s}CL", "(1 - {X})*CL"), moment=True),
+    Coefficient("Cm", "pitching moment", "pitch", "PITCH", "C_m", ("{c}_1mX{s}CL", "(1 - {X})*CL"), moment=True,
+                transfer_reads=("CL", "x_cg")),
     # lateral-directional (body axes: side force right, rolling moment right wing down, yawing moment nose right);
     # a separation state brings the side force and yawing moment a share of the flow lost, the rolling moment the
     # roll damping lost with it
-    Coefficient("CY", "side force", "side", "SIDE", "C_Y", ("{c}_1mX{s}beta", "(1 - {X})*beta"), lateral=True),
+    Coefficient("CY", "side force", "side", "SIDE", "C_Y", ("{c}_1mX{s}beta", "(1 - {X})*beta"), lateral=True,
+                transfer_reads=("beta", "CD")),
     Coefficient("Cl", "rolling moment", "roll", "ROLL", "C_l", ("{c}_1mX{s}p", "(1 - {X})*pstar"), moment=True,
-                lateral=True),
+                lateral=True, transfer_reads=("CL", "CY")),
     Coefficient("Cn", "yawing moment", "yaw", "YAW", "C_n", ("{c}_1mX{s}r", "(1 - {X})*rstar"), moment=True,
-                lateral=True),
+                lateral=True, transfer_reads=("CY", "CD")),
 )})
 LIFT = COEFFICIENTS["CL"]
 # each coefficient's shipped grid, and each grid's coefficient

@@ -26,7 +26,7 @@ from .folds import UNITS_BELOW_MANEUVERS, FoldPlan, plan_folds, score_units
 from .lift_context import lift_context
 from .lift_fit import LiftFit
 from .lift_uncertainty import with_lift_uncertainty
-from .models import build_model
+from .models import build_model, wing_aliases
 from .options import FitOptions
 from .specs import lift_candidate as named_lift
 from .staging import nested_start, STAGE_STARTS, WARM_STARTS, stages
@@ -140,7 +140,8 @@ def fit_from(c: Candidate, train: FlightData, validation: FlightData, lift: Lift
                            covariance="white" if white else options.covariance)
         if setup.context is not None and not options.scores_only:
             result = with_lift_uncertainty(result, model, setup.measured, lift, setup.context, options.covariance,
-                                           predicted=train if effects is not None else None)
+                                           predicted=train if effects is not None else None,
+                                           aliases=wing_aliases(c))
         plan = plan_folds(train, options.cv_folds, options.cv_fold_size, options.cv_block_convective_times)
         apart = folds_apart and bool(plan.folds) and bool(model.nonlinear_names) and options.cv_method == "refit"
         cv = None

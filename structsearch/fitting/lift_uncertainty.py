@@ -13,7 +13,7 @@ chain rule through the shared separation states and through the C_L column, see
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
@@ -24,7 +24,6 @@ from ..engine.snls import model_jacobian
 from ..engine.stallmodel import StallModel
 from ..engine.statistics import Covariances, covariance_kind, flight_count
 from ..engine.twostep import generated_regressor_covariance, influence_covariance
-from .models import wing_aliases
 
 if TYPE_CHECKING:
     from .lift_context import LiftContext
@@ -32,7 +31,7 @@ if TYPE_CHECKING:
 
 
 def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lift_jacobian: np.ndarray,
-                     lift_names, lift_params: dict, names) -> np.ndarray:
+                     lift_names, lift_params: dict, names, aliases: Mapping[str, str] | None = None) -> np.ndarray:
     """d (candidate output) / d (lift parameter), one column per name in ``names``.
 
     ``model`` is the candidate with the lift model's separation parameters fixed, ``predicted`` the data
@@ -40,14 +39,15 @@ def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lif
     Jacobian on it, one column per name in ``lift_names``. The lift model reaches the candidate two ways,
     so by the chain rule the sensitivity is the candidate's derivative in the shared separation
     parameters (its regressors' state derivatives, with the states' own sensitivities) plus its
-    derivative in the C_L column times the lift model's Jacobian.
+    derivative in the C_L column times the lift model's Jacobian. ``aliases``: a parameter of ``model`` -> the
+    lift model's it copies under another name (a wing state's: :func:`.models.wing_aliases`).
     """
     m = predicted.n_samples
     coef = np.array([params[n] for n in model.linear_names], float)
     free = dataclasses.replace(model, fixed={})  # the shared separation parameters, now with derivatives
     problem = free.bind(predicted)
     # a wing state's parameters are the lift model's wing state's: each moves with the parameter it copies
-    lift_name = wing_aliases(model, lift_params)
+    lift_name = dict(aliases or {})
     theta = np.array([lift_params[lift_name.get(n, n)] for n in free.nonlinear_names], float)
     through_states = model_jacobian(problem.evaluate(theta), coef, len(theta))[:, :len(theta)]
     x_values = {sym: v[1] for sym, v in problem.state_values(theta, False).items()}
@@ -68,7 +68,7 @@ def lift_sensitivity(model: StallModel, params: dict, predicted: FlightData, lif
 
 def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightData, lift: "LiftFit",
                           context: "LiftContext", kind: str | None = None,
-                          predicted: FlightData | None = None) -> FitResult:
+                          predicted: FlightData | None = None, aliases: Mapping[str, str] | None = None) -> FitResult:
     """``result`` of ``model`` (a drag or pitch candidate with the lift states fixed) with the two-step
     covariance of ``kind`` (default: the one ``result`` has). ``train`` is the training data as measured;
     ``context`` the lift model's :class:`~structsearch.fitting.lift_context.LiftContext` (its Jacobian,
@@ -87,7 +87,7 @@ def with_lift_uncertainty(result: FitResult, model: StallModel, train: FlightDat
         basis2 = covariance_basis(jac2, result.names, dict(result.unidentifiable), len(result.nonlinear_names))
         r2_inv = None
     sensitivity = lift_sensitivity(model, result.params, predicted, jac1, context.names, lift.params,
-                                   [n for n, keep in zip(context.names, basis1) if keep])
+                                   [n for n, keep in zip(context.names, basis1) if keep], aliases)
     cov = np.full((result.n_params, result.n_params), np.nan)
     if context.influence is None:
         block, lags, bandwidth, effective_block = generated_regressor_covariance(

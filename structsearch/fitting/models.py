@@ -42,16 +42,16 @@ def wing_source(c: Candidate) -> str:
                            f"{c.lift} has neither one state nor one named 'w' ({', '.join(names) or 'none'})")
 
 
-def wing_aliases(model: StallModel, lift_params: Mapping[str, float]) -> dict[str, str]:
-    """Each wing state's parameter of ``model`` -> the lift model's parameter it copies (:func:`wing_states`: the
-    lift model's only state's, or its wing's "w")."""
-    out = {}
-    for s in model.states:
-        if s.drive:
-            for base in s.base_parameters:
-                found = [k for k in lift_params if k == base or k.startswith(base + "_")]
-                out[s.parameter_name(base)] = found[0] if len(found) == 1 else f"{base}_w"
-    return out
+def wing_aliases(c: Candidate) -> dict[str, str]:
+    """Each parameter of ``c``'s wing states -> the lift model's parameter it copies (its wing state's:
+    :func:`wing_source`); empty without wing states."""
+    if not c.wings:
+        return {}
+    source = wing_source(c)
+    kind, form = dict(c.states)[source], c.form_of(source)
+    shared = SeparationState(source, kind, form)
+    return {SeparationState(name, kind, form).parameter_name(p): shared.parameter_name(p)
+            for name, _ in c.wings for p in shared.base_parameters}
 
 
 def wing_states(c: Candidate, lift_params: Mapping[str, float]) -> tuple[dict, dict, dict, dict]:
@@ -59,15 +59,10 @@ def wing_states(c: Candidate, lift_params: Mapping[str, float]) -> tuple[dict, d
     fitted parameters) read at each wing's own angle of attack."""
     source = wing_source(c)
     kind, form = dict(c.states)[source], c.form_of(source)
-    shared = SeparationState(source, kind, form)
-    states, forms, fixed, drives = {}, {}, {}, {}
-    for name, drive in c.wings:
-        states[name], drives[name] = kind, drive
-        if form != "tanh":
-            forms[name] = form
-        wing = SeparationState(name, kind, form)
-        fixed.update({wing.parameter_name(p): lift_params[shared.parameter_name(p)] for p in shared.base_parameters})
-    return states, forms, fixed, drives
+    states = {name: kind for name, _ in c.wings}
+    forms = {name: form for name, _ in c.wings if form != "tanh"}
+    fixed = {own: lift_params[copied] for own, copied in wing_aliases(c).items()}
+    return states, forms, fixed, dict(c.wings)
 
 
 def model_with_lift(c: Candidate, lift_params: Mapping[str, float] | None) -> StallModel:

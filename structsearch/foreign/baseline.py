@@ -39,8 +39,8 @@ from ..data.errors import DataError, DeclarationError
 from ..diagnosis.offset import JSBSIM_PREFIX, SimulatorBaseline, check_values
 from ..data.coefficients import coefficient as coefficient_record
 from .aircraft_xml import AircraftFile, axes_read, check_axes, read_aircraft
-from .evaluate import STATE_IC, evaluate
-from .lateral_terms import TERM_PREFIX, TRANSFER, TRANSFER_SIGNALS, lateral_terms
+from .evaluate import evaluate
+from .lateral_terms import TERM_PREFIX, TRANSFER, lateral_terms
 from .private_copy import ALPHADOT, ELEVATOR, ELEVATOR_DERIVED, HYSTERESIS, INPUT_PREFIX, derived, rewritten
 
 # the lateral surfaces an aircraft's axes may read, from the campaign's columns (JSBSim's signs: the left
@@ -208,10 +208,8 @@ def term_signals(aircraft: AircraftFile, coefficient: str, record: Mapping) -> d
     out = {}
     for f in aircraft.functions(coefficient_record(coefficient).jsbsim_axis):
         out[TERM_PREFIX + f] = tuple(sorted({s for p in aircraft.leaves([f]) if (s := _signal(p, record))}))
-    if coefficient_record(coefficient).lateral:
-        out[TRANSFER] = TRANSFER_SIGNALS[coefficient]
-    elif coefficient_record(coefficient).moment:
-        out[TRANSFER] = ("CL", "x_cg")
+    if coefficient_record(coefficient).transfer_reads:
+        out[TRANSFER] = coefficient_record(coefficient).transfer_reads
     return out
 
 

@@ -24,8 +24,8 @@ from ..data.coefficients import Coefficient
 
 TERM_PREFIX = "sim:"
 TRANSFER = "sim:transfer"
-# the campaign signals the transfer term follows (the story's words for it)
-TRANSFER_SIGNALS = {"CY": ("beta", "CD"), "Cl": ("CL", "CY"), "Cn": ("CY", "CD")}
+# the body axis (x, y, z) each of JSBSim's moment axes turns about
+BODY_AXIS = {"ROLL": 0, "PITCH": 1, "YAW": 2}
 
 
 def arm_ft(geometry) -> np.ndarray:
@@ -45,7 +45,6 @@ def lateral_terms(evaluation, record: Coefficient, functions: Sequence[str]) -> 
     if not record.moment:
         out[TRANSFER] = fy / qs - sum(out.values())
         return out
-    dx, dy, dz = arm_ft(g)
-    moment = dy * fz - dz * fy if record.jsbsim_axis == "ROLL" else dx * fy - dy * fx
+    moment = np.cross(arm_ft(g), np.column_stack([fx, fy, fz]))[:, BODY_AXIS[record.jsbsim_axis]]
     out[TRANSFER] = moment / scale
     return out
