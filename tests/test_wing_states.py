@@ -58,7 +58,8 @@ def test_the_lift_sensitivity_moves_the_wing_states_with_the_lift_state_they_cop
     theta = np.array([lift_params[n] for n in lift.nonlinear_names])
     coef = np.array([lift_params[n] for n in lift.linear_names])
     jac1 = model_jacobian(lift.bind(data).evaluate(theta), coef, len(theta))
-    analytic = lift_sensitivity(roll, params, data, jac1, names, lift_params, names)
+    analytic = lift_sensitivity(roll, params, data, jac1, names, lift_params, names,
+                                aliases={k: k.rsplit("_", 1)[0] for k in copied})
     assert np.max(np.abs(analytic[:, names.index("a_star")])) > 1e-3     # the wings do move with the lift's a_star
     assert_matches_finite_difference(analytic, lambda x: output(dict(zip(names, x))),
                                      [lift_params[n] for n in names])
